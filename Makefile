@@ -1,0 +1,34 @@
+# make demo: set up .venv, generate the mesh, run the default scene, write its output and a PNG.
+# make test: the same set-up, then the whole test suite.
+VENV ?= .venv
+PY := $(VENV)/bin/python
+STAMP := $(VENV)/.hyperelastic-installed
+KERNELS_STAMP := $(VENV)/.kernels-built
+DEMO_SCENE ?= bend
+DEMO_LEVEL ?= 3
+
+.PHONY: all setup demo test clean
+
+all: setup
+
+setup: $(KERNELS_STAMP)
+
+$(STAMP): requirements.txt setup.py scripts/bootstrap.sh
+	bash scripts/bootstrap.sh
+
+# rebuild the compiled kernels when their source changes (no PETSc rebuild)
+$(KERNELS_STAMP): $(STAMP) hyperelastic/_kernels.c
+	$(PY) setup.py -q build_ext --inplace >/dev/null
+	touch $@
+
+demo: setup
+	mkdir -p output
+	$(VENV)/bin/hyperelastic mesh bar --level $(DEMO_LEVEL) -o meshes/cache/bar_L$(DEMO_LEVEL).msh
+	$(VENV)/bin/hyperelastic run $(DEMO_SCENE) -level $(DEMO_LEVEL) -output output/demo.h5
+	$(VENV)/bin/hyperelastic plot output/demo.h5 -o output/demo.png
+
+test: setup
+	PATH="$(abspath $(VENV))/bin:$$PATH" $(PY) -m pytest -q tests
+
+clean:
+	rm -rf output build hyperelastic/_kernels*.so

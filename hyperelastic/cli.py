@@ -1,0 +1,204 @@
+"""hyperelastic: implicit FEM for stiff hyperelastic solids on PETSc.
+
+  hyperelastic run SCENE [PETSc options]         simulate a scene (built-in name or options file)
+  hyperelastic mesh bar --level N -o FILE.msh    generate a gmsh mesh of the thesis' bar
+  hyperelastic plot FILE.h5 [-o FILE.png]        picture of a frame (default: the last)
+  hyperelastic scenes                            list the built-in scenes
+"""
+import argparse
+import os
+import sys
+
+from .errors import UserError
+
+EXIT_USER, EXIT_SOLVE, EXIT_INTERNAL = 2, 3, 1
+
+
+def _petsc(argv):
+    import petsc4py
+    petsc4py.init([sys.argv[0]] + list(argv))
+    from petsc4py import PETSc
+    return PETSc
+
+
+def _collective(comm, fn):
+    """Run fn on rank 0 and broadcast its result, or its UserError to every rank."""
+    mpi = comm.tompi4py()
+    res = err = None
+    if mpi.rank == 0:
+        try:
+            res = fn()
+        except UserError as e:
+            err = str(e)
+    err = mpi.bcast(err, root=0)
+    if err is not None:
+        raise UserError(err)
+    return res
+
+
+def run(argv):
+    if not argv or argv[0].startswith("-"):
+        raise UserError("run: needs a SCENE (a built-in name or an options file); see `hyperelastic scenes`")
+    scene_arg, petsc_args = argv[0], argv[1:]
+    PETSc = _petsc(petsc_args)
+    from . import __version__
+    from .integrators import BackwardEuler
+    from .mesh import cached_bar, read
+    from .options import Options, all_options, insert_defaults, parse_options_file, resolve_scene
+    from .output import Writer, check_output_path
+    from .scene import build, read_scene
+    from .solver import Solver
+    from .space import Space
+    from .system import System
+    from .effects.inertia import Inertia
+    import numpy as np
+
+    comm = PETSc.COMM_WORLD
+    stage = PETSc.Log.Stage("Setup")
+    stage.push()
+    path = resolve_scene(scene_arg)
+    insert_defaults(parse_options_file(path))
+    opts = Options()
+    name = os.path.splitext(os.path.basename(path))[0]
+    scene = read_scene(name, opts)
+    quiet = opts.flag("quiet")
+    out = opts.string("output", os.path.join("output", f"{name}.h5"))
+    _collective(comm, lambda: check_output_path(out))
+    mesh_file = scene.mesh
+
+    def load():
+        return read(mesh_file if mesh_file else cached_bar(scene.level))
+    mesh = _collective(comm, load)
+    points, tets = mesh if mesh is not None else (None, None)
+    space = Space(comm, points, tets)
+    effects, constraints, _ = build(scene, space)
+    system = System(space, effects, constraints)
+    integ = BackwardEuler(scene, system, None, None, quiet)
+    system.begin_step(0.0, scene.dt, integ.x, integ.v)
+    system.linearize(_global_of(space, integ.x, system))
+    work = space.global_vec()
+    system.set_scale(work)
+    solver = Solver(system, scene.jacobian)
+    integ.solver = solver
+    attrs = {"options": "\n".join(f"-{k} {v}".rstrip() for k, v in all_options()),
+             "scene": name, "scene_file": os.path.abspath(path), "effects": ",".join(e for e in scene.effects),
+             "effects_built": repr(system.built()), "hyperelastic_version": __version__,
+             "petsc_version": ".".join(map(str, PETSc.Sys.getVersion())), "mpi_ranks": comm.getSize(),
+             "jacobian": scene.jacobian + (f" ({solver.mf})" if solver.mf else ""),
+             "material": scene.material.name, "E": scene.E, "nu": scene.nu, "rho": scene.rho,
+             "mesh": os.path.abspath(mesh_file) if mesh_file else f"bar level {scene.level}",
+             "vertices_per_rank": np.array(space.mpi.allgather(space.nlv)),
+             "cells_per_rank": np.array(space.mpi.allgather(space.nc)),
+             "mass_matrix_builds": Inertia.MASS_BUILDS}
+    stage.pop()
+    writer = Writer(out, space, points, tets, attrs)
+    integ.writer = writer
+    try:
+        integ.run()
+    finally:
+        writer.set_attr("steps_completed", integ.step)
+        writer.close()
+    if not quiet and comm.getRank() == 0:
+        print(f"wrote {out} ({integ.step} steps, {writer.nframes} frames)", file=sys.stderr)
+    return 0
+
+
+def _global_of(space, x_local, system):
+    X = space.global_vec()
+    X.getArray()[:] = space.owned_array(x_local)
+    system.impose_global(X)
+    return X
+
+
+def mesh_cmd(argv):
+    ap = _ArgParser(prog="hyperelastic mesh", description="Generate a tetrahedral mesh with gmsh.")
+    ap.add_argument("geometry", help="name of a .geo file under meshes/ (e.g. bar)")
+    ap.add_argument("--level", type=int, required=True, help="refinement level: 1..8 = thesis L1..L8, 9.. finer")
+    ap.add_argument("-o", "--output", required=True, help="output .msh file")
+    a = _parse(ap, argv)
+    from .mesh import generate
+    st = generate(a.geometry, a.level, a.output)
+    print(f"{a.output}: level {a.level} target edge {st['target_size']:.4g}: {st['vertices']} vertices, "
+          f"{st['tets']} tets, min edge {st['min_edge']:.4g}")
+    return 0
+
+
+def _parse(ap, argv):
+    return ap.parse_args(argv)
+
+
+class _ArgParser(argparse.ArgumentParser):
+    """argparse that reports a bad argument as one UserError line instead of usage + exit."""
+
+    def error(self, message):
+        raise UserError(f"{self.prog}: {message}")
+
+
+def plot_cmd(argv):
+    ap = _ArgParser(prog="hyperelastic plot", description="Render a frame of an output file to PNG.")
+    ap.add_argument("file")
+    ap.add_argument("-o", "--output", default=None)
+    ap.add_argument("--frame", type=int, default=-1)
+    a = _parse(ap, argv)
+    from .plot import render
+    out = a.output or os.path.splitext(a.file)[0] + ".png"
+    render(a.file, out, a.frame)
+    print(out)
+    return 0
+
+
+def scenes_cmd(argv):
+    from .options import SCENES_DIR, builtin_scenes
+    for s in builtin_scenes():
+        with open(os.path.join(SCENES_DIR, s + ".opts")) as fh:
+            first = fh.readline().lstrip("# ").strip()
+        print(f"{s:10s} {first}")
+    return 0
+
+
+COMMANDS = {"run": run, "mesh": mesh_cmd, "plot": plot_cmd, "scenes": scenes_cmd}
+
+
+def main(argv=None):
+    argv = list(sys.argv[1:] if argv is None else argv)
+    debug = "-debug" in argv
+    if debug:
+        argv.remove("-debug")
+    if not argv or argv[0] in ("-h", "--help", "help"):
+        print(__doc__)
+        return 0
+    cmd = COMMANDS.get(argv[0])
+    if cmd is None:
+        _error(f"unknown command '{argv[0]}' (choose from {', '.join(COMMANDS)})")
+        return EXIT_USER
+    from .integrators import SolveError
+    try:
+        return cmd(argv[1:])
+    except UserError as e:
+        _error(str(e))
+        return EXIT_USER
+    except SolveError as e:
+        _error(str(e))
+        return EXIT_SOLVE
+    except KeyboardInterrupt:
+        _error("interrupted")
+        return 130
+    except Exception as e:
+        if debug:
+            raise
+        msg = " ".join(str(e).split())[:300] or type(e).__name__
+        _error(f"internal error: {type(e).__name__}: {msg} (rerun with -debug for a traceback)")
+        return EXIT_INTERNAL
+
+
+def _error(msg):
+    rank = 0
+    if "petsc4py.PETSc" in sys.modules:
+        from petsc4py import PETSc
+        rank = PETSc.COMM_WORLD.getRank()
+    if rank == 0:
+        print(f"hyperelastic: error: {msg}", file=sys.stderr, flush=True)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

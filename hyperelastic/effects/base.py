@@ -1,0 +1,76 @@
+"""Effects: each adds its terms to the backward-Euler residual
+    R(x) = M (x - x^n - h v^n)/h^2 + C (x - x^n)/h + k(x) - f
+and to its Jacobian J = M/h^2 + C/h + K (or the quasi-static R = k(x) - f, J = K).
+
+All arrays are local (owned + ghost vertices, 3 dofs each); contributions are additive over the
+cells a rank owns, so summing local arrays into the global vector assembles them.
+"""
+import time
+
+import numpy as np
+
+BUILT = {}  # effect name -> number of instances constructed in this process (tests read it)
+
+
+class Effect:
+    name = "effect"
+    linear = True          # residual affine in x (seed_fd differences only the nonlinear effects)
+    cell_blocks = False    # contributes 12x12 blocks on the cell pattern
+    symmetric = True
+
+    def __init__(self):
+        BUILT[self.name] = BUILT.get(self.name, 0) + 1
+        self.evals = 0       # residual evaluations
+        self.applies = 0     # Jacobian applications / assemblies
+        self.seconds = 0.0
+
+    # time dependence: called once per step before the solve
+    def begin_step(self, t, h, xn, vn):
+        pass
+
+    def residual(self, x, r):
+        """r += this effect's residual at local positions x."""
+
+    def linearize(self, x):
+        """Remember the linearization point for apply/diag/values."""
+
+    def apply(self, v, y):
+        """y += J_effect v (at the linearization point)."""
+
+    def diag(self, d):
+        """d += diag(J_effect)."""
+
+    def add_cell_blocks(self, vals):
+        """vals (nc,12,12) += this effect's cell blocks (only if cell_blocks)."""
+
+    def coo_pattern(self):
+        """Extra COO entries (rows, cols) in local dof numbering, beyond the cell pattern."""
+        return np.zeros(0, np.int64), np.zeros(0, np.int64)
+
+    def coo_values(self, out):
+        """Fill the values of the extra COO entries."""
+
+    def energy(self, x, v):
+        """Contribution to the step's statistics: dict of name -> value (summed over ranks)."""
+        return {}
+
+
+def timed(kind):
+    """Decorator counting calls and wall time of an effect method (kind: 'evals' or 'applies')."""
+    def deco(fn):
+        def wrapper(self, *a, **k):
+            t0 = time.perf_counter()
+            try:
+                return fn(self, *a, **k)
+            finally:
+                self.seconds += time.perf_counter() - t0
+                setattr(self, kind, getattr(self, kind) + 1)
+        wrapper.__name__ = fn.__name__
+        wrapper.__doc__ = fn.__doc__
+        return wrapper
+    return deco
+
+
+def ramp(t, scale, ramp_time=1.0):
+    """Load factor scale * min(t / ramp_time, 1) (the thesis framework's min(t,1) ramps)."""
+    return scale * min(t / ramp_time, 1.0)

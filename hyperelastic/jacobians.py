@@ -1,0 +1,148 @@
+"""Jacobian operators, selected with -jacobian:
+
+  assembled  exact tangent as AIJ (block size 3): COO pattern set once (setPreallocationCOOLocal),
+             values set per Newton step (setValuesCOO)
+  shell      exact tangent as a MatShell applying J v cell by cell, with getDiagonal for Jacobi
+  seed_fd    the thesis' operator: exact M/h^2 + C/h, and K v replaced by (k(x+v) - k(x))/||v||_2 (eq. 5.19)
+  seed_fd2   the same with (-k(x+2v) + 4k(x+v) - 3k(x)) / (2||v||_2) (eq. 7.8)
+
+PETSc's own MFFD needs nothing here: -snes_mf or -snes_mf_operator replace the operator.
+"""
+import numpy as np
+from petsc4py import PETSc
+
+
+def _sizes(space):
+    n = 3 * space.n_owned
+    return ((n, PETSc.DETERMINE), (n, PETSc.DETERMINE))
+
+
+class Assembled:
+    def __init__(self, system):
+        self.system = system
+        sp = system.space
+        self.cell_effects = [e for e in system.effects if e.cell_blocks]
+        self.other = []
+        cd = (3 * sp.cells[:, :, None].astype(np.int64) + np.arange(3)).reshape(-1, 12)   # (nc, 12)
+        rows = [np.repeat(cd, 12, axis=1).ravel()]
+        cols = [np.tile(cd, (1, 12)).ravel()]
+        n = len(rows[0])
+        for e in system.effects:
+            r, c = e.coo_pattern()
+            if len(r):
+                self.other.append((e, slice(n, n + len(r))))
+                rows.append(r)
+                cols.append(c)
+                n += len(r)
+        # the constrained block s I: one entry per owned constrained dof
+        c_owned_local = (3 * sp.lvid_of_owned[:, None] + np.arange(3)).ravel()[system.c_owned_pos]
+        self.diag_slice = slice(n, n + len(c_owned_local))
+        rows.append(c_owned_local)
+        cols.append(c_owned_local)
+        rows = np.concatenate(rows)
+        cols = np.concatenate(cols)
+        cm = system.cmask
+        self.zero = cm[rows] | cm[cols]
+        self.zero[self.diag_slice] = False
+        self.nvals = len(rows)
+        self.ncell = len(cd)
+        A = PETSc.Mat().create(comm=sp.comm)
+        A.setSizes(_sizes(sp), bs=3)
+        A.setType(PETSc.Mat.Type.AIJ)
+        A.setLocalToGlobalMapping(sp.lgmap, sp.lgmap)
+        A.setPreallocationCOOLocal(rows.astype(PETSc.IntType), cols.astype(PETSc.IntType))
+        self.coo_setups = 1
+        del rows, cols
+        self.vals = np.zeros(self.nvals)
+        self.mat = A
+        self._nullspace(sp)
+
+    def _nullspace(self, sp):
+        """The six rigid-body modes of the reference configuration, for GAMG."""
+        coords = sp.global_vec()
+        coords.getArray()[:] = sp.owned_array(sp.X.ravel())
+        self.nullspace = PETSc.NullSpace().createRigidBody(coords)
+        self.mat.setNearNullSpace(self.nullspace)
+        coords.destroy()
+
+    def assemble(self):
+        vals = self.vals
+        cell = vals[:self.ncell * 144].reshape(-1, 12, 12)
+        cell[:] = 0.0
+        for e in self.cell_effects:
+            e.add_cell_blocks(cell)
+        for e, sl in self.other:
+            e.coo_values(vals[sl])
+        vals[self.diag_slice] = self.system.scale
+        vals[self.zero] = 0.0
+        self.mat.setValuesCOO(vals, addv=PETSc.InsertMode.INSERT_VALUES)
+
+
+class _ShellContext:
+    def __init__(self, system):
+        self.system = system
+
+    def getDiagonal(self, mat, D):
+        self.system.diagonal(D)
+
+
+class ExactShell(_ShellContext):
+    """J v by the elements' exact tangents, cell by cell, never assembled."""
+
+    def mult(self, mat, X, Y):
+        self.system.apply(X, Y)
+
+
+class SeedFD(_ShellContext):
+    """The thesis' matrix-free operator: exact linear terms plus the unscaled difference of the
+    elastic forces (eqs. 5.19/5.20, first order; eq. 7.8, second order)."""
+
+    def __init__(self, system, order):
+        super().__init__(system)
+        self.order = order
+        self.elastic = [e for e in system.effects if e.name == "elasticity"]
+        self.exact = [e for e in system.effects if e.name != "elasticity"]
+        self.k0 = None
+
+    def linearize(self):
+        self.k0 = self.system.residual_local(self.system.x_lin, self.elastic)
+
+    def mult(self, mat, X, Y):
+        s = self.system
+        v = s.local(X, s.vl).copy()
+        v[s.cdofs] = 0.0
+        nv = X.norm()
+        y = np.zeros_like(v)
+        for e in self.exact:
+            e.apply(v, y)
+        if nv > 0:
+            x = s.x_lin
+            k1 = s.residual_local(x + v, self.elastic)
+            if self.order == 1:
+                y += (k1 - self.k0) / nv
+            else:
+                k2 = s.residual_local(x + 2 * v, self.elastic)
+                y += (-k2 + 4 * k1 - 3 * self.k0) / (2 * nv)
+        y[s.cdofs] = 0.0
+        s._add(y, Y)
+        s._constrained_rows(X, Y)
+
+
+def make(system, mode):
+    """(operator, context): operator is the PETSc Mat for SNESSetJacobian."""
+    sp = system.space
+    if mode == "assembled":
+        a = Assembled(system)
+        return a.mat, a
+    ctx = ExactShell(system) if mode == "shell" else SeedFD(system, 1 if mode == "seed_fd" else 2)
+    A = PETSc.Mat().createPython(_sizes(sp), context=ctx, comm=sp.comm)
+    A.setUp()
+    return A, ctx
+
+
+def update(ctx):
+    """Refresh an operator after System.linearize."""
+    if isinstance(ctx, Assembled):
+        ctx.assemble()
+    elif isinstance(ctx, SeedFD):
+        ctx.linearize()

@@ -1,0 +1,83 @@
+"""ctypes bindings to the compiled element kernels (_kernels.c, built by setup.py)."""
+import ctypes
+import glob
+import os
+
+import numpy as np
+
+_here = os.path.dirname(os.path.abspath(__file__))
+IDX = np.int32  # vertex index type used by the kernels
+
+
+def _load():
+    libs = sorted(glob.glob(os.path.join(_here, "_kernels*.so")))
+    src = os.path.join(_here, "_kernels.c")
+    if not libs:
+        raise ImportError("hyperelastic: compiled kernels not found; run `make` (pip install -e .) to build them")
+    lib = libs[0]
+    if os.path.getmtime(src) > os.path.getmtime(lib):
+        raise ImportError(f"hyperelastic: {lib} is older than _kernels.c; run `make` to rebuild it")
+    return ctypes.CDLL(lib)
+
+
+_lib = _load()
+_P = ctypes.c_void_p
+_I = ctypes.c_int64
+_D = ctypes.c_double
+for _name in ("he_forces", "he_energy", "he_kv", "he_tangent", "he_tangent_diag"):
+    fn = getattr(_lib, _name)
+    fn.restype = _I
+    fn.argtypes = [_I, _P, _P, _P, _P, ctypes.c_int, _D, _D] + ([_P, _P] if _name == "he_kv" else [_P])
+_lib.he_mass_apply.restype = None
+_lib.he_mass_apply.argtypes = [_I, _P, _P, _D, _P, _P]
+
+
+def _ptr(a, dtype):
+    assert a.dtype == dtype and a.flags.c_contiguous, (a.dtype, a.flags)
+    return a.ctypes.data
+
+
+class CellKernels:
+    """Binds a cell set (local vertex indices, Dm^-1, volumes) and a material to the C kernels."""
+
+    def __init__(self, cells, Dminv, vol, material_id, mu, lam):
+        self.cells = np.ascontiguousarray(cells, dtype=IDX)
+        self.Dminv = np.ascontiguousarray(Dminv, dtype=np.float64).reshape(-1, 9)
+        self.vol = np.ascontiguousarray(vol, dtype=np.float64)
+        self.nc = len(self.vol)
+        self.mat = int(material_id)
+        self.mu = float(mu)
+        self.lam = float(lam)
+        self._args = (self.nc, _ptr(self.cells, IDX), _ptr(self.Dminv, np.float64), _ptr(self.vol, np.float64))
+
+    def _x(self, x):
+        return _ptr(x, np.float64)
+
+    def forces(self, x, f):
+        """f += k(x); returns the number of cells where the material is undefined."""
+        return _lib.he_forces(*self._args, self._x(x), self.mat, self.mu, self.lam, _ptr(f, np.float64))
+
+    def energy(self, x):
+        out = np.zeros(3)
+        bad = _lib.he_energy(*self._args, self._x(x), self.mat, self.mu, self.lam, _ptr(out, np.float64))
+        return out[0], out[1], out[2], bad
+
+    def kv(self, x, v, y):
+        """y += K(x) v."""
+        return _lib.he_kv(*self._args, self._x(x), self.mat, self.mu, self.lam, _ptr(v, np.float64),
+                          _ptr(y, np.float64))
+
+    def tangent(self, x, vals=None):
+        """12x12 cell tangents, shape (nc, 12, 12), dof order 3a+i."""
+        if vals is None:
+            vals = np.empty((self.nc, 12, 12))
+        bad = _lib.he_tangent(*self._args, self._x(x), self.mat, self.mu, self.lam, _ptr(vals, np.float64))
+        return vals, bad
+
+    def tangent_diag(self, x, diag):
+        return _lib.he_tangent_diag(*self._args, self._x(x), self.mat, self.mu, self.lam, _ptr(diag, np.float64))
+
+    def mass_apply(self, coef, v, y):
+        """y += coef * (consistent P1 mass pattern) v."""
+        _lib.he_mass_apply(self.nc, _ptr(self.cells, IDX), _ptr(self.vol, np.float64), float(coef),
+                           _ptr(v, np.float64), _ptr(y, np.float64))

@@ -1,0 +1,25 @@
+import numpy as np
+
+from ._tensor import I3, sym, tr
+
+
+class Linear:
+    """Linear elasticity: eps = sym(F) - I, Psi = mu eps:eps + lam/2 tr(eps)^2,
+    P = 2 mu eps + lam tr(eps) I (thesis eqs. 3.23, 3.27, 3.34)."""
+    name = "linear"
+    kernel_id = 0
+    defined_when_inverted = True
+
+    @staticmethod
+    def psi(F, mu, lam):
+        e = sym(F) - I3
+        return mu * np.einsum("...ij,...ij", e, e) + 0.5 * lam * tr(e) ** 2
+
+    @staticmethod
+    def P(F, mu, lam):
+        e = sym(F) - I3
+        return 2 * mu * e + lam * tr(e)[..., None, None] * I3
+
+    @staticmethod
+    def dP(F, dF, mu, lam):
+        return 2 * mu * sym(dF) + lam * tr(dF)[..., None, None] * I3

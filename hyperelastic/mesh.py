@@ -1,0 +1,203 @@
+"""Meshes: gmsh generation of the thesis' bar, reading and checking any tetrahedral mesh meshio
+reads, spatial ordering of cells, and creation + distribution of the DMPlex."""
+import os
+import sys
+
+import numpy as np
+
+from .errors import UserError
+
+_root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+GEO_DIR = os.path.join(_root, "meshes")
+
+# Target edge lengths L1..L8 of the thesis (Table 4); finer levels halve the tet volume each step
+# (edge length / 2^(1/3)), so each level has about twice the tets of the one before.
+LEVEL_SIZES = {1: 0.80, 2: 0.75, 3: 0.65, 4: 0.50, 5: 0.45, 6: 0.40, 7: 0.35, 8: 0.30}
+
+
+def level_size(level):
+    if level < 1:
+        raise UserError(f"mesh level {level} must be >= 1")
+    if level in LEVEL_SIZES:
+        return LEVEL_SIZES[level]
+    return LEVEL_SIZES[8] * 2.0 ** (-(level - 8) / 3.0)
+
+
+def cache_dir():
+    d = os.environ.get("HYPERELASTIC_MESH_CACHE", os.path.join(GEO_DIR, "cache"))
+    os.makedirs(d, exist_ok=True)
+    return d
+
+
+def generate(name, level, out):
+    """Generate meshes/<name>.geo at the target edge length of `level` with gmsh; returns stats."""
+    geo = os.path.join(GEO_DIR, f"{name}.geo")
+    if not os.path.isfile(geo):
+        known = sorted(f[:-4] for f in os.listdir(GEO_DIR) if f.endswith(".geo"))
+        raise UserError(f"unknown mesh geometry '{name}' (known: {', '.join(known)})")
+    size = level_size(level)
+    d = os.path.dirname(os.path.abspath(out))
+    if os.path.isdir(out):
+        raise UserError(f"output '{out}' is a directory")
+    try:
+        os.makedirs(d, exist_ok=True)
+    except OSError as e:
+        raise UserError(f"output '{out}': cannot create directory '{d}' ({e.strerror})") from None
+    if not os.access(d, os.W_OK):
+        raise UserError(f"output '{out}': directory '{d}' is not writable")
+    import gmsh
+    gmsh.initialize(["gmsh", "-v", "0"], readConfigFiles=False)
+    try:
+        gmsh.option.setNumber("General.Terminal", 0)
+        gmsh.option.setNumber("General.NumThreads", 1)
+        gmsh.open(geo)
+        gmsh.option.setNumber("Mesh.MeshSizeMin", size)
+        gmsh.option.setNumber("Mesh.MeshSizeMax", size)
+        gmsh.option.setNumber("Mesh.MeshSizeExtendFromBoundary", 0)
+        gmsh.option.setNumber("Mesh.Algorithm3D", 1)
+        gmsh.option.setNumber("Mesh.MshFileVersion", 4.1)
+        gmsh.option.setNumber("Mesh.SaveAll", 0)
+        gmsh.model.mesh.generate(3)
+        tmp = out + f".tmp{os.getpid()}.msh"
+        gmsh.write(tmp)
+    finally:
+        gmsh.finalize()
+    os.replace(tmp, out)
+    pts, tets = read(out)
+    return describe(pts, tets) | {"level": level, "target_size": size, "file": out}
+
+
+def describe(points, tets):
+    edges = np.concatenate([tets[:, [a, b]] for a, b in ((0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3))])
+    lengths = np.linalg.norm(points[edges[:, 0]] - points[edges[:, 1]], axis=1)
+    return {"vertices": len(points), "tets": len(tets), "min_edge": float(lengths.min()),
+            "max_edge": float(lengths.max())}
+
+
+def cached_bar(level):
+    """Path of the cached bar mesh at `level`, generating it on first use."""
+    path = os.path.join(cache_dir(), f"bar_L{level}.msh")
+    if not os.path.isfile(path):
+        generate("bar", level, path)
+    return path
+
+
+def read(path):
+    """Read a tetrahedral mesh with meshio and check it; returns (points (n,3) float64, tets (m,4) int64).
+    Any defect raises UserError naming the file and the first bad element."""
+    if not os.path.exists(path):
+        raise UserError(f"mesh '{path}': no such file")
+    if os.path.isdir(path):
+        raise UserError(f"mesh '{path}': is a directory")
+    import meshio
+    import warnings
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            m = _quiet(meshio.read, path)
+    except Exception as e:  # meshio raises many kinds of errors for malformed files
+        msg = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
+        raise UserError(f"mesh '{path}': cannot be read ({msg[:200]})") from None
+    points = np.asarray(m.points, dtype=np.float64)
+    blocks = [c.data for c in m.cells if c.type == "tetra"]
+    if not blocks:
+        found = sorted({c.type for c in m.cells})
+        what = ", ".join(found) if found else "no cells"
+        raise UserError(f"mesh '{path}': contains no tetrahedra (found: {what})")
+    tets = np.concatenate(blocks).astype(np.int64)
+    check(points, tets, path)
+    return points, tets
+
+
+def _quiet(fn, *args):
+    """Call fn with C-level stdout/stderr silenced (meshio and gmsh may print)."""
+    sys.stdout.flush()
+    sys.stderr.flush()
+    saved = os.dup(1), os.dup(2)
+    with open(os.devnull, "w") as null:
+        os.dup2(null.fileno(), 1)
+        os.dup2(null.fileno(), 2)
+        try:
+            return fn(*args)
+        finally:
+            os.dup2(saved[0], 1)
+            os.dup2(saved[1], 2)
+            os.close(saved[0])
+            os.close(saved[1])
+
+
+def signed_volumes(points, tets):
+    X0 = points[tets[:, 0]]
+    D = np.stack([points[tets[:, 1]] - X0, points[tets[:, 2]] - X0, points[tets[:, 3]] - X0], axis=-1)
+    return np.linalg.det(D) / 6.0
+
+
+def check(points, tets, path):
+    if points.ndim != 2 or points.shape[1] < 3 or len(points) == 0:
+        raise UserError(f"mesh '{path}': has no 3-D vertices")
+    points = points[:, :3]
+    if len(tets) == 0:
+        raise UserError(f"mesh '{path}': is empty (0 tetrahedra)")
+    bad = np.flatnonzero(~np.isfinite(points).all(axis=1))
+    if len(bad):
+        raise UserError(f"mesh '{path}': vertex {bad[0]} has a non-finite coordinate {points[bad[0]].tolist()}")
+    bad = np.flatnonzero(((tets < 0) | (tets >= len(points))).any(axis=1))
+    if len(bad):
+        raise UserError(f"mesh '{path}': tetrahedron {bad[0]} has a vertex index out of range "
+                        f"{tets[bad[0]].tolist()} (mesh has {len(points)} vertices)")
+    s = np.sort(tets, axis=1)
+    bad = np.flatnonzero((s[:, 1:] == s[:, :-1]).any(axis=1))
+    if len(bad):
+        raise UserError(f"mesh '{path}': tetrahedron {bad[0]} repeats a vertex {tets[bad[0]].tolist()}")
+    used = np.zeros(len(points), bool)
+    used[tets.ravel()] = True
+    if not used.all():
+        v = int(np.flatnonzero(~used)[0])
+        raise UserError(f"mesh '{path}': vertex {v} is not used by any tetrahedron "
+                        f"({int((~used).sum())} unused vertices)")
+    order = np.lexsort(points.T[::-1])
+    sp = points[order]
+    dup = np.flatnonzero((sp[1:] == sp[:-1]).all(axis=1))
+    if len(dup):
+        a, b = sorted((int(order[dup[0]]), int(order[dup[0] + 1])))
+        raise UserError(f"mesh '{path}': vertices {a} and {b} are duplicates at {points[a].tolist()}")
+    V = signed_volumes(points, tets)
+    e = np.stack([points[tets[:, b]] - points[tets[:, a]] for a, b in ((0, 1), (0, 2), (0, 3), (1, 2))])
+    lmax = np.linalg.norm(e, axis=-1).max(axis=0)
+    tiny = np.abs(V) <= 1e-12 * lmax ** 3
+    if tiny.any():
+        i = int(np.flatnonzero(tiny)[0])
+        raise UserError(f"mesh '{path}': tetrahedron {i} has zero volume (vertices {tets[i].tolist()})")
+    if (V < 0).any():
+        i = int(np.flatnonzero(V < 0)[0])
+        raise UserError(f"mesh '{path}': tetrahedron {i} is inverted (negative volume {V[i]:.3g}, "
+                        f"vertices {tets[i].tolist()})")
+
+
+def morton_order(centroids):
+    """Order of points along a Z-order (Morton) curve, 21 bits per axis."""
+    lo, hi = centroids.min(axis=0), centroids.max(axis=0)
+    q = ((centroids - lo) / np.maximum(hi - lo, 1e-300) * (2 ** 21 - 1)).astype(np.uint64)
+
+    def spread(v):
+        v = v & np.uint64(0x1FFFFF)
+        for shift, mask in ((32, 0x1F00000000FFFF), (16, 0x1F0000FF0000FF), (8, 0x100F00F00F00F00F),
+                            (4, 0x10C30C30C30C30C3), (2, 0x1249249249249249)):
+            v = (v | (v << np.uint64(shift))) & np.uint64(mask)
+        return v
+    code = spread(q[:, 0]) | (spread(q[:, 1]) << np.uint64(1)) | (spread(q[:, 2]) << np.uint64(2))
+    return np.argsort(code, kind="stable")
+
+
+def spatial_order(points, tets):
+    """Reorder cells along a space-filling curve and number vertices by first use, so that the
+    'simple' partitioner (contiguous cell ranges) gives compact parts. Returns (points', tets',
+    vertex_perm) with points' = points[vertex_perm], and the cell permutation."""
+    corder = morton_order(points[tets].mean(axis=1))
+    t = tets[corder]
+    flat = t.ravel()
+    uniq, idx = np.unique(flat, return_index=True)
+    vperm = uniq[np.argsort(idx, kind="stable")]  # vertices in order of first appearance
+    inv = np.empty(len(points), np.int64)
+    inv[vperm] = np.arange(len(vperm))
+    return points[vperm], inv[t], vperm, corder

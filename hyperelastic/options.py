@@ -1,0 +1,146 @@
+"""Typed, validated access to the PETSc options database, and scene files.
+
+A scene file is a PETSc options file (one `-key value` or `-flag` per line, `#` comments). Its
+values are defaults: an option given on the command line wins.
+"""
+import math
+import os
+import shlex
+
+from petsc4py import PETSc
+
+from .errors import UserError
+
+_root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+OPTIONS_DIR = os.path.join(_root, "options")
+SCENES_DIR = os.path.join(OPTIONS_DIR, "scenes")
+
+
+def builtin_scenes():
+    return sorted(f[:-5] for f in os.listdir(SCENES_DIR) if f.endswith(".opts"))
+
+
+def parse_options_file(path):
+    """[(key, value-or-None)] from a PETSc options file; UserError on a malformed line."""
+    try:
+        with open(path) as fh:
+            text = fh.read()
+    except OSError as e:
+        raise UserError(f"scene '{path}': cannot be read ({e.strerror})") from None
+    pairs = []
+    for lineno, line in enumerate(text.splitlines(), 1):
+        line = line.split("#", 1)[0].strip()
+        if not line:
+            continue
+        try:
+            toks = shlex.split(line)
+        except ValueError as e:
+            raise UserError(f"scene '{path}' line {lineno}: {e}") from None
+        if not toks[0].startswith("-") or len(toks) > 2:
+            raise UserError(f"scene '{path}' line {lineno}: expected '-option [value]', got '{line}'")
+        pairs.append((toks[0][1:], toks[1] if len(toks) == 2 else None))
+    return pairs
+
+
+def resolve_scene(scene):
+    """Path of a scene: a built-in name (options/scenes/NAME.opts) or a path to an options file."""
+    if os.path.isfile(scene):
+        return scene
+    path = os.path.join(SCENES_DIR, f"{scene}.opts")
+    if os.path.isfile(path):
+        return path
+    raise UserError(f"unknown scene '{scene}' (built-in: {', '.join(builtin_scenes())}; or a path to an "
+                    "options file)")
+
+
+def insert_defaults(pairs, opts=None):
+    """Insert (key, value) pairs into the options database unless already set (command line wins)."""
+    opts = opts or PETSc.Options()
+    for key, val in pairs:
+        if not opts.hasName(key):
+            opts.setValue(key, "" if val is None else val)
+
+
+class Options:
+    """Reads options with a clear one-line error for a wrong value; remembers what it read."""
+
+    def __init__(self, prefix=None):
+        self.o = PETSc.Options(prefix)
+        self.read = {}
+
+    def has(self, name):
+        return self.o.hasName(name)
+
+    def string(self, name, default=None):
+        v = self.o.getString(name, default) if self.o.hasName(name) else default
+        if self.o.hasName(name) and (v is None or v == ""):
+            raise UserError(f"option -{name}: needs a value")
+        self.read[name] = v
+        return v
+
+    def real(self, name, default=None, minimum=None, exclusive=True, maximum=None):
+        s = self.string(name, None)
+        if s is None:
+            return default
+        try:
+            v = float(s)
+        except ValueError:
+            raise UserError(f"option -{name}: '{s}' is not a number") from None
+        if not math.isfinite(v):
+            raise UserError(f"option -{name}: {s} is not a finite number")
+        if minimum is not None and (v <= minimum if exclusive else v < minimum):
+            raise UserError(f"option -{name}: {s} must be {'>' if exclusive else '>='} {minimum:g}")
+        if maximum is not None and v > maximum:
+            raise UserError(f"option -{name}: {s} must be <= {maximum:g}")
+        return v
+
+    def integer(self, name, default=None, minimum=None):
+        s = self.string(name, None)
+        if s is None:
+            return default
+        try:
+            v = int(s)
+        except ValueError:
+            raise UserError(f"option -{name}: '{s}' is not an integer") from None
+        if minimum is not None and v < minimum:
+            raise UserError(f"option -{name}: {v} must be >= {minimum}")
+        return v
+
+    def flag(self, name):
+        if not self.o.hasName(name):
+            return False
+        s = (self.o.getString(name, "") or "").lower()
+        if s in ("", "1", "true", "yes", "on"):
+            return True
+        if s in ("0", "false", "no", "off"):
+            return False
+        raise UserError(f"option -{name}: '{s}' is not a boolean")
+
+    def choice(self, name, choices, default):
+        v = self.string(name, default)
+        if v not in choices:
+            raise UserError(f"option -{name}: unknown value '{v}' (choose from {', '.join(choices)})")
+        return v
+
+    def vector(self, name, n=3):
+        s = self.string(name, None)
+        if s is None:
+            return None
+        parts = s.replace(";", ",").split(",")
+        try:
+            vals = [float(p) for p in parts]
+        except ValueError:
+            raise UserError(f"option -{name}: '{s}' is not a list of {n} numbers (e.g. 0,0,-9.81)") from None
+        if len(vals) != n or not all(math.isfinite(v) for v in vals):
+            raise UserError(f"option -{name}: '{s}' is not a list of {n} finite numbers (e.g. 0,0,-9.81)")
+        return vals
+
+    def names(self, name, default=""):
+        s = self.string(name, default)
+        return [w.strip() for w in s.split(",") if w.strip()] if s else []
+
+
+def all_options():
+    """The whole options database as a sorted list of (key, value)."""
+    d = PETSc.Options().getAll()
+    return sorted((k, "" if v is None else str(v)) for k, v in d.items())

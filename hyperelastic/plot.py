@@ -1,0 +1,59 @@
+"""PNG of one frame of an output file: the deformed boundary surface, coloured by displacement,
+over the reference shape's outline."""
+import numpy as np
+
+from .errors import UserError
+
+
+def boundary_faces(tets):
+    faces = np.concatenate([tets[:, [0, 2, 1]], tets[:, [0, 1, 3]], tets[:, [1, 2, 3]], tets[:, [0, 3, 2]]])
+    key = np.sort(faces, axis=1)
+    _, idx, counts = np.unique(key, axis=0, return_index=True, return_counts=True)
+    return faces[idx[counts == 1]]
+
+
+def render(path, out, frame=-1):
+    import h5py
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from mpl_toolkits.mplot3d.art3d import Poly3DCollection
+    try:
+        f = h5py.File(path, "r")
+    except OSError as e:
+        raise UserError(f"plot: cannot open '{path}' ({e})") from None
+    with f:
+        if "x" not in f or f["x"].shape[0] == 0:
+            raise UserError(f"plot: '{path}' has no frames")
+        X = f["mesh/points"][:]
+        tets = f["mesh/tetra"][:]
+        n = f["x"].shape[0]
+        i = frame if frame >= 0 else n + frame
+        if not 0 <= i < n:
+            raise UserError(f"plot: frame {frame} out of range (0..{n - 1})")
+        x = f["x"][i]
+        t = f["time"][i]
+        scene = f.attrs.get("scene", "")
+    tri = boundary_faces(tets)
+    u = np.linalg.norm(x - X, axis=1)
+    fig = plt.figure(figsize=(8, 5))
+    ax = fig.add_subplot(111, projection="3d")
+    val = u[tri].mean(axis=1)
+    norm = plt.Normalize(0, max(val.max(), 1e-300))
+    pc = Poly3DCollection(x[tri], facecolors=plt.cm.viridis(norm(val)), edgecolor=(0, 0, 0, 0.15), linewidths=0.2)
+    ax.add_collection3d(pc)
+    lo, hi = np.minimum(X.min(0), x.min(0)), np.maximum(X.max(0), x.max(0))
+    c, r = (lo + hi) / 2, (hi - lo).max() / 2
+    for setlim, ci in zip((ax.set_xlim, ax.set_ylim, ax.set_zlim), c):
+        setlim(ci - r, ci + r)
+    ax.set_box_aspect((1, 1, 1))
+    ax.set_xlabel("x")
+    ax.set_ylabel("y")
+    ax.set_zlabel("z")
+    sm = plt.cm.ScalarMappable(cmap="viridis", norm=norm)
+    fig.colorbar(sm, ax=ax, shrink=0.7, label="|displacement| [m]")
+    ax.set_title(f"{scene}  t = {t:.3g} s  (frame {i})")
+    fig.tight_layout()
+    fig.savefig(out, dpi=110)
+    plt.close(fig)
+    return out

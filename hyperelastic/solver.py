@@ -1,0 +1,67 @@
+"""SNES / KSP / PC from the options database, with this application's defaults:
+Newton with backtracking line search, CG + Jacobi (no PC under -snes_mf)."""
+from petsc4py import PETSc
+
+from . import jacobians
+
+DEFAULTS = (("snes_linesearch_type", "bt"), ("ksp_type", "cg"), ("snes_max_it", "50"))
+
+
+def apply_defaults():
+    opts = PETSc.Options()
+    for k, v in DEFAULTS:
+        if not opts.hasName(k):
+            opts.setValue(k, v)
+    if not opts.hasName("pc_type"):
+        opts.setValue("pc_type", "none" if opts.getBool("snes_mf", False) else "jacobi")
+
+
+def matrix_free():
+    """'mf', 'mf_operator' or '' from -snes_mf / -snes_mf_operator."""
+    opts = PETSc.Options()
+    if opts.getBool("snes_mf", False):
+        return "mf"
+    if opts.getBool("snes_mf_operator", False):
+        return "mf_operator"
+    return ""
+
+
+class Solver:
+    def __init__(self, system, mode):
+        self.system = system
+        sp = system.space
+        apply_defaults()
+        self.mf = matrix_free()
+        self.R = sp.global_vec()
+        self.snes = snes = PETSc.SNES().create(comm=sp.comm)
+        snes.setFunction(self._residual, self.R)
+        self.A = self.ctx = None
+        if self.mf != "mf":   # under -snes_mf no Jacobian of ours is used: do not build one
+            self.A, self.ctx = jacobians.make(system, mode)
+            snes.setJacobian(self._jacobian, self.A, self.A)
+        snes.setFromOptions()
+        self.ev_res = PETSc.Log.Event("HE_Residual")
+        self.ev_jac = PETSc.Log.Event("HE_Jacobian")
+
+    def _residual(self, snes, X, R):
+        self.ev_res.begin()
+        self.system.residual(X, R)
+        if self.system.undefined_cells():
+            snes.setFunctionDomainError()
+        self.ev_res.end()
+
+    def _jacobian(self, snes, X, J, P):
+        self.ev_jac.begin()
+        self.system.linearize(X)
+        jacobians.update(self.ctx)
+        if J.handle != P.handle:
+            J.assemble()   # MFFD operator (-snes_mf_operator): new base point
+        self.ev_jac.end()
+
+    def solve(self, X):
+        self.snes.solve(None, X)
+        return self.snes.getConvergedReason()
+
+    def reason_name(self, reason):
+        names = {v: k for k, v in vars(PETSc.SNES.ConvergedReason).items() if isinstance(v, int)}
+        return names.get(reason, str(reason))

@@ -1,0 +1,162 @@
+"""P1 vector field (3 dofs per vertex) on a distributed, uninterpolated DMPlex of tetrahedra.
+
+Rank 0 reads the mesh, orders it spatially and builds the serial DMPlex; `distribute` with the
+`simple` partitioner hands each rank a contiguous range of (spatially ordered) cells. Every rank
+then knows, for its local vertices (owned + ghosts): the local dof offsets, reference coordinates,
+the index of the vertex in the input mesh, and ownership. Per-cell Dm^-1 and volumes are computed
+once here.
+"""
+import numpy as np
+from petsc4py import PETSc
+
+from .kernels import IDX
+from .mesh import spatial_order
+
+
+class Space:
+    def __init__(self, comm, points=None, tets=None):
+        """points/tets: the checked input mesh on rank 0 (ignored on other ranks)."""
+        self.comm = comm
+        self.mpi = comm.tompi4py()
+        rank, size = comm.getRank(), comm.getSize()
+        if rank == 0:
+            p, t, vperm, _ = spatial_order(points, tets)
+            nv_total, nc_total = len(p), len(t)
+        else:
+            p, t = np.zeros((0, 3)), np.zeros((0, 4), np.int64)
+            vperm = None
+            nv_total = nc_total = 0
+        self.nv_total, self.nc_total = self.mpi.bcast((nv_total, nc_total), root=0)
+        dm = PETSc.DMPlex().createFromCellList(3, t.astype(PETSc.IntType), p, interpolate=False, comm=comm)
+        part = dm.getPartitioner()
+        part.setType(PETSc.Partitioner.Type.SIMPLE)
+        sf = dm.distribute(overlap=0) if size > 1 else None
+        self.dm = dm
+
+        cStart, cEnd = dm.getHeightStratum(0)
+        vStart, vEnd = dm.getDepthStratum(0)
+        nlv = vEnd - vStart
+        # dof section: 3 dofs on each vertex
+        sec = PETSc.Section().create(comm=PETSc.COMM_SELF)
+        sec.setNumFields(1)
+        sec.setFieldComponents(0, 3)
+        sec.setChart(*dm.getChart())
+        for v in range(vStart, vEnd):
+            sec.setDof(v, 3)
+            sec.setFieldDof(v, 0, 3)
+        sec.setUp()
+        dm.setLocalSection(sec)
+        self.section = sec
+        lvid = np.array([sec.getOffset(v) // 3 for v in range(vStart, vEnd)], dtype=np.int64)
+        # local vertex index of each point (vertices are numbered by their dof offset / 3)
+        self.cells = np.empty((cEnd - cStart, 4), dtype=IDX)
+        for c in range(cStart, cEnd):
+            self.cells[c - cStart] = lvid[dm.getCone(c) - vStart]
+        # reference coordinates of local vertices
+        csec = dm.getCoordinateSection()
+        carr = dm.getCoordinatesLocal().getArray(readonly=True)
+        X = np.empty((nlv, 3))
+        for v in range(vStart, vEnd):
+            o = csec.getOffset(v)
+            X[lvid[v - vStart]] = carr[o:o + 3]
+        self.X = X
+        self.nlv = nlv
+        # input-mesh index of each local vertex
+        if size == 1:
+            serial_vertex = np.arange(vStart, vEnd) - vStart
+        else:
+            nroots, ilocal, iremote = sf.getGraph()
+            leaves = np.arange(len(iremote)) if ilocal is None else np.asarray(ilocal)
+            orig_point = np.full(dm.getChart()[1], -1, np.int64)
+            orig_point[leaves] = np.asarray(iremote).reshape(-1, 2)[:, 1]
+            serial_vertex = orig_point[vStart:vEnd] - nc_total  # serial DM: cells first, then vertices
+        vperm = self.mpi.bcast(vperm, root=0)
+        self.orig = np.empty(nlv, np.int64)
+        self.orig[lvid] = vperm[serial_vertex]
+        # ownership: a vertex is a ghost when it is a leaf of the point SF
+        owned_pt = np.ones(nlv, bool)
+        _, ilocal, _ = dm.getPointSF().getGraph()
+        if ilocal is not None and len(ilocal):
+            il = np.asarray(ilocal)
+            il = il[(il >= vStart) & (il < vEnd)]
+            owned_pt[lvid[il - vStart]] = False
+        self.owned = owned_pt
+        self.n_owned = int(owned_pt.sum())
+        self.owned_dofs = (3 * np.flatnonzero(owned_pt)[:, None] + np.arange(3)).ravel()
+        # geometry per cell, computed once: Dm^-1 and volume (thesis eq. 4.29 in matrix form)
+        Xc = X[self.cells]
+        Dm = np.stack([Xc[:, 1] - Xc[:, 0], Xc[:, 2] - Xc[:, 0], Xc[:, 3] - Xc[:, 0]], axis=-1)
+        det = np.linalg.det(Dm)
+        self.vol = np.abs(det) / 6.0  # F = Ds Dm^-1 does not depend on vertex order; V must be > 0
+        self.Dminv = np.ascontiguousarray(np.linalg.inv(Dm))
+        self.nc = len(self.cells)
+        self.lgmap = dm.getLocalToGlobalMapping()
+        gv = dm.createGlobalVec()
+        self.rstart, self.rend = gv.getOwnershipRange()
+        gv.destroy()
+        # global min/max of the reference coordinates, for face selection
+        lo = X.min(axis=0) if nlv else np.full(3, np.inf)
+        hi = X.max(axis=0) if nlv else np.full(3, -np.inf)
+        from mpi4py import MPI
+        self.bbox = (self.mpi.allreduce(lo, op=MPI.MIN), self.mpi.allreduce(hi, op=MPI.MAX))
+        # gather plan for output on rank 0 (input vertex order)
+        ids = self.orig[owned_pt]
+        self._counts = self.mpi.gather(len(ids), root=0)
+        allids = self.mpi.gather(ids, root=0)
+        self._gorder = np.concatenate(allids) if rank == 0 else None
+        self.lvid_of_owned = np.flatnonzero(owned_pt)
+
+    # --- vectors -----------------------------------------------------------------------------
+    def global_vec(self):
+        v = self.dm.createGlobalVec()
+        v.setBlockSize(3)
+        return v
+
+    def local_vec(self):
+        v = self.dm.createLocalVec()
+        v.setBlockSize(3)
+        return v
+
+    def to_local(self, g, l):
+        self.dm.globalToLocal(g, l, addv=PETSc.InsertMode.INSERT_VALUES)
+
+    def add_to_global(self, l, g):
+        """g = sum over ranks of local contributions l (g is zeroed first)."""
+        g.zeroEntries()
+        self.dm.localToGlobal(l, g, addv=PETSc.InsertMode.ADD_VALUES)
+
+    def local_field(self, values_per_vertex):
+        """A local-vector-shaped array from per-local-vertex values (nlv, 3)."""
+        return np.ascontiguousarray(values_per_vertex, dtype=np.float64).reshape(-1)
+
+    def owned_array(self, local_array):
+        """The owned part of a local array, in global-vector order."""
+        return local_array.reshape(-1, 3)[self.lvid_of_owned].reshape(-1)
+
+    def gather(self, local_array):
+        """(nv, 3) array in the input mesh's vertex order on rank 0; None elsewhere."""
+        mine = np.ascontiguousarray(local_array.reshape(-1, 3)[self.owned])
+        parts = self.mpi.gather(mine, root=0)
+        if self.mpi.rank != 0:
+            return None
+        out = np.empty((self.nv_total, 3))
+        out[self._gorder] = np.concatenate(parts)
+        return out
+
+    def face_vertices(self, axis, side, tol=0.01):
+        """Local vertices within tol of the min (side='min') or max face of the bounding box."""
+        ref = self.bbox[0][axis] if side == "min" else self.bbox[1][axis]
+        return np.flatnonzero(np.abs(self.X[:, axis] - ref) < tol)
+
+    def boundary_triangles(self, vset):
+        """Faces of local cells whose three vertices all lie in the local vertex set `vset`
+        (a face on a planar boundary belongs to exactly one cell). Returns (ntri, 3) local ids."""
+        mark = np.zeros(self.nlv, bool)
+        mark[vset] = True
+        m = mark[self.cells]
+        tris = []
+        for drop in range(4):
+            keep = [i for i in range(4) if i != drop]
+            sel = m[:, keep].all(axis=1)
+            tris.append(self.cells[sel][:, keep])
+        return np.concatenate(tris).astype(np.int64)

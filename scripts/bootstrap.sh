@@ -1,0 +1,40 @@
+#!/usr/bin/env bash
+# Create .venv and install everything hyperelastic needs. Idempotent: a second run
+# installs nothing new (pip reuses its cached PETSc wheel; the stamp file skips pip entirely).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+VENV=${VENV:-.venv}
+STAMP="$VENV/.hyperelastic-installed"
+REQ=requirements.txt
+
+have_lapack() {
+  ls /usr/lib/*/liblapack.so /usr/lib/liblapack.so /usr/lib64/liblapack.so 2>/dev/null | grep -q .
+}
+if ! have_lapack; then
+  echo "bootstrap: no LAPACK found; installing liblapack-dev with apt-get"
+  SUDO=""; [ "$(id -u)" -ne 0 ] && SUDO=sudo
+  $SUDO apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq liblapack-dev >/dev/null
+fi
+
+if [ -f "$STAMP" ] && [ "$STAMP" -nt "$REQ" ] && [ "$STAMP" -nt setup.py ]; then
+  exit 0
+fi
+
+[ -x "$VENV/bin/python" ] || python3 -m venv "$VENV"
+# shellcheck disable=SC1091
+. "$VENV/bin/activate"
+export PIP_DISABLE_PIP_VERSION_CHECK=1
+python -m pip install -q --upgrade pip setuptools wheel
+# MPI first (provides mpicc/mpiexec in $VENV/bin), then mpi4py, then PETSc built against it.
+python -m pip install -q "$(grep -E '^mpich' $REQ)"
+python -m pip install -q "$(grep -E '^mpi4py' $REQ)"
+# PETSc's default C flags are -g -O; build optimized. The wheel is cached by pip afterwards.
+export PETSC_CONFIGURE_OPTIONS="${PETSC_CONFIGURE_OPTIONS:-COPTFLAGS=-O3 CXXOPTFLAGS=-O3 FOPTFLAGS=-O3}"
+echo "bootstrap: installing PETSc/petsc4py (first build ~17 min; cached afterwards)"
+python -m pip install -q "$(grep -E '^petsc[<>=]' $REQ)"
+python -m pip install -q "$(grep -E '^petsc4py' $REQ)"
+python -m pip install -q -r "$REQ"
+python -m pip install -q --no-build-isolation -e .
+touch "$STAMP"
+echo "bootstrap: done"

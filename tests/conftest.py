@@ -1,0 +1,71 @@
+import os
+import shutil
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+BIN = os.path.dirname(sys.executable)
+
+
+def hyperelastic(args, nprocs=1, timeout=600, cwd=None):
+    """Run the `hyperelastic` console script (under mpiexec when nprocs > 1)."""
+    exe = os.path.join(BIN, "hyperelastic")
+    cmd = [exe] + [str(a) for a in args]
+    if nprocs > 1:
+        mpiexec = shutil.which("mpiexec", path=BIN) or shutil.which("mpiexec")
+        cmd = [mpiexec, "-n", str(nprocs)] + cmd
+    return subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, cwd=cwd)
+
+
+def run_ok(args, nprocs=1, **kw):
+    p = hyperelastic(args, nprocs, **kw)
+    assert p.returncode == 0, f"exit {p.returncode}\nstdout:\n{p.stdout}\nstderr:\n{p.stderr}"
+    return p
+
+
+def read_h5(path):
+    import h5py
+    with h5py.File(path, "r") as f:
+        out = {"x": f["x"][:], "time": f["time"][:], "points": f["mesh/points"][:], "tetra": f["mesh/tetra"][:],
+               "attrs": dict(f.attrs), "stats": {k: f["stats"][k][:] for k in f["stats"]}}
+    return out
+
+
+@pytest.fixture(scope="session")
+def l1_mesh():
+    """Path of the cached L1 bar mesh (generated once)."""
+    from hyperelastic.mesh import cached_bar
+    return cached_bar(1)
+
+
+@pytest.fixture(scope="session")
+def petsc():
+    import petsc4py
+    petsc4py.init([sys.argv[0]])
+    from petsc4py import PETSc
+    return PETSc
+
+
+def make_problem(petsc, scene_name="bend", options=(), mesh=None):
+    """In-process scene set-up on COMM_WORLD: (scene, space, system)."""
+    from hyperelastic.mesh import cached_bar, read
+    from hyperelastic.options import Options, insert_defaults, parse_options_file, resolve_scene
+    from hyperelastic.scene import build, read_scene
+    from hyperelastic.space import Space
+    from hyperelastic.system import System
+    PETSc = petsc
+    o = PETSc.Options()
+    for k in list(o.getAll()):
+        o.delValue(k)
+    for k, v in options:
+        o.setValue(k, v)
+    insert_defaults(parse_options_file(resolve_scene(scene_name)))
+    scene = read_scene(scene_name, Options())
+    pts, tets = read(mesh or cached_bar(scene.level))
+    space = Space(PETSc.COMM_WORLD, pts, tets)
+    effects, constraints, k = build(scene, space)
+    system = System(space, effects, constraints)
+    return scene, space, system

@@ -1,0 +1,163 @@
+"""Every bad input ends in exactly one error line and a non-zero exit, never a traceback, and
+never touches an existing output file."""
+import os
+
+import numpy as np
+import pytest
+
+from conftest import hyperelastic
+
+
+def one_line_error(p, *words):
+    assert p.returncode != 0, p.stdout + p.stderr
+    lines = [l for l in p.stderr.splitlines() if l.strip()]
+    assert len(lines) == 1, p.stderr
+    assert "Traceback" not in p.stderr
+    for w in words:
+        assert w in lines[0], (w, lines[0])
+    return lines[0]
+
+
+def write_msh(path, points, tets):
+    import meshio
+    meshio.write(path, meshio.Mesh(np.asarray(points, float), [("tetra", np.asarray(tets))]), file_format="gmsh22",
+                 binary=False)
+
+
+def cube(n=3):
+    """A structured tetrahedral mesh of the unit cube (6 tets per cell, positively oriented)."""
+    g = np.linspace(0, 1, n + 1)
+    P = np.array([[x, y, z] for z in g for y in g for x in g])
+    idx = lambda i, j, k: i + (n + 1) * (j + (n + 1) * k)
+    T = []
+    for k in range(n):
+        for j in range(n):
+            for i in range(n):
+                v = [idx(i + a, j + b, k + c) for c in (0, 1) for b in (0, 1) for a in (0, 1)]
+                for t in ((0, 1, 3, 7), (0, 1, 5, 7), (0, 2, 3, 7), (0, 2, 6, 7), (0, 4, 5, 7), (0, 4, 6, 7)):
+                    T.append([v[q] for q in t])
+    T = np.array(T)
+    D = np.stack([P[T[:, a]] - P[T[:, 0]] for a in (1, 2, 3)], axis=-1)
+    neg = np.linalg.det(D) < 0
+    T[neg] = T[neg][:, [0, 2, 1, 3]]
+    return P, T
+
+
+def bad_meshes(tmp):
+    P, T = cube()
+    cases = {}
+    def add(name, pts, tets, *words):
+        path = os.path.join(tmp, f"{name}.msh")
+        write_msh(path, pts, tets)
+        cases[name] = (path, words)
+    p = P.copy(); p[5, 1] = np.nan
+    add("nan", p, T, "vertex 5", "non-finite")
+    p = np.vstack([P, [[9, 9, 9]]])
+    add("unused", p, T, "not used")
+    p = P.copy(); p[7] = p[6]
+    add("duplicate", p, T, "duplicates")
+    t = T.copy(); t[4] = t[4][[0, 2, 1, 3]]
+    add("inverted", P, t, "tetrahedron 4", "inverted")
+    p = P.copy()
+    t = T.copy(); t[2] = [0, 1, 2, 3]
+    add("flat", p, t, "tetrahedron 2", "zero volume")
+    path = os.path.join(tmp, "garbage.msh")
+    with open(path, "wb") as fh:
+        fh.write(b"$MeshFormat\n4.1 0 8\n$EndMeshFormat\n$Nodes\n\x00\xff garbage")
+    cases["garbage"] = (path, ("cannot be read",))
+    import meshio
+    path = os.path.join(tmp, "triangles.vtu")
+    meshio.write(path, meshio.Mesh(P, [("triangle", np.array([[0, 1, 2]]))]))
+    cases["triangles"] = (path, ("no tetrahedra", "triangle"))
+    path = os.path.join(tmp, "missing.msh")
+    cases["missing"] = (path, ("no such file",))
+    return cases
+
+
+def test_bad_meshes(tmp_path):
+    out = tmp_path / "keep.h5"
+    out.write_bytes(b"precious")
+    for name, (path, words) in bad_meshes(str(tmp_path)).items():
+        p = hyperelastic(["run", "bend", "-mesh", path, "-output", out, "-quiet"])
+        line = one_line_error(p, *words)
+        assert path in line, line
+        assert p.returncode == 2
+    assert out.read_bytes() == b"precious"
+
+
+def test_good_custom_mesh_runs(tmp_path):
+    """A mesh from another source (meshio-written .vtu) runs; end faces are found from its bbox."""
+    import meshio
+    P, T = cube(3)
+    path = str(tmp_path / "cube.vtu")
+    meshio.write(path, meshio.Mesh(P * [10, 4, 4] - [5, 2, 2], [("tetra", T)]))
+    p = hyperelastic(["run", "bend", "-mesh", path, "-final_time", "0.02", "-quiet", "-output", tmp_path / "c.h5"])
+    assert p.returncode == 0, p.stderr
+
+
+OPTION_CASES = [
+    (["-E", "-5"], ["Young", "-E"]),
+    (["-E", "abc"], ["-E", "not a number"]),
+    (["-nu", "0.5"], ["Poisson", "-nu"]),
+    (["-nu", "-1"], ["Poisson"]),
+    (["-rho", "0"], ["density"]),
+    (["-dt", "0"], ["-dt"]),
+    (["-dt", "-1"], ["-dt"]),
+    (["-final_time", "-1"], ["-final_time"]),
+    (["-material", "jelly"], ["unknown material", "jelly"]),
+    (["-jacobian", "magic"], ["-jacobian", "magic"]),
+    (["-mass", "heavy"], ["-mass"]),
+    (["-preset", "unobtainium"], ["preset"]),
+    (["-gravity", "0,1"], ["-gravity"]),
+    (["-level", "0"], ["-level"]),
+    (["-fix", "middle"], ["unknown face", "middle"]),
+]
+
+
+@pytest.mark.parametrize("args,words", OPTION_CASES)
+def test_bad_options(tmp_path, args, words):
+    p = hyperelastic(["run", "bend", "-quiet", "-output", tmp_path / "o.h5", *args])
+    one_line_error(p, *words)
+    assert p.returncode == 2
+    assert not (tmp_path / "o.h5").exists()
+
+
+def test_unknown_scene_and_bad_scene_files(tmp_path):
+    one_line_error(hyperelastic(["run", "nosuchscene"]), "unknown scene", "nosuchscene")
+    f = tmp_path / "s.opts"
+    f.write_text("-effects elasticity,inertia,telekinesis\n")
+    one_line_error(hyperelastic(["run", str(f), "-output", tmp_path / "o.h5"]), "unknown effect", "telekinesis")
+    f.write_text("-effects elasticity,gravity\n")
+    one_line_error(hyperelastic(["run", str(f), "-output", tmp_path / "o.h5"]), "gravity", "needs")
+    f.write_text("effects elasticity\n")
+    one_line_error(hyperelastic(["run", str(f), "-output", tmp_path / "o.h5"]), "line 1")
+
+
+def test_bad_output_paths(tmp_path):
+    one_line_error(hyperelastic(["run", "bend", "-output", tmp_path]), "is a directory")
+    ro = tmp_path / "ro"
+    ro.mkdir()
+    ro.chmod(0o500)
+    try:
+        if os.access(ro, os.W_OK):
+            pytest.skip("running as a user that can write anywhere")
+        one_line_error(hyperelastic(["run", "bend", "-output", ro / "o.h5"]), "not writable")
+    finally:
+        ro.chmod(0o700)
+
+
+def test_bad_input_under_mpi(tmp_path):
+    """Both ranks exit with one line from rank 0, no deadlock."""
+    p = hyperelastic(["run", "bend", "-mesh", tmp_path / "missing.msh", "-quiet"], nprocs=2, timeout=60)
+    one_line_error(p, "no such file")
+    p = hyperelastic(["run", "bend", "-E", "-1", "-quiet"], nprocs=2, timeout=60)
+    one_line_error(p, "Young")
+
+
+def test_mesh_command(tmp_path):
+    out = tmp_path / "m.msh"
+    p = hyperelastic(["mesh", "bar", "--level", "1", "-o", out])
+    assert p.returncode == 0, p.stderr
+    assert "vertices" in p.stdout and "tets" in p.stdout and "min edge" in p.stdout
+    one_line_error(hyperelastic(["mesh", "nothing", "--level", "1", "-o", out]), "unknown mesh geometry")
+    one_line_error(hyperelastic(["mesh", "bar", "--level", "0", "-o", out]), "level")

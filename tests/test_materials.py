@@ -1,0 +1,132 @@
+"""Derivatives of every material against finite differences, and the compiled kernels against
+the numpy reference path."""
+import numpy as np
+import pytest
+
+from hyperelastic.materials import MATERIALS, lame
+
+rng = np.random.default_rng(1234)
+MU, LAM = lame(1e6, 0.3)[1], lame(1e6, 0.3)[0]
+
+
+def random_F(n, amp):
+    F = np.eye(3) + amp * rng.standard_normal((n, 3, 3))
+    return F[np.linalg.det(F) > 0.2]
+
+
+@pytest.mark.parametrize("name", sorted(MATERIALS))
+@pytest.mark.parametrize("amp", [0.05, 0.3])
+def test_P_is_derivative_of_psi(name, amp):
+    m = MATERIALS[name]
+    F = random_F(20, amp)
+    P = m.P(F, MU, LAM)
+    eps = 1e-6
+    Pfd = np.zeros_like(F)
+    for i in range(3):
+        for j in range(3):
+            d = np.zeros((3, 3))
+            d[i, j] = eps
+            Pfd[:, i, j] = (m.psi(F + d, MU, LAM) - m.psi(F - d, MU, LAM)) / (2 * eps)
+    assert np.abs(P - Pfd).max() <= 1e-6 * np.abs(P).max() + 1e-3
+
+
+@pytest.mark.parametrize("name", sorted(MATERIALS))
+@pytest.mark.parametrize("amp", [0.05, 0.3])
+def test_dP_is_derivative_of_P(name, amp):
+    m = MATERIALS[name]
+    F = random_F(20, amp)
+    dF = rng.standard_normal(F.shape)
+    eps = 1e-6
+    fd = (m.P(F + eps * dF, MU, LAM) - m.P(F - eps * dF, MU, LAM)) / (2 * eps)
+    dP = m.dP(F, dF, MU, LAM)
+    assert np.abs(dP - fd).max() <= 1e-7 * np.abs(dP).max()
+
+
+def tet_problem(n=50, amp=0.2):
+    """n independent random tetrahedra with random current positions."""
+    X = rng.standard_normal((n, 4, 3))
+    D = np.stack([X[:, 1] - X[:, 0], X[:, 2] - X[:, 0], X[:, 3] - X[:, 0]], axis=-1)
+    keep = np.linalg.det(D) > 0.1
+    X, D = X[keep], D[keep]
+    cells = np.arange(4 * len(X), dtype=np.int32).reshape(-1, 4)
+    x = (X + amp * rng.standard_normal(X.shape)).reshape(-1)
+    return X, D, cells, x
+
+
+@pytest.mark.parametrize("name", sorted(MATERIALS))
+def test_kernels_match_reference(name):
+    from hyperelastic.kernels import CellKernels
+    m = MATERIALS[name]
+    X, D, cells, x = tet_problem()
+    Dminv = np.linalg.inv(D)
+    vol = np.linalg.det(D) / 6
+    xs = x.reshape(-1, 4, 3)
+    Ds = np.stack([xs[:, 1] - xs[:, 0], xs[:, 2] - xs[:, 0], xs[:, 3] - xs[:, 0]], axis=-1)
+    F = Ds @ Dminv
+    ok = np.linalg.det(F) > 0.05
+    X, D, Dminv, vol, F, xs = X[ok], D[ok], Dminv[ok], vol[ok], F[ok], xs[ok]
+    cells = np.arange(4 * len(X), dtype=np.int32).reshape(-1, 4)
+    x = xs.reshape(-1).copy()
+    k = CellKernels(cells, Dminv, vol, m.kernel_id, MU, LAM)
+    # forces: k_a = V P grad N_a (thesis 4.41), grad N_a rows of Dminv, grad N_0 = -sum
+    G = np.concatenate([-Dminv.sum(axis=1, keepdims=True), Dminv], axis=1)        # (n,4,3)
+    P = m.P(F, MU, LAM)
+    ref = np.einsum("n,nij,naj->nai", vol, P, G).reshape(-1)
+    f = np.zeros_like(x)
+    assert k.forces(x, f) == 0
+    assert np.abs(f - ref).max() <= 1e-12 * np.abs(ref).max()
+    # energy
+    W, jmin, jmax, bad = k.energy(x)
+    assert np.isclose(W, (vol * m.psi(F, MU, LAM)).sum(), rtol=1e-12)
+    assert np.isclose(jmin, np.linalg.det(F).min()) and np.isclose(jmax, np.linalg.det(F).max())
+    # K v against the numpy dP and against finite differences of the forces
+    v = rng.standard_normal(x.shape)
+    dF = np.stack([(v.reshape(-1, 4, 3)[:, a] - v.reshape(-1, 4, 3)[:, 0]) for a in (1, 2, 3)], axis=-1) @ Dminv
+    ref_kv = np.einsum("n,nij,naj->nai", vol, m.dP(F, dF, MU, LAM), G).reshape(-1)
+    y = np.zeros_like(x)
+    k.kv(x, v, y)
+    assert np.abs(y - ref_kv).max() <= 1e-12 * np.abs(ref_kv).max()
+    eps = 1e-6
+    fp, fm = np.zeros_like(x), np.zeros_like(x)
+    k.forces(x + eps * v, fp)
+    k.forces(x - eps * v, fm)
+    assert np.abs(y - (fp - fm) / (2 * eps)).max() <= 1e-6 * np.abs(y).max()
+    # 12x12 tangents reproduce K v, are symmetric (hyperelastic), and their diagonal matches
+    K, bad = k.tangent(x)
+    assert bad == 0
+    yk = np.einsum("nrc,nc->nr", K, v.reshape(-1, 12)).reshape(-1)
+    assert np.abs(yk - y).max() <= 1e-12 * np.abs(y).max()
+    assert np.abs(K - K.transpose(0, 2, 1)).max() <= 1e-12 * np.abs(K).max()
+    d = np.zeros_like(x)
+    k.tangent_diag(x, d)
+    assert np.allclose(d, np.einsum("nii->ni", K).reshape(-1), rtol=1e-13, atol=0)
+
+
+def test_consistent_mass_kernel():
+    from hyperelastic.kernels import CellKernels
+    X, D, cells, x = tet_problem(10)
+    vol = np.linalg.det(D) / 6
+    k = CellKernels(cells, np.linalg.inv(D), vol, 1, MU, LAM)
+    v = rng.standard_normal(x.shape)
+    y = np.zeros_like(v)
+    k.mass_apply(2.0, v, y)
+    Me = (np.ones((4, 4)) + np.eye(4)) / 20
+    ref = 2.0 * np.einsum("n,ab,nbi->nai", vol, Me, v.reshape(-1, 4, 3)).reshape(-1)
+    assert np.allclose(y, ref, rtol=1e-14, atol=1e-14)
+    # total mass: 1^T M 1 = coef * volume
+    ones = np.zeros_like(v)
+    ones[0::3] = 1
+    y[:] = 0
+    k.mass_apply(1.0, ones, y)
+    assert np.isclose(y[0::3].sum(), vol.sum())
+
+
+def test_neohookean_undefined_when_inverted():
+    from hyperelastic.kernels import CellKernels
+    X, D, cells, x = tet_problem(5, amp=0.0)
+    xs = x.reshape(-1, 4, 3).copy()
+    xs[0, 0], xs[0, 1] = xs[0, 1].copy(), xs[0, 0].copy()    # swap two vertices: J < 0
+    k = CellKernels(cells, np.linalg.inv(D), np.linalg.det(D) / 6, MATERIALS["neohookean"].kernel_id, MU, LAM)
+    f = np.zeros(xs.size)
+    assert k.forces(xs.reshape(-1), f) == 1
+    assert np.isfinite(f).all()

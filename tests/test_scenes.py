@@ -1,0 +1,119 @@
+"""Each scene runs 0.1 s on L1 with each Jacobian mode, and the exact modes agree."""
+import os
+
+import numpy as np
+import pytest
+
+from conftest import read_h5, run_ok, hyperelastic
+
+SCENES = ["bend", "bend2", "bend3", "twist", "twist2", "twist3", "squeeze", "stretch", "sag"]
+# tight solver tolerances, so that modes can be compared at the solution level
+TIGHT = ["-snes_rtol", "1e-10", "-snes_atol", "1e-9", "-ksp_rtol", "1e-10", "-snes_stol", "0"]
+EXACT_MODES = {
+    "assembled": ["-jacobian", "assembled"],
+    "shell": ["-jacobian", "shell"],
+    "mf": ["-snes_mf"],
+    "mf_operator": ["-snes_mf_operator"],
+}
+SEED_MODES = {"seed_fd": ["-jacobian", "seed_fd"], "seed_fd2": ["-jacobian", "seed_fd2"]}
+
+
+def run_scene(tmp_path, scene, mode_args, extra=(), nprocs=1, tag=None):
+    out = os.path.join(tmp_path, f"{scene}_{tag or '_'.join(mode_args)}.h5")
+    run_ok(["run", scene, "-level", 1, "-final_time", 0.1, "-quiet", "-output", out, *TIGHT, *mode_args, *extra],
+           nprocs=nprocs)
+    return read_h5(out)
+
+
+@pytest.mark.parametrize("scene", SCENES)
+def test_exact_modes_agree(tmp_path, scene):
+    res = {m: run_scene(tmp_path, scene, a, tag=m) for m, a in EXACT_MODES.items()}
+    ref = res["assembled"]
+    assert len(ref["time"]) >= 2 and np.isclose(ref["time"][-1], 0.1)
+    disp = np.abs(ref["x"][-1] - ref["points"]).max()
+    assert disp > 1e-4, f"{scene}: nothing moved"
+    assert np.isfinite(ref["x"]).all()
+    for m, r in res.items():
+        assert (r["stats"]["snes_reason"] > 0).all()
+        err = np.abs(r["x"][-1] - ref["x"][-1]).max()
+        assert err <= 1e-6 * max(disp, 1e-3), f"{scene}: mode {m} differs from assembled by {err:.3g}"
+
+
+@pytest.mark.parametrize("scene", ["bend", "squeeze"])
+@pytest.mark.parametrize("mode", sorted(SEED_MODES))
+def test_seed_modes_run_and_report(tmp_path, scene, mode):
+    """The thesis' operators: Newton either converges (the residual is exact, so the answer is the
+    same as the exact tangent's) or the run ends with one clear line; never a wrong answer."""
+    out = os.path.join(tmp_path, f"{scene}_{mode}.h5")
+    ref = run_scene(tmp_path, scene, EXACT_MODES["assembled"], tag="ref")
+    p = hyperelastic(["run", scene, "-level", 1, "-final_time", 0.1, "-quiet", "-output", out, *TIGHT,
+                      *SEED_MODES[mode], "-snes_max_it", "30"])
+    if p.returncode == 0:
+        r = read_h5(out)
+        assert np.abs(r["x"][-1] - ref["x"][-1]).max() <= 1e-5
+    else:
+        assert p.returncode == 3
+        lines = [l for l in p.stderr.splitlines() if l.strip()]
+        assert len(lines) == 1 and "SNES did not converge" in lines[0], p.stderr
+
+
+def test_parallel_matches_serial(tmp_path):
+    for scene in ("bend", "twist3"):
+        for mode in ("assembled", "mf_operator"):
+            s = run_scene(tmp_path, scene, EXACT_MODES[mode], tag=f"{mode}_np1")
+            p = run_scene(tmp_path, scene, EXACT_MODES[mode], nprocs=2, tag=f"{mode}_np2")
+            assert p["attrs"]["mpi_ranks"] == 2
+            assert np.array_equal(p["points"], s["points"]) and np.array_equal(p["tetra"], s["tetra"])
+            scale = np.abs(s["x"]).max()
+            assert np.abs(p["x"] - s["x"]).max() <= 1e-8 * scale, f"{scene} {mode}"
+
+
+def test_partition_balance(tmp_path):
+    r = run_scene(tmp_path, "bend", ["-final_time", "0.01"], nprocs=2, tag="part")
+    counts = np.array(r["attrs"]["vertices_per_rank"])
+    assert len(counts) == 2
+    assert (counts < 0.6 * r["points"].shape[0]).all(), counts
+
+
+def test_output_layout(tmp_path):
+    r = run_scene(tmp_path, "bend", [], tag="layout")
+    import h5py
+    nv = r["points"].shape[0]
+    assert r["x"].shape == (len(r["time"]), nv, 3)
+    assert np.array_equal(r["x"][0], r["points"])                 # frame 0: the input vertex order
+    for col in ("newton_its", "ksp_its", "residual_evals", "wall_s", "kinetic", "elastic", "J_min", "J_max",
+                "effect_elasticity_evals", "effect_elasticity_seconds"):
+        assert col in r["stats"], col
+        assert len(r["stats"][col]) == 10
+    assert "-jacobian" in r["attrs"]["options"] or "-final_time 0.1" in r["attrs"]["options"]
+    assert r["attrs"]["steps_completed"] == 10
+    xdmf = os.path.join(tmp_path, "bend_layout.xdmf")
+    import xml.etree.ElementTree as ET
+    grids = ET.parse(xdmf).getroot().findall(".//Grid[@GridType='Uniform']")
+    assert len(grids) == len(r["time"])
+
+
+def test_effects_not_named_are_never_built(tmp_path):
+    bend = run_scene(tmp_path, "bend", [], tag="eff")
+    built = eval(bend["attrs"]["effects_built"])
+    assert "gravity" not in built and "effect_gravity_evals" not in bend["stats"]
+    assert bend["stats"]["effect_traction_evals"].min() > 0
+    qs = run_scene(tmp_path, "bend", ["-quasistatic"], tag="qs")
+    built = eval(qs["attrs"]["effects_built"])
+    assert "inertia" not in built and "damping" not in built
+    assert qs["attrs"]["mass_matrix_builds"] == 0
+    assert np.all(qs["stats"]["kinetic"] == 0)
+    sag = run_scene(tmp_path, "sag", [], tag="sag")
+    built = eval(sag["attrs"]["effects_built"])
+    assert "damping" not in built and "rayleigh" not in built
+    assert sag["stats"]["effect_gravity_evals"].min() > 0
+    assert not any(k.startswith("effect_damping") for k in sag["stats"])
+
+
+def test_quasistatic_bend_is_static_equilibrium(tmp_path):
+    """Quasi-static: no inertia, so the last state is the equilibrium under the load; a dynamic run
+    with heavy damping settles near it."""
+    qs = run_scene(tmp_path, "bend", ["-quasistatic", "-dt", "0.05"], tag="qs2")
+    assert qs["stats"]["newton_its"].max() >= 1
+    tip = qs["x"][-1][:, 1].min() - qs["points"][:, 1].min()
+    assert tip < -1e-3   # bends down under t_y = -5000 Pa
