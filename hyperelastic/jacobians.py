@@ -47,9 +47,9 @@ class Assembled:
         self.nvals = len(rows)
         self.ncell = len(cd)
         A = PETSc.Mat().create(comm=sp.comm)
-        A.setSizes(_sizes(sp), bs=3)
+        A.setSizes(_sizes(sp), bsize=3)
         A.setType(PETSc.Mat.Type.AIJ)
-        A.setLocalToGlobalMapping(sp.lgmap, sp.lgmap)
+        A.setLGMap(sp.lgmap, sp.lgmap)
         A.setPreallocationCOOLocal(rows.astype(PETSc.IntType), cols.astype(PETSc.IntType))
         self.coo_setups = 1
         del rows, cols

@@ -90,7 +90,7 @@ class Space:
         self.vol = np.abs(det) / 6.0  # F = Ds Dm^-1 does not depend on vertex order; V must be > 0
         self.Dminv = np.ascontiguousarray(np.linalg.inv(Dm))
         self.nc = len(self.cells)
-        self.lgmap = dm.getLocalToGlobalMapping()
+        self.lgmap = dm.getLGMap()
         gv = dm.createGlobalVec()
         self.rstart, self.rend = gv.getOwnershipRange()
         gv.destroy()
