@@ -9,7 +9,7 @@ import argparse
 import os
 import sys
 
-from .errors import UserError
+from .errors import SolveError, UserError
 
 EXIT_USER, EXIT_SOLVE, EXIT_INTERNAL = 2, 3, 1
 
@@ -171,7 +171,6 @@ def main(argv=None):
     if cmd is None:
         _error(f"unknown command '{argv[0]}' (choose from {', '.join(COMMANDS)})")
         return EXIT_USER
-    from .integrators import SolveError
     try:
         return cmd(argv[1:])
     except UserError as e:
@@ -185,18 +184,33 @@ def main(argv=None):
         return 130
     except Exception as e:
         if debug:
-            raise
-        msg = " ".join(str(e).split())[:300] or type(e).__name__
-        _error(f"internal error: {type(e).__name__}: {msg} (rerun with -debug for a traceback)")
+            import traceback
+            traceback.print_exc()
+        else:
+            msg = " ".join(str(e).split())[:300] or type(e).__name__
+            _error(f"internal error: {type(e).__name__}: {msg} (rerun with -debug for a traceback)", every_rank=True)
+        _abort_if_parallel(EXIT_INTERNAL)
         return EXIT_INTERNAL
 
 
-def _error(msg):
-    rank = 0
+def _comm():
     if "petsc4py.PETSc" in sys.modules:
         from petsc4py import PETSc
-        rank = PETSc.COMM_WORLD.getRank()
-    if rank == 0:
+        return PETSc.COMM_WORLD
+    return None
+
+
+def _abort_if_parallel(code):
+    """An error raised on some ranks only would leave the others waiting in a collective call."""
+    comm = _comm()
+    if comm is not None and comm.getSize() > 1:
+        sys.stderr.flush()
+        comm.tompi4py().Abort(code)
+
+
+def _error(msg, every_rank=False):
+    comm = _comm()
+    if every_rank or comm is None or comm.getRank() == 0:
         print(f"hyperelastic: error: {msg}", file=sys.stderr, flush=True)
 
 

@@ -7,9 +7,7 @@ import time
 import numpy as np
 from petsc4py import PETSc
 
-
-class SolveError(Exception):
-    """The nonlinear solver failed; reported as one line, exit status 3."""
+from .errors import SolveError
 
 
 def step_count(final_time, dt):

@@ -175,9 +175,12 @@ def check(points, tets, path):
 
 
 def morton_order(centroids):
-    """Order of points along a Z-order (Morton) curve, 21 bits per axis."""
+    """Order of points along a Z-order (Morton) curve, 21 bits per axis. The box is scaled by the
+    same factor on every axis and the longest axis takes the most significant bit, so the first
+    halving of the curve cuts across the longest extent (a bar splits into two shorter bars)."""
     lo, hi = centroids.min(axis=0), centroids.max(axis=0)
-    q = ((centroids - lo) / np.maximum(hi - lo, 1e-300) * (2 ** 21 - 1)).astype(np.uint64)
+    ext = hi - lo
+    q = ((centroids - lo) / max(ext.max(), 1e-300) * (2 ** 21 - 1)).astype(np.uint64)
 
     def spread(v):
         v = v & np.uint64(0x1FFFFF)
@@ -185,7 +188,10 @@ def morton_order(centroids):
                             (4, 0x10C30C30C30C30C3), (2, 0x1249249249249249)):
             v = (v | (v << np.uint64(shift))) & np.uint64(mask)
         return v
-    code = spread(q[:, 0]) | (spread(q[:, 1]) << np.uint64(1)) | (spread(q[:, 2]) << np.uint64(2))
+    axes = np.argsort(ext)          # shortest first: it gets the least significant position
+    code = np.zeros(len(centroids), np.uint64)
+    for pos, ax in enumerate(axes):
+        code |= spread(q[:, ax]) << np.uint64(pos)
     return np.argsort(code, kind="stable")
 
 

@@ -69,7 +69,7 @@ class Space:
             leaves = np.arange(len(iremote)) if ilocal is None else np.asarray(ilocal)
             orig_point = np.full(dm.getChart()[1], -1, np.int64)
             orig_point[leaves] = np.asarray(iremote).reshape(-1, 2)[:, 1]
-            serial_vertex = orig_point[vStart:vEnd] - nc_total  # serial DM: cells first, then vertices
+            serial_vertex = orig_point[vStart:vEnd] - self.nc_total  # serial DM: cells first, then vertices
         vperm = self.mpi.bcast(vperm, root=0)
         self.orig = np.empty(nlv, np.int64)
         self.orig[lvid] = vperm[serial_vertex]
@@ -98,7 +98,10 @@ class Space:
         lo = X.min(axis=0) if nlv else np.full(3, np.inf)
         hi = X.max(axis=0) if nlv else np.full(3, -np.inf)
         from mpi4py import MPI
-        self.bbox = (self.mpi.allreduce(lo, op=MPI.MIN), self.mpi.allreduce(hi, op=MPI.MAX))
+        glo, ghi = np.empty(3), np.empty(3)
+        self.mpi.Allreduce(np.ascontiguousarray(lo, float), glo, op=MPI.MIN)
+        self.mpi.Allreduce(np.ascontiguousarray(hi, float), ghi, op=MPI.MAX)
+        self.bbox = (glo, ghi)
         # gather plan for output on rank 0 (input vertex order)
         ids = self.orig[owned_pt]
         self._counts = self.mpi.gather(len(ids), root=0)
