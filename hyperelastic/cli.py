@@ -183,6 +183,10 @@ def main(argv=None):
         _error("interrupted")
         return 130
     except Exception as e:
+        if type(e).__name__ == "Error" and hasattr(e, "ierr"):   # petsc4py.PETSc.Error
+            from .libpetsc import error_message
+            _error(f"PETSc: {error_message(e.ierr)}")
+            return EXIT_USER
         if debug:
             import traceback
             traceback.print_exc()
@@ -210,6 +214,9 @@ def _abort_if_parallel(code):
 
 def _error(msg, every_rank=False):
     comm = _comm()
+    if comm is not None:   # no 'unused options' report after an error: the one line says what is wrong
+        from petsc4py import PETSc
+        PETSc.Options().setValue("options_left", "0")
     if every_rank or comm is None or comm.getRank() == 0:
         print(f"hyperelastic: error: {msg}", file=sys.stderr, flush=True)
 

@@ -1,30 +1,9 @@
 """SNES / KSP / PC from the options database, with this application's defaults:
 Newton with backtracking line search, CG + Jacobi (no PC under -snes_mf)."""
-import ctypes
-import os
-
 from petsc4py import PETSc
 
 from . import jacobians
-
-
-def _libpetsc():
-    import petsc4py
-    d = petsc4py.get_config()["PETSC_DIR"]
-    return ctypes.CDLL(os.path.join(d, os.environ.get("PETSC_ARCH", "") or "", "lib", "libpetsc.so"))
-
-
-_lib = None
-
-
-def set_function_domain_error(snes):
-    """SNESSetFunctionDomainError (not wrapped by petsc4py): the residual was asked for outside the
-    material's domain (an inverted element for Neo-Hookean); the line search then fails cleanly."""
-    global _lib
-    if _lib is None:
-        _lib = _libpetsc()
-        _lib.SNESSetFunctionDomainError.argtypes = [ctypes.c_void_p]
-    _lib.SNESSetFunctionDomainError(ctypes.c_void_p(snes.handle))
+from .libpetsc import set_function_domain_error
 
 DEFAULTS = (("snes_linesearch_type", "bt"), ("ksp_type", "cg"), ("snes_max_it", "50"))
 

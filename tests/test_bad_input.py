@@ -111,6 +111,8 @@ OPTION_CASES = [
     (["-gravity", "0,1"], ["-gravity"]),
     (["-level", "0"], ["-level"]),
     (["-fix", "middle"], ["unknown face", "middle"]),
+    (["-ksp_type", "nonsense"], ["PETSc", "KSP type nonsense"]),
+    (["-snes_rtol", "abc"], ["PETSc", "abc"]),
 ]
 
 
@@ -135,6 +137,10 @@ def test_unknown_scene_and_bad_scene_files(tmp_path):
 
 def test_bad_output_paths(tmp_path):
     one_line_error(hyperelastic(["run", "bend", "-output", tmp_path]), "is a directory")
+    f = tmp_path / "file"
+    f.write_text("x")
+    one_line_error(hyperelastic(["run", "bend", "-output", f / "o.h5"]), "cannot create directory")
+    assert f.read_text() == "x"
     ro = tmp_path / "ro"
     ro.mkdir()
     ro.chmod(0o500)
