@@ -21,63 +21,35 @@ def _petsc(argv):
     return PETSc
 
 
-def _collective(comm, fn):
-    """Run fn on rank 0 and broadcast its result, or its UserError to every rank."""
-    mpi = comm.tompi4py()
-    res = err = None
-    if mpi.rank == 0:
-        try:
-            res = fn()
-        except UserError as e:
-            err = str(e)
-    err = mpi.bcast(err, root=0)
-    if err is not None:
-        raise UserError(err)
-    return res
-
-
 def run(argv):
     if not argv or argv[0].startswith("-"):
         raise UserError("run: needs a SCENE (a built-in name or an options file); see `hyperelastic scenes`")
     scene_arg, petsc_args = argv[0], argv[1:]
     PETSc = _petsc(petsc_args)
     from . import __version__
-    from .integrators import BackwardEuler
-    from .mesh import cached_bar, read
-    from .options import Options, all_options, insert_defaults, parse_options_file, resolve_scene
-    from .output import Writer, check_output_path
-    from .scene import build, read_scene
-    from .solver import Solver
-    from .space import Space
-    from .system import System
+    from .app import Problem, collective
     from .effects.inertia import Inertia
+    from .integrators import BackwardEuler
+    from .options import all_options
+    from .output import Writer, check_output_path
+    from .solver import Solver
     import numpy as np
 
     comm = PETSc.COMM_WORLD
     stage = PETSc.Log.Stage("Setup")
     stage.push()
-    path = resolve_scene(scene_arg)
-    insert_defaults(parse_options_file(path))
-    opts = Options()
-    name = os.path.splitext(os.path.basename(path))[0]
-    scene = read_scene(name, opts)
-    quiet = opts.flag("quiet")
-    out = opts.string("output", os.path.join("output", f"{name}.h5"))
-    _collective(comm, lambda: check_output_path(out))
-    mesh_file = scene.mesh
+    out = None
 
-    def load():
-        return read(mesh_file if mesh_file else cached_bar(scene.level))
-    mesh = _collective(comm, load)
-    points, tets = mesh if mesh is not None else (None, None)
-    space = Space(comm, points, tets)
-    effects, constraints, _ = build(scene, space)
-    system = System(space, effects, constraints)
+    def check_output(prob):
+        nonlocal out
+        out = prob.opts.string("output", os.path.join("output", f"{prob.name}.h5"))
+        collective(comm, lambda: check_output_path(out))
+    prob = Problem(scene_arg, comm, before_mesh=check_output)
+    scene, space, system, name, path = prob.scene, prob.space, prob.system, prob.name, prob.scene_file
+    quiet = prob.opts.flag("quiet")
+    mesh_file, points, tets = scene.mesh, prob.points, prob.tets
     integ = BackwardEuler(scene, system, None, None, quiet)
-    system.begin_step(0.0, scene.dt, integ.x, integ.v)
-    system.linearize(_global_of(space, integ.x, system))
-    work = space.global_vec()
-    system.set_scale(work)
+    integ.x, integ.v = prob.initial_state()
     solver = Solver(system, scene.jacobian)
     integ.solver = solver
     attrs = {"options": "\n".join(f"-{k} {v}".rstrip() for k, v in all_options()),
@@ -103,22 +75,18 @@ def run(argv):
     return 0
 
 
-def _global_of(space, x_local, system):
-    X = space.global_vec()
-    X.getArray()[:] = space.owned_array(x_local)
-    system.impose_global(X)
-    return X
-
-
 def mesh_cmd(argv):
     ap = _ArgParser(prog="hyperelastic mesh", description="Generate a tetrahedral mesh with gmsh.")
     ap.add_argument("geometry", help="name of a .geo file under meshes/ (e.g. bar)")
-    ap.add_argument("--level", type=int, required=True, help="refinement level: 1..8 = thesis L1..L8, 9.. finer")
+    ap.add_argument("--level", type=int, help="refinement level: 1..8 = thesis L1..L8, 9.. finer (~2x tets each)")
+    ap.add_argument("--size", type=float, help="target edge length instead of a level")
     ap.add_argument("-o", "--output", required=True, help="output .msh file")
     a = _parse(ap, argv)
+    if (a.level is None) == (a.size is None):
+        raise UserError("hyperelastic mesh: give exactly one of --level N or --size H")
     from .mesh import generate
-    st = generate(a.geometry, a.level, a.output)
-    print(f"{a.output}: level {a.level} target edge {st['target_size']:.4g}: {st['vertices']} vertices, "
+    st = generate(a.geometry, a.level, a.output, a.size)
+    print(f"{a.output}: level {a.level or '-'} target edge {st['target_size']:.4g}: {st['vertices']} vertices, "
           f"{st['tets']} tets, min edge {st['min_edge']:.4g}")
     return 0
 

@@ -29,13 +29,17 @@ def cache_dir():
     return d
 
 
-def generate(name, level, out):
-    """Generate meshes/<name>.geo at the target edge length of `level` with gmsh; returns stats."""
+def generate(name, level, out, size=None):
+    """Generate meshes/<name>.geo with gmsh at the target edge length of `level` (or `size` when
+    given); returns its statistics."""
     geo = os.path.join(GEO_DIR, f"{name}.geo")
     if not os.path.isfile(geo):
         known = sorted(f[:-4] for f in os.listdir(GEO_DIR) if f.endswith(".geo"))
         raise UserError(f"unknown mesh geometry '{name}' (known: {', '.join(known)})")
-    size = level_size(level)
+    if size is None:
+        size = level_size(level)
+    elif not size > 0:
+        raise UserError(f"mesh size {size} must be > 0")
     d = os.path.dirname(os.path.abspath(out))
     if os.path.isdir(out):
         raise UserError(f"output '{out}' is a directory")
@@ -74,12 +78,18 @@ def describe(points, tets):
             "max_edge": float(lengths.max())}
 
 
-def cached_bar(level):
-    """Path of the cached bar mesh at `level`, generating it on first use."""
-    path = os.path.join(cache_dir(), f"bar_L{level}.msh")
+def cached_bar(level=None, size=None):
+    """Path of the cached bar mesh at `level` (or target edge length `size`), generated on first use."""
+    name = f"bar_L{level}.msh" if size is None else f"bar_h{size:.4g}.msh"
+    path = os.path.join(cache_dir(), name)
     if not os.path.isfile(path):
-        generate("bar", level, path)
+        generate("bar", level, path, size)
     return path
+
+
+def size_for_tets(tets):
+    """Target edge length giving about `tets` tetrahedra on the bar (from L8's density)."""
+    return LEVEL_SIZES[8] * (28210.0 / tets) ** (1.0 / 3.0)
 
 
 def read(path):

@@ -49,23 +49,13 @@ def petsc():
     return PETSc
 
 
-def make_problem(petsc, scene_name="bend", options=(), mesh=None):
+def make_problem(petsc, scene_name="bend", options=()):
     """In-process scene set-up on COMM_WORLD: (scene, space, system)."""
-    from hyperelastic.mesh import cached_bar, read
-    from hyperelastic.options import Options, insert_defaults, parse_options_file, resolve_scene
-    from hyperelastic.scene import build, read_scene
-    from hyperelastic.space import Space
-    from hyperelastic.system import System
-    PETSc = petsc
-    o = PETSc.Options()
+    from hyperelastic.app import Problem
+    o = petsc.Options()
     for k in list(o.getAll()):
         o.delValue(k)
     for k, v in options:
         o.setValue(k, v)
-    insert_defaults(parse_options_file(resolve_scene(scene_name)))
-    scene = read_scene(scene_name, Options())
-    pts, tets = read(mesh or cached_bar(scene.level))
-    space = Space(PETSc.COMM_WORLD, pts, tets)
-    effects, constraints, k = build(scene, space)
-    system = System(space, effects, constraints)
-    return scene, space, system
+    p = Problem(scene_name)
+    return p.scene, p.space, p.system

@@ -1,0 +1,111 @@
+#!/usr/bin/env python
+"""Element-kernel throughput on one core: tets/s of the residual (elastic forces), the exact K v
+shell product and the 12x12 tangent values for COO, against MatMult of the assembled tangent.
+
+    python scripts/bench_kernels.py                 # quick: L8 (~28k tets)
+    python scripts/bench_kernels.py --full          # L8 and a ~700k-tet bar
+    python scripts/bench_kernels.py --tets 200000 --material neohookean
+
+Prints one table row per mesh; with --csv FILE also writes them as CSV.
+"""
+import argparse
+import os
+import sys
+import time
+
+sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+
+
+def best(fn, reps, min_time=0.3):
+    """Best-of wall time of fn() over `reps` runs (repeated until min_time has passed)."""
+    times = []
+    t_all = time.perf_counter()
+    while len(times) < reps or time.perf_counter() - t_all < min_time:
+        t0 = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - t0)
+        if len(times) > 200:
+            break
+    return min(times)
+
+
+def bench(mesh_arg, material, reps):
+    import numpy as np
+    from petsc4py import PETSc
+    from hyperelastic import jacobians
+    from hyperelastic.app import Problem
+    o = PETSc.Options()
+    for k in list(o.getAll()):
+        o.delValue(k)
+    o.setValue("material", material)
+    o.setValue("mesh", mesh_arg)
+    t0 = time.perf_counter()
+    prob = Problem("bend")
+    setup_s = time.perf_counter() - t0
+    x, v = prob.initial_state()
+    sp, sysm, k = prob.space, prob.system, prob.kernels
+    rng = np.random.default_rng(0)
+    xd = x + 0.01 * rng.standard_normal(x.shape)       # a deformed state
+    w = rng.standard_normal(x.shape)
+    f = np.zeros_like(x)
+    nc = k.nc
+    t_res = best(lambda: (f.fill(0.0), k.forces(xd, f)), reps)
+    t_kv = best(lambda: (f.fill(0.0), k.kv(xd, w, f)), reps)
+    vals = np.empty((nc, 12, 12))
+    t_tan = best(lambda: k.tangent(xd, vals), reps)
+    # full-system residual (all effects + scatter) and the assembled tangent
+    X = sp.global_vec()
+    X.getArray()[:] = sp.owned_array(xd)
+    sysm.impose_global(X)
+    R = X.duplicate()
+    t_sysres = best(lambda: sysm.residual(X, R), reps)
+    sysm.linearize(X)
+    A, actx = jacobians.make(sysm, "assembled")
+    t_coo = best(lambda: actx.assemble(), max(2, reps // 3))
+    V, Y = X.duplicate(), X.duplicate()
+    V.setRandom()
+    t_mult = best(lambda: A.mult(V, Y), reps)
+    S, _ = jacobians.make(sysm, "shell")
+    t_shell = best(lambda: S.mult(V, Y), reps)
+    info = A.getInfo()
+    return {"tets": nc, "vertices": sp.nlv, "setup_s": setup_s,
+            "residual_Mtets_s": nc / t_res / 1e6, "kv_Mtets_s": nc / t_kv / 1e6, "tangent_Mtets_s": nc / t_tan / 1e6,
+            "system_residual_ms": 1e3 * t_sysres, "shell_mult_ms": 1e3 * t_shell, "coo_assemble_ms": 1e3 * t_coo,
+            "matmult_ms": 1e3 * t_mult, "mffd_over_matmult": t_sysres / t_mult,
+            "nnz": int(info["nz_used"]), "matrix_MB": info["memory"] / 2 ** 20}
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--full", action="store_true", help="L8 and a ~700k-tet bar")
+    ap.add_argument("--tets", type=int, action="append", help="also a bar with about this many tets")
+    ap.add_argument("--material", default="stvk")
+    ap.add_argument("--reps", type=int, default=5)
+    ap.add_argument("--csv", help="write the table as CSV")
+    a = ap.parse_args()
+    import petsc4py
+    petsc4py.init([sys.argv[0]])
+    from hyperelastic.mesh import cached_bar, size_for_tets
+    meshes = [("L8", cached_bar(8))]
+    for n in (a.tets or []) + ([700000] if a.full else []):
+        meshes.append((f"~{n // 1000}k", cached_bar(size=round(size_for_tets(n), 4))))
+    cols = ["mesh", "tets", "residual_Mtets_s", "kv_Mtets_s", "tangent_Mtets_s", "system_residual_ms",
+            "shell_mult_ms", "coo_assemble_ms", "matmult_ms", "mffd_over_matmult", "matrix_MB"]
+    print(f"# material {a.material}, one process; M tets/s = million tetrahedra per second (best of {a.reps})")
+    print(" | ".join(cols))
+    rows = []
+    for name, path in meshes:
+        r = bench(path, a.material, a.reps)
+        r["mesh"] = name
+        rows.append(r)
+        print(" | ".join(f"{r[c]:.3g}" if isinstance(r[c], float) else str(r[c]) for c in cols), flush=True)
+    if a.csv:
+        import csv
+        with open(a.csv, "w", newline="") as fh:
+            w = csv.DictWriter(fh, fieldnames=["mesh"] + [k for k in rows[0] if k != "mesh"])
+            w.writeheader()
+            w.writerows(rows)
+
+
+if __name__ == "__main__":
+    main()
