@@ -116,3 +116,54 @@ def _mv(A, V):
     Y = V.duplicate()
     A.mult(V, Y)
     return Y
+
+
+VARIANTS = [
+    [("rayleigh_alpha", "0.5"), ("rayleigh_beta", "1e-3")],
+    [("mass", "lumped")],
+    [("mass", "lumped"), ("rayleigh_alpha", "0.2"), ("rayleigh_beta", "1e-3")],
+    [("gravity", "0,0,-9.81"), ("material", "neohookean")],
+    [("quasistatic", "1")],
+]
+
+
+@pytest.mark.parametrize("variant", VARIANTS, ids=lambda v: ",".join(f"{k}={x}" for k, x in v))
+def test_effect_variants_consistent(petsc, variant):
+    """Rayleigh damping, lumped mass, gravity and quasi-static: shell == assembled, and both are
+    the derivative of the residual."""
+    from hyperelastic import jacobians
+    scene, space, system, X = state(petsc, "bend", variant)
+    names = [e.name for e in system.effects]
+    for k, _ in variant:
+        if k.startswith("rayleigh"):
+            assert "rayleigh" in names
+    if ("quasistatic", "1") in variant:
+        assert "inertia" not in names and "damping" not in names
+    A, actx = jacobians.make(system, "assembled")
+    jacobians.update(actx)
+    S, _ = jacobians.make(system, "shell")
+    V = X.duplicate()
+    V.setRandom()
+    ya, ys = apply(A, V), apply(S, V)
+    assert np.abs(ya - ys).max() <= 1e-12 * np.abs(ya).max()
+    eps = 1e-6
+    Rp, Rm = X.duplicate(), X.duplicate()
+    system.residual(X + eps * V, Rp)
+    system.residual(X - eps * V, Rm)
+    fd = (Rp.getArray() - Rm.getArray()) / (2 * eps)
+    assert np.abs(ys - fd).max() <= 1e-6 * np.abs(ys).max()
+
+
+def test_lumped_and_consistent_mass_have_the_same_total(petsc):
+    """Both mass matrices carry the body's total mass rho * volume in each direction."""
+    totals = []
+    for mass in ("consistent", "lumped"):
+        scene, space, system = __import__("conftest").make_problem(petsc, "bend", [("mass", mass)])
+        inertia = next(e for e in system.effects if e.name == "inertia")
+        ones = np.zeros(3 * space.nlv)
+        ones[0::3] = 1.0
+        y = np.zeros_like(ones)
+        inertia.M.apply(ones, y)
+        totals.append(y[0::3].sum())
+    assert np.isclose(totals[0], totals[1], rtol=1e-12)
+    assert np.isclose(totals[0], 1000.0 * 10 * 4 * 4, rtol=1e-9)

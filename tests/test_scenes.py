@@ -39,7 +39,7 @@ def test_exact_modes_agree(tmp_path, scene):
         assert err <= 1e-6 * max(disp, 1e-3), f"{scene}: mode {m} differs from assembled by {err:.3g}"
 
 
-@pytest.mark.parametrize("scene", ["bend", "squeeze"])
+@pytest.mark.parametrize("scene", SCENES)
 @pytest.mark.parametrize("mode", sorted(SEED_MODES))
 def test_seed_modes_run_and_report(tmp_path, scene, mode):
     """The thesis' operators: Newton either converges (the residual is exact, so the answer is the
@@ -117,3 +117,17 @@ def test_quasistatic_is_static_equilibrium(tmp_path, petsc):
     assert (qs["stats"]["newton_its"] >= 1).all()
     tip = qs["x"][:, :, 1].min(axis=1) - qs["points"][:, 1].min()
     assert tip[-1] < -1e-3 and tip[-1] < tip[1] < 0
+
+
+RECIPES = ["exact", "shell", "mffd", "mffd_operator", "gamg", "direct", "bjacobi_icc"]
+
+
+@pytest.mark.parametrize("recipe", RECIPES)
+def test_solver_recipes(tmp_path, recipe):
+    """Each options/<recipe>.opts solves bend to the same answer (GAMG with the rigid-body
+    near-nullspace, block Jacobi + ICC, LU ...)."""
+    from conftest import ROOT
+    ref = run_scene(tmp_path, "bend", EXACT_MODES["assembled"], tag="ref")
+    r = run_scene(tmp_path, "bend", ["-options_file", os.path.join(ROOT, "options", f"{recipe}.opts")], tag=recipe)
+    disp = np.abs(ref["x"][-1] - ref["points"]).max()
+    assert np.abs(r["x"][-1] - ref["x"][-1]).max() <= 1e-6 * disp
