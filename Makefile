@@ -18,7 +18,7 @@ $(STAMP): requirements.txt setup.py scripts/bootstrap.sh
 
 # rebuild the compiled kernels when their source changes (no PETSc rebuild)
 $(KERNELS_STAMP): $(STAMP) hyperelastic/_kernels.c
-	$(PY) setup.py -q build_ext --inplace >/dev/null
+	$(PY) setup.py -q build_ext --inplace -f >/dev/null
 	touch $@
 
 demo: setup

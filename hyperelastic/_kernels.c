@@ -95,8 +95,10 @@ static inline int stress(int mat, double mu, double lam, const double *F, double
     if (psi) *psi = 0.5 * mu * (I1 - 3) - mu * lnJ + 0.5 * lam * lnJ * lnJ;
     return 0;
   }
+  default:
+    for (int k = 0; k < 9; k++) P[k] = NAN;
+    return 1;
   }
-  return 1;
 }
 
 /* Precomputed per-cell data for the directional derivative at fixed F. */
@@ -156,6 +158,8 @@ static inline void dstress(int mat, double mu, double lam, const dpcache *d, con
     for (int k = 0; k < 9; k++) dP[k] = mu * dF[k] + d->c1 * U[k] + d->c2 * tr * Q[k];
     return;
   }
+  default: /* unknown material id: poison the result rather than leave it undefined */
+    for (int k = 0; k < 9; k++) dP[k] = NAN;
   }
 }
 
@@ -314,5 +318,18 @@ void he_mass_apply(int64_t nc, const idx_t *cells, const double *vol, double coe
                  v[3 * (int64_t)c[3] + i];
       for (int a = 0; a < 4; a++) y[3 * (int64_t)c[a] + i] += w * (v[3 * (int64_t)c[a] + i] + s);
     }
+  }
+}
+
+/* vals (nc,12,12) += coef * V/20 (1 + delta_ab) I3: the consistent P1 mass pattern, in place. */
+void he_add_mass_blocks(int64_t nc, const double *vol, double coef, double *vals) {
+  for (int64_t e = 0; e < nc; e++) {
+    double w = coef * vol[e] / 20.0;
+    double *K = vals + 144 * e;
+    for (int a = 0; a < 4; a++)
+      for (int b = 0; b < 4; b++) {
+        double m = (a == b) ? 2.0 * w : w;
+        for (int i = 0; i < 3; i++) K[12 * (3 * a + i) + 3 * b + i] += m;
+      }
   }
 }

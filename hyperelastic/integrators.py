@@ -71,6 +71,13 @@ class BackwardEuler:
         wall = time.perf_counter() - w0
         if reason <= 0:
             self.stages["Step"].pop()
+            if self.writer:   # the failed attempt is recorded, never dropped
+                self.writer.stats({"step": self.step + 1, "time": t1, "dt": h, "snes_reason": int(reason),
+                                   "newton_its": snes.getIterationNumber(),
+                                   "ksp_its": snes.getLinearSolveIterations(),
+                                   "residual_evals": sysm.residual_evals - r0, "wall_s": wall})
+                self.writer.set_attr("failure", f"step {self.step + 1} t={t1:.6g}: "
+                                                f"{self.solver.reason_name(reason)}")
             raise SolveError(f"step {self.step + 1} (t={t1:.6g}, h={h:.3g}): SNES did not converge "
                              f"({self.solver.reason_name(reason)}) after {snes.getIterationNumber()} Newton "
                              f"iterations")

@@ -42,8 +42,10 @@ class Assembled:
         rows = np.concatenate(rows)
         cols = np.concatenate(cols)
         cm = system.cmask
-        self.zero = cm[rows] | cm[cols]
-        self.zero[self.diag_slice] = False
+        zero = cm[rows] | cm[cols]
+        zero[self.diag_slice] = False
+        self.zero = np.flatnonzero(zero)          # entries in constrained rows/columns (few)
+        del zero
         self.nvals = len(rows)
         self.ncell = len(cd)
         A = PETSc.Mat().create(comm=sp.comm)
@@ -68,7 +70,7 @@ class Assembled:
     def assemble(self):
         vals = self.vals
         cell = vals[:self.ncell * 144].reshape(-1, 12, 12)
-        cell[:] = 0.0
+        cell.fill(0.0)
         for e in self.cell_effects:
             e.add_cell_blocks(cell)
         for e, sl in self.other:

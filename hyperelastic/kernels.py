@@ -30,6 +30,8 @@ for _name in ("he_forces", "he_energy", "he_kv", "he_tangent", "he_tangent_diag"
     fn.argtypes = [_I, _P, _P, _P, _P, ctypes.c_int, _D, _D] + ([_P, _P] if _name == "he_kv" else [_P])
 _lib.he_mass_apply.restype = None
 _lib.he_mass_apply.argtypes = [_I, _P, _P, _D, _P, _P]
+_lib.he_add_mass_blocks.restype = None
+_lib.he_add_mass_blocks.argtypes = [_I, _P, _D, _P]
 
 
 def _ptr(a, dtype):
@@ -76,6 +78,11 @@ class CellKernels:
 
     def tangent_diag(self, x, diag):
         return _lib.he_tangent_diag(*self._args, self._x(x), self.mat, self.mu, self.lam, _ptr(diag, np.float64))
+
+    def add_mass_blocks(self, coef, vals):
+        """vals (nc,12,12) += coef * consistent P1 mass blocks, in place."""
+        assert vals.shape == (self.nc, 12, 12)
+        _lib.he_add_mass_blocks(self.nc, _ptr(self.vol, np.float64), float(coef), _ptr(vals, np.float64))
 
     def mass_apply(self, coef, v, y):
         """y += coef * (consistent P1 mass pattern) v."""

@@ -69,11 +69,13 @@ class Writer:
         i = self.nstats
         for k, v in row.items():
             if k not in g:
+                is_int = isinstance(v, (int, np.integer))
                 g.create_dataset(k, shape=(i,), maxshape=(None,), chunks=(256,),
-                                 dtype=np.int64 if isinstance(v, (int, np.integer)) else np.float64,
-                                 fillvalue=0)
+                                 dtype=np.int64 if is_int else np.float64, fillvalue=0 if is_int else np.nan)
+        for k in g:                      # every column has one entry per step (missing: NaN / 0)
             g[k].resize((i + 1,))
-            g[k][i] = v
+            if k in row:
+                g[k][i] = row[k]
         self.nstats += 1
 
     def set_attr(self, key, value):

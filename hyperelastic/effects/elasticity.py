@@ -16,6 +16,7 @@ class Elasticity(Effect):
         self.linear = material.name == "linear"
         self.x = None
         self.undefined = 0   # cells where the material was undefined at the last evaluation
+        self._tmp = None
 
     @timed("evals")
     def residual(self, x, r):
@@ -34,7 +35,9 @@ class Elasticity(Effect):
 
     @timed("applies")
     def add_cell_blocks(self, vals):
-        K, bad = self.k.tangent(self.x)
+        if self._tmp is None or len(self._tmp) != self.k.nc:
+            self._tmp = np.empty((self.k.nc, 12, 12))
+        K, bad = self.k.tangent(self.x, self._tmp)
         vals += K
 
     def energy(self, x, v):

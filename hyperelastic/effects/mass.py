@@ -1,7 +1,5 @@
 import numpy as np
 
-_PATTERN = np.kron(np.ones((4, 4)) + np.eye(4), np.eye(3)) / 20.0
-
 
 class MassOperator:
     """coef * int N^T N dV on P1 tetrahedra, per vector component: consistent,
@@ -28,7 +26,7 @@ class MassOperator:
     def add_blocks(self, vals, scale=1.0):
         """Consistent mass: vals (nc,12,12) += scale * M^e."""
         if not self.lumped:
-            vals += (scale * self.coef * self.k.vol)[:, None, None] * _PATTERN
+            self.k.add_mass_blocks(scale * self.coef, vals)
 
     def coo_pattern(self):
         """Lumped mass: one diagonal COO entry per local dof."""
