@@ -33,7 +33,7 @@ class Scene:
     params: dict = field(default_factory=dict)
     dt: float = 1e-2
     final_time: float = 1.0
-    fps: float = 25.0
+    fps: float = 30.0
     jacobian: str = "assembled"
 
 
@@ -72,7 +72,7 @@ def read_scene(name, opts=None):
     s.quasistatic = opts.flag("quasistatic")
     s.dt = opts.real("dt", 1e-2, minimum=0)
     s.final_time = opts.real("final_time", 1.0, minimum=0, exclusive=False)
-    s.fps = opts.real("frames_per_second", 25.0, minimum=0)
+    s.fps = opts.real("frames_per_second", 30.0, minimum=0)  # the thesis framework default
     s.jacobian = opts.choice("jacobian", JACOBIANS, "assembled")
 
     named = opts.names("effects", "elasticity,inertia")

@@ -29,18 +29,34 @@ def apply(mat, V):
     return Y.getArray().copy()
 
 
-@pytest.mark.parametrize("scene_name", SCENES)
-@pytest.mark.parametrize("material", ["stvk", "neohookean", "linear"])
-def test_shell_matches_assembled(petsc, scene_name, material):
+def check_shell_equals_assembled(system, X):
+    """Shell and assembled apply the same J to a random vector (1e-12); returns (V, J V)."""
     from hyperelastic import jacobians
-    scene, space, system, X = state(petsc, scene_name, [("material", material)])
     A, actx = jacobians.make(system, "assembled")
     jacobians.update(actx)
-    S, sctx = jacobians.make(system, "shell")
+    S, _ = jacobians.make(system, "shell")
     V = X.duplicate()
     V.setRandom()
     ya, ys = apply(A, V), apply(S, V)
     assert np.abs(ya - ys).max() <= 1e-12 * np.abs(ya).max()
+    return A, S, V, ys
+
+
+def check_is_derivative(system, X, V, Jv):
+    """J V against central differences of the residual."""
+    eps = 1e-6
+    Rp, Rm = X.duplicate(), X.duplicate()
+    system.residual(X + eps * V, Rp)
+    system.residual(X - eps * V, Rm)
+    fd = (Rp.getArray() - Rm.getArray()) / (2 * eps)
+    assert np.abs(Jv - fd).max() <= 1e-6 * np.abs(Jv).max()
+
+
+@pytest.mark.parametrize("scene_name", SCENES)
+@pytest.mark.parametrize("material", ["stvk", "neohookean", "linear"])
+def test_shell_matches_assembled(petsc, scene_name, material):
+    scene, space, system, X = state(petsc, scene_name, [("material", material)])
+    A, S, V, _ = check_shell_equals_assembled(system, X)
     # the diagonals agree too (Jacobi sees the same preconditioner)
     Da, Ds = X.duplicate(), X.duplicate()
     A.getDiagonal(Da)
@@ -55,13 +71,7 @@ def test_tangent_is_derivative_of_residual(petsc, scene_name):
     S, _ = jacobians.make(system, "shell")
     V = X.duplicate()
     V.setRandom()
-    Jv = apply(S, V)
-    eps = 1e-6
-    Rp, Rm = X.duplicate(), X.duplicate()
-    system.residual(X + eps * V, Rp)
-    system.residual(X - eps * V, Rm)
-    fd = (Rp.getArray() - Rm.getArray()) / (2 * eps)
-    assert np.abs(Jv - fd).max() <= 1e-6 * np.abs(Jv).max()
+    check_is_derivative(system, X, V, apply(S, V))
 
 
 def petsc_mffd(petsc, system, X, mffd_type="wp"):
@@ -131,7 +141,6 @@ VARIANTS = [
 def test_effect_variants_consistent(petsc, variant):
     """Rayleigh damping, lumped mass, gravity and quasi-static: shell == assembled, and both are
     the derivative of the residual."""
-    from hyperelastic import jacobians
     scene, space, system, X = state(petsc, "bend", variant)
     names = [e.name for e in system.effects]
     for k, _ in variant:
@@ -139,26 +148,15 @@ def test_effect_variants_consistent(petsc, variant):
             assert "rayleigh" in names
     if ("quasistatic", "1") in variant:
         assert "inertia" not in names and "damping" not in names
-    A, actx = jacobians.make(system, "assembled")
-    jacobians.update(actx)
-    S, _ = jacobians.make(system, "shell")
-    V = X.duplicate()
-    V.setRandom()
-    ya, ys = apply(A, V), apply(S, V)
-    assert np.abs(ya - ys).max() <= 1e-12 * np.abs(ya).max()
-    eps = 1e-6
-    Rp, Rm = X.duplicate(), X.duplicate()
-    system.residual(X + eps * V, Rp)
-    system.residual(X - eps * V, Rm)
-    fd = (Rp.getArray() - Rm.getArray()) / (2 * eps)
-    assert np.abs(ys - fd).max() <= 1e-6 * np.abs(ys).max()
+    A, S, V, ys = check_shell_equals_assembled(system, X)
+    check_is_derivative(system, X, V, ys)
 
 
 def test_lumped_and_consistent_mass_have_the_same_total(petsc):
     """Both mass matrices carry the body's total mass rho * volume in each direction."""
     totals = []
     for mass in ("consistent", "lumped"):
-        scene, space, system = __import__("conftest").make_problem(petsc, "bend", [("mass", mass)])
+        scene, space, system = make_problem(petsc, "bend", [("mass", mass)])
         inertia = next(e for e in system.effects if e.name == "inertia")
         ones = np.zeros(3 * space.nlv)
         ones[0::3] = 1.0

@@ -11,7 +11,8 @@ from .neohookean import NeoHookean
 
 MATERIALS = {m.name: m for m in (Linear, StVK, NeoHookean)}
 
-# Preset values as used in the thesis' framework (hyper-sim); E [Pa], nu [-], rho [kg/m^3].
+# Preset values of the thesis framework (K. Erleben, hyper-sim, simulate/create_params.m, 2011);
+# "bone" is its "cortical bone". E [Pa], nu [-], rho [kg/m^3].
 PRESETS = {
     "rubber": (0.01e9, 0.48, 1050.0),
     "steel": (210e9, 0.31, 7800.0),
