@@ -60,7 +60,7 @@ class BackwardEuler:
         sysm, sp = self.system, self.sp
         t1 = self.t + h
         c0 = {k: v for k, v in sysm.effect_counters().items()}
-        r0 = sysm.residual_evals
+        r0, rs0 = sysm.residual_evals, sysm.residual_seconds
         w0 = time.perf_counter()
         sysm.begin_step(t1, h, self.x, self.v)
         guess = self.x + (0.0 if self.scene.quasistatic else h) * self.v
@@ -90,7 +90,8 @@ class BackwardEuler:
         self.step += 1
         stats = {"step": self.step, "time": t1, "dt": h, "snes_reason": int(reason),
                  "newton_its": snes.getIterationNumber(), "ksp_its": snes.getLinearSolveIterations(),
-                 "residual_evals": sysm.residual_evals - r0, "wall_s": wall}
+                 "residual_evals": sysm.residual_evals - r0, "residual_seconds": sysm.residual_seconds - rs0,
+                 "wall_s": wall}
         en = sysm.energies(self.x, self.v)
         stats.update({"kinetic": en.get("kinetic", 0.0), "elastic": en["elastic"], "J_min": en["J_min"],
                       "J_max": en["J_max"]})

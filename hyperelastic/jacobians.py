@@ -53,7 +53,6 @@ class Assembled:
         A.setType(PETSc.Mat.Type.AIJ)
         A.setLGMap(sp.lgmap, sp.lgmap)
         A.setPreallocationCOOLocal(rows.astype(PETSc.IntType), cols.astype(PETSc.IntType))
-        self.coo_setups = 1
         del rows, cols
         self.vals = np.zeros(self.nvals)
         self.mat = A

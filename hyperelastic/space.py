@@ -82,7 +82,6 @@ class Space:
             owned_pt[lvid[il - vStart]] = False
         self.owned = owned_pt
         self.n_owned = int(owned_pt.sum())
-        self.owned_dofs = (3 * np.flatnonzero(owned_pt)[:, None] + np.arange(3)).ravel()
         # geometry per cell, computed once: Dm^-1 and volume (thesis eq. 4.29 in matrix form)
         Xc = X[self.cells]
         Dm = np.stack([Xc[:, 1] - Xc[:, 0], Xc[:, 2] - Xc[:, 0], Xc[:, 3] - Xc[:, 0]], axis=-1)
@@ -91,9 +90,6 @@ class Space:
         self.Dminv = np.ascontiguousarray(np.linalg.inv(Dm))
         self.nc = len(self.cells)
         self.lgmap = dm.getLGMap()
-        gv = dm.createGlobalVec()
-        self.rstart, self.rend = gv.getOwnershipRange()
-        gv.destroy()
         # global min/max of the reference coordinates, for face selection
         lo = X.min(axis=0) if nlv else np.full(3, np.inf)
         hi = X.max(axis=0) if nlv else np.full(3, -np.inf)
@@ -127,10 +123,6 @@ class Space:
         """g = sum over ranks of local contributions l (g is zeroed first)."""
         g.zeroEntries()
         self.dm.localToGlobal(l, g, addv=PETSc.InsertMode.ADD_VALUES)
-
-    def local_field(self, values_per_vertex):
-        """A local-vector-shaped array from per-local-vertex values (nlv, 3)."""
-        return np.ascontiguousarray(values_per_vertex, dtype=np.float64).reshape(-1)
 
     def owned_array(self, local_array):
         """The owned part of a local array, in global-vector order."""

@@ -31,6 +31,9 @@ class System:
         self.xl = space.local_vec()
         self.vl = space.local_vec()
         self.scale = 1.0
+        self.guard_inversion = any(not getattr(getattr(e, "material", None), "defined_when_inverted", True)
+                                   for e in effects)
+        self.g_owned_c = np.zeros(len(self.c_owned_pos))
         self.residual_evals = 0
         self.residual_seconds = 0.0
         self.x_lin = None
@@ -42,6 +45,7 @@ class System:
         g = self.g.reshape(-1, 3)
         for c in self.constraints:
             g[c.vertices] = c.positions(t)
+        self.g_owned_c = self.space.owned_array(self.g)[self.c_owned_pos]   # targets of the owned rows
 
     def impose(self, x):
         """x (local array) with constrained dofs set to their prescribed positions."""
@@ -49,8 +53,7 @@ class System:
         return x
 
     def impose_global(self, X):
-        a = X.getArray()
-        a[self.c_owned_pos] = self.space.owned_array(self.g)[self.c_owned_pos]
+        X.getArray()[self.c_owned_pos] = self.g_owned_c
 
     # --- residual ------------------------------------------------------------------------------
     def local(self, X, lvec):
@@ -67,26 +70,28 @@ class System:
         t0 = time.perf_counter()
         x = self.impose(self.local(X, self.xl).copy())
         r = self.residual_local(x)
-        self.finish(r, X, R, self.g)
+        self.finish(r, X, R)
         self.residual_evals += 1
         self.residual_seconds += time.perf_counter() - t0
 
-    def finish(self, r, X, R, target):
-        """Assemble local r into R and set the constrained rows to s (X_c - target_c)."""
+    def finish(self, r, X, R):
+        """Assemble local r into R and set the constrained rows to s (X_c - g_c)."""
         r[self.cdofs] = 0.0
         self._add(r, R)
         if len(self.c_owned_pos):
-            a = R.getArray()
-            xa = X.getArray(readonly=True)
-            tg = self.space.owned_array(target)
-            a[self.c_owned_pos] = self.scale * (xa[self.c_owned_pos] - tg[self.c_owned_pos])
+            R.getArray()[self.c_owned_pos] = self.scale * (X.getArray(readonly=True)[self.c_owned_pos]
+                                                           - self.g_owned_c)
 
     def _add(self, r, R):
         self.vl.getArray()[:] = r
         self.space.add_to_global(self.vl, R)
 
     def undefined_cells(self):
-        return sum(getattr(e, "undefined", 0) for e in self.effects)
+        """Cells (on all ranks) where the material was undefined at the last residual; only
+        materials undefined for J <= 0 are checked (one allreduce per residual for those)."""
+        if self.guard_inversion:
+            return self.space.mpi.allreduce(sum(getattr(e, "undefined", 0) for e in self.effects), op=MPI.SUM)
+        return 0
 
     # --- tangent -------------------------------------------------------------------------------
     def linearize(self, X):
