@@ -263,9 +263,10 @@ static inline void tangent_column(int mat, double mu, double lam, const dpcache 
       col[3 * a + i] = V * (dP[3 * i] * G[a][0] + dP[3 * i + 1] * G[a][1] + dP[3 * i + 2] * G[a][2]);
 }
 
-/* Cell tangents, 144 values per cell, row-major over local dofs (3a+i, 3b+k). */
+/* Cell tangents, 144 values per cell, row-major over local dofs (3a+i, 3b+k); written, or added to
+ * vals when accumulate != 0. */
 int64_t he_tangent(int64_t nc, const idx_t *cells, const double *Dminv, const double *vol, const double *x,
-                   int mat, double mu, double lam, double *vals) {
+                   int mat, double mu, double lam, double *vals, int accumulate) {
   int64_t bad = 0;
   for (int64_t e = 0; e < nc; e++) {
     double F[9], G[4][3], col[12];
@@ -281,7 +282,10 @@ int64_t he_tangent(int64_t nc, const idx_t *cells, const double *Dminv, const do
     for (int b = 0; b < 4; b++)
       for (int k = 0; k < 3; k++) {
         tangent_column(mat, mu, lam, &d, G, vol[e], b, k, col);
-        for (int r = 0; r < 12; r++) K[12 * r + 3 * b + k] = col[r];
+        if (accumulate)
+          for (int r = 0; r < 12; r++) K[12 * r + 3 * b + k] += col[r];
+        else
+          for (int r = 0; r < 12; r++) K[12 * r + 3 * b + k] = col[r];
       }
   }
   return bad;

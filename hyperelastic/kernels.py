@@ -27,7 +27,8 @@ _D = ctypes.c_double
 for _name in ("he_forces", "he_energy", "he_kv", "he_tangent", "he_tangent_diag"):
     fn = getattr(_lib, _name)
     fn.restype = _I
-    fn.argtypes = [_I, _P, _P, _P, _P, ctypes.c_int, _D, _D] + ([_P, _P] if _name == "he_kv" else [_P])
+    fn.argtypes = [_I, _P, _P, _P, _P, ctypes.c_int, _D, _D] + (
+        [_P, _P] if _name == "he_kv" else [_P, ctypes.c_int] if _name == "he_tangent" else [_P])
 _lib.he_mass_apply.restype = None
 _lib.he_mass_apply.argtypes = [_I, _P, _P, _D, _P, _P]
 _lib.he_add_mass_blocks.restype = None
@@ -69,11 +70,13 @@ class CellKernels:
         return _lib.he_kv(*self._args, self._x(x), self.mat, self.mu, self.lam, _ptr(v, np.float64),
                           _ptr(y, np.float64))
 
-    def tangent(self, x, vals=None):
-        """12x12 cell tangents, shape (nc, 12, 12), dof order 3a+i."""
+    def tangent(self, x, vals=None, accumulate=False):
+        """12x12 cell tangents, shape (nc, 12, 12), dof order 3a+i; added to vals if accumulate."""
         if vals is None:
-            vals = np.empty((self.nc, 12, 12))
-        bad = _lib.he_tangent(*self._args, self._x(x), self.mat, self.mu, self.lam, _ptr(vals, np.float64))
+            vals = np.zeros((self.nc, 12, 12))
+        assert vals.shape == (self.nc, 12, 12)
+        bad = _lib.he_tangent(*self._args, self._x(x), self.mat, self.mu, self.lam, _ptr(vals, np.float64),
+                              int(accumulate))
         return vals, bad
 
     def tangent_diag(self, x, diag):

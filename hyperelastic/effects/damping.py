@@ -84,7 +84,7 @@ class RayleighDamping(Effect):
     def add_cell_blocks(self, vals):
         self.M.add_blocks(vals, 1.0 / self.h)
         if self.beta:
-            K, _ = self.k.tangent(self.xn)
+            K, _ = self.k.tangent(self.xn)        # scaled by beta/h, so not accumulated in place
             vals += (self.beta / self.h) * K
 
     def coo_pattern(self):

@@ -1,5 +1,3 @@
-import numpy as np
-
 from .base import Effect, timed
 
 
@@ -16,7 +14,6 @@ class Elasticity(Effect):
         self.linear = material.name == "linear"
         self.x = None
         self.undefined = 0   # cells where the material was undefined at the last evaluation
-        self._tmp = None
 
     @timed("evals")
     def residual(self, x, r):
@@ -35,10 +32,7 @@ class Elasticity(Effect):
 
     @timed("applies")
     def add_cell_blocks(self, vals):
-        if self._tmp is None or len(self._tmp) != self.k.nc:
-            self._tmp = np.empty((self.k.nc, 12, 12))
-        K, bad = self.k.tangent(self.x, self._tmp)
-        vals += K
+        self.k.tangent(self.x, vals, accumulate=True)
 
     def energy(self, x, v):
         W, jmin, jmax, bad = self.k.energy(x)
