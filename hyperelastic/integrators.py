@@ -57,9 +57,15 @@ class BackwardEuler:
     def advance(self, h):
         """One step of size h from (x, v, t); raises SolveError when SNES fails."""
         self.stages["Step"].push()
+        try:
+            return self._advance(h)
+        finally:
+            self.stages["Step"].pop()
+
+    def _advance(self, h):
         sysm, sp = self.system, self.sp
         t1 = self.t + h
-        c0 = {k: v for k, v in sysm.effect_counters().items()}
+        c0 = sysm.effect_counters()
         r0, rs0 = sysm.residual_evals, sysm.residual_seconds
         w0 = time.perf_counter()
         sysm.begin_step(t1, h, self.x, self.v)
@@ -68,30 +74,23 @@ class BackwardEuler:
         sysm.impose_global(self.X)
         reason = self.solver.solve(self.X)
         snes = self.solver.snes
-        wall = time.perf_counter() - w0
-        if reason <= 0:
-            self.stages["Step"].pop()
-            if self.writer:   # the failed attempt is recorded, never dropped
-                self.writer.stats({"step": self.step + 1, "time": t1, "dt": h, "snes_reason": int(reason),
-                                   "newton_its": snes.getIterationNumber(),
-                                   "ksp_its": snes.getLinearSolveIterations(),
-                                   "residual_evals": sysm.residual_evals - r0, "wall_s": wall})
-                self.writer.set_attr("failure", f"step {self.step + 1} t={t1:.6g}: "
-                                                f"{self.solver.reason_name(reason)}")
-            raise SolveError(f"step {self.step + 1} (t={t1:.6g}, h={h:.3g}): SNES did not converge "
-                             f"({self.solver.reason_name(reason)}) after {snes.getIterationNumber()} Newton "
-                             f"iterations")
-        x1 = sysm.impose(sysm.local(self.X, sysm.xl).copy())
-        v1 = (x1 - self.x) / h
-        if not (np.isfinite(x1).all()):
-            self.stages["Step"].pop()
-            raise SolveError(f"step {self.step + 1} (t={t1:.6g}): non-finite positions")
-        self.x, self.v, self.t = x1, (np.zeros_like(v1) if self.scene.quasistatic else v1), t1
-        self.step += 1
-        stats = {"step": self.step, "time": t1, "dt": h, "snes_reason": int(reason),
+        stats = {"step": self.step + 1, "time": t1, "dt": h, "snes_reason": int(reason),
                  "newton_its": snes.getIterationNumber(), "ksp_its": snes.getLinearSolveIterations(),
                  "residual_evals": sysm.residual_evals - r0, "residual_seconds": sysm.residual_seconds - rs0,
-                 "wall_s": wall}
+                 "wall_s": time.perf_counter() - w0}
+        if reason <= 0:
+            why = self.solver.reason_name(reason)
+            if self.writer:   # the failed attempt is recorded, never dropped
+                self.writer.stats(stats)
+                self.writer.set_attr("failure", f"step {self.step + 1} t={t1:.6g}: {why}")
+            raise SolveError(f"step {self.step + 1} (t={t1:.6g}, h={h:.3g}): SNES did not converge "
+                             f"({why}) after {stats['newton_its']} Newton iterations")
+        x1 = sysm.impose(sysm.local(self.X, sysm.xl).copy())
+        if not np.isfinite(x1).all():
+            raise SolveError(f"step {self.step + 1} (t={t1:.6g}): non-finite positions")
+        v1 = (x1 - self.x) / h
+        self.x, self.v, self.t = x1, (np.zeros_like(v1) if self.scene.quasistatic else v1), t1
+        self.step += 1
         en = sysm.energies(self.x, self.v)
         stats.update({"kinetic": en.get("kinetic", 0.0), "elastic": en["elastic"], "J_min": en["J_min"],
                       "J_max": en["J_max"]})
@@ -103,5 +102,4 @@ class BackwardEuler:
             stats[f"effect_{name}_evals"] = ev - e0[0]
             stats[f"effect_{name}_applies"] = ap - e0[1]
             stats[f"effect_{name}_seconds"] = sec - e0[2]
-        self.stages["Step"].pop()
         return stats

@@ -148,12 +148,14 @@ class System:
         for e in self.effects:
             for k, val in e.energy(x, v).items():
                 out[k] = val
-        keys = sorted(out)
-        vals = np.array([out[k] for k in keys])
-        ops = {"J_min": MPI.MIN, "J_max": MPI.MAX}
-        res = {}
-        for k, val in zip(keys, vals):
-            res[k] = self.space.mpi.allreduce(val, op=ops.get(k, MPI.SUM))
+        mpi = self.space.mpi
+        res = {k: mpi.allreduce(out.pop(k), op=op) for k, op in (("J_min", MPI.MIN), ("J_max", MPI.MAX))
+               if k in out}
+        keys = sorted(out)                       # everything else is additive over ranks: one reduction
+        sums = np.array([out[k] for k in keys], dtype=float)
+        tot = np.empty_like(sums)
+        mpi.Allreduce(sums, tot, op=MPI.SUM)
+        res.update(zip(keys, tot.tolist()))
         return res
 
     def effect_counters(self):
