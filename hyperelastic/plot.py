@@ -17,7 +17,6 @@ def render(path, out, frame=-1):
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    from mpl_toolkits.mplot3d.art3d import Poly3DCollection
     try:
         f = h5py.File(path, "r")
     except OSError as e:
@@ -38,8 +37,23 @@ def render(path, out, frame=-1):
     u = np.linalg.norm(x - X, axis=1)
     fig = plt.figure(figsize=(8, 5))
     ax = fig.add_subplot(111, projection="3d")
-    val = u[tri].mean(axis=1)
-    norm = plt.Normalize(0, max(val.max(), 1e-300))
+    norm = plt.Normalize(0, max(u[tri].mean(axis=1).max(), 1e-300))
+    draw(ax, X, x, tri, norm)
+    sm = plt.cm.ScalarMappable(cmap="viridis", norm=norm)
+    fig.colorbar(sm, ax=ax, shrink=0.7, label="|displacement| [m]")
+    ax.set_title(f"{scene}  t = {t:.3g} s  (frame {i}; grey: reference shape)")
+    fig.tight_layout()
+    fig.savefig(out, dpi=110)
+    plt.close(fig)
+    return out
+
+
+def draw(ax, X, x, tri, norm):
+    """Boundary triangles `tri` of the deformed shape x (coloured by |x - X| with `norm`) over the
+    reference shape X in grey, on a 3-D axis with equal aspect."""
+    import matplotlib.pyplot as plt
+    from mpl_toolkits.mplot3d.art3d import Poly3DCollection
+    val = np.linalg.norm(x - X, axis=1)[tri].mean(axis=1)
     ref = Poly3DCollection(X[tri], facecolors=(0.5, 0.5, 0.5, 0.06), edgecolor=(0.3, 0.3, 0.3, 0.08), linewidths=0.2)
     ax.add_collection3d(ref)
     pc = Poly3DCollection(x[tri], facecolors=plt.cm.viridis(norm(val)), edgecolor=(0, 0, 0, 0.15), linewidths=0.2)
@@ -52,10 +66,3 @@ def render(path, out, frame=-1):
     ax.set_xlabel("x")
     ax.set_ylabel("y")
     ax.set_zlabel("z")
-    sm = plt.cm.ScalarMappable(cmap="viridis", norm=norm)
-    fig.colorbar(sm, ax=ax, shrink=0.7, label="|displacement| [m]")
-    ax.set_title(f"{scene}  t = {t:.3g} s  (frame {i}; grey: reference shape)")
-    fig.tight_layout()
-    fig.savefig(out, dpi=110)
-    plt.close(fig)
-    return out

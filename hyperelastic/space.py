@@ -13,6 +13,14 @@ from .kernels import IDX
 from .mesh import spatial_order
 
 
+def reference_geometry(X, cells):
+    """Per cell, computed once: Dm^-1 (thesis eq. 4.29 in matrix form) and the volume |det Dm|/6
+    (F = Ds Dm^-1 does not depend on vertex order; the volume must be > 0)."""
+    Xc = X[cells]
+    Dm = np.stack([Xc[:, 1] - Xc[:, 0], Xc[:, 2] - Xc[:, 0], Xc[:, 3] - Xc[:, 0]], axis=-1)
+    return np.ascontiguousarray(np.linalg.inv(Dm)), np.abs(np.linalg.det(Dm)) / 6.0
+
+
 class Space:
     def __init__(self, comm, points=None, tets=None):
         """points/tets: the checked input mesh on rank 0 (ignored on other ranks)."""
@@ -82,12 +90,7 @@ class Space:
             owned_pt[lvid[il - vStart]] = False
         self.owned = owned_pt
         self.n_owned = int(owned_pt.sum())
-        # geometry per cell, computed once: Dm^-1 and volume (thesis eq. 4.29 in matrix form)
-        Xc = X[self.cells]
-        Dm = np.stack([Xc[:, 1] - Xc[:, 0], Xc[:, 2] - Xc[:, 0], Xc[:, 3] - Xc[:, 0]], axis=-1)
-        det = np.linalg.det(Dm)
-        self.vol = np.abs(det) / 6.0  # F = Ds Dm^-1 does not depend on vertex order; V must be > 0
-        self.Dminv = np.ascontiguousarray(np.linalg.inv(Dm))
+        self.Dminv, self.vol = reference_geometry(X, self.cells)
         self.nc = len(self.cells)
         self.lgmap = dm.getLGMap()
         # global min/max of the reference coordinates, for face selection

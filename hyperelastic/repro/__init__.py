@@ -1,0 +1,1 @@
+"""Reproduction of the thesis experiments (issue 3): scripts/repro_*.py call these modules."""
