@@ -45,7 +45,7 @@ def simulate_state(out_dir, level=1, final_time=0.2, scene="squeeze", extra=()):
     tag = "_".join([scene, f"L{level}", f"t{final_time:g}"] + [str(a).lstrip("-") for a in extra])
     path = os.path.join(d, tag + ".h5")
     if not os.path.isfile(path):
-        tmp = path + ".part.h5"
+        tmp = f"{path}.{os.getpid()}.part.h5"      # scripts running side by side do not collide
         cmd = [sys.executable, "-m", "hyperelastic", "run", scene, "-level", str(level), "-final_time",
                str(final_time), "-jacobian", "assembled", "-output", tmp, "-quiet", *map(str, extra)]
         p = subprocess.run(cmd, capture_output=True, text=True)

@@ -8,7 +8,7 @@ import os
 
 import numpy as np
 
-from .common import (FAMILIES, FAMILY_LABELS, OP_LABELS, Bench, outdir, pyplot, simulate_state, write_csv)
+from .common import (FAMILIES, OP_LABELS, Bench, outdir, pyplot, simulate_state, write_csv)
 
 STEPS = (1e-2, 1e-3, 1e-5)
 OPS = ("seed_fd", "mffd_wp", "mffd_ds", "exact")
@@ -26,7 +26,6 @@ def table(bench, pairs, tol, seed, materials=("stvk", "linear"), families=FAMILI
             rng = np.random.default_rng([seed, FAMILIES.index(fam)])
             U, V = bench.vectors(fam, pairs, rng), bench.vectors(fam, pairs, rng)
             ku = np.array([bench.Kv(u) for u in U])
-            kv = np.array([bench.Kv(v) for v in V])
             mu = np.array([bench.Mv(u) for u in U])
             vMu, vKu = np.einsum("ij,ij->i", V, mu), np.einsum("ij,ij->i", V, ku)
             nV = np.linalg.norm(V, axis=1)
