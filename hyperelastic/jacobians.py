@@ -117,16 +117,46 @@ class SeedFD(_ShellContext):
         for e in self.exact:
             e.apply(v, y)
         if nv > 0:
-            x = s.x_lin
-            k1 = s.residual_local(x + v, self.elastic)
-            if self.order == 1:
-                y += (k1 - self.k0) / nv
-            else:
-                k2 = s.residual_local(x + 2 * v, self.elastic)
-                y += (-k2 + 4 * k1 - 3 * self.k0) / (2 * nv)
+            y += seed_difference(lambda z: s.residual_local(z, self.elastic), s.x_lin, v, self.k0, nv, self.order)
         y[s.cdofs] = 0.0
         s._add(y, Y)
         s._constrained_rows(X, Y)
+
+
+def seed_difference(k, x, v, k0, nv, order):
+    """The thesis' replacement for K v: (k(x+v) - k(x))/nv (eq. 5.19) or
+    (-k(x+2v) + 4k(x+v) - 3k(x))/(2 nv) (eq. 7.8), with k0 = k(x) and nv = ||v||_2. There is no
+    differencing step: v itself is the step."""
+    k1 = k(x + v)
+    if order == 1:
+        return (k1 - k0) / nv
+    return (-k(x + 2 * v) + 4 * k1 - 3 * k0) / (2 * nv)
+
+
+class PetscMFFD:
+    """PETSc's own MFFD operator for a function F (what -snes_mf builds): a SNES with options prefix
+    `prefix`, -snes_mf and -mat_mffd_type `kind`, differencing around the base point X.
+    `function(x, f)` fills the Vec f with F(x). `mat` is the MFFD matrix."""
+
+    def __init__(self, function, X, kind="wp", prefix="mffd_"):
+        opts = PETSc.Options(prefix)
+        opts.setValue("snes_mf", True)
+        opts.setValue("mat_mffd_type", kind)
+        snes = PETSc.SNES().create(comm=X.getComm())
+        snes.setOptionsPrefix(prefix)
+        self.R = X.duplicate()
+        snes.setFunction(lambda s, x, f: function(x, f), self.R)
+        snes.setFromOptions()
+        snes.setSolution(X)
+        snes.setUp()
+        self.snes, self.X = snes, X
+        self.mat, self.P, _ = snes.getJacobian()
+        self.rebase()
+
+    def rebase(self):
+        """Recompute F(X), the value MFFD differences against (after F itself changed)."""
+        self.snes.computeFunction(self.X, self.R)
+        self.snes.computeJacobian(self.X, self.mat, self.P)
 
 
 def make(system, mode):

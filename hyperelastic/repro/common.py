@@ -19,6 +19,8 @@ import sys
 
 import numpy as np
 
+from ..jacobians import PetscMFFD, seed_difference
+
 FAMILIES = ("e", "r", "t", "tw")
 FAMILY_LABELS = {"e": "unit e", "r": "N(0,1) r", "t": "real t = mu + sigma randn",
                  "tw": "eq. 7.3 as printed: mu randn + sigma"}
@@ -52,10 +54,8 @@ def simulate_state(out_dir, level=1, final_time=0.2, scene="squeeze", extra=()):
         if p.returncode != 0:
             raise RuntimeError(f"{' '.join(cmd)} failed: {p.stderr.strip()}")
         os.replace(tmp, path)
-        for ext in (".xdmf",):
-            side = tmp[:-3] + ext
-            if os.path.exists(side):
-                os.remove(side)
+        if os.path.exists(tmp[:-3] + ".xdmf"):          # the XDMF index of the temporary name
+            os.remove(tmp[:-3] + ".xdmf")
     import h5py
     with h5py.File(path, "r") as f:
         return f["mesh/points"][:], f["mesh/tetra"][:], f["x"][-1], float(f["time"][-1])
@@ -88,8 +88,8 @@ class Bench:
         self.kern.mu, self.kern.lam = float(mu), float(lam)
         self.material, self.E, self.nu = name, E, nu
         self.k0 = self.k(self.x)
-        for ctx in self._mffd.values():
-            self._rebase(ctx)
+        for m, _, _ in self._mffd.values():
+            m.rebase()
 
     # --- the exact operators ------------------------------------------------------------------
     def k(self, x):
@@ -109,55 +109,31 @@ class Bench:
 
     # --- approximations of K v ----------------------------------------------------------------
     def seed(self, v, order=1):
-        """The thesis' formulas: (k(x+v) - k(x))/||v|| (5.19), (-k(x+2v) + 4k(x+v) - 3k(x))/(2||v||) (7.8)."""
-        nv = np.linalg.norm(v)
-        k1 = self.k(self.x + v)
-        if order == 1:
-            return (k1 - self.k0) / nv
-        return (-self.k(self.x + 2 * v) + 4 * k1 - 3 * self.k0) / (2 * nv)
+        """The thesis' formulas (5.19, 7.8), as `-jacobian seed_fd` / `seed_fd2` apply them."""
+        return seed_difference(self.k, self.x, v, self.k0, np.linalg.norm(v), order)
 
-    def _mffd_ctx(self, kind):
-        if kind in self._mffd:
-            return self._mffd[kind]
-        PETSc = petsc()
-        X = PETSc.Vec().createSeq(self.n, comm=PETSc.COMM_SELF)
-        X.getArray()[:] = self.x
-        R = X.duplicate()
-        prefix = f"repro_{kind}_"
-        opts = PETSc.Options(prefix)
-        opts.setValue("snes_mf", True)
-        opts.setValue("mat_mffd_type", kind.split("_")[1])
+    def _mffd_op(self, kind):
+        if kind not in self._mffd:
+            PETSc = petsc()
+            X = PETSc.Vec().createSeq(self.n, comm=PETSc.COMM_SELF)
+            X.getArray()[:] = self.x
 
-        def function(snes, xv, fv):
-            f = fv.getArray()
-            f[:] = 0.0
-            self.kern.forces(np.ascontiguousarray(xv.getArray(readonly=True)), f)
+            def function(xv, fv):
+                f = fv.getArray()
+                f[:] = 0.0
+                self.kern.forces(np.ascontiguousarray(xv.getArray(readonly=True)), f)
 
-        snes = PETSc.SNES().create(comm=PETSc.COMM_SELF)
-        snes.setOptionsPrefix(prefix)
-        snes.setFunction(function, R)
-        snes.setFromOptions()
-        snes.setSolution(X)
-        snes.setUp()
-        J, P, _ = snes.getJacobian()
-        ctx = {"snes": snes, "X": X, "R": R, "J": J, "P": P, "V": X.duplicate(), "Y": X.duplicate()}
-        self._rebase(ctx)
-        self._mffd[kind] = ctx
-        return ctx
-
-    @staticmethod
-    def _rebase(ctx):
-        """MFFD differences against F(X) at the base point: recompute both after a material change."""
-        ctx["snes"].computeFunction(ctx["X"], ctx["R"])
-        ctx["snes"].computeJacobian(ctx["X"], ctx["J"], ctx["P"])
+            self._mffd[kind] = (PetscMFFD(function, X, kind.split("_")[1], prefix=f"repro_{kind}_"),
+                                X.duplicate(), X.duplicate())
+        return self._mffd[kind]
 
     def mffd(self, v, kind="mffd_wp"):
         """PETSc's MFFD (what -snes_mf builds) for F = k: (k(x + eps v) - k(x))/eps, eps chosen by
         -mat_mffd_type wp or ds."""
-        ctx = self._mffd_ctx(kind)
-        ctx["V"].getArray()[:] = v
-        ctx["J"].mult(ctx["V"], ctx["Y"])
-        return ctx["Y"].getArray().copy()
+        m, V, Y = self._mffd_op(kind)
+        V.getArray()[:] = v
+        m.mat.mult(V, Y)
+        return Y.getArray().copy()
 
     def approx(self, op, v):
         if op == "seed_fd":

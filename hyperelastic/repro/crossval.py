@@ -60,19 +60,13 @@ def compute(param, values, hs, work_dir, level=1, nvec=30, seed=7, state_time=0.
     changes, so k and K scale exactly with the Lame constants."""
     m = {}
     meta = {"level": level, "nvec": nvec, "seed": seed, "state_time": state_time, "E0": E0, "nu0": nu0}
-    benches = {}
-
-    def bench_for(L):
-        if L not in benches:
-            pts, tets, x, _ = simulate_state(work_dir, int(L), state_time)
-            benches.clear()
-            benches[L] = Bench(pts, tets, x)
-        return benches[L]
-
+    b, b_level = None, None
     vec_cache = {}
     for i, P in enumerate(values):
         L = int(P) if param == "L" else level
-        b = bench_for(L)
+        if L != b_level:                         # one bench (mesh and state) at a time
+            pts, tets, x, _ = simulate_state(work_dir, L, state_time)
+            b, b_level = Bench(pts, tets, x), L
         E = float(P) if param == "E" else E0
         nu = float(P) if param == "nu" else nu0
         for fam in families:
@@ -143,13 +137,14 @@ def plot_surfaces(study, out, tol=1e-3, rel_tol=1e-3, families=("e", "r", "t")):
             for r, fam in enumerate(fams):
                 for c, mat in enumerate(mats):
                     ax = axes[r][c]
-                    Z = np.log10(np.maximum(s.surface(mat, fam, op, meas), 1e-300))
+                    S = s.surface(mat, fam, op, meas)
+                    Z = np.log10(np.maximum(S, 1e-300))
                     im = ax.pcolormesh(X, Y, Z, shading="nearest", cmap="viridis")
                     fig.colorbar(im, ax=ax, label=f"log10 {'delta' if meas == 'delta' else 'rel. error of J v'}")
                     if Z.min() <= np.log10(t) <= Z.max():
                         ax.contour(X, Y, Z, levels=[np.log10(t)], colors="k", linewidths=1.5, linestyles="solid")
                     for i, col in ((0, "tab:blue"), (-1, "tab:red")):
-                        hf = largest_feasible(s.hs, s.surface(mat, fam, op, meas)[:, i], t)
+                        hf = largest_feasible(s.hs, S[:, i], t)
                         if np.isfinite(hf):
                             ax.plot(X[i], np.log10(hf), "o", color=col, ms=7, mec="w")
                             ax.annotate(f"{hf:.3g}", (X[i], np.log10(hf)), color=col, fontsize=8,
@@ -197,17 +192,10 @@ def slice_at_h(study, h, out, name, tol=1e-3):
             rows.append({"figure": name, "h": h, "param": s.param, "value": float(P), "material": mat,
                          "family": fam, "operator": op, "delta": float(v), "feasible": int(v <= tol)})
         ax.plot(s.values, d, label=f"{mat} {fam} {op}", **_style(mat, fam, op))
-    ax.axhline(tol, color="k", lw=1)
-    ax.set_yscale("log")
     if s.param == "E":
         ax.set_xscale("log")
-    ax.set_xlabel(PARAM_LABELS[s.param])
-    ax.set_ylabel("delta = ||h^2 (approx - Kv)||_inf")
-    ax.set_title(f"{name}: h = {h:g}; black: tolerance {tol:g}", fontsize=10)
-    ax.legend(fontsize=6, ncol=2)
-    fig.tight_layout()
-    fig.savefig(os.path.join(out, f"{name}.png"), dpi=100)
-    plt.close(fig)
+    _finish_slice(plt, fig, ax, os.path.join(out, f"{name}.png"), tol, PARAM_LABELS[s.param],
+                  "delta = ||h^2 (approx - Kv)||_inf", f"{name}: h = {h:g}; black: tolerance {tol:g}")
     return rows
 
 
@@ -224,21 +212,27 @@ def slice_at_level(study, level, out, name, tol=1e-3):
         d = delta(s.m[(i, mat, fam, op)], s.hs)
         hf = largest_feasible(s.hs, d, tol)
         rows.append({"figure": name, "level": level, "material": mat, "family": fam, "operator": op,
-                     "delta_at_h1": float(d[0] / s.hs[0] ** 2), "h_feasible": hf})
+                     "delta_at_h1": float(s.m[(i, mat, fam, op)][:, D_INF].max()), "h_feasible": hf})
         ln, = ax.plot(s.hs, d, label=f"{mat} {fam} {op}", **_style(mat, fam, op))
         if np.isfinite(hf):
             ax.plot([hf], [tol], "o", color=ln.get_color())
-    ax.axhline(tol, color="k", lw=1)
     ax.set_xscale("log")
+    _finish_slice(plt, fig, ax, os.path.join(out, f"{name}.png"), tol, "time step h", "delta",
+                  f"{name}: mesh L{level}; points: largest feasible h")
+    return rows
+
+
+def _finish_slice(plt, fig, ax, path, tol, xlabel, ylabel, title):
+    """The tolerance line, log error axis, labels and legend of a slice figure; saved to path."""
+    ax.axhline(tol, color="k", lw=1)
     ax.set_yscale("log")
-    ax.set_xlabel("time step h")
-    ax.set_ylabel("delta")
-    ax.set_title(f"{name}: mesh L{level}; points: largest feasible h", fontsize=10)
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    ax.set_title(title, fontsize=10)
     ax.legend(fontsize=6, ncol=2)
     fig.tight_layout()
-    fig.savefig(os.path.join(out, f"{name}.png"), dpi=100)
+    fig.savefig(path, dpi=100)
     plt.close(fig)
-    return rows
 
 
 def main_crossval(args):
