@@ -27,6 +27,18 @@ def collective(comm, fn):
     return res
 
 
+def rotation_matrix(r):
+    """Rodrigues' formula: the rotation by |r| radians about r."""
+    import numpy as np
+    r = np.asarray(r, float)
+    th = np.linalg.norm(r)
+    if th == 0:
+        return np.eye(3)
+    k = r / th
+    K = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
+    return np.eye(3) + np.sin(th) * K + (1 - np.cos(th)) * K @ K
+
+
 class Problem:
     """Everything of a run except the solver and the output."""
 
@@ -45,13 +57,35 @@ class Problem:
         self.space = Space(self.comm, self.points, self.tets)
         self.effects, self.constraints, self.kernels = build(sc, self.space)
         self.system = System(self.space, self.effects, self.constraints)
+        self.system.inversion_guard = sc.inversion_guard
+
+    def centroid(self):
+        """Mean of the mesh vertices (the same on every rank)."""
+        import numpy as np
+        from mpi4py import MPI
+        sp = self.space
+        own = sp.X[sp.lvid_of_owned]
+        tot = sp.mpi.allreduce(np.append(own.sum(axis=0), len(own)), op=MPI.SUM)
+        return tot[:3] / tot[3]
 
     def initial_state(self):
-        """Local positions and velocities at t = 0 (rest), with the constraint scale set."""
+        """Local positions and velocities at t = 0, with the constraint scale set: the reference
+        configuration at rest, unless -initial_scale (x = c + diag(s)(X - c)), -initial_rotation
+        (x = c + R (x - c), R = exp([r]x)) or -initial_spin (v = w x (x - c)) ask otherwise; c is the
+        centroid."""
         import numpy as np
-        sp, sysm = self.space, self.system
-        x = sp.X.ravel().copy()
-        v = np.zeros_like(x)
+        sp, sysm, sc = self.space, self.system, self.scene
+        X = sp.X
+        x, v = X.copy(), np.zeros_like(X)
+        if any(a is not None for a in (sc.initial_scale, sc.initial_rotation, sc.initial_spin)):
+            c = self.centroid()
+            if sc.initial_scale is not None:
+                x = c + (x - c) * np.asarray(sc.initial_scale)
+            if sc.initial_rotation is not None:
+                x = c + (x - c) @ rotation_matrix(sc.initial_rotation).T
+            if sc.initial_spin is not None:
+                v = np.cross(np.asarray(sc.initial_spin), x - c)
+        x, v = x.ravel().copy(), v.ravel().copy()
         sysm.begin_step(0.0, self.scene.dt, x, v)
         X = sp.global_vec()
         X.getArray()[:] = sp.owned_array(x)

@@ -1,10 +1,11 @@
 """Backward Euler in the unknown x^{n+1} (thesis eq. 5.3, see system.py), or quasi-static
-loading steps, one SNES solve per step; v^{n+1} = (x^{n+1} - x^n)/h."""
+loading steps, one SNES solve per step; v^{n+1} = (x^{n+1} - x^n)/h; with step control."""
 import math
 import sys
 import time
 
 import numpy as np
+from mpi4py import MPI
 from petsc4py import PETSc
 
 from .errors import SolveError
@@ -26,47 +27,83 @@ class BackwardEuler:
         self.v = np.zeros_like(self.x)
         self.t = 0.0
         self.step = 0
+        self.h_try = None      # step size of the next attempt (step control)
+        self.streak = 0        # accepted steps since the last change of h_try
+        self.rejections = 0
         self.stages = {k: PETSc.Log.Stage(k) for k in ("Step", "Output")}
 
     def run(self):
+        """Steps of the nominal size -dt; frames every round(1/(fps dt)) of them. With step control
+        (default), a step whose solve fails (SNES diverged, a non-finite residual or state) is
+        rejected and retried with half the size; after -dt_grow_after accepted steps the size doubles
+        again, up to -dt. Every attempt is a row in stats (rejected = 1 for the refused ones). Below
+        -dt_min the run stops with a SolveError naming time, step and reason."""
         sc = self.scene
-        h = sc.dt
-        nsteps = step_count(sc.final_time, h)
-        every = max(1, int(round(1.0 / (sc.fps * h))))
+        H = sc.dt
+        nsteps = step_count(sc.final_time, H)
+        every = max(1, int(round(1.0 / (sc.fps * H))))
         if self.writer:
-            self.system.begin_step(0.0, h, self.x, self.v)
+            self.system.begin_step(0.0, H, self.x, self.v)
             self.writer.frame(0.0, self.system.impose(self.x.copy()))
         t_start = time.perf_counter()
         last_print = t_start
+        self.h_try = H if self.h_try is None else self.h_try
         for n in range(nsteps):
-            hn = min(h, sc.final_time - self.t) if n == nsteps - 1 else h
-            stats = self.advance(hn)
+            t_end = self.t + (min(H, sc.final_time - self.t) if n == nsteps - 1 else H)
+            while self.t < t_end:
+                h = min(self.h_try, t_end - self.t)
+                last = t_end - self.t - h <= 1e-12 * H
+                stats = self.advance(h, t_end if last else self.t + h)
+                why = stats.pop("why", None)
+                self.stages["Output"].push()
+                if self.writer:
+                    self.writer.stats(stats)
+                self.stages["Output"].pop()
+                if stats["rejected"]:
+                    self.rejections += 1
+                    self.streak = 0
+                    self.h_try = 0.5 * h
+                    if not sc.step_control or self.h_try < sc.dt_min:
+                        self._fail(stats, why)
+                    continue
+                self.streak += 1
+                if self.h_try < H and self.streak >= sc.dt_grow_after:
+                    self.h_try, self.streak = min(2 * self.h_try, H), 0
             self.stages["Output"].push()
-            if self.writer:
-                self.writer.stats(stats)
-                if (n + 1) % every == 0 or n == nsteps - 1:
-                    self.writer.frame(self.t, self.x)
+            if self.writer and ((n + 1) % every == 0 or n == nsteps - 1):
+                self.writer.frame(self.t, self.x)
             self.stages["Output"].pop()
             now = time.perf_counter()
             if not self.quiet and self.sp.mpi.rank == 0 and (now - last_print > 2.0 or n == nsteps - 1):
                 last_print = now
+                rej = f" rejected {self.rejections}" if self.rejections else ""
                 print(f"t={self.t:.4g}/{sc.final_time:.4g} step {n + 1}/{nsteps} newton {stats['newton_its']} "
-                      f"ksp {stats['ksp_its']} [{now - t_start:.1f} s]", file=sys.stderr, flush=True)
+                      f"ksp {stats['ksp_its']}{rej} [{now - t_start:.1f} s]", file=sys.stderr, flush=True)
         return self
 
-    def advance(self, h):
-        """One step of size h from (x, v, t); raises SolveError when SNES fails."""
+    def _fail(self, stats, why):
+        sc = self.scene
+        where = f"step {self.step + 1} (t={stats['time']:.6g}, h={stats['dt']:.3g})"
+        if sc.step_control:
+            why += f"; step control reached -dt_min {sc.dt_min:.3g} after {self.rejections} rejected attempts"
+        if self.writer:
+            self.writer.set_attr("failure", f"{where}: {why}")
+        raise SolveError(f"{where}: {why}")
+
+    def advance(self, h, t1=None):
+        """One attempt of a step of size h from (x, v, t) to t1 (default t + h). Returns its stats
+        row; the state moves only when the attempt is accepted (stats['rejected'] == 0)."""
         self.stages["Step"].push()
         try:
-            return self._advance(h)
+            return self._advance(h, self.t + h if t1 is None else t1)
         finally:
             self.stages["Step"].pop()
 
-    def _advance(self, h):
+    def _advance(self, h, t1):
         sysm, sp = self.system, self.sp
-        t1 = self.t + h
         c0 = sysm.effect_counters()
         r0, rs0 = sysm.residual_evals, sysm.residual_seconds
+        cuts0 = self.solver.inversion_cuts
         w0 = time.perf_counter()
         sysm.begin_step(t1, h, self.x, self.v)
         guess = self.x + (0.0 if self.scene.quasistatic else h) * self.v
@@ -77,29 +114,34 @@ class BackwardEuler:
         stats = {"step": self.step + 1, "time": t1, "dt": h, "snes_reason": int(reason),
                  "newton_its": snes.getIterationNumber(), "ksp_its": snes.getLinearSolveIterations(),
                  "residual_evals": sysm.residual_evals - r0, "residual_seconds": sysm.residual_seconds - rs0,
-                 "wall_s": time.perf_counter() - w0}
-        if reason <= 0:
-            why = self.solver.reason_name(reason)
-            if self.writer:   # the failed attempt is recorded, never dropped
-                self.writer.stats(stats)
-                self.writer.set_attr("failure", f"step {self.step + 1} t={t1:.6g}: {why}")
-            raise SolveError(f"step {self.step + 1} (t={t1:.6g}, h={h:.3g}): SNES did not converge "
-                             f"({why}) after {stats['newton_its']} Newton iterations")
-        x1 = sysm.impose(sysm.local(self.X, sysm.xl).copy())
-        if not np.isfinite(x1).all():
-            raise SolveError(f"step {self.step + 1} (t={t1:.6g}): non-finite positions")
-        v1 = (x1 - self.x) / h
-        self.x, self.v, self.t = x1, (np.zeros_like(v1) if self.scene.quasistatic else v1), t1
-        self.step += 1
-        en = sysm.energies(self.x, self.v)
-        stats.update({"kinetic": en.get("kinetic", 0.0), "elastic": en["elastic"], "J_min": en["J_min"],
-                      "J_max": en["J_max"]})
-        for k in ("gravity_potential", "traction_work"):
-            if k in en:
-                stats[k] = en[k]
+                 "inversion_cuts": self.solver.inversion_cuts - cuts0, "rejected": 1}
         for name, (ev, ap, sec) in sysm.effect_counters().items():
             e0 = c0[name]
             stats[f"effect_{name}_evals"] = ev - e0[0]
             stats[f"effect_{name}_applies"] = ap - e0[1]
             stats[f"effect_{name}_seconds"] = sec - e0[2]
+        if reason <= 0:
+            stats["why"] = (f"SNES did not converge ({self.solver.reason_name(reason)}) after "
+                            f"{stats['newton_its']} Newton iterations")
+            return self._rejected(stats, w0)
+        x1 = sysm.impose(sysm.local(self.X, sysm.xl).copy())
+        v1 = np.zeros_like(x1) if self.scene.quasistatic else (x1 - self.x) / h
+        en = sysm.energies(x1, v1)
+        vals = [en.get("kinetic", 0.0), en["elastic"]] + [en[k] for k in ("gravity_potential", "traction_work")
+                                                        if k in en]
+        finite = sp.mpi.allreduce(bool(np.isfinite(x1).all()), op=MPI.LAND) and all(map(math.isfinite, vals))
+        if not finite:   # a NaN/Inf state never reaches the output
+            stats["why"] = "non-finite positions or energies after a converged solve"
+            return self._rejected(stats, w0)
+        self.x, self.v, self.t = x1, v1, t1
+        self.step += 1
+        stats.update({"rejected": 0, "kinetic": en.get("kinetic", 0.0), "elastic": en["elastic"],
+                      "J_min": en["J_min"], "J_max": en["J_max"], "wall_s": time.perf_counter() - w0})
+        for k in ("gravity_potential", "traction_work"):
+            if k in en:
+                stats[k] = en[k]
+        return stats
+
+    def _rejected(self, stats, w0):
+        stats["wall_s"] = time.perf_counter() - w0
         return stats

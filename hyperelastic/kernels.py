@@ -31,6 +31,10 @@ for _name in ("he_forces", "he_energy", "he_kv", "he_tangent", "he_tangent_diag"
         [_P, _P] if _name == "he_kv" else [_P, ctypes.c_int] if _name == "he_tangent" else [_P])
 _lib.he_mass_apply.restype = None
 _lib.he_mass_apply.argtypes = [_I, _P, _P, _D, _P, _P]
+_lib.he_max_step.restype = _D
+_lib.he_max_step.argtypes = [_I, _P, _P, _P, _P, _D]
+_lib.he_apply_blocks.restype = None
+_lib.he_apply_blocks.argtypes = [_I, _P, _P, _P, _P]
 _lib.he_add_mass_blocks.restype = None
 _lib.he_add_mass_blocks.argtypes = [_I, _P, _D, _P]
 
@@ -81,6 +85,17 @@ class CellKernels:
 
     def tangent_diag(self, x, diag):
         return _lib.he_tangent_diag(*self._args, self._x(x), self.mat, self.mu, self.lam, _ptr(diag, np.float64))
+
+    def max_step(self, x, d, frac=0.9):
+        """Largest t <= 1 keeping every (not already inverted) cell's det F > 0 on x + [0, t] d, times
+        frac when a cell would invert within the unit step."""
+        return _lib.he_max_step(*self._args[:3], self._x(x), _ptr(d, np.float64), float(frac))
+
+    def apply_blocks(self, blocks, v, y):
+        """y += sum over cells of blocks[e] v_e (blocks: (nc,12,12), e.g. projected tangents)."""
+        assert blocks.shape == (self.nc, 12, 12) and blocks.flags.c_contiguous
+        _lib.he_apply_blocks(self.nc, _ptr(self.cells, IDX), _ptr(blocks, np.float64), _ptr(v, np.float64),
+                             _ptr(y, np.float64))
 
     def add_mass_blocks(self, coef, vals):
         """vals (nc,12,12) += coef * consistent P1 mass blocks, in place."""

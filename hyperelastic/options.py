@@ -106,9 +106,9 @@ class Options:
             raise UserError(f"option -{name}: {v} must be >= {minimum}")
         return v
 
-    def flag(self, name):
+    def flag(self, name, default=False):
         if not self.o.hasName(name):
-            return False
+            return default
         s = (self.o.getString(name, "") or "").lower()
         if s in ("", "1", "true", "yes", "on"):
             return True

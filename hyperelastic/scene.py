@@ -35,6 +35,14 @@ class Scene:
     final_time: float = 1.0
     fps: float = 30.0
     jacobian: str = "assembled"
+    hessian_projection: bool = False
+    initial_scale: tuple = None   # x(0) = c + diag(s) (X - c), c the centroid (e.g. -1,1,1: mirrored)
+    initial_spin: tuple = None    # v(0) = w x (X - c): angular velocity about the centroid [rad/s]
+    initial_rotation: tuple = None  # x(0) = c + R(r) (X - c), r a rotation vector [rad] (after the scale)
+    step_control: bool = True     # reject a failed step and retry with h/2, down to dt_min
+    dt_min: float = 0.0
+    dt_grow_after: int = 2        # successful steps before h is doubled back toward dt
+    inversion_guard: bool = False # shorten Newton updates that would invert an element
 
 
 JACOBIANS = ("assembled", "shell", "seed_fd", "seed_fd2")
@@ -74,6 +82,16 @@ def read_scene(name, opts=None):
     s.final_time = opts.real("final_time", 1.0, minimum=0, exclusive=False)
     s.fps = opts.real("frames_per_second", 30.0, minimum=0)  # the thesis framework default
     s.jacobian = opts.choice("jacobian", JACOBIANS, "assembled")
+    s.hessian_projection = opts.flag("hessian_projection")
+    s.initial_scale = opts.vector("initial_scale")
+    s.initial_spin = opts.vector("initial_spin")
+    s.initial_rotation = opts.vector("initial_rotation")
+    s.step_control = opts.flag("step_control", True)
+    s.dt_min = opts.real("dt_min", s.dt / 1024, minimum=0)
+    if s.dt_min > s.dt:
+        raise UserError(f"option -dt_min: {s.dt_min:g} must be <= -dt {s.dt:g}")
+    s.dt_grow_after = opts.integer("dt_grow_after", 2, minimum=1)
+    s.inversion_guard = opts.flag("inversion_guard", not s.material.defined_when_inverted)
 
     named = opts.names("effects", "elasticity,inertia")
     for e in named:
@@ -153,7 +171,7 @@ def build(scene, space):
     effects, constraints = [], []
     for name in s.effects:
         if name == "elasticity":
-            effects.append(Elasticity(k, s.material))
+            effects.append(Elasticity(k, s.material, s.hessian_projection))
         elif name == "inertia":
             effects.append(Inertia(k, s.rho, s.lumped, nlv))
         elif name == "damping":

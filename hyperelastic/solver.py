@@ -1,5 +1,6 @@
 """SNES / KSP / PC from the options database, with this application's defaults:
 Newton with backtracking line search, CG + Jacobi (no PC under -snes_mf)."""
+from mpi4py import MPI
 from petsc4py import PETSc
 
 from . import jacobians
@@ -40,6 +41,11 @@ class Solver:
         if self.mf != "mf":   # under -snes_mf no Jacobian of ours is used: do not build one
             self.A, self.ctx = jacobians.make(system, mode)
             snes.setJacobian(self._jacobian, self.A, self.A)
+        self.inversion_cuts = 0   # Newton updates shortened so that no element inverts
+        self.guard = None
+        if getattr(system, "inversion_guard", False):
+            self.guard = system.elastic_kernels()
+            snes.setLineSearchPreCheck(self._precheck)
         snes.setFromOptions()
         self.ev_res = PETSc.Log.Event("HE_Residual")
         self.ev_jac = PETSc.Log.Event("HE_Jacobian")
@@ -50,6 +56,21 @@ class Solver:
         if self.system.undefined_cells():
             set_function_domain_error(snes)
         self.ev_res.end()
+
+    def _precheck(self, X, Y):
+        """Shorten the Newton update (X_new = X - lambda Y) so that no element inverts: the material
+        is undefined there (-inversion_guard; on by default for Neo-Hookean). The factor is the same
+        on every rank."""
+        sysm = self.system
+        x = sysm.impose(sysm.local(X, sysm.xl).copy())
+        d = -sysm.local(Y, sysm.vl).copy()
+        d[sysm.cdofs] = 0.0
+        t = sysm.space.mpi.allreduce(self.guard.max_step(x, d), op=MPI.MIN)
+        if t < 1.0:
+            Y.scale(t)
+            self.inversion_cuts += 1
+            return True
+        return False
 
     def _jacobian(self, snes, X, J, P):
         self.ev_jac.begin()

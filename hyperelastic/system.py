@@ -33,6 +33,7 @@ class System:
         self.scale = 1.0
         self.guard_inversion = any(not getattr(getattr(e, "material", None), "defined_when_inverted", True)
                                    for e in effects)
+        self.inversion_guard = False   # shorten Newton updates that invert elements (set from the scene)
         self.g_owned_c = np.zeros(len(self.c_owned_pos))
         self.residual_evals = 0
         self.residual_seconds = 0.0
@@ -92,6 +93,9 @@ class System:
         if self.guard_inversion:
             return self.space.mpi.allreduce(sum(getattr(e, "undefined", 0) for e in self.effects), op=MPI.SUM)
         return 0
+
+    def elastic_kernels(self):
+        return next(e.k for e in self.effects if getattr(e, "material", None) is not None)
 
     # --- tangent -------------------------------------------------------------------------------
     def linearize(self, X):

@@ -8,8 +8,10 @@ from ..errors import UserError
 from .linear import Linear
 from .stvk import StVK
 from .neohookean import NeoHookean
+from .snh import StableNeoHookean
+from .corotational import Corotational
 
-MATERIALS = {m.name: m for m in (Linear, StVK, NeoHookean)}
+MATERIALS = {m.name: m for m in (Linear, StVK, NeoHookean, StableNeoHookean, Corotational)}
 
 # Preset values of the thesis framework (K. Erleben, hyper-sim, simulate/create_params.m, 2011);
 # "bone" is its "cortical bone". E [Pa], nu [-], rho [kg/m^3].

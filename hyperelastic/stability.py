@@ -1,0 +1,234 @@
+"""The hard-case matrix: scenes x materials x stiffness x Poisson ratio x time step x Jacobian mode,
+each cell a real `python -m hyperelastic run` whose exit status, stderr and HDF5 output are read back
+and checked. Used by scripts/stability_matrix.py (the whole matrix) and tests/test_stability.py (a
+subset).
+
+A cell's outcome is `finished` (no step rejected), `recovered` (finished after step control rejected
+and retried steps) or `failed` (non-zero exit; its one-line message is kept).
+"""
+import json
+import math
+import os
+import subprocess
+import sys
+import time
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+MATERIALS = ("linear", "stvk", "neohookean", "snh", "corotational")
+# E axis [Pa]: named values of the thesis framework's presets (materials.PRESETS), nu and rho kept at
+# the defaults so that only the stiffness changes along the axis
+E_AXIS = {"1e2": 1e2, "1e6": 1e6, "rubber": 1e7, "cancellous_bone": 4.5e8, "bone": 1.6e10, "steel": 2.1e11,
+          "1e15": 1e15}
+NU_AXIS = (0.0, 0.3, 0.45, 0.49, 0.499)
+H_AXIS = (1e-1, 1e-2, 1e-3)
+MODES = {"assembled": [], "mf_operator": ["-snes_mf_operator"]}
+# cell scene -> (built-in scene, extra options); 'sliver' is squeeze-free: stretch on a sliver mesh
+SCENES = {
+    "twist3": ("twist3", []), "bend3": ("bend3", []), "squeeze": ("squeeze", []), "stretch": ("stretch", []),
+    "spin": ("spin", []), "drop": ("drop", []), "rotated": ("rotated", []), "invert": ("invert", []),
+    "unfold": ("unfold", []), "sliver": ("stretch", ["-mesh", "{sliver}"]), "bend2": ("bend2", []),
+}
+NO_EXTERNAL_WORK = {"spin", "drop", "rotated", "unfold"}   # total energy must not grow
+RIGID = {"drop", "rotated"}                                 # exact solution: a rigid motion
+
+
+@dataclass(frozen=True)
+class Cell:
+    scene: str
+    material: str
+    E: str = "1e6"
+    nu: float = 0.3
+    h: float = 1e-2
+    mode: str = "assembled"
+
+    @property
+    def id(self):
+        return f"{self.scene}-{self.material}-E{self.E}-nu{self.nu:g}-h{self.h:g}-{self.mode}"
+
+    def args(self, out, sliver):
+        base, extra = SCENES[self.scene]
+        return (["run", base, "-level", "1", "-material", self.material, "-E", repr(E_AXIS[self.E]),
+                 "-nu", repr(self.nu), "-dt", repr(self.h), "-output", out, "-quiet"]
+                + [a.format(sliver=sliver) for a in extra] + MODES[self.mode])
+
+
+def full_matrix():
+    """Every scene x material x mode at the base point (E = 1e6, nu = 0.3, h = 1e-2); the E axis on
+    twist3, squeeze and stretch; the nu axis on squeeze and bend2; the h axis on twist3 and spin
+    (assembled tangent for the axes, both modes at the extremes of E)."""
+    cells = [Cell(s, m, mode=md) for s in SCENES if s != "bend2" for m in MATERIALS for md in MODES]
+    cells += [Cell(s, m, E=e) for s in ("twist3", "squeeze", "stretch") for m in MATERIALS for e in E_AXIS]
+    cells += [Cell(s, m, E=e, mode="mf_operator") for s in ("twist3", "stretch") for m in MATERIALS
+              for e in ("steel", "1e15")]
+    cells += [Cell(s, m, nu=nu) for s in ("squeeze", "bend2") for m in MATERIALS for nu in NU_AXIS]
+    cells += [Cell(s, m, h=h) for s in ("twist3", "spin") for m in MATERIALS for h in H_AXIS]
+    return list(dict.fromkeys(cells))
+
+
+def quick_matrix():
+    """The subset `make test` runs (a few minutes on 2 cores): one cell per property to assert."""
+    cells = [Cell(s, m) for s in ("drop", "rotated") for m in MATERIALS]
+    cells += [Cell("spin", m) for m in ("stvk", "snh", "corotational")]
+    cells += [Cell("unfold", m) for m in ("snh", "stvk")]
+    cells += [Cell("invert", m) for m in ("neohookean", "snh")]
+    cells += [Cell("stretch", m, E=e) for m in ("stvk", "neohookean", "snh") for e in ("steel", "1e15")]
+    cells += [Cell("twist3", "neohookean", E="1e15", mode="mf_operator"), Cell("squeeze", "neohookean", E="steel")]
+    cells += [Cell("squeeze", "neohookean", nu=nu) for nu in (0.3, 0.499)]
+    cells += [Cell("squeeze", "stvk")]
+    return cells
+
+
+def sliver_mesh(out_dir):
+    """The sliver-tetrahedra mesh (meshes/sliver_bar.geo), generated once into out_dir."""
+    path = os.path.join(out_dir, "sliver_bar.msh")
+    if not os.path.exists(path):
+        from .mesh import generate
+        generate("sliver_bar", 1, path)
+    return path
+
+
+def _volumes(points, tets):
+    P = points[tets]
+    return np.einsum("ni,ni->n", P[:, 1] - P[:, 0], np.cross(P[:, 2] - P[:, 0], P[:, 3] - P[:, 0])) / 6
+
+
+def _strain(X, x, tets):
+    """max over cells of |F^T F - I| (entrywise), F from reference X to current x."""
+    D = np.stack([X[tets[:, a]] - X[tets[:, 0]] for a in (1, 2, 3)], axis=-1)
+    d = np.stack([x[tets[:, a]] - x[tets[:, 0]] for a in (1, 2, 3)], axis=-1)
+    F = d @ np.linalg.inv(D)
+    return float(np.abs(np.swapaxes(F, 1, 2) @ F - np.eye(3)).max())
+
+
+def analyse(cell, path, rc, stderr, wall):
+    """One row of the matrix from a finished (or failed) run."""
+    import h5py
+    row = asdict(cell) | {"id": cell.id, "rc": rc, "wall_s": round(wall, 2), "message": ""}
+    if rc != 0:
+        lines = [ln for ln in stderr.strip().splitlines() if ln.strip()]
+        row["message"] = lines[-1] if lines else f"exit status {rc}"
+    if not os.path.exists(path):
+        row.update(outcome="failed", nonfinite=False)
+        return row
+    with h5py.File(path, "r") as f:
+        st = {k: f["stats"][k][:] for k in f["stats"]}
+        X, tets = f["mesh/points"][:], f["mesh/tetra"][:]
+        xs = f["x"][:]
+        times = f["time"][:]
+        Eyoung = float(f.attrs["E"])
+    n = len(st.get("step", []))
+    rej = st.get("rejected", np.zeros(n, np.int64)).astype(bool)
+    acc = ~rej
+    row["steps"] = int(acc.sum())
+    row["rejections"] = int(rej.sum())
+    row["newton_its"] = int(st["newton_its"].sum()) if n else 0
+    row["ksp_its"] = int(st["ksp_its"].sum()) if n else 0
+    row["inversion_cuts"] = int(st.get("inversion_cuts", np.zeros(1)).sum())
+    row["dt_min_used"] = float(st["dt"].min()) if n else float("nan")
+    row["outcome"] = "failed" if rc != 0 else ("recovered" if row["rejections"] else "finished")
+    row["t_end"] = float(times[-1]) if len(times) else 0.0
+    # no NaN or Inf anywhere in what was written: frames, and the statistics of accepted steps
+    numeric = [v[acc] for k, v in st.items() if v.dtype.kind == "f" and len(v) == n]
+    row["nonfinite"] = bool(not np.isfinite(xs).all() or any(not np.isfinite(v).all() for v in numeric))
+    if acc.any():
+        row["J_min"] = float(st["J_min"][acc].min())
+        row["J_min_final"] = float(st["J_min"][acc][-1])
+        row["J_max_final"] = float(st["J_max"][acc][-1])
+        tot = st["kinetic"][acc] + st["elastic"][acc] + st.get("gravity_potential", np.zeros(n))[acc]
+        V0 = float(_volumes(X, tets).sum())
+        scale = float(np.abs(tot).max()) + 1e-10 * Eyoung * V0   # + a roundoff floor of O(E) energies
+        row["energy_growth"] = float(max(np.diff(tot).max(initial=0.0), 0.0) / scale)
+        row["elastic_max_rel"] = float(np.abs(st["elastic"][acc]).max() / (Eyoung * V0))
+        row["volume_ratio"] = float(_volumes(xs[-1], tets).sum() / V0)
+        row["strain_final"] = _strain(X, xs[-1], tets)
+        row["max_displacement"] = float(np.linalg.norm(xs[-1] - X, axis=1).max())
+        row["energy"] = json.dumps([float(v) for v in tot[:: max(1, len(tot) // 20)]])
+    return row
+
+
+def run_cell(cell, out_dir, python=sys.executable, timeout=900):
+    runs = os.path.join(out_dir, "runs")
+    os.makedirs(runs, exist_ok=True)
+    path = os.path.join(runs, cell.id + ".h5")
+    if os.path.exists(path):
+        os.remove(path)
+    sliver = sliver_mesh(out_dir) if cell.scene == "sliver" else ""
+    env = dict(os.environ, OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1")
+    t0 = time.perf_counter()
+    try:
+        p = subprocess.run([python, "-m", "hyperelastic"] + cell.args(path, sliver), capture_output=True,
+                           text=True, timeout=timeout, env=env)
+        rc, err = p.returncode, p.stderr
+    except subprocess.TimeoutExpired:
+        rc, err = -1, f"timed out after {timeout} s"
+    return analyse(cell, path, rc, err, time.perf_counter() - t0)
+
+
+def run_matrix(cells, out_dir, jobs=2, log=None):
+    if any(c.scene == "sliver" for c in cells):
+        sliver_mesh(out_dir)           # once, before the workers start
+    rows = []
+    with ThreadPoolExecutor(max_workers=jobs) as ex:
+        for row in ex.map(lambda c: run_cell(c, out_dir), cells):
+            rows.append(row)
+            if log:
+                log(row)
+    return rows
+
+
+# ---- the properties that must hold ---------------------------------------------------------------
+ENERGY_TOL = 1e-6        # relative step-to-step growth of kinetic + elastic (+ gravity) energy
+RIGID_TOL = 1e-8         # elastic energy / (E V) and |F^T F - I| for a rigid motion
+
+
+def STIFF_MUST_FINISH(r):
+    """Stiffness alone must not break the solver: every material stretched, and Neo-Hookean (whose
+    energy barrier keeps its tangent positive definite near J -> 0) twisted and squeezed. St.VK, snh
+    and corotational twisted by 2 pi or squeezed to half length at E >= steel meet indefinite tangents
+    in the quasi-static limit (h^2 K >> M); they are reported, not asserted (docs/stability.md)."""
+    return r["scene"] == "stretch" or (r["material"] == "neohookean" and r["scene"] in ("twist3", "squeeze"))
+
+
+def violations(rows):
+    """[(cell id, what is wrong)] for the properties of the issue, over the cells given."""
+    bad = []
+    for r in rows:
+        if r.get("nonfinite"):
+            bad.append((r["id"], "NaN or Inf in the output"))
+        if r["outcome"] == "failed" and (not r["message"] or "Traceback" in r["message"]):
+            bad.append((r["id"], "failed without a one-line message"))
+        ok = r["outcome"] != "failed"
+        if ok and r["scene"] in NO_EXTERNAL_WORK and r["energy_growth"] > ENERGY_TOL:
+            bad.append((r["id"], f"energy grew by {r['energy_growth']:.3g} (relative) in one step"))
+        if ok and r["scene"] in RIGID and r["material"] != "linear":
+            if r["elastic_max_rel"] > RIGID_TOL or r["strain_final"] > RIGID_TOL:
+                bad.append((r["id"], f"rigid motion deformed: elastic/(E V) {r['elastic_max_rel']:.3g}, "
+                                     f"|F^T F - I| {r['strain_final']:.3g}"))
+        if r["scene"] == "unfold" and r["material"] == "snh" and not (ok and r["J_min_final"] > 0):
+            bad.append((r["id"], "snh did not recover a positive-volume shape from the inverted start"))
+        if r["E"] in ("steel", "1e15") and r["h"] == 1e-2 and not ok and r["nu"] == 0.3 and STIFF_MUST_FINISH(r):
+            bad.append((r["id"], f"stiff cell failed: {r['message']}"))
+        if r["nu"] == 0.499 and not ok and r["material"] in ("neohookean", "snh"):
+            bad.append((r["id"], f"nu = 0.499 failed: {r['message']}"))
+    return bad
+
+
+def locking(rows):
+    """nu-axis rows with their volume ratio and max displacement relative to nu = 0.3 (same scene,
+    material, E, h, mode)."""
+    ref = {(r["scene"], r["material"], r["E"], r["h"], r["mode"]): r for r in rows if r["nu"] == 0.3}
+    out = []
+    for r in rows:
+        k = (r["scene"], r["material"], r["E"], r["h"], r["mode"])
+        if k in ref and "max_displacement" in r and "max_displacement" in ref[k]:
+            out.append((r, r["max_displacement"] / ref[k]["max_displacement"]))
+    return out
+
+
+def fmt(v, spec=".3g"):
+    if v is None or (isinstance(v, float) and math.isnan(v)):
+        return "-"
+    return format(v, spec) if isinstance(v, float) else str(v)
