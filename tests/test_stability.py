@@ -80,16 +80,26 @@ def test_defined_and_exact_when_inverted(name):
 
 
 def test_corotational_polar_decomposition():
-    """The C polar decomposition (Jacobi eigen-solver on F^T F) against numpy's SVD: P agrees, also for
-    nearly degenerate and inverted F."""
+    """The C polar decomposition (Jacobi eigen-solver on F^T F) against numpy's SVD, through the
+    forces P(F): also for nearly degenerate, repeated-singular-value and inverted F."""
+    from hyperelastic.kernels import CellKernels
     from hyperelastic.materials.corotational import polar
     m = MATERIALS["corotational"]
     F = np.concatenate([np.eye(3) + 0.5 * rng.standard_normal((20, 3, 3)),
                         np.diag([1.0, 1.0, 1e-9])[None], np.diag([2.0, -0.5, 1.0])[None],
-                        rotations(3) @ np.diag([1.0, 1.0 + 1e-12, 0.7])])
+                        rotations(3) @ np.diag([1.0, 1.0 + 1e-12, 0.7]), rotations(2)])
     R, V, s = polar(F)
-    assert np.allclose(np.linalg.det(R), 1) and np.allclose(R @ V @ (s[..., None] * np.swapaxes(V, 1, 2)), F)
-    test_defined_and_exact_when_inverted("corotational")   # kernel = reference on random F (incl. inverted)
+    assert np.allclose(np.linalg.det(R), 1) and np.allclose(R @ V @ (s[:, :, None] * np.swapaxes(V, 1, 2)), F)
+    n = len(F)
+    X = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], float)
+    x = np.einsum("nij,aj->nai", F, X).reshape(-1).copy()
+    k = CellKernels(np.arange(4 * n, dtype=np.int32).reshape(-1, 4), np.broadcast_to(np.eye(3), (n, 3, 3)).copy(),
+                    np.full(n, 1 / 6), m.kernel_id, MU, LAM)
+    f = np.zeros_like(x)
+    k.forces(x, f)
+    G = np.concatenate([-np.ones((1, 3)), np.eye(3)])
+    ref = np.einsum("nij,aj->nai", m.P(F, MU, LAM) / 6, G).reshape(-1)
+    assert np.abs(f - ref).max() <= 1e-9 * MU
 
 
 def test_hessian_projection_is_psd_and_exact_where_psd():
