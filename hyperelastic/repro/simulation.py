@@ -18,6 +18,9 @@ MODES = {"assembled": ["-jacobian", "assembled"], "shell": ["-jacobian", "shell"
 
 
 def run(scene, path, args):
+    """One thesis run: fixed step size as in the thesis' framework (no step control), so a failing
+    step ends the run as it did there."""
+    args = ["-step_control", "0", *args]
     cmd = [sys.executable, "-m", "hyperelastic", "run", scene, "-output", path, "-quiet", *map(str, args)]
     t0 = time.perf_counter()
     p = subprocess.run(cmd, capture_output=True, text=True)
