@@ -217,15 +217,41 @@ def violations(rows):
 
 
 def locking(rows):
-    """nu-axis rows with their volume ratio and max displacement relative to nu = 0.3 (same scene,
-    material, E, h, mode)."""
-    ref = {(r["scene"], r["material"], r["E"], r["h"], r["mode"]): r for r in rows if r["nu"] == 0.3}
-    out = []
+    """Rows of the nu axis (scenes run at more than one nu) with their volume ratio and max
+    displacement relative to nu = 0.3 (same scene, material, E, h, mode)."""
+    key = lambda r: (r["scene"], r["material"], r["E"], r["h"], r["mode"])  # noqa: E731
+    nus = {}
     for r in rows:
-        k = (r["scene"], r["material"], r["E"], r["h"], r["mode"])
-        if k in ref and "max_displacement" in r and "max_displacement" in ref[k]:
+        nus.setdefault(key(r), set()).add(r["nu"])
+    ref = {key(r): r for r in rows if r["nu"] == 0.3}
+    out = []
+    for r in sorted(rows, key=lambda r: (key(r), r["nu"])):
+        k = key(r)
+        if len(nus[k]) > 1 and k in ref and r.get("max_displacement") is not None \
+                and ref[k].get("max_displacement") is not None:
             out.append((r, r["max_displacement"] / ref[k]["max_displacement"]))
     return out
+
+
+NUMERIC = {"nu": float, "h": float, "rc": int, "steps": int, "rejections": int, "newton_its": int, "ksp_its": int,
+           "inversion_cuts": int, "dt_min_used": float, "J_min": float, "J_min_final": float, "J_max_final": float,
+           "energy_growth": float, "elastic_max_rel": float, "strain_final": float, "volume_ratio": float,
+           "max_displacement": float, "wall_s": float, "t_end": float}
+
+
+def read_rows(path):
+    """Rows of a stability.csv back with their types (empty fields: None), to redo the report."""
+    import csv
+    rows = []
+    with open(path, newline="") as fh:
+        for r in csv.DictReader(fh):
+            for k, typ in NUMERIC.items():
+                if k in r:
+                    r[k] = typ(float(r[k])) if r[k] not in ("", None) else None
+            r["nonfinite"] = r.get("nonfinite") == "True"
+            r["steps"] = r.get("steps") or 0
+            rows.append(r)
+    return rows
 
 
 def fmt(v, spec=".3g"):
