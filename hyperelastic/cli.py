@@ -1,6 +1,7 @@
 """hyperelastic: implicit FEM for stiff hyperelastic solids on PETSc.
 
   hyperelastic run SCENE [PETSc options]         simulate a scene (built-in name or options file)
+  hyperelastic run --restart FILE.h5 [options]   continue a run from the last checkpoint in FILE.h5
   hyperelastic mesh bar --level N -o FILE.msh    generate a gmsh mesh of the thesis' bar
   hyperelastic plot FILE.h5 [-o FILE.png]        picture of a frame (default: the last)
   hyperelastic scenes                            list the built-in scenes
@@ -9,7 +10,7 @@ import argparse
 import os
 import sys
 
-from .errors import SolveError, UserError
+from .errors import Interrupted, SolveError, UserError
 
 EXIT_USER, EXIT_SOLVE, EXIT_INTERNAL = 2, 3, 1
 
@@ -21,11 +22,43 @@ def _petsc(argv):
     return PETSc
 
 
+def _restart_args(argv):
+    """(scene file, PETSc arguments, checkpoint state) for `run --restart FILE [options]`: the options
+    recorded in FILE, then the command line's (which win), writing on into FILE."""
+    from mpi4py import MPI
+    if len(argv) < 2 or argv[1].startswith("-"):
+        raise UserError("run --restart: needs the FILE.h5 of an earlier run")
+    path = argv[1]
+    res = err = None
+    if MPI.COMM_WORLD.rank == 0:
+        try:
+            from .output import read_checkpoint
+            state, attrs = read_checkpoint(path)
+            args = []
+            for line in str(attrs.get("options", "")).splitlines():
+                key, _, val = line.partition(" ")
+                if key.lstrip("-") != "output":
+                    args += [key] + ([val] if val else [])
+            res = (attrs["scene_file"], args + ["-output", path] + list(argv[2:]), state)
+        except UserError as e:
+            err = str(e)
+    err = MPI.COMM_WORLD.bcast(err, root=0)
+    if err:
+        raise UserError(err)
+    scene, args, state = MPI.COMM_WORLD.bcast(res, root=0)
+    return scene, args, state
+
+
 def run(argv):
-    if not argv or argv[0].startswith("-"):
+    restart = None
+    if argv and argv[0] == "--restart":
+        scene_arg, petsc_args, restart = _restart_args(argv)
+    elif not argv or argv[0].startswith("-"):
         raise UserError("run: needs a SCENE (a built-in name or an options file); see `hyperelastic scenes`")
-    scene_arg, petsc_args = argv[0], argv[1:]
+    else:
+        scene_arg, petsc_args = argv[0], argv[1:]
     PETSc = _petsc(petsc_args)
+    import signal
     from . import __version__
     from .app import Problem, collective
     from .effects.inertia import Inertia
@@ -63,8 +96,15 @@ def run(argv):
              "cells_per_rank": np.array(space.mpi.allgather(space.nc)),
              "mass_matrix_builds": Inertia.MASS_BUILDS}
     stage.pop()
-    writer = Writer(out, space, points, tets, attrs)
+    writer = Writer(out, space, points, tets, attrs, resume=restart)
     integ.writer = writer
+    if restart is not None:
+        integ.resume(restart)
+
+    def on_signal(signum, frame):
+        integ.signal = signum     # honoured at the next frame, on every rank
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, on_signal)
     try:
         integ.run()
     finally:
@@ -147,6 +187,9 @@ def main(argv=None):
     except SolveError as e:
         _error(str(e))
         return EXIT_SOLVE
+    except Interrupted as e:
+        _error(str(e))
+        return 128 + int(e.signum)
     except KeyboardInterrupt:
         _error("interrupted")
         return 130

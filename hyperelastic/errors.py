@@ -4,3 +4,11 @@ class UserError(Exception):
 
 class SolveError(Exception):
     """The nonlinear solver failed; reported as one line, exit status 3."""
+
+
+class Interrupted(Exception):
+    """SIGINT/SIGTERM arrived: the run stopped cleanly at a frame, with a checkpoint written."""
+
+    def __init__(self, message, signum):
+        super().__init__(message)
+        self.signum = signum

@@ -8,7 +8,7 @@ import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from .errors import SolveError
+from .errors import Interrupted, SolveError
 
 
 def step_count(final_time, dt):
@@ -30,6 +30,8 @@ class BackwardEuler:
         self.h_try = None      # step size of the next attempt (step control)
         self.streak = 0        # accepted steps since the last change of h_try
         self.rejections = 0
+        self.n0 = 0            # nominal steps already done (a restart starts later)
+        self.signal = 0        # set by the SIGINT/SIGTERM handler of the command line
         self.stages = {k: PETSc.Log.Stage(k) for k in ("Step", "Output")}
 
     def run(self):
@@ -42,13 +44,13 @@ class BackwardEuler:
         H = sc.dt
         nsteps = step_count(sc.final_time, H)
         every = max(1, int(round(1.0 / (sc.fps * H))))
-        if self.writer:
+        if self.writer and self.n0 == 0:
             self.system.begin_step(0.0, H, self.x, self.v)
             self.writer.frame(0.0, self.system.impose(self.x.copy()))
         t_start = time.perf_counter()
         last_print = t_start
         self.h_try = H if self.h_try is None else self.h_try
-        for n in range(nsteps):
+        for n in range(self.n0, nsteps):
             t_end = self.t + (min(H, sc.final_time - self.t) if n == nsteps - 1 else H)
             while self.t < t_end:
                 h = min(self.h_try, t_end - self.t)
@@ -70,9 +72,23 @@ class BackwardEuler:
                 if self.h_try < H and self.streak >= sc.dt_grow_after:
                     self.h_try, self.streak = min(2 * self.h_try, H), 0
             self.stages["Output"].push()
-            if self.writer and ((n + 1) % every == 0 or n == nsteps - 1):
+            framed = (n + 1) % every == 0 or n == nsteps - 1
+            if self.writer and framed:
                 self.writer.frame(self.t, self.x)
+            # a signal is honoured at a frame (all ranks agree), after a checkpoint of that state
+            stop = framed and self.sp.mpi.allreduce(self.signal, op=MPI.MAX)
+            ck = sc.checkpoint_every and (n + 1) % sc.checkpoint_every == 0 and n < nsteps - 1
+            if self.writer and (stop or ck):
+                self.checkpoint(n + 1)
             self.stages["Output"].pop()
+            if stop:
+                import signal as _signal
+                name = _signal.Signals(stop).name
+                if self.writer:
+                    self.writer.set_attr("interrupted", f"{name} at t={self.t:.6g} (step {self.step})")
+                raise Interrupted(f"interrupted by {name} at t={self.t:.6g} (step {self.step}); state saved: "
+                                  f"continue with `hyperelastic run --restart {self.writer.path if self.writer else 'FILE'}`",
+                                  stop)
             now = time.perf_counter()
             if not self.quiet and self.sp.mpi.rank == 0 and (now - last_print > 2.0 or n == nsteps - 1):
                 last_print = now
@@ -80,6 +96,17 @@ class BackwardEuler:
                 print(f"t={self.t:.4g}/{sc.final_time:.4g} step {n + 1}/{nsteps} newton {stats['newton_its']} "
                       f"ksp {stats['ksp_its']}{rej} [{now - t_start:.1f} s]", file=sys.stderr, flush=True)
         return self
+
+    def checkpoint(self, n):
+        self.writer.checkpoint(self.x, self.v, t=self.t, step=self.step, n=n, h_try=self.h_try, streak=self.streak,
+                               rejections=self.rejections, nframes=self.writer.nframes, nstats=self.writer.nstats)
+
+    def resume(self, state):
+        """Continue from a checkpoint (output.read_checkpoint): the same state, step control included."""
+        sp = self.sp
+        self.x, self.v = sp.scatter(state["x"]), sp.scatter(state["v"])
+        self.t, self.step, self.n0 = float(state["t"]), int(state["step"]), int(state["n"])
+        self.h_try, self.streak, self.rejections = float(state["h_try"]), int(state["streak"]), int(state["rejections"])
 
     def _fail(self, stats, why):
         sc = self.scene

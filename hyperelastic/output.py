@@ -25,14 +25,42 @@ def check_output_path(path):
         raise UserError(f"output '{path}': not writable")
 
 
+CHECKPOINT_ATTRS = ("t", "step", "n", "h_try", "streak", "rejections", "nframes", "nstats")
+
+
+def read_checkpoint(path):
+    """(state dict with x, v and CHECKPOINT_ATTRS, root attributes) of the last complete checkpoint
+    in an output file; UserError when there is none."""
+    import h5py
+    try:
+        f = h5py.File(path, "r")
+    except (OSError, ValueError) as e:
+        raise UserError(f"--restart '{path}': cannot be opened as HDF5 ({e})") from None
+    with f:
+        slot = f.attrs.get("checkpoint_slot", -1)
+        if slot < 0 or f"checkpoint/{slot}" not in f:
+            raise UserError(f"--restart '{path}': holds no checkpoint (run with -checkpoint_every N)")
+        g = f[f"checkpoint/{slot}"]
+        state = {"x": g["x"][:], "v": g["v"][:]}
+        state.update({k: g.attrs[k].item() for k in CHECKPOINT_ATTRS})
+        attrs = {k: (v.item() if hasattr(v, "item") and getattr(v, "shape", None) == () else v)
+                 for k, v in f.attrs.items()}
+    return state, attrs
+
+
 class Writer:
-    def __init__(self, path, space, points, tets, attrs):
+    def __init__(self, path, space, points, tets, attrs, resume=None):
+        """A new output file, or (resume = a checkpoint's state) the existing one cut back to the
+        frames and statistics rows the checkpoint had."""
         self.space = space
         self.root = space.mpi.rank == 0
         self.path = path
         self.xdmf = os.path.splitext(path)[0] + ".xdmf"
         self.nframes = 0
         self.nstats = 0
+        if resume is not None:
+            self._resume(resume)
+            return
         if not self.root:
             return
         import h5py
@@ -47,6 +75,45 @@ class Writer:
             f.attrs[k] = v
         f.flush()
         self.nv, self.nc = nv, len(tets)
+
+    def _resume(self, st):
+        self.nframes, self.nstats = int(st["nframes"]), int(st["nstats"])
+        if not self.root:
+            return
+        import h5py
+        self.f = f = h5py.File(self.path, "r+")
+        self.nv, self.nc = f["mesh/points"].shape[0], f["mesh/tetra"].shape[0]
+        f["time"].resize((self.nframes,))
+        f["x"].resize((self.nframes, self.nv, 3))
+        for k in f["stats"]:
+            f["stats"][k].resize((self.nstats,))
+        for k in ("failure", "interrupted"):
+            if k in f.attrs:
+                del f.attrs[k]
+        f.attrs["restarts"] = int(f.attrs.get("restarts", 0)) + 1
+        f.flush()
+        self._write_xdmf()
+
+    def checkpoint(self, x_local, v_local, **state):
+        """The full state into checkpoint/<slot>, alternating two slots; the root attribute
+        checkpoint_slot names the complete one and is written after its data is flushed, so a kill at
+        any moment leaves the previous checkpoint intact. Collective."""
+        x, v = self.space.gather(x_local), self.space.gather(v_local)
+        if not self.root:
+            return
+        f = self.f
+        slot = 1 - int(f.attrs.get("checkpoint_slot", 1))
+        g = f.require_group(f"checkpoint/{slot}")
+        for name, a in (("x", x), ("v", v)):
+            if name not in g:
+                g.create_dataset(name, data=a)
+            else:
+                g[name][...] = a
+        for k in CHECKPOINT_ATTRS:
+            g.attrs[k] = state[k]
+        f.flush()
+        f.attrs["checkpoint_slot"] = slot
+        f.flush()
 
     def frame(self, t, x_local):
         full = self.space.gather(x_local)

@@ -43,6 +43,7 @@ class Scene:
     dt_min: float = 0.0
     dt_grow_after: int = 2        # successful steps before h is doubled back toward dt
     inversion_guard: bool = False # shorten Newton updates that would invert an element
+    checkpoint_every: int = 0     # write the full state every N steps (0: only on SIGINT/SIGTERM)
 
 
 JACOBIANS = ("assembled", "shell", "seed_fd", "seed_fd2")
@@ -92,6 +93,7 @@ def read_scene(name, opts=None):
         raise UserError(f"option -dt_min: {s.dt_min:g} must be <= -dt {s.dt:g}")
     s.dt_grow_after = opts.integer("dt_grow_after", 2, minimum=1)
     s.inversion_guard = opts.flag("inversion_guard", not s.material.defined_when_inverted)
+    s.checkpoint_every = opts.integer("checkpoint_every", 0, minimum=0)
 
     named = opts.names("effects", "elasticity,inertia")
     for e in named:

@@ -131,6 +131,11 @@ class Space:
         """The owned part of a local array, in global-vector order."""
         return local_array.reshape(-1, 3)[self.lvid_of_owned].reshape(-1)
 
+    def scatter(self, full):
+        """Local array (nlv*3) from an (nv, 3) array in the input vertex order given on rank 0."""
+        full = self.mpi.bcast(full if self.mpi.rank == 0 else None, root=0)
+        return np.ascontiguousarray(np.asarray(full, np.float64)[self.orig]).reshape(-1)
+
     def gather(self, local_array):
         """(nv, 3) array in the input mesh's vertex order on rank 0; None elsewhere."""
         mine = np.ascontiguousarray(local_array.reshape(-1, 3)[self.owned])
