@@ -1,0 +1,121 @@
+"""Issue 7: checkpoint/restart, clean stops on SIGINT/SIGTERM, a valid file after kill -9 at any moment,
+and the same answer on 1 and 2 ranks for rank-count independent preconditioners."""
+import os
+import random
+import signal
+import subprocess
+import time
+
+import numpy as np
+import pytest
+
+from conftest import BIN, hyperelastic, read_h5, run_ok
+
+RUN = ["bend", "-level", 1, "-final_time", 4, "-checkpoint_every", 7, "-quiet"]
+
+
+def start(out, nprocs=1, extra=()):
+    cmd = [os.path.join(BIN, "hyperelastic"), "run", *map(str, RUN), "-output", str(out), *map(str, extra)]
+    if nprocs > 1:
+        cmd = [os.path.join(BIN, "mpiexec"), "-n", str(nprocs)] + cmd
+    return subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+
+
+def wait_for_file(path, timeout=60):
+    t0 = time.time()
+    while not os.path.exists(path) or os.path.getsize(path) == 0:
+        assert time.time() - t0 < timeout, "the run never created its output"
+        time.sleep(0.05)
+
+
+@pytest.fixture(scope="module")
+def reference(tmp_path_factory):
+    d = tmp_path_factory.mktemp("ref")
+    out = {}
+    for n in (1, 2):
+        path = d / f"ref{n}.h5"
+        run_ok(["run", *RUN, "-output", path], nprocs=n)
+        out[n] = read_h5(path)
+    return out
+
+
+def same_run(a, b):
+    assert np.array_equal(a["time"], b["time"])
+    assert np.array_equal(a["x"], b["x"])                              # bitwise
+    for k in ("step", "time", "dt", "newton_its", "ksp_its", "elastic", "kinetic", "rejected"):
+        assert np.array_equal(a["stats"][k], b["stats"][k]), k
+
+
+@pytest.mark.parametrize("sig,nprocs", [(signal.SIGTERM, 1), (signal.SIGINT, 1), (signal.SIGTERM, 2)])
+def test_signal_stops_cleanly_and_restart_is_bitwise(tmp_path, reference, sig, nprocs):
+    """The signal is honoured at the next frame: a checkpoint is written, one line names the signal
+    and the restart command, the exit status is 128 + signal; --restart then finishes with exactly
+    the uninterrupted run's frames and statistics (same rank count)."""
+    out = tmp_path / "o.h5"
+    p = start(out, nprocs)
+    wait_for_file(out)
+    time.sleep(1.5)
+    p.send_signal(sig)              # under mpiexec: forwarded to every rank
+    _, err = p.communicate(timeout=120)
+    if p.returncode == 0:
+        pytest.skip("the run finished before the signal arrived")
+    assert p.returncode == 128 + sig, err
+    lines = [ln for ln in err.splitlines() if ln.strip()]
+    assert len(lines) == 1 and signal.Signals(sig).name in lines[0] and "--restart" in lines[0], err
+    r = read_h5(out)
+    assert "interrupted" in r["attrs"] and np.isfinite(r["x"]).all()
+    assert 0 < len(r["time"]) < len(reference[nprocs]["time"])
+    assert np.array_equal(r["x"], reference[nprocs]["x"][:len(r["time"])])
+    run_ok(["run", "--restart", out, "-quiet"], nprocs=nprocs)
+    same_run(read_h5(out), reference[nprocs])
+
+
+def test_kill_9_leaves_a_valid_file_and_a_usable_checkpoint(tmp_path, reference):
+    """kill -9 at random moments: the file always opens, every frame in it is the reference's, and a
+    restart from its last checkpoint ends bitwise on the reference."""
+    rng = random.Random(7)
+    for i in range(5):
+        out = tmp_path / f"k{i}.h5"
+        p = start(out)
+        wait_for_file(out)
+        time.sleep(rng.uniform(0.0, 2.5))
+        p.kill()
+        p.communicate()
+        r = read_h5(out)
+        n = len(r["time"])
+        assert r["x"].shape[0] == n and np.array_equal(r["x"], reference[1]["x"][:n])
+        import h5py
+        with h5py.File(out, "r") as f:
+            has_ck = f.attrs.get("checkpoint_slot", -1) >= 0
+        q = hyperelastic(["run", "--restart", out, "-quiet"])
+        if has_ck:
+            assert q.returncode == 0, q.stderr
+            same_run(read_h5(out), reference[1])
+        else:
+            assert q.returncode == 2 and "no checkpoint" in q.stderr
+
+
+def test_restart_bad_files(tmp_path):
+    from test_bad_input import one_line_error
+    f = tmp_path / "x.h5"
+    f.write_bytes(b"not hdf5")
+    one_line_error(hyperelastic(["run", "--restart", f]), "cannot be opened")
+    g = tmp_path / "nock.h5"
+    run_ok(["run", "bend", "-level", 1, "-final_time", 0.05, "-quiet", "-output", g])
+    before = g.read_bytes()
+    one_line_error(hyperelastic(["run", "--restart", g]), "no checkpoint")
+    assert g.read_bytes() == before
+    one_line_error(hyperelastic(["run", "--restart"]), "--restart")
+
+
+@pytest.mark.parametrize("pc", [["-pc_type", "jacobi"], ["-pc_type", "gamg"]])
+def test_rank_count_independent_preconditioners(tmp_path, pc):
+    """jacobi and gamg (converged tightly) give the same trajectory on 1 and 2 ranks."""
+    args = ["run", "bend", "-level", 1, "-final_time", 0.2, "-snes_rtol", "1e-10", "-snes_atol", "1e-9",
+            "-ksp_rtol", "1e-12", "-quiet", *pc]
+    run_ok(args + ["-output", tmp_path / "a.h5"])
+    run_ok(args + ["-output", tmp_path / "b.h5"], nprocs=2)
+    a, b = read_h5(tmp_path / "a.h5"), read_h5(tmp_path / "b.h5")
+    assert np.array_equal(a["points"], b["points"]) and np.array_equal(a["tetra"], b["tetra"])
+    assert np.abs(a["x"] - b["x"]).max() <= 1e-8 * np.abs(a["x"]).max()
+
