@@ -105,8 +105,9 @@ def read(path):
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             m = _quiet(meshio.read, path)
-    except Exception as e:  # meshio raises many kinds of errors for malformed files
-        msg = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
+    except (Exception, SystemExit) as e:  # meshio raises many kinds of errors (even SystemExit) for malformed files
+        msg = ("malformed file" if isinstance(e, SystemExit) else
+               str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__)
         raise UserError(f"mesh '{path}': cannot be read ({msg[:200]})") from None
     points = np.asarray(m.points, dtype=np.float64)
     blocks = [c.data for c in m.cells if c.type == "tetra"]

@@ -71,14 +71,35 @@ def bad_meshes(tmp):
     cases["triangles"] = (path, ("no tetrahedra", "triangle"))
     path = os.path.join(tmp, "missing.msh")
     cases["missing"] = (path, ("no such file",))
+    t = T.copy(); t[3, 2] = len(P) + 5
+    path = os.path.join(tmp, "range.vtu")
+    meshio.write(path, meshio.Mesh(P, [("tetra", t)]))
+    cases["range"] = (path, ("tetrahedron 3", "out of range"))
+    path = os.path.join(tmp, "empty.vtu")
+    meshio.write(path, meshio.Mesh(P, [("tetra", np.zeros((0, 4), int))]))
+    cases["empty"] = (path, ("cannot be read",))     # meshio cannot read its own empty .vtu
+    good = os.path.join(tmp, "good.msh")
+    write_msh(good, P, T)
+    text = open(good, "rb").read()
+    path = os.path.join(tmp, "truncated.msh")
+    with open(path, "wb") as fh:
+        fh.write(text[: len(text) // 2])
+    cases["truncated"] = (path, ("cannot be read",))
+    path = os.path.join(tmp, "garbage.vtu")
+    with open(path, "wb") as fh:
+        fh.write(b'<?xml version="1.0"?>\n<VTKFile type="UnstructuredGrid"><Piece NumberOfPoints="4"')
+    cases["garbage_vtu"] = (path, ("cannot be read",))
     return cases
 
 
 def test_bad_meshes(tmp_path):
     out = tmp_path / "keep.h5"
     out.write_bytes(b"precious")
+    import time
     for name, (path, words) in bad_meshes(str(tmp_path)).items():
-        p = hyperelastic(["run", "bend", "-mesh", path, "-output", out, "-quiet"])
+        t0 = time.time()
+        p = hyperelastic(["run", "bend", "-mesh", path, "-output", out, "-quiet"], timeout=20)
+        assert time.time() - t0 < 20, name
         line = one_line_error(p, *words)
         assert path in line, line
         assert p.returncode == 2
