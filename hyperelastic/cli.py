@@ -228,7 +228,13 @@ def _error(msg, every_rank=False):
     if comm is not None:   # no 'unused options' report after an error: the one line says what is wrong
         from petsc4py import PETSc
         PETSc.Options().setValue("options_left", "0")
-    if every_rank or comm is None or comm.getRank() == 0:
+    if comm is not None:
+        rank = comm.getRank()
+    elif "mpi4py.MPI" in sys.modules:      # MPI is up but PETSc is not yet (e.g. run --restart)
+        rank = sys.modules["mpi4py.MPI"].COMM_WORLD.rank
+    else:
+        rank = 0
+    if every_rank or rank == 0:
         print(f"hyperelastic: error: {msg}", file=sys.stderr, flush=True)
 
 

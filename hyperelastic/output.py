@@ -32,10 +32,12 @@ def read_checkpoint(path):
     """(state dict with x, v and CHECKPOINT_ATTRS, root attributes) of the last complete checkpoint
     in an output file; UserError when there is none."""
     import h5py
+    if not os.path.isfile(path):
+        raise UserError(f"--restart '{path}': no such file")
     try:
         f = h5py.File(path, "r")
     except (OSError, ValueError) as e:
-        raise UserError(f"--restart '{path}': cannot be opened as HDF5 ({e})") from None
+        raise UserError(f"--restart '{path}': cannot be opened as HDF5 ({str(e).split('(')[0].strip()})") from None
     with f:
         slot = f.attrs.get("checkpoint_slot", -1)
         if slot < 0 or f"checkpoint/{slot}" not in f:

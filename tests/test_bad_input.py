@@ -134,6 +134,12 @@ OPTION_CASES = [
     (["-fix", "middle"], ["unknown face", "middle"]),
     (["-ksp_type", "nonsense"], ["PETSc", "KSP type nonsense"]),
     (["-snes_rtol", "abc"], ["PETSc", "abc"]),
+    (["-checkpoint_every", "-1"], ["-checkpoint_every"]),
+    (["-checkpoint_every", "x"], ["-checkpoint_every", "not an integer"]),
+    (["-dt_min", "1"], ["-dt_min", "-dt"]),
+    (["-step_control", "maybe"], ["-step_control", "not a boolean"]),
+    (["-initial_spin", "1,2"], ["-initial_spin"]),
+    (["-material", "snh", "-nu", "0.5"], ["Poisson"]),
 ]
 
 
@@ -179,6 +185,13 @@ def test_bad_input_under_mpi(tmp_path):
     one_line_error(p, "no such file")
     p = hyperelastic(["run", "bend", "-E", "-1", "-quiet"], nprocs=2, timeout=60)
     one_line_error(p, "Young")
+    cases = bad_meshes(str(tmp_path))
+    for name in ("garbage_vtu", "inverted", "range"):
+        path, words = cases[name]
+        one_line_error(hyperelastic(["run", "bend", "-mesh", path, "-quiet"], nprocs=2, timeout=60), *words)
+    for args, words in (OPTION_CASES[1], OPTION_CASES[8], OPTION_CASES[-3]):
+        one_line_error(hyperelastic(["run", "bend", "-quiet", *args], nprocs=2, timeout=60), *words)
+    one_line_error(hyperelastic(["run", "--restart", tmp_path / "missing.h5"], nprocs=2, timeout=60), "--restart")
 
 
 def test_mesh_command(tmp_path):
