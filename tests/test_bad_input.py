@@ -52,6 +52,8 @@ def bad_meshes(tmp):
         cases[name] = (path, words)
     p = P.copy(); p[5, 1] = np.nan
     add("nan", p, T, "vertex 5", "non-finite")
+    p = P.copy(); p[9, 2] = np.inf
+    add("inf", p, T, "vertex 9", "non-finite")
     p = np.vstack([P, [[9, 9, 9]]])
     add("unused", p, T, "not used")
     p = P.copy(); p[7] = p[6]
@@ -145,7 +147,7 @@ OPTION_CASES = [
 
 @pytest.mark.parametrize("args,words", OPTION_CASES)
 def test_bad_options(tmp_path, args, words):
-    p = hyperelastic(["run", "bend", "-quiet", "-output", tmp_path / "o.h5", *args])
+    p = hyperelastic(["run", "bend", "-quiet", "-output", tmp_path / "o.h5", *args], timeout=20)
     one_line_error(p, *words)
     assert p.returncode == 2
     assert not (tmp_path / "o.h5").exists()
