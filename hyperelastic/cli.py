@@ -42,6 +42,8 @@ def _restart_args(argv):
             res = (attrs["scene_file"], args + ["-output", path] + list(argv[2:]), state)
         except UserError as e:
             err = str(e)
+        except Exception as e:     # any other defect must not leave the other ranks waiting
+            err = f"--restart '{path}': not a hyperelastic output file with a checkpoint ({type(e).__name__}: {e})"
     err = MPI.COMM_WORLD.bcast(err, root=0)
     if err:
         raise UserError(err)

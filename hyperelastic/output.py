@@ -61,7 +61,7 @@ class Writer:
         self.nframes = 0
         self.nstats = 0
         if resume is not None:
-            self._resume(resume)
+            self._resume(resume, attrs)
             return
         if not self.root:
             return
@@ -78,7 +78,7 @@ class Writer:
         f.flush()
         self.nv, self.nc = nv, len(tets)
 
-    def _resume(self, st):
+    def _resume(self, st, attrs):
         self.nframes, self.nstats = int(st["nframes"]), int(st["nstats"])
         if not self.root:
             return
@@ -93,6 +93,7 @@ class Writer:
             if k in f.attrs:
                 del f.attrs[k]
         f.attrs["restarts"] = int(f.attrs.get("restarts", 0)) + 1
+        f.attrs["options"] = attrs["options"]      # what this part ran with (a later restart uses it)
         f.flush()
         self._write_xdmf()
 

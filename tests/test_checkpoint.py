@@ -106,6 +106,27 @@ def test_restart_bad_files(tmp_path):
     one_line_error(hyperelastic(["run", "--restart", g]), "no checkpoint")
     assert g.read_bytes() == before
     one_line_error(hyperelastic(["run", "--restart"]), "--restart")
+    import h5py
+    with h5py.File(tmp_path / "foreign.h5", "w") as f:      # a checkpoint, but not our file
+        f.attrs["checkpoint_slot"] = 0
+        g = f.create_group("checkpoint/0")
+        g["x"] = g["v"] = np.zeros((1, 3))
+        for k in ("t", "step", "n", "h_try", "streak", "rejections", "nframes", "nstats"):
+            g.attrs[k] = 0
+    one_line_error(hyperelastic(["run", "--restart", tmp_path / "foreign.h5"], nprocs=2, timeout=60),
+                   "not a hyperelastic output")
+
+
+def test_restart_with_a_later_final_time(tmp_path):
+    """The command line wins over the recorded options: a finished run continued to a later time
+    equals a run made to that time directly (bitwise), and the file records the new options."""
+    common = ["bend", "-level", 1, "-checkpoint_every", 5, "-quiet"]
+    run_ok(["run", *common, "-final_time", 0.3, "-output", tmp_path / "a.h5"])
+    run_ok(["run", "--restart", tmp_path / "a.h5", "-final_time", 0.6])
+    run_ok(["run", *common, "-final_time", 0.6, "-output", tmp_path / "b.h5"])
+    a, b = read_h5(tmp_path / "a.h5"), read_h5(tmp_path / "b.h5")
+    same_run(a, b)
+    assert "-final_time 0.6" in a["attrs"]["options"] and a["attrs"]["restarts"] == 1
 
 
 @pytest.mark.parametrize("pc", [["-pc_type", "jacobi"], ["-pc_type", "gamg"]])
