@@ -154,15 +154,8 @@ static inline void snh_constants(double mu, double lam, double *ms, double *ls, 
 /* inverse-transpose of F and J = det F; returns J */
 static inline double inv_t(const double *F, double *FinvT) {
   double J = det3(F), r = 1.0 / J;
-  FinvT[0] = (F[4] * F[8] - F[5] * F[7]) * r;
-  FinvT[1] = (F[5] * F[6] - F[3] * F[8]) * r;
-  FinvT[2] = (F[3] * F[7] - F[4] * F[6]) * r;
-  FinvT[3] = (F[2] * F[7] - F[1] * F[8]) * r;
-  FinvT[4] = (F[0] * F[8] - F[2] * F[6]) * r;
-  FinvT[5] = (F[1] * F[6] - F[0] * F[7]) * r;
-  FinvT[6] = (F[1] * F[5] - F[2] * F[4]) * r;
-  FinvT[7] = (F[2] * F[3] - F[0] * F[5]) * r;
-  FinvT[8] = (F[0] * F[4] - F[1] * F[3]) * r;
+  cof_mixed(F, F, FinvT);
+  for (int k = 0; k < 9; k++) FinvT[k] *= r;
   return J;
 }
 

@@ -1,6 +1,7 @@
 """Backward Euler in the unknown x^{n+1} (thesis eq. 5.3, see system.py), or quasi-static
 loading steps, one SNES solve per step; v^{n+1} = (x^{n+1} - x^n)/h; with step control."""
 import math
+import signal
 import sys
 import time
 
@@ -82,8 +83,7 @@ class BackwardEuler:
                 self.checkpoint(n + 1)
             self.stages["Output"].pop()
             if stop:
-                import signal as _signal
-                name = _signal.Signals(stop).name
+                name = signal.Signals(stop).name
                 if self.writer:
                     self.writer.set_attr("interrupted", f"{name} at t={self.t:.6g} (step {self.step})")
                 raise Interrupted(f"interrupted by {name} at t={self.t:.6g} (step {self.step}); state saved: "

@@ -17,6 +17,8 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
+from .mesh import signed_volumes
+
 MATERIALS = ("linear", "stvk", "neohookean", "snh", "corotational")
 # E axis [Pa]: named values of the thesis framework's presets (materials.PRESETS), nu and rho kept at
 # the defaults so that only the stiffness changes along the axis
@@ -90,16 +92,12 @@ def sliver_mesh(out_dir):
     return path
 
 
-def _volumes(points, tets):
-    P = points[tets]
-    return np.einsum("ni,ni->n", P[:, 1] - P[:, 0], np.cross(P[:, 2] - P[:, 0], P[:, 3] - P[:, 0])) / 6
-
-
 def _strain(X, x, tets):
-    """max over cells of |F^T F - I| (entrywise), F from reference X to current x."""
-    D = np.stack([X[tets[:, a]] - X[tets[:, 0]] for a in (1, 2, 3)], axis=-1)
+    """max over cells of |F^T F - I| (entrywise), F = Ds Dm^-1 from reference X to current x."""
+    from .space import reference_geometry   # (space imports petsc4py: only when needed)
+    Dminv, _ = reference_geometry(X, tets)
     d = np.stack([x[tets[:, a]] - x[tets[:, 0]] for a in (1, 2, 3)], axis=-1)
-    F = d @ np.linalg.inv(D)
+    F = d @ Dminv
     return float(np.abs(np.swapaxes(F, 1, 2) @ F - np.eye(3)).max())
 
 
@@ -138,11 +136,11 @@ def analyse(cell, path, rc, stderr, wall):
         row["J_min_final"] = float(st["J_min"][acc][-1])
         row["J_max_final"] = float(st["J_max"][acc][-1])
         tot = st["kinetic"][acc] + st["elastic"][acc] + st.get("gravity_potential", np.zeros(n))[acc]
-        V0 = float(_volumes(X, tets).sum())
+        V0 = float(signed_volumes(X, tets).sum())
         scale = float(np.abs(tot).max()) + 1e-10 * Eyoung * V0   # + a roundoff floor of O(E) energies
         row["energy_growth"] = float(max(np.diff(tot).max(initial=0.0), 0.0) / scale)
         row["elastic_max_rel"] = float(np.abs(st["elastic"][acc]).max() / (Eyoung * V0))
-        row["volume_ratio"] = float(_volumes(xs[-1], tets).sum() / V0)
+        row["volume_ratio"] = float(signed_volumes(xs[-1], tets).sum() / V0)
         row["strain_final"] = _strain(X, xs[-1], tets)
         row["max_displacement"] = float(np.linalg.norm(xs[-1] - X, axis=1).max())
         row["energy"] = json.dumps([float(v) for v in tot[:: max(1, len(tot) // 20)]])
@@ -184,7 +182,7 @@ ENERGY_TOL = 1e-6        # relative step-to-step growth of kinetic + elastic (+ 
 RIGID_TOL = 1e-8         # elastic energy / (E V) and |F^T F - I| for a rigid motion
 
 
-def STIFF_MUST_FINISH(r):
+def stiff_must_finish(r):
     """Stiffness alone must not break the solver: every material stretched, and Neo-Hookean (whose
     energy barrier keeps its tangent positive definite near J -> 0) twisted and squeezed. St.VK, snh
     and corotational twisted by 2 pi or squeezed to half length at E >= steel meet indefinite tangents
@@ -209,7 +207,7 @@ def violations(rows):
                                      f"|F^T F - I| {r['strain_final']:.3g}"))
         if r["scene"] == "unfold" and r["material"] == "snh" and not (ok and r["J_min_final"] > 0):
             bad.append((r["id"], "snh did not recover a positive-volume shape from the inverted start"))
-        if r["E"] in ("steel", "1e15") and r["h"] == 1e-2 and not ok and r["nu"] == 0.3 and STIFF_MUST_FINISH(r):
+        if r["E"] in ("steel", "1e15") and r["h"] == 1e-2 and not ok and r["nu"] == 0.3 and stiff_must_finish(r):
             bad.append((r["id"], f"stiff cell failed: {r['message']}"))
         if r["nu"] == 0.499 and not ok and r["material"] in ("neohookean", "snh"):
             bad.append((r["id"], f"nu = 0.499 failed: {r['message']}"))

@@ -48,28 +48,32 @@ def test_rotation_invariance(name):
     assert np.abs(lin.psi(R, MU, LAM)).min() > 1e-3 * MU
 
 
+def unit_tets(m, F):
+    """One independent unit tetrahedron per F (Dm = I, V = 1/6) deformed by F: the kernels bound to
+    them, the positions, and the reference forces V P(F) grad N_a from the numpy material."""
+    from hyperelastic.kernels import CellKernels
+    n = len(F)
+    X = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], float)
+    x = np.einsum("nij,aj->nai", F, X).reshape(-1).copy()
+    k = CellKernels(np.arange(4 * n, dtype=np.int32).reshape(-1, 4), np.broadcast_to(np.eye(3), (n, 3, 3)).copy(),
+                    np.full(n, 1 / 6), m.kernel_id, MU, LAM)
+    G = np.concatenate([-np.ones((1, 3)), np.eye(3)])
+    return k, x, np.einsum("nij,aj->nai", m.P(F, MU, LAM) / 6, G).reshape(-1)
+
+
 @pytest.mark.parametrize("name", ["snh", "corotational"])
 def test_defined_and_exact_when_inverted(name):
     """snh and corotational are defined for J <= 0: the compiled kernel matches the numpy reference
     there, and the tangent is the derivative of the forces (finite differences)."""
-    from hyperelastic.kernels import CellKernels
     m = MATERIALS[name]
-    n = 40
-    X = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], float)
-    Dminv = np.broadcast_to(np.eye(3), (n, 3, 3)).copy()
-    vol = np.full(n, 1 / 6)
-    F = np.eye(3) + 0.8 * rng.standard_normal((n, 3, 3))
+    F = np.eye(3) + 0.8 * rng.standard_normal((40, 3, 3))
     assert (np.linalg.det(F) < 0).sum() >= 5
-    x = np.einsum("nij,aj->nai", F, X).reshape(-1).copy()
-    cells = np.arange(4 * n, dtype=np.int32).reshape(-1, 4)
-    k = CellKernels(cells, Dminv, vol, m.kernel_id, MU, LAM)
+    k, x, ref = unit_tets(m, F)
     f = np.zeros_like(x)
     assert k.forces(x, f) == 0 and np.isfinite(f).all()
-    G = np.concatenate([-np.ones((1, 3)), np.eye(3)])
-    ref = np.einsum("n,nij,aj->nai", vol, m.P(F, MU, LAM), G).reshape(-1)
     assert np.abs(f - ref).max() <= 1e-10 * np.abs(ref).max()
     W, *_ = k.energy(x)
-    assert np.isclose(W, (vol * m.psi(F, MU, LAM)).sum(), rtol=1e-10)
+    assert np.isclose(W, (m.psi(F, MU, LAM) / 6).sum(), rtol=1e-10)
     v = rng.standard_normal(x.shape)
     y = np.zeros_like(x)
     k.kv(x, v, y)
@@ -82,7 +86,6 @@ def test_defined_and_exact_when_inverted(name):
 def test_corotational_polar_decomposition():
     """The C polar decomposition (Jacobi eigen-solver on F^T F) against numpy's SVD, through the
     forces P(F): also for nearly degenerate, repeated-singular-value and inverted F."""
-    from hyperelastic.kernels import CellKernels
     from hyperelastic.materials.corotational import polar
     m = MATERIALS["corotational"]
     F = np.concatenate([np.eye(3) + 0.5 * rng.standard_normal((20, 3, 3)),
@@ -90,15 +93,9 @@ def test_corotational_polar_decomposition():
                         rotations(3) @ np.diag([1.0, 1.0 + 1e-12, 0.7]), rotations(2)])
     R, V, s = polar(F)
     assert np.allclose(np.linalg.det(R), 1) and np.allclose(R @ V @ (s[:, :, None] * np.swapaxes(V, 1, 2)), F)
-    n = len(F)
-    X = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], float)
-    x = np.einsum("nij,aj->nai", F, X).reshape(-1).copy()
-    k = CellKernels(np.arange(4 * n, dtype=np.int32).reshape(-1, 4), np.broadcast_to(np.eye(3), (n, 3, 3)).copy(),
-                    np.full(n, 1 / 6), m.kernel_id, MU, LAM)
+    k, x, ref = unit_tets(m, F)
     f = np.zeros_like(x)
     k.forces(x, f)
-    G = np.concatenate([-np.ones((1, 3)), np.eye(3)])
-    ref = np.einsum("nij,aj->nai", m.P(F, MU, LAM) / 6, G).reshape(-1)
     assert np.abs(f - ref).max() <= 1e-9 * MU
 
 
