@@ -5,6 +5,8 @@
   hyperelastic mesh bar --level N -o FILE.msh    generate a gmsh mesh of the thesis' bar
   hyperelastic plot FILE.h5 [-o FILE.png]        picture of a frame (default: the last)
   hyperelastic scenes                            list the built-in scenes
+  hyperelastic study accuracy|refinement [-output_dir DIR] [--full] [--jobs N]
+                                                 what accuracy costs in time: CSV, PNGs, markdown
 """
 import argparse
 import os
@@ -111,10 +113,19 @@ def run(argv):
         integ.run()
     finally:
         writer.set_attr("steps_completed", integ.step)
+        writer.set_attr("peak_rss_mb", peak_rss_mb(comm))
         writer.close()
     if not quiet and comm.getRank() == 0:
         print(f"wrote {out} ({integ.step} steps, {writer.nframes} frames)", file=sys.stderr)
     return 0
+
+
+def peak_rss_mb(comm):
+    """Peak resident memory [MB] of the most loaded rank so far (getrusage: KiB on Linux)."""
+    import resource
+    kib = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    from mpi4py import MPI
+    return comm.tompi4py().allreduce(kib, op=MPI.MAX) / 1024.0
 
 
 def mesh_cmd(argv):
@@ -166,7 +177,12 @@ def scenes_cmd(argv):
     return 0
 
 
-COMMANDS = {"run": run, "mesh": mesh_cmd, "plot": plot_cmd, "scenes": scenes_cmd}
+def study_cmd(argv):
+    from .study import main as study_main
+    return study_main(argv)
+
+
+COMMANDS = {"run": run, "mesh": mesh_cmd, "plot": plot_cmd, "scenes": scenes_cmd, "study": study_cmd}
 
 
 def main(argv=None):

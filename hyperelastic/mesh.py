@@ -143,6 +143,30 @@ def signed_volumes(points, tets):
     return np.linalg.det(D) / 6.0
 
 
+def locate(points, tets, P):
+    """(cell index, barycentric weights (k,4)) of each point P (k,3) in the reference mesh; UserError
+    for a point outside it. Brute force over cells (meant for a handful of material points)."""
+    P = np.atleast_2d(np.asarray(P, np.float64))
+    X0 = points[tets[:, 0]]
+    D = np.stack([points[tets[:, a]] - X0 for a in (1, 2, 3)], axis=-1)       # (nc,3,3)
+    Dinv = np.linalg.inv(D)
+    cells, weights = [], []
+    for p in P:
+        lam = np.einsum("cij,cj->ci", Dinv, p - X0)
+        bary = np.column_stack([1.0 - lam.sum(axis=1), lam])
+        c = int(np.argmax(bary.min(axis=1)))          # the cell the point is deepest inside
+        if bary[c].min() < -1e-9:
+            raise UserError(f"material point {tuple(p)} lies outside the mesh")
+        cells.append(c)
+        weights.append(bary[c])
+    return np.array(cells), np.array(weights)
+
+
+def interpolate(tets, cells, weights, values):
+    """P1 interpolation of vertex `values` (nv,...) at points given by locate()."""
+    return np.einsum("ka,ka...->k...", weights, values[tets[cells]])
+
+
 def check(points, tets, path):
     if points.ndim != 2 or points.shape[1] < 3 or len(points) == 0:
         raise UserError(f"mesh '{path}': has no 3-D vertices")

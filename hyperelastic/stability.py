@@ -9,15 +9,12 @@ and retried steps) or `failed` (non-zero exit; its one-line message is kept).
 import json
 import math
 import os
-import subprocess
-import sys
-import time
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import asdict, dataclass
 
 import numpy as np
 
 from .mesh import signed_volumes
+from .sweep import last_line, parallel_map, run_hyperelastic
 
 MATERIALS = ("linear", "stvk", "neohookean", "snh", "corotational")
 # E axis [Pa]: named values of the thesis framework's presets (materials.PRESETS), nu and rho kept at
@@ -106,8 +103,7 @@ def analyse(cell, path, rc, stderr, wall):
     import h5py
     row = asdict(cell) | {"id": cell.id, "rc": rc, "wall_s": round(wall, 2), "message": ""}
     if rc != 0:
-        lines = [ln for ln in stderr.strip().splitlines() if ln.strip()]
-        row["message"] = lines[-1] if lines else f"exit status {rc}"
+        row["message"] = last_line(stderr, rc)
     if not os.path.exists(path):
         row.update(outcome="failed", nonfinite=False)
         return row
@@ -147,34 +143,19 @@ def analyse(cell, path, rc, stderr, wall):
     return row
 
 
-def run_cell(cell, out_dir, python=sys.executable, timeout=900):
+def run_cell(cell, out_dir, timeout=900):
     runs = os.path.join(out_dir, "runs")
     os.makedirs(runs, exist_ok=True)
     path = os.path.join(runs, cell.id + ".h5")
-    if os.path.exists(path):
-        os.remove(path)
     sliver = sliver_mesh(out_dir) if cell.scene == "sliver" else ""
-    env = dict(os.environ, OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1")
-    t0 = time.perf_counter()
-    try:
-        p = subprocess.run([python, "-m", "hyperelastic"] + cell.args(path, sliver), capture_output=True,
-                           text=True, timeout=timeout, env=env)
-        rc, err = p.returncode, p.stderr
-    except subprocess.TimeoutExpired:
-        rc, err = -1, f"timed out after {timeout} s"
-    return analyse(cell, path, rc, err, time.perf_counter() - t0)
+    rc, err, wall = run_hyperelastic(cell.args(path, sliver), path, timeout=timeout)
+    return analyse(cell, path, rc, err, wall)
 
 
 def run_matrix(cells, out_dir, jobs=2, log=None):
     if any(c.scene == "sliver" for c in cells):
         sliver_mesh(out_dir)           # once, before the workers start
-    rows = []
-    with ThreadPoolExecutor(max_workers=jobs) as ex:
-        for row in ex.map(lambda c: run_cell(c, out_dir), cells):
-            rows.append(row)
-            if log:
-                log(row)
-    return rows
+    return parallel_map(lambda c: run_cell(c, out_dir), cells, jobs, log)
 
 
 # ---- the properties that must hold ---------------------------------------------------------------

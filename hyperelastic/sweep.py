@@ -1,0 +1,50 @@
+"""Running `hyperelastic run` as a child process for the studies (stability matrix, accuracy and
+refinement studies): one process per run, so that every run starts from a clean PETSc options
+database, and a run that fails or hangs is a recorded outcome rather than the end of the sweep."""
+import os
+import shutil
+import subprocess
+import sys
+import time
+from concurrent.futures import ThreadPoolExecutor
+
+
+def mpiexec():
+    """mpiexec next to the Python running us (the mpich wheel puts it in the venv's bin), else on PATH."""
+    here = os.path.join(os.path.dirname(sys.executable), "mpiexec")
+    return here if os.path.exists(here) else (shutil.which("mpiexec") or "mpiexec")
+
+
+def run_hyperelastic(args, output, nprocs=1, timeout=900):
+    """(exit status, stderr, wall seconds) of `python -m hyperelastic ARGS` writing `output` (removed
+    first, so that a stale file is never read as this run's result); nprocs > 1 runs it under mpiexec."""
+    if os.path.exists(output):
+        os.remove(output)
+    cmd = [sys.executable, "-m", "hyperelastic"] + [str(a) for a in args]
+    if nprocs > 1:
+        cmd = [mpiexec(), "-n", str(nprocs)] + cmd
+    env = dict(os.environ, OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1")
+    t0 = time.perf_counter()
+    try:
+        p = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, env=env)
+        rc, err = p.returncode, p.stderr
+    except subprocess.TimeoutExpired:
+        rc, err = -1, f"timed out after {timeout} s"
+    return rc, err, time.perf_counter() - t0
+
+
+def last_line(stderr, rc):
+    """The one-line message of a failed run (its last non-empty stderr line)."""
+    lines = [ln for ln in stderr.strip().splitlines() if ln.strip()]
+    return lines[-1] if lines else f"exit status {rc}"
+
+
+def parallel_map(fn, items, jobs=2, log=None):
+    """[fn(item)] in order, `jobs` at a time; log(result) as each arrives."""
+    out = []
+    with ThreadPoolExecutor(max_workers=max(1, jobs)) as ex:
+        for r in ex.map(fn, items):
+            out.append(r)
+            if log:
+                log(r)
+    return out
