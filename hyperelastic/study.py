@@ -487,6 +487,51 @@ def headline(rows, cfg):
     return s + "**"
 
 
+def findings(rows, cfg):
+    """Computed statements for the report: the observed order in h and the step (and cost) a target
+    not reached would need, the effect of the Newton tolerance, the failures per mode."""
+    out = []
+    rs = [r for r in sweep_rows(rows, cfg) if r["outcome"] != "failed" and r["mode"] == "assembled"
+          and r["pc"] == "jacobi" and r["ksp_rtol"] == 1e-5]
+    tight = min((r["snes_rtol"] for r in rs), default=None)
+    rs = sorted([r for r in rs if r["snes_rtol"] == tight], key=lambda r: r["h"])
+    if len(rs) >= 3:
+        order = slope([r["h"] for r in rs], [r["rel_err"] for r in rs])
+        cost = slope([r["h"] for r in rs], [r["solve_s"] for r in rs])
+        s = (f"Time step ({cfg_name(cfg)}, assembled, snes_rtol {tight:g}): the error falls as h^{order:.2f} "
+             f"(h = {rs[-1]['h']:g} … {rs[0]['h']:g}) and the solve time as h^{cost:.2f}.")
+        for t in TARGETS:
+            if rs[0]["rel_err"] > t and order > 0:
+                h = rs[0]["h"] * (t / rs[0]["rel_err"]) ** (1.0 / order)
+                s += (f" {t:g} relative error would need h ≈ {h:.2g}, about {rs[0]['solve_s'] * (h / rs[0]['h']) ** cost:.2g} "
+                      "s (extrapolated).")
+                break
+        out.append(s)
+    groups, spread = {}, 0.0
+    for r in sweep_rows(rows):
+        if r["outcome"] != "failed":
+            groups.setdefault((r["scene"], r["material"], r["E"], r["level"], r["mode"], r["pc"], r["h"], r["ksp_rtol"]),
+                              []).append(r["rel_err"])
+    n = 0
+    for errs in groups.values():
+        if len(errs) > 1 and min(errs) > 1e-8:     # (below: solver noise)
+            n += 1
+            spread = max(spread, (max(errs) - min(errs)) / max(errs))
+    if n:
+        out.append(f"Newton tolerance: over the {n} settings swept in snes_rtol (1e-2 … tightest) with errors above 1e-8, "
+                   f"the error changes by "
+                   f"at most {100 * spread:.2g}%: Newton converges quadratically, so a step that meets 1e-2 is "
+                   "usually far past it, and the time step (or the mesh) sets the error.")
+    fails = {}
+    for r in sweep_rows(rows):
+        if r["outcome"] == "failed":
+            fails.setdefault(r["mode"], []).append(r)
+    for m, fs in fails.items():
+        out.append(f"{len(fs)} {m} run{'s' if len(fs) > 1 else ''} failed, e.g. {cfg_name((fs[0]['scene'], fs[0]['material'], fs[0]['E'], fs[0]['level']))}"
+                   f", h = {fs[0]['h']:g}: \"{fs[0]['message'].replace('hyperelastic: error: ', '')}\"")
+    return out
+
+
 def report(rows, p, out_dir, command):
     cfgs = configs(rows)
     L = ["# Accuracy versus time", "", headline(rows, p.main if p.main in cfgs else cfgs[0]), "",
@@ -500,6 +545,7 @@ def report(rows, p, out_dir, command):
           "rejected attempts, without process start-up). The reference of each configuration: h = smallest "
           f"swept h / {REF_FACTOR}, snes_rtol {REF_SNES_RTOL:g}, exact tangent assembled, GMRES + ILU(0) to "
           "ksp_rtol 1e-12. Jacobi is the PC unless named; -snes_mf has none.", ""]
+    L += ["## Findings", ""] + [f"- {f}" for f in findings(rows, p.main if p.main in cfgs else cfgs[0])] + [""]
     L += ["## Cheapest setting per error target", "",
           "| configuration | target | cheapest setting | solve (s) | Newton | Krylov | error | vs cheapest other mode |",
           "|---|---|---|---|---|---|---|---|"]

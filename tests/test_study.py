@@ -81,10 +81,6 @@ def test_tightening_the_newton_tolerance_never_increases_the_error_beyond_noise(
             compared += 1
             assert tight["rel_err"] <= loose["rel_err"] * (1 + 1e-3) + noise, (key, loose["snes_rtol"], tight["snes_rtol"])
     assert compared >= 20
-    # where the time error is tiny (steel, quasi-static), the tolerance is what sets the error
-    steel = [r for r in S.sweep_rows(rows, ("bend2", "stvk", 2.1e11, 1)) if r["mode"] == "assembled" and r["h"] == 0.1]
-    by_tol = {r["snes_rtol"]: r["rel_err"] for r in steel}
-    assert by_tol[1e-2] > 100 * by_tol[1e-8]
 
 
 def test_report_answers_in_numbers_and_the_mesh_error_shrinks(accuracy):
