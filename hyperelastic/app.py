@@ -58,6 +58,7 @@ class Problem:
         self.effects, self.constraints, self.kernels = build(sc, self.space)
         self.system = System(self.space, self.effects, self.constraints)
         self.system.inversion_guard = sc.inversion_guard
+        self.system.assembly = sc.assembly
 
     def centroid(self):
         """Mean of the mesh vertices (the same on every rank)."""

@@ -1,7 +1,10 @@
 """Jacobian operators, selected with -jacobian:
 
-  assembled  exact tangent as AIJ (block size 3): COO pattern set once (setPreallocationCOOLocal),
-             values set per Newton step (setValuesCOO)
+  assembled  exact tangent as AIJ (block size 3). -assembly setvalues (default): preallocated once
+             from the cell adjacency, values added per Newton step in chunks of cells
+             (MatSetValuesBlockedLocal), ~1 KB per tet in all. -assembly coo: COO pattern set once
+             (setPreallocationCOOLocal), values set per Newton step (setValuesCOO): a little faster,
+             but PETSc's COO maps and the (nc,12,12) value array cost ~5 KB per tet
   shell      exact tangent as a MatShell applying J v cell by cell, with getDiagonal for Jacobi
   seed_fd    the thesis' operator: exact M/h^2 + C/h, and K v replaced by (k(x+v) - k(x))/||v||_2 (eq. 5.19)
   seed_fd2   the same with (-k(x+2v) + 4k(x+v) - 3k(x)) / (2||v||_2) (eq. 7.8)
@@ -77,6 +80,100 @@ class Assembled:
         vals[self.diag_slice] = self.system.scale
         vals[self.zero] = 0.0
         self.mat.setValuesCOO(vals, addv=PETSc.InsertMode.INSERT_VALUES)
+
+
+class AssembledChunked:
+    """The exact tangent as a preallocated AIJ matrix (block size 3) filled per Newton step by
+    MatSetValuesBlockedLocal, CHUNK cells at a time: no per-entry index arrays and no whole-mesh
+    (nc,12,12) value array stay alive, so memory is the matrix itself plus one chunk."""
+    CHUNK = 8192
+
+    def __init__(self, system):
+        self.system = system
+        sp = system.space
+        self.cell_effects = [e for e in system.effects if e.cell_blocks]
+        cm = system.cmask
+        self.other = []
+        for e in system.effects:
+            r, c = e.coo_pattern()
+            if len(r):
+                keep = ~(cm[r] | cm[c])                       # entries in constrained rows/columns are 0
+                self.other.append((e, len(r), np.flatnonzero(keep), r[keep].astype(PETSc.IntType)[:, None],
+                                   c[keep].astype(PETSc.IntType)[:, None]))
+        self.c_local = ((3 * sp.lvid_of_owned[:, None] + np.arange(3)).ravel()[system.c_owned_pos]
+                        .astype(PETSc.IntType)[:, None])
+        self.vmask = cm.reshape(-1, 3)                         # constrained dofs per local vertex
+        self.blocks = np.ascontiguousarray(sp.cells, dtype=PETSc.IntType)
+        A = PETSc.Mat().create(comm=sp.comm)
+        A.setSizes(_sizes(sp), bsize=3)
+        A.setType(PETSc.Mat.Type.AIJ)
+        A.setLGMap(sp.lgmap, sp.lgmap)
+        A.setPreallocationNNZ(self._nnz(sp))
+        A.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, True)   # the pattern must be complete
+        self.mat = A
+        self.first = True
+        Assembled._nullspace(self, sp)
+
+    @staticmethod
+    def _nnz(sp):
+        """(d_nnz, o_nnz) per owned row: 3 x the vertices sharing a cell with the row's vertex, split
+        by whether they are owned here. A vertex on a partition boundary also gets rows from other
+        ranks' cells: their counts are added into its owner (an over-estimate, on those rows only)."""
+        nlv = sp.nlv
+        c = sp.cells.astype(np.int64)
+        pairs = np.unique((c[:, :, None] * nlv + c[:, None, :]).ravel())   # (row vertex, column vertex)
+        row, col = pairs // nlv, pairs % nlv
+        del pairs
+        owned = sp.owned.astype(bool)
+        d = np.bincount(row[owned[col]], minlength=nlv).astype(np.float64)
+        o = np.bincount(row[~owned[col]], minlength=nlv).astype(np.float64)
+        del row, col
+        mine_d, mine_o = d[sp.lvid_of_owned], o[sp.lvid_of_owned]
+        if sp.mpi.size > 1:
+            loc, glob = sp.local_vec(), sp.global_vec()
+            arr = loc.getArray()
+            arr[:] = 0.0
+            arr.reshape(-1, 3)[:, 0] = d + o
+            glob.set(0.0)
+            sp.add_to_global(loc, glob)
+            remote = glob.getArray(readonly=True).reshape(-1, 3)[:, 0] - (mine_d + mine_o)   # other ranks' cells
+            loc.destroy()
+            glob.destroy()
+            mine_d, mine_o = mine_d + remote, mine_o + remote    # their columns' owners are unknown here
+        total = int(sp.nv_total)
+        dn = np.minimum(3 * mine_d, 3 * sp.n_owned).astype(PETSc.IntType)
+        on = np.minimum(3 * mine_o, 3 * (total - sp.n_owned)).astype(PETSc.IntType)
+        return np.repeat(dn, 3), np.repeat(on, 3)
+
+    _nullspace = Assembled._nullspace
+
+    def assemble(self):
+        A = self.mat
+        if not self.first:
+            A.zeroEntries()
+        self.first = False
+        ADD = PETSc.InsertMode.ADD_VALUES
+        nc = len(self.blocks)
+        buf = np.empty((min(self.CHUNK, nc), 12, 12))
+        for lo in range(0, nc, self.CHUNK):
+            hi = min(lo + self.CHUNK, nc)
+            vals = buf[:hi - lo]
+            vals.fill(0.0)
+            for e in self.cell_effects:
+                e.add_cell_blocks(vals, lo, hi)
+            cm = self.vmask[self.blocks[lo:hi]].reshape(-1, 12)       # constrained rows/columns: 0
+            if cm.any():
+                vals[cm] = 0.0
+                vals.transpose(0, 2, 1)[cm] = 0.0
+            A.setValuesBlockedLocalRCV(self.blocks[lo:hi], self.blocks[lo:hi], vals.reshape(-1, 144), ADD)
+        for e, n, keep, r, c in self.other:
+            v = np.empty(n)
+            e.coo_values(v)
+            A.setValuesLocalRCV(r, c, v[keep][:, None], ADD)
+        if len(self.c_local):
+            A.setValuesLocalRCV(self.c_local, self.c_local,
+                                np.full((len(self.c_local), 1), self.system.scale), ADD)
+        A.assemble()
 
 
 class _ShellContext:
@@ -163,7 +260,7 @@ def make(system, mode):
     """(operator, context): operator is the PETSc Mat for SNESSetJacobian."""
     sp = system.space
     if mode == "assembled":
-        a = Assembled(system)
+        a = Assembled(system) if getattr(system, "assembly", "setvalues") == "coo" else AssembledChunked(system)
         return a.mat, a
     ctx = ExactShell(system) if mode == "shell" else SeedFD(system, 1 if mode == "seed_fd" else 2)
     A = PETSc.Mat().createPython(_sizes(sp), context=ctx, comm=sp.comm)
@@ -173,7 +270,7 @@ def make(system, mode):
 
 def update(ctx):
     """Refresh an operator after System.linearize."""
-    if isinstance(ctx, Assembled):
+    if isinstance(ctx, (Assembled, AssembledChunked)):
         ctx.assemble()
     elif isinstance(ctx, SeedFD):
         ctx.linearize()

@@ -57,6 +57,17 @@ class CellKernels:
         self.lam = float(lam)
         self._args = (self.nc, _ptr(self.cells, IDX), _ptr(self.Dminv, np.float64), _ptr(self.vol, np.float64))
 
+    def part(self, lo, hi):
+        """The same kernels on cells lo..hi-1 (views, no copies; cached)."""
+        cache = self.__dict__.setdefault("_parts", {})
+        if (lo, hi) not in cache:
+            k = CellKernels.__new__(CellKernels)
+            k.cells, k.Dminv, k.vol = self.cells[lo:hi], self.Dminv[lo:hi], self.vol[lo:hi]
+            k.nc, k.mat, k.mu, k.lam = hi - lo, self.mat, self.mu, self.lam
+            k._args = (k.nc, _ptr(k.cells, IDX), _ptr(k.Dminv, np.float64), _ptr(k.vol, np.float64))
+            cache[(lo, hi)] = k
+        return cache[(lo, hi)]
+
     def _x(self, x):
         return _ptr(x, np.float64)
 

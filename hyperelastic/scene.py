@@ -35,6 +35,7 @@ class Scene:
     final_time: float = 1.0
     fps: float = 30.0
     jacobian: str = "assembled"
+    assembly: str = "setvalues"   # how the assembled tangent is filled (jacobians.AssembledChunked / Assembled)
     hessian_projection: bool = False
     initial_scale: tuple = None   # x(0) = c + diag(s) (X - c), c the centroid (e.g. -1,1,1: mirrored)
     initial_spin: tuple = None    # v(0) = w x (X - c): angular velocity about the centroid [rad/s]
@@ -83,6 +84,7 @@ def read_scene(name, opts=None):
     s.final_time = opts.real("final_time", 1.0, minimum=0, exclusive=False)
     s.fps = opts.real("frames_per_second", 30.0, minimum=0)  # the thesis framework default
     s.jacobian = opts.choice("jacobian", JACOBIANS, "assembled")
+    s.assembly = opts.choice("assembly", ("setvalues", "coo"), "setvalues")
     s.hessian_projection = opts.flag("hessian_projection")
     s.initial_scale = opts.vector("initial_scale")
     s.initial_spin = opts.vector("initial_spin")

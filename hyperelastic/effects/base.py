@@ -40,8 +40,8 @@ class Effect:
     def diag(self, d):
         """d += diag(J_effect)."""
 
-    def add_cell_blocks(self, vals):
-        """vals (nc,12,12) += this effect's cell blocks (only if cell_blocks)."""
+    def add_cell_blocks(self, vals, lo=0, hi=None):
+        """vals (hi-lo,12,12) += this effect's blocks of cells lo..hi-1, default all (only if cell_blocks)."""
 
     def coo_pattern(self):
         """Extra COO entries (rows, cols) in local dof numbering, beyond the cell pattern."""

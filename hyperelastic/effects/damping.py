@@ -31,8 +31,8 @@ class ViscousDamping(Effect):
         self.C.add_diag(d, 1.0 / self.h)
 
     @timed("applies")
-    def add_cell_blocks(self, vals):
-        self.C.add_blocks(vals, 1.0 / self.h)
+    def add_cell_blocks(self, vals, lo=0, hi=None):
+        self.C.add_blocks(vals, 1.0 / self.h, lo, hi)
 
     def coo_pattern(self):
         return self.C.coo_pattern()
@@ -81,10 +81,11 @@ class RayleighDamping(Effect):
             d += (self.beta / self.h) * tmp
 
     @timed("applies")
-    def add_cell_blocks(self, vals):
-        self.M.add_blocks(vals, 1.0 / self.h)
+    def add_cell_blocks(self, vals, lo=0, hi=None):
+        self.M.add_blocks(vals, 1.0 / self.h, lo, hi)
         if self.beta:
-            K, _ = self.k.tangent(self.xn)        # scaled by beta/h, so not accumulated in place
+            k = self.k if lo == 0 and hi in (None, self.k.nc) else self.k.part(lo, hi)
+            K, _ = k.tangent(self.xn)             # scaled by beta/h, so not accumulated in place
             vals += (self.beta / self.h) * K
 
     def coo_pattern(self):

@@ -54,11 +54,13 @@ class Elasticity(Effect):
             self.k.tangent_diag(self.x, d)
 
     @timed("applies")
-    def add_cell_blocks(self, vals):
+    def add_cell_blocks(self, vals, lo=0, hi=None):
+        """vals (hi-lo,12,12) += the tangent blocks of cells lo..hi-1 (default: all)."""
+        whole = lo == 0 and hi in (None, self.k.nc)
         if self.projection:
-            vals += self.blocks
+            vals += self.blocks if whole else self.blocks[lo:hi]
         else:
-            self.k.tangent(self.x, vals, accumulate=True)
+            (self.k if whole else self.k.part(lo, hi)).tangent(self.x, vals, accumulate=True)
 
     def energy(self, x, v):
         W, jmin, jmax, bad = self.k.energy(x)

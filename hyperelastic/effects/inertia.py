@@ -34,8 +34,8 @@ class Inertia(Effect):
         self.M.add_diag(d, 1.0 / self.h ** 2)
 
     @timed("applies")
-    def add_cell_blocks(self, vals):
-        self.M.add_blocks(vals, 1.0 / self.h ** 2)
+    def add_cell_blocks(self, vals, lo=0, hi=None):
+        self.M.add_blocks(vals, 1.0 / self.h ** 2, lo, hi)
 
     def coo_pattern(self):
         return self.M.coo_pattern()

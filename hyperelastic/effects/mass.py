@@ -23,10 +23,11 @@ class MassOperator:
     def add_diag(self, d, scale=1.0):
         d += scale * self.diagonal
 
-    def add_blocks(self, vals, scale=1.0):
-        """Consistent mass: vals (nc,12,12) += scale * M^e."""
+    def add_blocks(self, vals, scale=1.0, lo=0, hi=None):
+        """Consistent mass: vals (hi-lo,12,12) += scale * M^e of cells lo..hi-1 (default: all)."""
         if not self.lumped:
-            self.k.add_mass_blocks(scale * self.coef, vals)
+            k = self.k if lo == 0 and hi in (None, self.k.nc) else self.k.part(lo, hi)
+            k.add_mass_blocks(scale * self.coef, vals)
 
     def coo_pattern(self):
         """Lumped mass: one diagonal COO entry per local dof."""
