@@ -3,8 +3,8 @@
   assembled  exact tangent as AIJ (block size 3). -assembly setvalues (default): preallocated once
              from the cell adjacency, values added per Newton step in chunks of cells
              (MatSetValuesBlockedLocal), ~1 KB per tet in all. -assembly coo: COO pattern set once
-             (setPreallocationCOOLocal), values set per Newton step (setValuesCOO): a little faster,
-             but PETSc's COO maps and the (nc,12,12) value array cost ~5 KB per tet
+             (setPreallocationCOOLocal), values set per Newton step (setValuesCOO): a ~3x faster
+             fill, but PETSc's COO maps and the (nc,12,12) value array cost ~5 KB per tet
   shell      exact tangent as a MatShell applying J v cell by cell, with getDiagonal for Jacobi
   seed_fd    the thesis' operator: exact M/h^2 + C/h, and K v replaced by (k(x+v) - k(x))/||v||_2 (eq. 5.19)
   seed_fd2   the same with (-k(x+2v) + 4k(x+v) - 3k(x)) / (2||v||_2) (eq. 7.8)
