@@ -40,15 +40,8 @@ def generate(name, level, out, size=None):
         size = level_size(level)
     elif not size > 0:
         raise UserError(f"mesh size {size} must be > 0")
-    d = os.path.dirname(os.path.abspath(out))
-    if os.path.isdir(out):
-        raise UserError(f"output '{out}' is a directory")
-    try:
-        os.makedirs(d, exist_ok=True)
-    except OSError as e:
-        raise UserError(f"output '{out}': cannot create directory '{d}' ({e.strerror})") from None
-    if not os.access(d, os.W_OK):
-        raise UserError(f"output '{out}': directory '{d}' is not writable")
+    from .output import check_output_path
+    check_output_path(out)
     import gmsh
     gmsh.initialize(["gmsh", "-v", "0"], readConfigFiles=False)
     try:

@@ -11,17 +11,23 @@ import numpy as np
 from .errors import UserError
 
 
-def check_output_path(path):
-    """Raise UserError unless `path` can be written (checked before any work is done)."""
-    if os.path.isdir(path):
-        raise UserError(f"output '{path}' is a directory")
-    d = os.path.dirname(os.path.abspath(path)) or "."
+def writable_dir(d, who):
+    """Create directory d if needed; UserError naming `who` unless it can be written to."""
     if not os.path.isdir(d):
         try:
             os.makedirs(d, exist_ok=True)
         except OSError as e:
-            raise UserError(f"output '{path}': cannot create directory '{d}' ({e.strerror})") from None
-    if not os.access(d, os.W_OK) or (os.path.exists(path) and not os.access(path, os.W_OK)):
+            raise UserError(f"{who}: cannot create directory '{d}' ({e.strerror})") from None
+    if not os.access(d, os.W_OK):
+        raise UserError(f"{who}: directory '{d}' is not writable")
+
+
+def check_output_path(path):
+    """Raise UserError unless `path` can be written (checked before any work is done)."""
+    if os.path.isdir(path):
+        raise UserError(f"output '{path}' is a directory")
+    writable_dir(os.path.dirname(os.path.abspath(path)) or ".", f"output '{path}'")
+    if os.path.exists(path) and not os.access(path, os.W_OK):
         raise UserError(f"output '{path}': not writable")
 
 

@@ -40,6 +40,7 @@ from dataclasses import asdict, dataclass, field, replace
 import numpy as np
 
 from .errors import UserError
+from .stability import fmt
 from .sweep import last_line, parallel_map, run_hyperelastic
 
 # (4.5, 1.5, 1.5): the thesis framework's test point, near the loaded end; then the centre of the
@@ -196,8 +197,7 @@ def launch(run, out_dir, timeout=1800):
     os.makedirs(d, exist_ok=True)
     path = os.path.join(d, run.id + ".h5")
     rc, err, wall = run_hyperelastic(run.args(path), path, timeout=timeout)
-    row = {k: v for k, v in asdict(run).items()} | {"id": run.id, "rc": rc, "wall_s": wall, "message": "",
-                                                      "path": path}
+    row = asdict(run) | {"id": run.id, "rc": rc, "wall_s": wall, "message": "", "path": path}
     if rc != 0:
         row["message"] = last_line(err, rc)
     row.update(read_cost(path))
@@ -350,6 +350,11 @@ def cheapest(rows, target, modes=None):
     return min(ok, key=lambda r: r["solve_s"]) if ok else None
 
 
+def other_modes(rs, target, best):
+    """{mode: its cheapest run meeting target, or None} for every mode of rs other than best's."""
+    return {m: cheapest(rs, target, (m,)) for m in dict.fromkeys(r["mode"] for r in rs) if m != best["mode"]}
+
+
 def configs(rows):
     return list(dict.fromkeys((r["scene"], r["material"], r["E"], r["level"]) for r in sweep_rows(rows)))
 
@@ -446,12 +451,6 @@ def cost_vs_E(rows, target=COST_TARGET):
     return out
 
 
-def fmt(v, spec=".3g"):
-    if v is None or (isinstance(v, float) and math.isnan(v)):
-        return "-"
-    return format(v, spec) if isinstance(v, float) else str(v)
-
-
 def headline(rows, cfg):
     """The report's first paragraph: the cheapest setting for the tightest target that some run of
     the main configuration meets, against the alternatives, in numbers."""
@@ -464,8 +463,8 @@ def headline(rows, cfg):
             break
     else:
         return f"No run of {cfg_name(cfg)} reached 10% relative error."
-    others = [cheapest(rs, target, (m,)) for m in dict.fromkeys(r["mode"] for r in rs) if m != best["mode"]]
-    others = sorted([o for o in others if o is not None], key=lambda o: o["solve_s"])
+    per_mode = other_modes(rs, target, best)
+    others = sorted([o for o in per_mode.values() if o is not None], key=lambda o: o["solve_s"])
     s = (f"**For {target:g} relative error on {cfg_name(cfg)}, the cheapest setting is `{label(best)}`: "
          f"{best['solve_s']:.3g} s of solve time ({best['newton_its']} Newton, {best['ksp_its']} Krylov iterations)")
     if others:
@@ -474,7 +473,7 @@ def headline(rows, cfg):
         worst = others[-1]
         if worst is not o:
             s += f" and {worst['solve_s'] / best['solve_s']:.1f}× less than the cheapest {worst['mode']} one"
-    missing = [m for m in dict.fromkeys(r["mode"] for r in rs) if m != best["mode"] and cheapest(rs, target, (m,)) is None]
+    missing = [m for m, o in per_mode.items() if o is None]
     if missing:
         s += f"; {', '.join(missing)} never meet{'s' if len(missing) == 1 else ''} it"
     if ref is not None and ref.get("solve_s"):
@@ -556,8 +555,8 @@ def report(rows, p, out_dir, command):
             if b is None:
                 L.append(f"| {cfg_name(cfg)} | {t:g} | none of the {len(rs)} runs | - | - | - | - | - |")
                 continue
-            alt = [cheapest(rs, t, (m,)) for m in dict.fromkeys(r["mode"] for r in rs) if m != b["mode"]]
-            alt = min((a for a in alt if a is not None), key=lambda a: a["solve_s"], default=None)
+            alt = min((a for a in other_modes(rs, t, b).values() if a is not None), key=lambda a: a["solve_s"],
+                      default=None)
             vs = f"{alt['solve_s'] / b['solve_s']:.1f}× ({alt['mode']})" if alt else "-"
             L.append(f"| {cfg_name(cfg)} | {t:g} | `{label(b)}` | {b['solve_s']:.3g} | {b['newton_its']} | "
                      f"{b['ksp_its']} | {b['rel_err']:.2g} | {vs} |")
@@ -796,12 +795,8 @@ def main(argv):
     if a.jobs < 1:
         raise UserError("hyperelastic study: --jobs must be >= 1")
     out = a.output_dir or os.path.join("output", f"study_{a.which}")
-    try:
-        os.makedirs(out, exist_ok=True)
-    except OSError as e:
-        raise UserError(f"-output_dir '{out}': {e.strerror}") from None
-    if not os.access(out, os.W_OK):
-        raise UserError(f"-output_dir '{out}': not writable")
+    from .output import writable_dir
+    writable_dir(out, "-output_dir")
     command = "hyperelastic study " + " ".join(argv)
     t0 = time.perf_counter()
 
