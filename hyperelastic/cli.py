@@ -8,11 +8,10 @@
   hyperelastic study accuracy|refinement [-output_dir DIR] [--full] [--jobs N]
                                                  what accuracy costs in time: CSV, PNGs, markdown
 """
-import argparse
 import os
 import sys
 
-from .errors import Interrupted, SolveError, UserError
+from .errors import ArgParser, Interrupted, SolveError, UserError
 
 EXIT_USER, EXIT_SOLVE, EXIT_INTERNAL = 2, 3, 1
 
@@ -54,6 +53,7 @@ def _restart_args(argv):
 
 
 def run(argv):
+    """`hyperelastic run`: Scene -> Model (mesh, space, effects, system) -> Solver -> Writer -> integrator."""
     restart = None
     if argv and argv[0] == "--restart":
         scene_arg, petsc_args, restart = _restart_args(argv)
@@ -63,52 +63,29 @@ def run(argv):
         scene_arg, petsc_args = argv[0], argv[1:]
     PETSc = _petsc(petsc_args)
     import signal
-    from . import __version__
-    from .app import Problem, collective
-    from .effects.inertia import Inertia
     from .integrators import BackwardEuler
-    from .options import all_options
-    from .output import Writer, check_output_path
+    from .model import build_model, collective
+    from .options import Options
+    from .output import Writer, check_output_path, run_attributes
+    from .scene import load_scene
     from .solver import Solver
-    import numpy as np
 
     comm = PETSc.COMM_WORLD
     stage = PETSc.Log.Stage("Setup")
     stage.push()
-    out = None
-
-    def check_output(prob):
-        nonlocal out
-        out = prob.opts.string("output", os.path.join("output", f"{prob.name}.h5"))
-        collective(comm, lambda: check_output_path(out))
-    prob = Problem(scene_arg, comm, before_mesh=check_output)
-    scene, space, system, name, path = prob.scene, prob.space, prob.system, prob.name, prob.scene_file
-    quiet = prob.opts.flag("quiet")
-    mesh_file, points, tets = scene.mesh, prob.points, prob.tets
-    integ = BackwardEuler(scene, system, None, None, quiet)
-    integ.x, integ.v = prob.initial_state()
-    solver = Solver(system, scene.jacobian)
-    integ.solver = solver
-    attrs = {"options": "\n".join(f"-{k} {v}".rstrip() for k, v in all_options()),
-             "scene": name, "scene_file": os.path.abspath(path), "effects": ",".join(e for e in scene.effects),
-             "effects_built": repr(system.built()), "hyperelastic_version": __version__,
-             "petsc_version": ".".join(map(str, PETSc.Sys.getVersion())), "mpi_ranks": comm.getSize(),
-             "jacobian": scene.jacobian + (f" ({solver.mf})" if solver.mf else ""),
-             "material": scene.material.name, "E": scene.E, "nu": scene.nu, "rho": scene.rho,
-             "mesh": os.path.abspath(mesh_file) if mesh_file else f"bar level {scene.level}",
-             "vertices_per_rank": np.array(space.mpi.allgather(space.nlv)),
-             "cells_per_rank": np.array(space.mpi.allgather(space.nc)),
-             "mass_matrix_builds": Inertia.MASS_BUILDS}
+    scene, scene_file = load_scene(scene_arg)
+    opts = Options()
+    out = opts.string("output", os.path.join("output", f"{scene.name}.h5"))
+    quiet = opts.flag("quiet")
+    collective(comm, lambda: check_output_path(out))      # before any expensive work
+    model = build_model(scene, comm)
+    solver = Solver(model.system, scene.jacobian, scene.assembly, guard=scene.inversion_guard)
+    attrs = run_attributes(model, scene_file, solver)
     stage.pop()
-    writer = Writer(out, space, points, tets, attrs, resume=restart)
-    integ.writer = writer
-    if restart is not None:
-        integ.resume(restart)
-
-    def on_signal(signum, frame):
-        integ.signal = signum     # honoured at the next frame, on every rank
+    writer = Writer(out, model.space, model.points, model.tets, attrs, resume=restart)
+    integ = BackwardEuler(scene, model.system, solver, writer, model.x0, model.v0, checkpoint=restart, quiet=quiet)
     for sig in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(sig, on_signal)
+        signal.signal(sig, lambda signum, frame: integ.request_stop(signum))
     try:
         integ.run()
     finally:
@@ -129,12 +106,12 @@ def peak_rss_mb(comm):
 
 
 def mesh_cmd(argv):
-    ap = _ArgParser(prog="hyperelastic mesh", description="Generate a tetrahedral mesh with gmsh.")
+    ap = ArgParser(prog="hyperelastic mesh", description="Generate a tetrahedral mesh with gmsh.")
     ap.add_argument("geometry", help="name of a .geo file under meshes/ (e.g. bar)")
     ap.add_argument("--level", type=int, help="refinement level: 1..8 = thesis L1..L8, 9.. finer (~2x tets each)")
     ap.add_argument("--size", type=float, help="target edge length instead of a level")
     ap.add_argument("-o", "--output", required=True, help="output .msh file")
-    a = _parse(ap, argv)
+    a = ap.parse_args(argv)
     if (a.level is None) == (a.size is None):
         raise UserError("hyperelastic mesh: give exactly one of --level N or --size H")
     from .mesh import generate
@@ -144,23 +121,12 @@ def mesh_cmd(argv):
     return 0
 
 
-def _parse(ap, argv):
-    return ap.parse_args(argv)
-
-
-class _ArgParser(argparse.ArgumentParser):
-    """argparse that reports a bad argument as one UserError line instead of usage + exit."""
-
-    def error(self, message):
-        raise UserError(f"{self.prog}: {message}")
-
-
 def plot_cmd(argv):
-    ap = _ArgParser(prog="hyperelastic plot", description="Render a frame of an output file to PNG.")
+    ap = ArgParser(prog="hyperelastic plot", description="Render a frame of an output file to PNG.")
     ap.add_argument("file")
     ap.add_argument("-o", "--output", default=None)
     ap.add_argument("--frame", type=int, default=-1)
-    a = _parse(ap, argv)
+    a = ap.parse_args(argv)
     from .plot import render
     out = a.output or os.path.splitext(a.file)[0] + ".png"
     render(a.file, out, a.frame)

@@ -1,3 +1,7 @@
+"""The errors a user can cause, each reported as one line with its exit status."""
+import argparse
+
+
 class UserError(Exception):
     """An error the user caused (bad input, option or scene); reported as one line, exit status 2."""
 
@@ -12,3 +16,10 @@ class Interrupted(Exception):
     def __init__(self, message, signum):
         super().__init__(message)
         self.signum = signum
+
+
+class ArgParser(argparse.ArgumentParser):
+    """argparse that reports a bad argument as one UserError line instead of usage + exit 2."""
+
+    def error(self, message):
+        raise UserError(f"{self.prog}: {message}")

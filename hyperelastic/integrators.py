@@ -10,6 +10,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from .errors import Interrupted, SolveError
+from .stats import effect_column
 
 
 def step_count(final_time, dt):
@@ -18,22 +19,30 @@ def step_count(final_time, dt):
 
 
 class BackwardEuler:
-    def __init__(self, scene, system, solver, writer=None, quiet=False):
+    def __init__(self, scene, system, solver, writer, x0, v0, checkpoint=None, quiet=False):
+        """Steps the system from the initial state (x0, v0: local arrays at t = 0), or from a
+        checkpoint's state (output.read_checkpoint) when given, writing frames and statistics to
+        `writer` (None: nothing is written). The scene gives the time settings."""
         self.scene, self.system, self.solver, self.writer = scene, system, solver, writer
         self.quiet = quiet
         sp = system.space
         self.sp = sp
         self.X = sp.global_vec()
-        self.x = sp.X.ravel().copy()      # local positions (reference configuration at t = 0)
-        self.v = np.zeros_like(self.x)
+        self.x, self.v = x0, v0
         self.t = 0.0
         self.step = 0
         self.h_try = None      # step size of the next attempt (step control)
         self.streak = 0        # accepted steps since the last change of h_try
         self.rejections = 0
         self.n0 = 0            # nominal steps already done (a restart starts later)
-        self.signal = 0        # set by the SIGINT/SIGTERM handler of the command line
+        self.signal = 0        # set by request_stop (the SIGINT/SIGTERM handler of the command line)
         self.stages = {k: PETSc.Log.Stage(k) for k in ("Step", "Output")}
+        if checkpoint is not None:
+            self._resume(checkpoint)
+
+    def request_stop(self, signum):
+        """Stop at the next frame with a checkpoint (honoured on every rank)."""
+        self.signal = signum
 
     def run(self):
         """Steps of the nominal size -dt; frames every round(1/(fps dt)) of them. With step control
@@ -53,42 +62,8 @@ class BackwardEuler:
         self.h_try = H if self.h_try is None else self.h_try
         for n in range(self.n0, nsteps):
             t_end = self.t + (min(H, sc.final_time - self.t) if n == nsteps - 1 else H)
-            while self.t < t_end:
-                h = min(self.h_try, t_end - self.t)
-                last = t_end - self.t - h <= 1e-12 * H
-                stats = self.advance(h, t_end if last else self.t + h)
-                why = stats.pop("why", None)
-                self.stages["Output"].push()
-                if self.writer:
-                    self.writer.stats(stats)
-                self.stages["Output"].pop()
-                if stats["rejected"]:
-                    self.rejections += 1
-                    self.streak = 0
-                    self.h_try = 0.5 * h
-                    if not sc.step_control or self.h_try < sc.dt_min:
-                        self._fail(stats, why)
-                    continue
-                self.streak += 1
-                if self.h_try < H and self.streak >= sc.dt_grow_after:
-                    self.h_try, self.streak = min(2 * self.h_try, H), 0
-            self.stages["Output"].push()
-            framed = (n + 1) % every == 0 or n == nsteps - 1
-            if self.writer and framed:
-                self.writer.frame(self.t, self.x)
-            # a signal is honoured at a frame (all ranks agree), after a checkpoint of that state
-            stop = framed and self.sp.mpi.allreduce(self.signal, op=MPI.MAX)
-            ck = sc.checkpoint_every and (n + 1) % sc.checkpoint_every == 0 and n < nsteps - 1
-            if self.writer and (stop or ck):
-                self.checkpoint(n + 1)
-            self.stages["Output"].pop()
-            if stop:
-                name = signal.Signals(stop).name
-                if self.writer:
-                    self.writer.set_attr("interrupted", f"{name} at t={self.t:.6g} (step {self.step})")
-                raise Interrupted(f"interrupted by {name} at t={self.t:.6g} (step {self.step}); state saved: "
-                                  f"continue with `hyperelastic run --restart {self.writer.path if self.writer else 'FILE'}`",
-                                  stop)
+            stats = self._nominal_step(t_end, H)
+            self._after_step(n, nsteps, every)
             now = time.perf_counter()
             if not self.quiet and self.sp.mpi.rank == 0 and (now - last_print > 2.0 or n == nsteps - 1):
                 last_print = now
@@ -97,11 +72,57 @@ class BackwardEuler:
                       f"ksp {stats['ksp_its']}{rej} [{now - t_start:.1f} s]", file=sys.stderr, flush=True)
         return self
 
+    def _nominal_step(self, t_end, H):
+        """Attempts from t to t_end (halving after each rejection, regrowing after accepted streaks);
+        returns the stats row of the last attempt."""
+        sc = self.scene
+        while self.t < t_end:
+            h = min(self.h_try, t_end - self.t)
+            last = t_end - self.t - h <= 1e-12 * H
+            stats = self.advance(h, t_end if last else self.t + h)
+            why = stats.pop("why", None)
+            self.stages["Output"].push()
+            if self.writer:
+                self.writer.stats(stats)
+            self.stages["Output"].pop()
+            if stats["rejected"]:
+                self.rejections += 1
+                self.streak = 0
+                self.h_try = 0.5 * h
+                if not sc.step_control or self.h_try < sc.dt_min:
+                    self._fail(stats, why)
+                continue
+            self.streak += 1
+            if self.h_try < H and self.streak >= sc.dt_grow_after:
+                self.h_try, self.streak = min(2 * self.h_try, H), 0
+        return stats
+
+    def _after_step(self, n, nsteps, every):
+        """After nominal step n: the frame, a checkpoint, and a stop on a signal (all ranks agree)."""
+        sc = self.scene
+        self.stages["Output"].push()
+        framed = (n + 1) % every == 0 or n == nsteps - 1
+        if self.writer and framed:
+            self.writer.frame(self.t, self.x)
+        # a signal is honoured at a frame (all ranks agree), after a checkpoint of that state
+        stop = framed and self.sp.mpi.allreduce(self.signal, op=MPI.MAX)
+        ck = sc.checkpoint_every and (n + 1) % sc.checkpoint_every == 0 and n < nsteps - 1
+        if self.writer and (stop or ck):
+            self.checkpoint(n + 1)
+        self.stages["Output"].pop()
+        if stop:
+            name = signal.Signals(stop).name
+            if self.writer:
+                self.writer.set_attr("interrupted", f"{name} at t={self.t:.6g} (step {self.step})")
+            raise Interrupted(f"interrupted by {name} at t={self.t:.6g} (step {self.step}); state saved: "
+                              f"continue with `hyperelastic run --restart {self.writer.path if self.writer else 'FILE'}`",
+                              stop)
+
     def checkpoint(self, n):
         self.writer.checkpoint(self.x, self.v, t=self.t, step=self.step, n=n, h_try=self.h_try, streak=self.streak,
                                rejections=self.rejections, nframes=self.writer.nframes, nstats=self.writer.nstats)
 
-    def resume(self, state):
+    def _resume(self, state):
         """Continue from a checkpoint (output.read_checkpoint): the same state, step control included."""
         sp = self.sp
         self.x, self.v = sp.scatter(state["x"]), sp.scatter(state["v"])
@@ -144,9 +165,9 @@ class BackwardEuler:
                  "inversion_cuts": self.solver.inversion_cuts - cuts0, "rejected": 1}
         for name, (ev, ap, sec) in sysm.effect_counters().items():
             e0 = c0[name]
-            stats[f"effect_{name}_evals"] = ev - e0[0]
-            stats[f"effect_{name}_applies"] = ap - e0[1]
-            stats[f"effect_{name}_seconds"] = sec - e0[2]
+            stats[effect_column(name, "evals")] = ev - e0[0]
+            stats[effect_column(name, "applies")] = ap - e0[1]
+            stats[effect_column(name, "seconds")] = sec - e0[2]
         if reason <= 0:
             stats["why"] = (f"SNES did not converge ({self.solver.reason_name(reason)}) after "
                             f"{stats['newton_its']} Newton iterations")

@@ -81,6 +81,8 @@ class Assembled:
         vals[self.zero] = 0.0
         self.mat.setValuesCOO(vals, addv=PETSc.InsertMode.INSERT_VALUES)
 
+    update = assemble     # after System.linearize: the tangent at the new point
+
 
 class AssembledChunked:
     """The exact tangent as a preallocated AIJ matrix (block size 3) filled per Newton step by
@@ -175,13 +177,22 @@ class AssembledChunked:
                                 np.full((len(self.c_local), 1), self.system.scale), ADD)
         A.assemble()
 
+    update = assemble
+
 
 class _ShellContext:
+    """A MatShell (PETSc's Python matrix) whose mult is this object's; `mat` is the PETSc Mat."""
+
     def __init__(self, system):
         self.system = system
+        self.mat = PETSc.Mat().createPython(_sizes(system.space), context=self, comm=system.space.comm)
+        self.mat.setUp()
 
     def getDiagonal(self, mat, D):
         self.system.diagonal(D)
+
+    def update(self):
+        """After System.linearize: nothing to do for an operator that reads the system's state."""
 
 
 class ExactShell(_ShellContext):
@@ -196,13 +207,13 @@ class SeedFD(_ShellContext):
     elastic forces (eqs. 5.19/5.20, first order; eq. 7.8, second order)."""
 
     def __init__(self, system, order):
-        super().__init__(system)
         self.order = order
         self.elastic = [e for e in system.effects if e.name == "elasticity"]
         self.exact = [e for e in system.effects if e.name != "elasticity"]
         self.k0 = None
+        super().__init__(system)
 
-    def linearize(self):
+    def update(self):
         self.k0 = self.system.residual_local(self.system.x_lin, self.elastic)
 
     def mult(self, mat, X, Y):
@@ -256,21 +267,13 @@ class PetscMFFD:
         self.snes.computeJacobian(self.X, self.mat, self.P)
 
 
-def make(system, mode):
-    """(operator, context): operator is the PETSc Mat for SNESSetJacobian."""
-    sp = system.space
+OPERATORS = {"shell": ExactShell, "seed_fd": lambda s: SeedFD(s, 1), "seed_fd2": lambda s: SeedFD(s, 2)}
+ASSEMBLIES = {"setvalues": AssembledChunked, "coo": Assembled}
+
+
+def make(system, mode, assembly="setvalues"):
+    """The operator of Jacobian mode `mode` (scene.JACOBIANS) on the system: an object with `mat`
+    (the PETSc Mat for SNESSetJacobian) and `update()` (called after System.linearize)."""
     if mode == "assembled":
-        a = Assembled(system) if getattr(system, "assembly", "setvalues") == "coo" else AssembledChunked(system)
-        return a.mat, a
-    ctx = ExactShell(system) if mode == "shell" else SeedFD(system, 1 if mode == "seed_fd" else 2)
-    A = PETSc.Mat().createPython(_sizes(sp), context=ctx, comm=sp.comm)
-    A.setUp()
-    return A, ctx
-
-
-def update(ctx):
-    """Refresh an operator after System.linearize."""
-    if isinstance(ctx, (Assembled, AssembledChunked)):
-        ctx.assemble()
-    elif isinstance(ctx, SeedFD):
-        ctx.linearize()
+        return ASSEMBLIES[assembly](system)
+    return OPERATORS[mode](system)

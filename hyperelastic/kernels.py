@@ -9,14 +9,20 @@ _here = os.path.dirname(os.path.abspath(__file__))
 IDX = np.int32  # vertex index type used by the kernels
 
 
+def _sources():
+    """The C sources the compiled kernels are built from (setup.py): a newer one means a stale build."""
+    return ([os.path.join(_here, "_kernels.c"), os.path.join(_here, "_material_loops.h")]
+            + glob.glob(os.path.join(_here, "materials", "*.h")))
+
+
 def _load():
     libs = sorted(glob.glob(os.path.join(_here, "_kernels*.so")))
-    src = os.path.join(_here, "_kernels.c")
     if not libs:
         raise ImportError("hyperelastic: compiled kernels not found; run `make` (pip install -e .) to build them")
     lib = libs[0]
-    if os.path.getmtime(src) > os.path.getmtime(lib):
-        raise ImportError(f"hyperelastic: {lib} is older than _kernels.c; run `make` to rebuild it")
+    newest = max(_sources(), key=os.path.getmtime)
+    if os.path.getmtime(newest) > os.path.getmtime(lib):
+        raise ImportError(f"hyperelastic: {lib} is older than {os.path.basename(newest)}; run `make` to rebuild it")
     return ctypes.CDLL(lib)
 
 
@@ -24,11 +30,9 @@ _lib = _load()
 _P = ctypes.c_void_p
 _I = ctypes.c_int64
 _D = ctypes.c_double
-for _name in ("he_forces", "he_energy", "he_kv", "he_tangent", "he_tangent_diag"):
-    fn = getattr(_lib, _name)
-    fn.restype = _I
-    fn.argtypes = [_I, _P, _P, _P, _P, ctypes.c_int, _D, _D] + (
-        [_P, _P] if _name == "he_kv" else [_P, ctypes.c_int] if _name == "he_tangent" else [_P])
+# per material NAME (materials/NAME.h): he_KIND_NAME(nc, cells, Dminv, vol, x, mu, lam, ...)
+_MATERIAL_KERNELS = {"forces": [_P], "energy": [_P], "kv": [_P, _P], "tangent": [_P, ctypes.c_int],
+                     "tangent_diag": [_P]}
 _lib.he_mass_apply.restype = None
 _lib.he_mass_apply.argtypes = [_I, _P, _P, _D, _P, _P]
 _lib.he_max_step.restype = _D
@@ -37,6 +41,24 @@ _lib.he_apply_blocks.restype = None
 _lib.he_apply_blocks.argtypes = [_I, _P, _P, _P, _P]
 _lib.he_add_mass_blocks.restype = None
 _lib.he_add_mass_blocks.argtypes = [_I, _P, _D, _P]
+_bound = {}
+
+
+def material_kernels(name):
+    """{kind: C function} of material `name`, from its header materials/NAME.h."""
+    if name not in _bound:
+        fns = {}
+        for kind, extra in _MATERIAL_KERNELS.items():
+            try:
+                fn = getattr(_lib, f"he_{kind}_{name}")
+            except AttributeError:
+                raise ImportError(f"hyperelastic: no compiled kernels for material '{name}' (is there a "
+                                  f"materials/{name}.h? run `make` to rebuild)") from None
+            fn.restype = _I
+            fn.argtypes = [_I, _P, _P, _P, _P, _D, _D] + extra
+            fns[kind] = fn
+        _bound[name] = fns
+    return _bound[name]
 
 
 def _ptr(a, dtype):
@@ -45,17 +67,23 @@ def _ptr(a, dtype):
 
 
 class CellKernels:
-    """Binds a cell set (local vertex indices, Dm^-1, volumes) and a material to the C kernels."""
+    """Binds a cell set (local vertex indices, Dm^-1, volumes) and a material (its name, e.g. 'stvk',
+    and Lame constants) to the C kernels."""
 
-    def __init__(self, cells, Dminv, vol, material_id, mu, lam):
+    def __init__(self, cells, Dminv, vol, material, mu, lam):
         self.cells = np.ascontiguousarray(cells, dtype=IDX)
         self.Dminv = np.ascontiguousarray(Dminv, dtype=np.float64).reshape(-1, 9)
         self.vol = np.ascontiguousarray(vol, dtype=np.float64)
         self.nc = len(self.vol)
-        self.mat = int(material_id)
+        self.set_material(material, mu, lam)
+        self._args = (self.nc, _ptr(self.cells, IDX), _ptr(self.Dminv, np.float64), _ptr(self.vol, np.float64))
+
+    def set_material(self, material, mu, lam):
+        """Switch to material `material` (a name) with Lame constants (mu, lam)."""
+        self.material = material
+        self.fn = material_kernels(material)
         self.mu = float(mu)
         self.lam = float(lam)
-        self._args = (self.nc, _ptr(self.cells, IDX), _ptr(self.Dminv, np.float64), _ptr(self.vol, np.float64))
 
     def part(self, lo, hi):
         """The same kernels on cells lo..hi-1 (views, no copies; cached)."""
@@ -63,7 +91,7 @@ class CellKernels:
         if (lo, hi) not in cache:
             k = CellKernels.__new__(CellKernels)
             k.cells, k.Dminv, k.vol = self.cells[lo:hi], self.Dminv[lo:hi], self.vol[lo:hi]
-            k.nc, k.mat, k.mu, k.lam = hi - lo, self.mat, self.mu, self.lam
+            k.nc, k.material, k.fn, k.mu, k.lam = hi - lo, self.material, self.fn, self.mu, self.lam
             k._args = (k.nc, _ptr(k.cells, IDX), _ptr(k.Dminv, np.float64), _ptr(k.vol, np.float64))
             cache[(lo, hi)] = k
         return cache[(lo, hi)]
@@ -73,16 +101,16 @@ class CellKernels:
 
     def forces(self, x, f):
         """f += k(x); returns the number of cells where the material is undefined."""
-        return _lib.he_forces(*self._args, self._x(x), self.mat, self.mu, self.lam, _ptr(f, np.float64))
+        return self.fn["forces"](*self._args, self._x(x), self.mu, self.lam, _ptr(f, np.float64))
 
     def energy(self, x):
         out = np.zeros(3)
-        bad = _lib.he_energy(*self._args, self._x(x), self.mat, self.mu, self.lam, _ptr(out, np.float64))
+        bad = self.fn["energy"](*self._args, self._x(x), self.mu, self.lam, _ptr(out, np.float64))
         return out[0], out[1], out[2], bad
 
     def kv(self, x, v, y):
         """y += K(x) v."""
-        return _lib.he_kv(*self._args, self._x(x), self.mat, self.mu, self.lam, _ptr(v, np.float64),
+        return self.fn["kv"](*self._args, self._x(x), self.mu, self.lam, _ptr(v, np.float64),
                           _ptr(y, np.float64))
 
     def tangent(self, x, vals=None, accumulate=False):
@@ -90,12 +118,12 @@ class CellKernels:
         if vals is None:
             vals = np.zeros((self.nc, 12, 12))
         assert vals.shape == (self.nc, 12, 12)
-        bad = _lib.he_tangent(*self._args, self._x(x), self.mat, self.mu, self.lam, _ptr(vals, np.float64),
+        bad = self.fn["tangent"](*self._args, self._x(x), self.mu, self.lam, _ptr(vals, np.float64),
                               int(accumulate))
         return vals, bad
 
     def tangent_diag(self, x, diag):
-        return _lib.he_tangent_diag(*self._args, self._x(x), self.mat, self.mu, self.lam, _ptr(diag, np.float64))
+        return self.fn["tangent_diag"](*self._args, self._x(x), self.mu, self.lam, _ptr(diag, np.float64))
 
     def max_step(self, x, d, frac=0.9):
         """Largest t <= 1 keeping every (not already inverted) cell's det F > 0 on x + [0, t] d, times

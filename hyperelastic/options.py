@@ -62,11 +62,10 @@ def insert_defaults(pairs, opts=None):
 
 
 class Options:
-    """Reads options with a clear one-line error for a wrong value; remembers what it read."""
+    """Reads options with a clear one-line error for a wrong value."""
 
     def __init__(self, prefix=None):
         self.o = PETSc.Options(prefix)
-        self.read = {}
 
     def has(self, name):
         return self.o.hasName(name)
@@ -75,7 +74,6 @@ class Options:
         v = self.o.getString(name, default) if self.o.hasName(name) else default
         if self.o.hasName(name) and (v is None or v == ""):
             raise UserError(f"option -{name}: needs a value")
-        self.read[name] = v
         return v
 
     def real(self, name, default=None, minimum=None, exclusive=True, maximum=None):

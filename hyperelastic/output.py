@@ -1,14 +1,16 @@
 """HDF5 output (rank 0 writes, flushed every frame) and an XDMF time series beside it.
 
 Layout: mesh/points (nv,3), mesh/tetra (nc,4) in the input mesh's numbering; time (F,);
-x (F,nv,3) positions in the input vertex order; stats/<column> (S,) one entry per step;
-attributes: options (the full options database), scene, effects, effects_built, versions, ranks.
+x (F,nv,3) positions in the input vertex order; stats/<column> (S,) one entry per step attempt
+(the columns: stats.py);
+attributes: see run_attributes.
 """
 import os
 
 import numpy as np
 
 from .errors import UserError
+from .stats import column_type
 
 
 def writable_dir(d, who):
@@ -29,6 +31,27 @@ def check_output_path(path):
     writable_dir(os.path.dirname(os.path.abspath(path)) or ".", f"output '{path}'")
     if os.path.exists(path) and not os.access(path, os.W_OK):
         raise UserError(f"output '{path}': not writable")
+
+
+def run_attributes(model, scene_file, solver):
+    """The output file's root attributes: the full options database, the scene and what was built
+    for it (effects_built: JSON {effect: instances}), versions, the rank count and the partition."""
+    import json
+    from petsc4py import PETSc
+    from . import __version__
+    from .options import all_options
+    sc, space = model.scene, model.space
+    built = model.system.built()
+    return {"options": "\n".join(f"-{k} {v}".rstrip() for k, v in all_options()),
+            "scene": sc.name, "scene_file": os.path.abspath(scene_file), "effects": ",".join(sc.effects),
+            "effects_built": json.dumps(built, sort_keys=True), "hyperelastic_version": __version__,
+            "petsc_version": ".".join(map(str, PETSc.Sys.getVersion())), "mpi_ranks": space.comm.getSize(),
+            "jacobian": sc.jacobian + (f" ({solver.mf})" if solver.mf else ""),
+            "material": sc.material.name, "E": sc.E, "nu": sc.nu, "rho": sc.rho,
+            "mesh": os.path.abspath(sc.mesh) if sc.mesh else f"bar level {sc.level}",
+            "vertices_per_rank": np.array(space.mpi.allgather(space.nlv)),
+            "cells_per_rank": np.array(space.mpi.allgather(space.nc)),
+            "mass_matrix_builds": built.get("inertia", 0)}
 
 
 CHECKPOINT_ATTRS = ("t", "step", "n", "h_try", "streak", "rejections", "nframes", "nstats")
@@ -147,6 +170,8 @@ class Writer:
         per step cost more than a small mesh's step)."""
         if not self.root:
             return
+        for k in row:
+            column_type(k)        # only declared columns (stats.py)
         self._pending.append(dict(row))
         self.nstats += 1
 
@@ -157,9 +182,9 @@ class Writer:
         g = self.f["stats"]
         i0 = self.nstats - len(rows)
         for row in rows:
-            for k, v in row.items():
+            for k in row:
                 if k not in g:
-                    is_int = isinstance(v, (int, np.integer))
+                    is_int = column_type(k) is int
                     g.create_dataset(k, shape=(i0,), maxshape=(None,), chunks=(256,),
                                      dtype=np.int64 if is_int else np.float64, fillvalue=0 if is_int else np.nan)
         for k in g:                      # every column has one entry per step (missing: NaN / 0)

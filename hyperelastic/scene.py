@@ -1,11 +1,14 @@
 """What a scene calls for: mesh, material, effects with their parameters, time settings.
 Everything is read and validated here, before any mesh is loaded or file written."""
+import os
 from dataclasses import dataclass, field
 
 from . import materials
 from .errors import UserError
-from .options import Options
+from .options import Options, insert_defaults, parse_options_file, resolve_scene
 
+DEFAULT_MATERIAL = "stvk"
+DEFAULT_EFFECTS = ("elasticity", "inertia")
 EFFECTS = ("elasticity", "inertia", "damping", "rayleigh", "gravity", "traction", "follower_traction",
            "fixed", "prescribed")
 FACES = {"left": (0, "min"), "right": (0, "max"), "front": (1, "min"), "back": (1, "max"),
@@ -18,10 +21,11 @@ IMPLIED_BY = {"damping": "damping", "rayleigh": ("rayleigh_alpha", "rayleigh_bet
 
 @dataclass
 class Scene:
+    """A scene's settings, with the application's defaults (the only place they are written)."""
     name: str
     mesh: str = None            # path, or None for the cached bar at `level`
     level: int = 1
-    material: object = None
+    material: object = None     # a materials class (default: DEFAULT_MATERIAL)
     E: float = 1e6
     nu: float = 0.3
     rho: float = 1000.0
@@ -41,13 +45,15 @@ class Scene:
     initial_spin: tuple = None    # v(0) = w x (X - c): angular velocity about the centroid [rad/s]
     initial_rotation: tuple = None  # x(0) = c + R(r) (X - c), r a rotation vector [rad] (after the scale)
     step_control: bool = True     # reject a failed step and retry with h/2, down to dt_min
-    dt_min: float = 0.0
+    dt_min: float = 0.0           # default: dt / 1024
     dt_grow_after: int = 2        # successful steps before h is doubled back toward dt
-    inversion_guard: bool = False # shorten Newton updates that would invert an element
+    inversion_guard: bool = False # shorten Newton updates that would invert an element (default: on for
+                                  # materials undefined when inverted)
     checkpoint_every: int = 0     # write the full state every N steps (0: only on SIGINT/SIGTERM)
 
 
 JACOBIANS = ("assembled", "shell", "seed_fd", "seed_fd2")
+ASSEMBLIES = ("setvalues", "coo")
 
 
 def faces(opts, name):
@@ -60,14 +66,32 @@ def faces(opts, name):
     return fs
 
 
+def load_scene(scene_arg):
+    """(Scene, path of its options file) for a built-in scene name or an options file: the file's
+    options become defaults under the command line's, then everything is read and validated."""
+    path = resolve_scene(scene_arg)
+    insert_defaults(parse_options_file(path))
+    name = os.path.splitext(os.path.basename(path))[0]
+    return read_scene(name), path
+
+
 def read_scene(name, opts=None):
+    """The Scene from the options database: every value validated, defaults from the dataclass."""
     opts = opts or Options()
     s = Scene(name=name)
-    s.mesh = opts.string("mesh", None)
-    s.level = opts.integer("level", 1, minimum=1)
-    s.material = materials.get(opts.string("material", "stvk"))
+    _read_material(s, opts)
+    _read_time(s, opts)
+    _read_solver(s, opts)
+    s.effects = _read_effects(s, opts)
+    return s
+
+
+def _read_material(s, opts):
+    s.mesh = opts.string("mesh", s.mesh)
+    s.level = opts.integer("level", s.level, minimum=1)
+    s.material = materials.get(opts.string("material", DEFAULT_MATERIAL))
     preset = opts.string("preset", None)
-    E, nu, rho = 1e6, 0.3, 1000.0
+    E, nu, rho = s.E, s.nu, s.rho
     if preset is not None:
         if preset not in materials.PRESETS:
             raise UserError(f"option -preset: unknown preset '{preset}' (choose from "
@@ -76,31 +100,41 @@ def read_scene(name, opts=None):
     s.E = opts.real("E", E)
     s.nu = opts.real("nu", nu)
     s.rho = opts.real("rho", rho)
-    materials.check_parameters(s.E, s.nu, s.rho, where=f"scene '{name}'")
+    materials.check_parameters(s.E, s.nu, s.rho, where=f"scene '{s.name}'")
     s.lam, s.mu = materials.lame(s.E, s.nu)
-    s.lumped = opts.choice("mass", ("consistent", "lumped"), "consistent") == "lumped"
-    s.quasistatic = opts.flag("quasistatic")
-    s.dt = opts.real("dt", 1e-2, minimum=0)
-    s.final_time = opts.real("final_time", 1.0, minimum=0, exclusive=False)
-    s.fps = opts.real("frames_per_second", 30.0, minimum=0)  # the thesis framework default
-    s.jacobian = opts.choice("jacobian", JACOBIANS, "assembled")
-    s.assembly = opts.choice("assembly", ("setvalues", "coo"), "setvalues")
-    s.hessian_projection = opts.flag("hessian_projection")
+    s.lumped = opts.choice("mass", ("consistent", "lumped"), "lumped" if s.lumped else "consistent") == "lumped"
     s.initial_scale = opts.vector("initial_scale")
     s.initial_spin = opts.vector("initial_spin")
     s.initial_rotation = opts.vector("initial_rotation")
-    s.step_control = opts.flag("step_control", True)
+
+
+def _read_time(s, opts):
+    s.quasistatic = opts.flag("quasistatic", s.quasistatic)
+    s.dt = opts.real("dt", s.dt, minimum=0)
+    s.final_time = opts.real("final_time", s.final_time, minimum=0, exclusive=False)
+    s.fps = opts.real("frames_per_second", s.fps, minimum=0)
+    s.step_control = opts.flag("step_control", s.step_control)
     s.dt_min = opts.real("dt_min", s.dt / 1024, minimum=0)
     if s.dt_min > s.dt:
         raise UserError(f"option -dt_min: {s.dt_min:g} must be <= -dt {s.dt:g}")
-    s.dt_grow_after = opts.integer("dt_grow_after", 2, minimum=1)
-    s.inversion_guard = opts.flag("inversion_guard", not s.material.defined_when_inverted)
-    s.checkpoint_every = opts.integer("checkpoint_every", 0, minimum=0)
+    s.dt_grow_after = opts.integer("dt_grow_after", s.dt_grow_after, minimum=1)
+    s.checkpoint_every = opts.integer("checkpoint_every", s.checkpoint_every, minimum=0)
 
-    named = opts.names("effects", "elasticity,inertia")
+
+def _read_solver(s, opts):
+    s.jacobian = opts.choice("jacobian", JACOBIANS, s.jacobian)
+    s.assembly = opts.choice("assembly", ASSEMBLIES, s.assembly)
+    s.hessian_projection = opts.flag("hessian_projection", s.hessian_projection)
+    s.inversion_guard = opts.flag("inversion_guard", not s.material.defined_when_inverted)
+
+
+def _read_effects(s, opts):
+    """The effects the scene names (-effects), plus those implied by an option carrying their
+    parameter; each effect's parameters into s.params."""
+    named = opts.names("effects", ",".join(DEFAULT_EFFECTS))
     for e in named:
         if e not in EFFECTS:
-            raise UserError(f"scene '{name}': unknown effect '{e}' (known: {', '.join(EFFECTS)})")
+            raise UserError(f"scene '{s.name}': unknown effect '{e}' (known: {', '.join(EFFECTS)})")
     effects = list(dict.fromkeys(named))
     for e, keys in IMPLIED_BY.items():
         keys = (keys,) if isinstance(keys, str) else keys
@@ -108,91 +142,77 @@ def read_scene(name, opts=None):
             effects.append(e)
     if "elasticity" not in effects:
         effects.insert(0, "elasticity")
-    p = s.params
-    if "damping" in effects:
-        c = opts.real("damping", None, minimum=0, exclusive=False)
-        if c is None:
-            raise UserError(f"scene '{name}': effect 'damping' needs -damping c")
-        if c == 0:
-            effects.remove("damping")
-        p["damping"] = c
-    if "rayleigh" in effects:
-        p["rayleigh_alpha"] = opts.real("rayleigh_alpha", 0.0, minimum=0, exclusive=False)
-        p["rayleigh_beta"] = opts.real("rayleigh_beta", 0.0, minimum=0, exclusive=False)
-        if p["rayleigh_alpha"] == 0 and p["rayleigh_beta"] == 0:
-            effects.remove("rayleigh")
-    if "gravity" in effects:
-        p["gravity"] = opts.vector("gravity")
-        if p["gravity"] is None:
-            raise UserError(f"scene '{name}': effect 'gravity' needs -gravity gx,gy,gz")
-    if "traction" in effects or "follower_traction" in effects:
-        p["traction_face"] = opts.choice("traction_face", tuple(FACES), "right")
-        p["traction_ramp"] = opts.real("traction_ramp", None)
-    if "traction" in effects:
-        p["traction"] = opts.vector("traction")
-        if p["traction"] is None:
-            raise UserError(f"scene '{name}': effect 'traction' needs -traction tx,ty,tz")
-    if "follower_traction" in effects:
-        p["traction_twist"] = opts.real("traction_twist", None)
-        if p["traction_twist"] is None:
-            raise UserError(f"scene '{name}': effect 'follower_traction' needs -traction_twist k")
-    if "fixed" in effects:
-        if not opts.has("fix"):
-            raise UserError(f"scene '{name}': effect 'fixed' needs -fix faces (e.g. left)")
-        p["fix"] = faces(opts, "fix")
-    if "prescribed" in effects:
-        from .effects.dirichlet import Prescribed
-        if not opts.has("prescribe_motion") or not opts.has("prescribe_faces"):
-            raise UserError(f"scene '{name}': effect 'prescribed' needs -prescribe_faces and -prescribe_motion")
-        p["prescribe_faces"] = faces(opts, "prescribe_faces")
-        p["prescribe_motion"] = opts.choice("prescribe_motion", Prescribed.MOTIONS, None)
-        p["prescribe_amount"] = opts.real("prescribe_amount", 1.0)
+    for e in list(effects):
+        if e in PARAMETERS and not PARAMETERS[e](s, opts, s.params):
+            effects.remove(e)          # a parameter that switches the effect off (e.g. -damping 0)
     if s.quasistatic:
-        for e in ("inertia", "damping", "rayleigh"):
-            if e in effects:
-                effects.remove(e)
-    s.effects = effects
-    return s
+        effects = [e for e in effects if e not in ("inertia", "damping", "rayleigh")]
+    return effects
 
 
-def face_set(space, names):
-    import numpy as np
-    return np.unique(np.concatenate([space.face_vertices(*FACES[f]) for f in names]))
+def _needs(s, effect, what):
+    raise UserError(f"scene '{s.name}': effect '{effect}' needs {what}")
 
 
-def build(scene, space):
-    """Construct exactly the effects the scene names (an effect not named is never built).
-    Returns (effects, constraints, kernels)."""
-    from .effects.damping import RayleighDamping, ViscousDamping
-    from .effects.dirichlet import Fixed, Prescribed
-    from .effects.elasticity import Elasticity
-    from .effects.gravity import Gravity
-    from .effects.inertia import Inertia
-    from .effects.traction import FollowerTwist, Traction
-    from .kernels import CellKernels
-    s, p, nlv = scene, scene.params, space.nlv
-    k = CellKernels(space.cells, space.Dminv, space.vol, s.material.kernel_id, s.mu, s.lam)
-    effects, constraints = [], []
-    for name in s.effects:
-        if name == "elasticity":
-            effects.append(Elasticity(k, s.material, s.hessian_projection))
-        elif name == "inertia":
-            effects.append(Inertia(k, s.rho, s.lumped, nlv))
-        elif name == "damping":
-            effects.append(ViscousDamping(k, p["damping"], s.lumped, nlv))
-        elif name == "rayleigh":
-            effects.append(RayleighDamping(k, s.rho, p["rayleigh_alpha"], p["rayleigh_beta"], s.lumped, nlv))
-        elif name == "gravity":
-            effects.append(Gravity(k, s.rho, p["gravity"], nlv))
-        elif name in ("traction", "follower_traction"):
-            tris = space.boundary_triangles(face_set(space, [p["traction_face"]]))
-            if name == "traction":
-                effects.append(Traction(space.X, tris, p["traction"], p["traction_ramp"], nlv))
-            else:
-                effects.append(FollowerTwist(space.X, tris, p["traction_twist"], p["traction_ramp"], nlv))
-        elif name == "fixed":
-            constraints.append(Fixed(space.X, face_set(space, p["fix"])))
-        elif name == "prescribed":
-            constraints.append(Prescribed(space.X, face_set(space, p["prescribe_faces"]), p["prescribe_motion"],
-                                          p["prescribe_amount"]))
-    return effects, constraints, k
+def _damping(s, opts, p):
+    c = opts.real("damping", None, minimum=0, exclusive=False)
+    if c is None:
+        _needs(s, "damping", "-damping c")
+    p["damping"] = c
+    return c != 0
+
+
+def _rayleigh(s, opts, p):
+    p["rayleigh_alpha"] = opts.real("rayleigh_alpha", 0.0, minimum=0, exclusive=False)
+    p["rayleigh_beta"] = opts.real("rayleigh_beta", 0.0, minimum=0, exclusive=False)
+    return p["rayleigh_alpha"] != 0 or p["rayleigh_beta"] != 0
+
+
+def _gravity(s, opts, p):
+    p["gravity"] = opts.vector("gravity")
+    if p["gravity"] is None:
+        _needs(s, "gravity", "-gravity gx,gy,gz")
+    return True
+
+
+def _traction_face(opts, p):
+    p["traction_face"] = opts.choice("traction_face", tuple(FACES), "right")
+    p["traction_ramp"] = opts.real("traction_ramp", None)
+
+
+def _traction(s, opts, p):
+    _traction_face(opts, p)
+    p["traction"] = opts.vector("traction")
+    if p["traction"] is None:
+        _needs(s, "traction", "-traction tx,ty,tz")
+    return True
+
+
+def _follower_traction(s, opts, p):
+    _traction_face(opts, p)
+    p["traction_twist"] = opts.real("traction_twist", None)
+    if p["traction_twist"] is None:
+        _needs(s, "follower_traction", "-traction_twist k")
+    return True
+
+
+def _fixed(s, opts, p):
+    if not opts.has("fix"):
+        _needs(s, "fixed", "-fix faces (e.g. left)")
+    p["fix"] = faces(opts, "fix")
+    return True
+
+
+def _prescribed(s, opts, p):
+    from .effects.dirichlet import Prescribed
+    if not opts.has("prescribe_motion") or not opts.has("prescribe_faces"):
+        _needs(s, "prescribed", "-prescribe_faces and -prescribe_motion")
+    p["prescribe_faces"] = faces(opts, "prescribe_faces")
+    p["prescribe_motion"] = opts.choice("prescribe_motion", Prescribed.MOTIONS, None)
+    p["prescribe_amount"] = opts.real("prescribe_amount", 1.0)
+    return True
+
+
+# effect -> reader of its parameters (returns False when they switch the effect off)
+PARAMETERS = {"damping": _damping, "rayleigh": _rayleigh, "gravity": _gravity, "traction": _traction,
+              "follower_traction": _follower_traction, "fixed": _fixed, "prescribed": _prescribed}

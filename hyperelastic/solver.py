@@ -29,7 +29,9 @@ def matrix_free():
 
 
 class Solver:
-    def __init__(self, system, mode):
+    def __init__(self, system, jacobian, assembly="setvalues", guard=False):
+        """SNES on the system's residual with Jacobian mode `jacobian` (scene.JACOBIANS; filled by
+        `assembly` when assembled); guard: shorten Newton updates that would invert an element."""
         self.system = system
         sp = system.space
         apply_defaults()
@@ -37,13 +39,13 @@ class Solver:
         self.R = sp.global_vec()
         self.snes = snes = PETSc.SNES().create(comm=sp.comm)
         snes.setFunction(self._residual, self.R)
-        self.A = self.ctx = None
+        self.op = None
         if self.mf != "mf":   # under -snes_mf no Jacobian of ours is used: do not build one
-            self.A, self.ctx = jacobians.make(system, mode)
-            snes.setJacobian(self._jacobian, self.A, self.A)
+            self.op = jacobians.make(system, jacobian, assembly)
+            snes.setJacobian(self._jacobian, self.op.mat, self.op.mat)
         self.inversion_cuts = 0   # Newton updates shortened so that no element inverts
         self.guard = None
-        if getattr(system, "inversion_guard", False):
+        if guard:
             self.guard = system.elastic_kernels()
             snes.setLineSearchPreCheck(self._precheck)
         snes.setFromOptions()
@@ -75,7 +77,7 @@ class Solver:
     def _jacobian(self, snes, X, J, P):
         self.ev_jac.begin()
         self.system.linearize(X)
-        jacobians.update(self.ctx)
+        self.op.update()
         if J.handle != P.handle:
             J.assemble()   # MFFD operator (-snes_mf_operator): new base point
         self.ev_jac.end()

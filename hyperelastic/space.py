@@ -26,37 +26,14 @@ class Space:
         """points/tets: the checked input mesh on rank 0 (ignored on other ranks)."""
         self.comm = comm
         self.mpi = comm.tompi4py()
-        rank, size = comm.getRank(), comm.getSize()
-        if rank == 0:
-            p, t, vperm, _ = spatial_order(points, tets)
-            nv_total, nc_total = len(p), len(t)
-        else:
-            p, t = np.zeros((0, 3)), np.zeros((0, 4), np.int64)
-            vperm = None
-            nv_total = nc_total = 0
-        self.nv_total, self.nc_total = self.mpi.bcast((nv_total, nc_total), root=0)
-        dm = PETSc.DMPlex().createFromCellList(3, t.astype(PETSc.IntType), p, interpolate=False, comm=comm)
-        part = dm.getPartitioner()
-        part.setType(PETSc.Partitioner.Type.SIMPLE)
-        sf = dm.distribute(overlap=0) if size > 1 else None
-        self.dm = dm
-
-        cStart, cEnd = dm.getHeightStratum(0)
+        vperm, sf = self._distribute(points, tets)
+        dm = self.dm
         vStart, vEnd = dm.getDepthStratum(0)
-        nlv = vEnd - vStart
-        # dof section: 3 dofs on each vertex
-        sec = PETSc.Section().create(comm=PETSc.COMM_SELF)
-        sec.setNumFields(1)
-        sec.setFieldComponents(0, 3)
-        sec.setChart(*dm.getChart())
-        for v in range(vStart, vEnd):
-            sec.setDof(v, 3)
-            sec.setFieldDof(v, 0, 3)
-        sec.setUp()
-        dm.setLocalSection(sec)
-        self.section = sec
-        lvid = np.array([sec.getOffset(v) // 3 for v in range(vStart, vEnd)], dtype=np.int64)
+        self.nlv = nlv = vEnd - vStart
+        self.section = self._dof_section(vStart, vEnd)
         # local vertex index of each point (vertices are numbered by their dof offset / 3)
+        lvid = np.array([self.section.getOffset(v) // 3 for v in range(vStart, vEnd)], dtype=np.int64)
+        cStart, cEnd = dm.getHeightStratum(0)
         self.cells = np.empty((cEnd - cStart, 4), dtype=IDX)
         for c in range(cStart, cEnd):
             self.cells[c - cStart] = lvid[dm.getCone(c) - vStart]
@@ -68,45 +45,87 @@ class Space:
             o = csec.getOffset(v)
             X[lvid[v - vStart]] = carr[o:o + 3]
         self.X = X
-        self.nlv = nlv
-        # input-mesh index of each local vertex
-        if size == 1:
+        self.orig = self._input_indices(lvid, vStart, vEnd, vperm, sf)
+        self.owned = self._ownership(lvid, vStart, vEnd)
+        self.n_owned = int(self.owned.sum())
+        self.Dminv, self.vol = reference_geometry(X, self.cells)
+        self.nc = len(self.cells)
+        self.lgmap = dm.getLGMap()
+        self.bbox = self._bounding_box()
+        # gather plan for output on rank 0 (input vertex order)
+        ids = self.orig[self.owned]
+        self._counts = self.mpi.gather(len(ids), root=0)
+        allids = self.mpi.gather(ids, root=0)
+        self._gorder = np.concatenate(allids) if self.mpi.rank == 0 else None
+        self.lvid_of_owned = np.flatnonzero(self.owned)
+
+    def _distribute(self, points, tets):
+        """The serial DMPlex of the spatially ordered mesh (rank 0), distributed with the `simple`
+        partitioner; returns (vertex permutation of the ordering on rank 0, migration SF or None)."""
+        comm = self.comm
+        if comm.getRank() == 0:
+            p, t, vperm, _ = spatial_order(points, tets)
+            nv_total, nc_total = len(p), len(t)
+        else:
+            p, t = np.zeros((0, 3)), np.zeros((0, 4), np.int64)
+            vperm = None
+            nv_total = nc_total = 0
+        self.nv_total, self.nc_total = self.mpi.bcast((nv_total, nc_total), root=0)
+        dm = PETSc.DMPlex().createFromCellList(3, t.astype(PETSc.IntType), p, interpolate=False, comm=comm)
+        part = dm.getPartitioner()
+        part.setType(PETSc.Partitioner.Type.SIMPLE)
+        sf = dm.distribute(overlap=0) if comm.getSize() > 1 else None
+        self.dm = dm
+        return vperm, sf
+
+    def _dof_section(self, vStart, vEnd):
+        """3 dofs on each vertex."""
+        sec = PETSc.Section().create(comm=PETSc.COMM_SELF)
+        sec.setNumFields(1)
+        sec.setFieldComponents(0, 3)
+        sec.setChart(*self.dm.getChart())
+        for v in range(vStart, vEnd):
+            sec.setDof(v, 3)
+            sec.setFieldDof(v, 0, 3)
+        sec.setUp()
+        self.dm.setLocalSection(sec)
+        return sec
+
+    def _input_indices(self, lvid, vStart, vEnd, vperm, sf):
+        """The input-mesh index of each local vertex (through the migration SF on several ranks)."""
+        if sf is None:
             serial_vertex = np.arange(vStart, vEnd) - vStart
         else:
             nroots, ilocal, iremote = sf.getGraph()
             leaves = np.arange(len(iremote)) if ilocal is None else np.asarray(ilocal)
-            orig_point = np.full(dm.getChart()[1], -1, np.int64)
+            orig_point = np.full(self.dm.getChart()[1], -1, np.int64)
             orig_point[leaves] = np.asarray(iremote).reshape(-1, 2)[:, 1]
             serial_vertex = orig_point[vStart:vEnd] - self.nc_total  # serial DM: cells first, then vertices
         vperm = self.mpi.bcast(vperm, root=0)
-        self.orig = np.empty(nlv, np.int64)
-        self.orig[lvid] = vperm[serial_vertex]
-        # ownership: a vertex is a ghost when it is a leaf of the point SF
-        owned_pt = np.ones(nlv, bool)
-        _, ilocal, _ = dm.getPointSF().getGraph()
+        orig = np.empty(self.nlv, np.int64)
+        orig[lvid] = vperm[serial_vertex]
+        return orig
+
+    def _ownership(self, lvid, vStart, vEnd):
+        """Owned local vertices: a vertex is a ghost when it is a leaf of the point SF."""
+        owned_pt = np.ones(self.nlv, bool)
+        _, ilocal, _ = self.dm.getPointSF().getGraph()
         if ilocal is not None and len(ilocal):
             il = np.asarray(ilocal)
             il = il[(il >= vStart) & (il < vEnd)]
             owned_pt[lvid[il - vStart]] = False
-        self.owned = owned_pt
-        self.n_owned = int(owned_pt.sum())
-        self.Dminv, self.vol = reference_geometry(X, self.cells)
-        self.nc = len(self.cells)
-        self.lgmap = dm.getLGMap()
-        # global min/max of the reference coordinates, for face selection
-        lo = X.min(axis=0) if nlv else np.full(3, np.inf)
-        hi = X.max(axis=0) if nlv else np.full(3, -np.inf)
+        return owned_pt
+
+    def _bounding_box(self):
+        """Global min/max of the reference coordinates, for face selection."""
         from mpi4py import MPI
+        X = self.X
+        lo = X.min(axis=0) if self.nlv else np.full(3, np.inf)
+        hi = X.max(axis=0) if self.nlv else np.full(3, -np.inf)
         glo, ghi = np.empty(3), np.empty(3)
         self.mpi.Allreduce(np.ascontiguousarray(lo, float), glo, op=MPI.MIN)
         self.mpi.Allreduce(np.ascontiguousarray(hi, float), ghi, op=MPI.MAX)
-        self.bbox = (glo, ghi)
-        # gather plan for output on rank 0 (input vertex order)
-        ids = self.orig[owned_pt]
-        self._counts = self.mpi.gather(len(ids), root=0)
-        allids = self.mpi.gather(ids, root=0)
-        self._gorder = np.concatenate(allids) if rank == 0 else None
-        self.lvid_of_owned = np.flatnonzero(owned_pt)
+        return (glo, ghi)
 
     # --- vectors -----------------------------------------------------------------------------
     def global_vec(self):

@@ -6,24 +6,38 @@ subset).
 A cell's outcome is `finished` (no step rejected), `recovered` (finished after step control rejected
 and retried steps) or `failed` (non-zero exit; its one-line message is kept).
 """
+import argparse
 import json
 import math
 import os
+import sys
+import time
 from dataclasses import asdict, dataclass
 
 import numpy as np
 
+from . import stats
+from .experiments import table
+from .experiments.recipes import MODES as JACOBIAN_MODES
+from .experiments.runner import last_line, parallel_map, run_hyperelastic
+from .materials import REGISTRY
 from .mesh import signed_volumes
-from .sweep import last_line, parallel_map, run_hyperelastic
 
-MATERIALS = ("linear", "stvk", "neohookean", "snh", "corotational")
+USAGE = """The hard-case matrix (issue 5): run every cell as `python -m hyperelastic run`, then write
+OUT/stability.csv, OUT/stability.md (table, properties, locking) and OUT/stability.png (outcome heatmap).
+
+    scripts/stability_matrix.py OUT            # the quick subset (the one `make test` checks), ~2 min
+    scripts/stability_matrix.py OUT --full     # the whole matrix (see hyperelastic/stability.py)
+"""
+MATERIALS = REGISTRY        # every registered material, in the registry's order
 # E axis [Pa]: named values of the thesis framework's presets (materials.PRESETS), nu and rho kept at
 # the defaults so that only the stiffness changes along the axis
 E_AXIS = {"1e2": 1e2, "1e6": 1e6, "rubber": 1e7, "cancellous_bone": 4.5e8, "bone": 1.6e10, "steel": 2.1e11,
           "1e15": 1e15}
 NU_AXIS = (0.0, 0.3, 0.45, 0.49, 0.499)
 H_AXIS = (1e-1, 1e-2, 1e-3)
-MODES = {"assembled": [], "mf_operator": ["-snes_mf_operator"]}
+# the matrix's modes: the exact tangent assembled, and PETSc's MFFD operator with it as preconditioner
+MODES = {"assembled": JACOBIAN_MODES["assembled"], "mf_operator": JACOBIAN_MODES["snes_mf_operator"]}
 # cell scene -> (built-in scene, extra options); 'sliver' is squeeze-free: stretch on a sliver mesh
 SCENES = {
     "twist3": ("twist3", []), "bend3": ("bend3", []), "squeeze": ("squeeze", []), "stretch": ("stretch", []),
@@ -108,14 +122,14 @@ def analyse(cell, path, rc, stderr, wall):
         row.update(outcome="failed", nonfinite=False)
         return row
     with h5py.File(path, "r") as f:
-        st = {k: f["stats"][k][:] for k in f["stats"]}
+        st = stats.read(f)
         X, tets = f["mesh/points"][:], f["mesh/tetra"][:]
         xs = f["x"][:]
         times = f["time"][:]
         Eyoung = float(f.attrs["E"])
     n = len(st.get("step", []))
-    rej = st.get("rejected", np.zeros(n, np.int64)).astype(bool)
-    acc = ~rej
+    acc = stats.accepted(st)
+    rej = ~acc
     row["steps"] = int(acc.sum())
     row["rejections"] = int(rej.sum())
     row["newton_its"] = int(st["newton_its"].sum()) if n else 0
@@ -131,7 +145,7 @@ def analyse(cell, path, rc, stderr, wall):
         row["J_min"] = float(st["J_min"][acc].min())
         row["J_min_final"] = float(st["J_min"][acc][-1])
         row["J_max_final"] = float(st["J_max"][acc][-1])
-        tot = st["kinetic"][acc] + st["elastic"][acc] + st.get("gravity_potential", np.zeros(n))[acc]
+        tot = stats.total_energy(st, with_traction=False)
         V0 = float(signed_volumes(X, tets).sum())
         scale = float(np.abs(tot).max()) + 1e-10 * Eyoung * V0   # + a roundoff floor of O(E) energies
         row["energy_growth"] = float(max(np.diff(tot).max(initial=0.0), 0.0) / scale)
@@ -220,16 +234,10 @@ NUMERIC = {"nu": float, "h": float, "rc": int, "steps": int, "rejections": int, 
 
 def read_rows(path):
     """Rows of a stability.csv back with their types (empty fields: None), to redo the report."""
-    import csv
-    rows = []
-    with open(path, newline="") as fh:
-        for r in csv.DictReader(fh):
-            for k, typ in NUMERIC.items():
-                if k in r:
-                    r[k] = typ(float(r[k])) if r[k] not in ("", None) else None
-            r["nonfinite"] = r.get("nonfinite") == "True"
-            r["steps"] = r.get("steps") or 0
-            rows.append(r)
+    rows = table.read_csv(path, {k: (lambda v, typ=typ: typ(float(v))) for k, typ in NUMERIC.items()})
+    for r in rows:
+        r["nonfinite"] = r.get("nonfinite") == "True"
+        r["steps"] = r.get("steps") or 0
     return rows
 
 
@@ -237,3 +245,122 @@ def fmt(v, spec=".3g"):
     if v is None or (isinstance(v, float) and math.isnan(v)):
         return "-"
     return format(v, spec) if isinstance(v, float) else str(v)
+
+
+# ---- the matrix script's CSV, heatmap and report ------------------------------------------------------
+COLUMNS = ("id", "scene", "material", "E", "nu", "h", "mode", "outcome", "rc", "steps", "rejections",
+           "newton_its", "ksp_its", "inversion_cuts", "dt_min_used", "t_end", "J_min", "J_min_final", "J_max_final",
+           "energy_growth", "elastic_max_rel", "strain_final", "volume_ratio", "max_displacement", "wall_s",
+           "nonfinite", "message", "energy")
+
+
+def write_csv(rows, path):
+    table.write_csv(path, rows, COLUMNS, float_format=None)
+
+
+def heatmap(rows, path):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import numpy as np
+    from matplotlib.colors import ListedColormap
+
+    def label(r):   # a heatmap row: scene and mode, with the axis values when off the base point
+        if r["E"] == "1e6" and r["nu"] == 0.3 and r["h"] == 1e-2:
+            return f"{r['scene']} {r['mode']}"
+        return f"{r['scene']} E={r['E']} nu={r['nu']:g} h={r['h']:g} {r['mode']}"
+    ylab = sorted({label(r) for r in rows})
+    mats = list(MATERIALS)
+    code = {"finished": 0, "recovered": 1, "failed": 2}
+    A = np.full((len(ylab), len(mats)), np.nan)
+    for r in rows:
+        A[ylab.index(label(r)), mats.index(r["material"])] = code[r["outcome"]]
+    fig, ax = plt.subplots(figsize=(7.5, 0.18 * len(ylab) + 1.5))
+    ax.imshow(A, cmap=ListedColormap(["#3a9d3a", "#e0b020", "#c83232"]), vmin=0, vmax=2, aspect="auto",
+              interpolation="nearest")
+    ax.set_xticks(range(len(mats)), mats)
+    ax.set_yticks(range(len(ylab)), ylab, fontsize=6)
+    ax.xaxis.tick_top()
+    ax.set_title("outcome per cell: green finished, yellow recovered by step control, red failed, white not run",
+                 fontsize=7, pad=18)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def report(rows, out, command):
+    bad = violations(rows)
+    counts = {k: sum(r["outcome"] == k for r in rows) for k in ("finished", "recovered", "failed")}
+    lines = [f"# Hard-case matrix ({len(rows)} cells)", "", f"Made by `{command}` on {time.strftime('%Y-%m-%d')}.",
+             "", f"Outcomes: {counts['finished']} finished, {counts['recovered']} recovered by step control, "
+             f"{counts['failed']} failed.", "", "## Properties that must hold", ""]
+    if bad:
+        lines += [f"- **violated** {cid}: {what}" for cid, what in bad]
+    else:
+        lines += ["All hold: no NaN/Inf in any output; total energy of the scenes without external work never "
+                  f"grows by more than {ENERGY_TOL:g} (relative) in a step; rigid motions carry no elastic "
+                  f"energy and no strain (< {RIGID_TOL:g}) for stvk, neohookean, snh, corotational; snh unfolds "
+                  "the inverted start; at steel and 1e15 (h = 1e-2) stretch does not fail for any material, nor "
+                  "twist3 and squeeze for neohookean; nu = 0.499 finishes for neohookean and snh."]
+    lin = [r for r in rows if r["material"] == "linear" and r["scene"] in ("rotated", "spin", "drop")
+           and r["outcome"] != "failed"]
+    if lin:
+        lines += ["", "Linear elasticity under rigid motions (its rotation artifacts are reported, not hidden; "
+                  "a translation is exact):", ""]
+        lines += [f"- {r['id']}: elastic energy / (E V) up to {r['elastic_max_rel']:.3g}, final |F^T F - I| "
+                  f"{r['strain_final']:.3g}, final max J {r['J_max_final']:.4g}, volume ratio "
+                  f"{r['volume_ratio']:.4g}" for r in lin]
+    lock = locking(rows)
+    if lock:
+        lines += ["", "## Locking (nu axis): volume ratio and displacement relative to nu = 0.3", "",
+                  "| scene | material | nu | outcome | volume ratio | max displacement / (nu = 0.3) |",
+                  "|---|---|---|---|---|---|"]
+        lines += [f"| {r['scene']} | {r['material']} | {r['nu']:g} | {r['outcome']} | {fmt(r.get('volume_ratio'), '.4f')} "
+                  f"| {fmt(q, '.3f')} |" for r, q in lock]
+    lines += ["", "## Every cell", "",
+              "| scene | material | E | nu | h | mode | outcome | steps | rejected | Newton | Krylov | min J | "
+              "final min J | energy growth | wall s | message |",
+              "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        lines.append(f"| {r['scene']} | {r['material']} | {r['E']} | {r['nu']:g} | {r['h']:g} | {r['mode']} | "
+                     f"{r['outcome']} | {r.get('steps', 0)} | {r.get('rejections', 0)} | {r.get('newton_its', 0)} | "
+                     f"{r.get('ksp_its', 0)} | {fmt(r.get('J_min'))} | {fmt(r.get('J_min_final'))} | "
+                     f"{fmt(r.get('energy_growth'), '.2g')} | {r['wall_s']} | {r['message'][:160]} |")
+    with open(os.path.join(out, "stability.md"), "w") as fh:
+        fh.write("\n".join(lines) + "\n")
+    return bad
+
+
+def main(argv=None):
+    """scripts/stability_matrix.py OUT [--full] [--jobs N] [--from-csv]"""
+    ap = argparse.ArgumentParser(prog="scripts/stability_matrix.py", description=USAGE,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("out")
+    ap.add_argument("--full", action="store_true", help="the whole matrix instead of the quick subset")
+    ap.add_argument("--jobs", type=int, default=2, help="runs in parallel (default 2)")
+    ap.add_argument("--from-csv", action="store_true", help="redo stability.md and .png from OUT/stability.csv")
+    a = ap.parse_args(argv)
+    os.makedirs(a.out, exist_ok=True)
+    command = "scripts/stability_matrix.py " + " ".join(argv if argv is not None else sys.argv[1:])
+    if a.from_csv:
+        rows = read_rows(os.path.join(a.out, "stability.csv"))
+        made = "--full" if len(rows) == len(full_matrix()) else ""
+        command = f"scripts/stability_matrix.py OUT {made}".rstrip() + " (report redone with --from-csv)"
+        heatmap(rows, os.path.join(a.out, "stability.png"))
+        bad = report(rows, a.out, command)
+        print(f"rewrote {a.out}/stability.md, stability.png; {len(bad)} property violations")
+        return 1 if bad else 0
+    cells = full_matrix() if a.full else quick_matrix()
+    print(f"{len(cells)} cells, {a.jobs} at a time", flush=True)
+
+    def log(r):
+        print(f"{r['id']:58s} {r['outcome']:9s} steps {r.get('steps', 0):4d} rejected {r.get('rejections', 0):3d} "
+              f"min J {fmt(r.get('J_min')):>8s} {r['wall_s']:6.1f} s {r['message'][:90]}", flush=True)
+    rows = run_matrix(cells, a.out, a.jobs, log)
+    write_csv(rows, os.path.join(a.out, "stability.csv"))
+    heatmap(rows, os.path.join(a.out, "stability.png"))
+    bad = report(rows, a.out, command)
+    print(f"wrote {a.out}/stability.csv, stability.md, stability.png; {len(bad)} property violations")
+    for cid, what in bad:
+        print(f"  VIOLATED {cid}: {what}")
+    return 1 if bad else 0

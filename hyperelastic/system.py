@@ -4,18 +4,21 @@ assembled, and Dirichlet conditions by elimination.
 Constrained dofs c with prescribed positions g: the residual of a free dof is evaluated with x_c
 replaced by g, and R_c = s (x_c - g_c). Then dR_f/dx_c = 0 and J = [[J_ff, 0], [0, s I]] exactly,
 for every Jacobian mode including PETSc's MFFD, and J stays symmetric when J_ff is. The scale s is
-the mean diagonal of J at the start, so the constrained block does not spoil conditioning.
+the mean diagonal of J at the initial state (computed once, in the constructor), so the constrained
+block does not spoil conditioning.
 """
 import time
 
 import numpy as np
 from mpi4py import MPI
 
-from .effects.base import BUILT
+from . import effects as effects_pkg
 
 
 class System:
-    def __init__(self, space, effects, constraints):
+    def __init__(self, space, effects, constraints, x0, v0, dt):
+        """The effects and constraints on the space; x0, v0 (local arrays) the initial state and dt
+        the time step, at which the constrained rows' scale is set."""
         self.space = space
         self.effects = effects
         self.constraints = constraints
@@ -31,13 +34,28 @@ class System:
         self.xl = space.local_vec()
         self.vl = space.local_vec()
         self.scale = 1.0
-        self.guard_inversion = any(not getattr(getattr(e, "material", None), "defined_when_inverted", True)
-                                   for e in effects)
-        self.inversion_guard = False   # shorten Newton updates that invert elements (set from the scene)
+        # materials undefined for J <= 0: every residual counts the cells where they were evaluated there
+        self.check_domain = any(not getattr(getattr(e, "material", None), "defined_when_inverted", True)
+                                for e in effects)
         self.g_owned_c = np.zeros(len(self.c_owned_pos))
         self.residual_evals = 0
         self.residual_seconds = 0.0
         self.x_lin = None
+        self._calibrate(x0, v0, dt)
+
+    def _calibrate(self, x0, v0, dt):
+        """The constrained rows' scale s from the tangent at the initial state (t = 0, step dt)."""
+        self.begin_step(0.0, dt, x0, v0)
+        X = self.global_state(x0)
+        self.linearize(X)
+        self.set_scale(self.space.global_vec())
+
+    def global_state(self, x):
+        """A new global vector holding local positions x, with the constrained dofs imposed."""
+        X = self.space.global_vec()
+        X.getArray()[:] = self.space.owned_array(x)
+        self.impose_global(X)
+        return X
 
     # --- time dependence -----------------------------------------------------------------------
     def begin_step(self, t, h, xn, vn):
@@ -90,7 +108,7 @@ class System:
     def undefined_cells(self):
         """Cells (on all ranks) where the material was undefined at the last residual; only
         materials undefined for J <= 0 are checked (one allreduce per residual for those)."""
-        if self.guard_inversion:
+        if self.check_domain:
             return self.space.mpi.allreduce(sum(getattr(e, "undefined", 0) for e in self.effects), op=MPI.SUM)
         return 0
 
@@ -165,6 +183,6 @@ class System:
     def effect_counters(self):
         return {e.name: (e.evals, e.applies, e.seconds) for e in self.effects}
 
-    @staticmethod
-    def built():
-        return dict(BUILT)
+    def built(self):
+        """{effect name: instances built} of this run."""
+        return effects_pkg.built(self.effects, self.constraints)

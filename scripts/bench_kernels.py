@@ -49,16 +49,17 @@ def bench(mesh_arg, material, reps):
     import numpy as np
     from petsc4py import PETSc
     from hyperelastic import jacobians
-    from hyperelastic.app import Problem
+    from hyperelastic.model import build_model
+    from hyperelastic.scene import load_scene
     o = PETSc.Options()
     for k in list(o.getAll()):
         o.delValue(k)
     o.setValue("material", material)
     o.setValue("mesh", mesh_arg)
     t0 = time.perf_counter()
-    prob = Problem("bend")
+    prob = build_model(load_scene("bend")[0], PETSc.COMM_WORLD)
     setup_s = time.perf_counter() - t0
-    x, v = prob.initial_state()
+    x = prob.x0
     sp, sysm, k = prob.space, prob.system, prob.kernels
     rng = np.random.default_rng(0)
     xd = x + 0.01 * rng.standard_normal(x.shape)       # a deformed state
@@ -71,18 +72,17 @@ def bench(mesh_arg, material, reps):
     vals = np.empty((nc, 12, 12))
     t_tan = best(lambda: k.tangent(xd, vals), reps)
     # full-system residual (all effects + scatter) and the assembled tangent
-    X = sp.global_vec()
-    X.getArray()[:] = sp.owned_array(xd)
-    sysm.impose_global(X)
+    X = sysm.global_state(xd)
     R = X.duplicate()
     t_sysres = best(lambda: sysm.residual(X, R), reps)
     sysm.linearize(X)
-    A, actx = jacobians.make(sysm, "assembled")
+    actx = jacobians.make(sysm, "assembled")
+    A = actx.mat
     t_coo = best(lambda: actx.assemble(), max(2, reps // 3))
     V, Y = X.duplicate(), X.duplicate()
     V.setRandom()
     t_mult = best(lambda: A.mult(V, Y), reps)
-    S, _ = jacobians.make(sysm, "shell")
+    S = jacobians.make(sysm, "shell").mat
     t_shell = best(lambda: S.mult(V, Y), reps)
     import resource
     peak_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0

@@ -29,8 +29,9 @@ import numpy as np
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 from hyperelastic.materials import lame  # noqa: E402
 from hyperelastic.mesh import cached_bar, read  # noqa: E402
-from hyperelastic.study import PCS, read_cost  # noqa: E402
-from hyperelastic.sweep import last_line, run_hyperelastic  # noqa: E402
+from hyperelastic.experiments.runner import last_line, run_hyperelastic  # noqa: E402
+from hyperelastic.study.measure import read_cost  # noqa: E402
+from hyperelastic.study.plan import PCS  # noqa: E402
 
 E, NU, T = 1e6, 0.3, 1000.0
 RTOL = 1e-10

@@ -22,11 +22,12 @@ import sys
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 from hyperelastic.mesh import cached_bar, read, size_for_tets  # noqa: E402
-from hyperelastic.study import PCS, read_cost, slope  # noqa: E402
-from hyperelastic.sweep import last_line, run_hyperelastic  # noqa: E402
+from hyperelastic.experiments.recipes import MODES as JACOBIAN_MODES  # noqa: E402
+from hyperelastic.experiments.runner import last_line, run_hyperelastic  # noqa: E402
+from hyperelastic.study.measure import read_cost, slope  # noqa: E402
+from hyperelastic.study.plan import PCS  # noqa: E402
 
-MODES = {"assembled": ["-jacobian", "assembled"], "shell": ["-jacobian", "shell"],
-         "snes_mf": ["-snes_mf"], "snes_mf_operator": ["-snes_mf_operator", "-jacobian", "assembled"]}
+MODES = {m: JACOBIAN_MODES[m] for m in ("assembled", "shell", "snes_mf", "snes_mf_operator")}
 
 
 BIG = 0.1029       # target edge of the ~660k-tet bar of BENCHMARKS.md (bench_kernels.py --full)

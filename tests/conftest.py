@@ -48,13 +48,14 @@ def petsc():
     return PETSc
 
 
-def make_problem(petsc, scene_name="bend", options=()):
-    """In-process scene set-up on COMM_WORLD: (scene, space, system)."""
-    from hyperelastic.app import Problem
+def make_model(petsc, scene_name="bend", options=()):
+    """In-process set-up of a scene on COMM_WORLD, as `hyperelastic run` builds it: a model.Model."""
+    from hyperelastic.model import build_model
+    from hyperelastic.scene import load_scene
     o = petsc.Options()
     for k in list(o.getAll()):
         o.delValue(k)
     for k, v in options:
         o.setValue(k, v)
-    p = Problem(scene_name)
-    return p.scene, p.space, p.system
+    scene, _ = load_scene(scene_name)
+    return build_model(scene, petsc.COMM_WORLD)

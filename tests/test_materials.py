@@ -67,7 +67,7 @@ def test_kernels_match_reference(name):
     X, D, Dminv, vol, F, xs = X[ok], D[ok], Dminv[ok], vol[ok], F[ok], xs[ok]
     cells = np.arange(4 * len(X), dtype=np.int32).reshape(-1, 4)
     x = xs.reshape(-1).copy()
-    k = CellKernels(cells, Dminv, vol, m.kernel_id, MU, LAM)
+    k = CellKernels(cells, Dminv, vol, m.name, MU, LAM)
     # forces: k_a = V P grad N_a (thesis 4.41), grad N_a rows of Dminv, grad N_0 = -sum
     G = np.concatenate([-Dminv.sum(axis=1, keepdims=True), Dminv], axis=1)        # (n,4,3)
     P = m.P(F, MU, LAM)
@@ -106,7 +106,7 @@ def test_consistent_mass_kernel():
     from hyperelastic.kernels import CellKernels
     X, D, cells, x = tet_problem(10)
     vol = np.linalg.det(D) / 6
-    k = CellKernels(cells, np.linalg.inv(D), vol, 1, MU, LAM)
+    k = CellKernels(cells, np.linalg.inv(D), vol, "stvk", MU, LAM)
     v = rng.standard_normal(x.shape)
     y = np.zeros_like(v)
     k.mass_apply(2.0, v, y)
@@ -126,7 +126,25 @@ def test_neohookean_undefined_when_inverted():
     X, D, cells, x = tet_problem(5, amp=0.0)
     xs = x.reshape(-1, 4, 3).copy()
     xs[0, 0], xs[0, 1] = xs[0, 1].copy(), xs[0, 0].copy()    # swap two vertices: J < 0
-    k = CellKernels(cells, np.linalg.inv(D), np.linalg.det(D) / 6, MATERIALS["neohookean"].kernel_id, MU, LAM)
+    k = CellKernels(cells, np.linalg.inv(D), np.linalg.det(D) / 6, MATERIALS["neohookean"].name, MU, LAM)
     f = np.zeros(xs.size)
     assert k.forces(xs.reshape(-1), f) == 1
     assert np.isfinite(f).all()
+
+
+def test_registry_one_home_per_material():
+    """Each registered material has its numpy reference (materials/NAME.py, MATERIAL.name == NAME)
+    and its C kernel (materials/NAME.h, compiled into he_*_NAME); every material header is registered."""
+    import glob
+    import os
+    from hyperelastic import materials
+    from hyperelastic.kernels import material_kernels
+    here = os.path.dirname(materials.__file__)
+    headers = {os.path.basename(p)[:-2] for p in glob.glob(os.path.join(here, "*.h"))
+               if not os.path.basename(p).startswith("_")}
+    assert headers == set(materials.REGISTRY)
+    for name in materials.REGISTRY:
+        assert MATERIALS[name].name == name
+        assert set(material_kernels(name)) == {"forces", "energy", "kv", "tangent", "tangent_diag"}
+    with pytest.raises(ImportError, match="no compiled kernels for material 'nosuch'"):
+        material_kernels("nosuch")

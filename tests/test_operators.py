@@ -3,22 +3,21 @@ to 1e-5, and the tangent is the derivative of the residual (central differences)
 import numpy as np
 import pytest
 
-from conftest import make_problem
+from conftest import make_model
 
 SCENES = ["bend", "twist", "squeeze", "sag"]
 
 
 def state(petsc, scene_name, options=()):
-    scene, space, system = make_problem(petsc, scene_name, options)
+    """The scene's model linearized at a random state x (a step at small t from the reference
+    configuration with a random velocity): (scene, space, system, X)."""
+    m = make_model(petsc, scene_name, options)
+    scene, space, system = m.scene, m.space, m.system
     rng = np.random.default_rng(3)
     x = space.X.ravel() + 0.05 * rng.standard_normal(3 * space.nlv)
     v = 0.1 * rng.standard_normal(3 * space.nlv)
     system.begin_step(0.02, scene.dt, space.X.ravel().copy(), v)  # small t: prescribed ends move little
-    X = space.global_vec()
-    X.getArray()[:] = space.owned_array(x)
-    system.impose_global(X)
-    system.linearize(X)
-    system.set_scale(space.global_vec())
+    X = system.global_state(x)
     system.linearize(X)
     return scene, space, system, X
 
@@ -32,9 +31,9 @@ def apply(mat, V):
 def check_shell_equals_assembled(system, X):
     """Shell and assembled apply the same J to a random vector (1e-12); returns (V, J V)."""
     from hyperelastic import jacobians
-    A, actx = jacobians.make(system, "assembled")
-    jacobians.update(actx)
-    S, _ = jacobians.make(system, "shell")
+    a = jacobians.make(system, "assembled")
+    a.update()
+    A, S = a.mat, jacobians.make(system, "shell").mat
     V = X.duplicate()
     V.setRandom()
     ya, ys = apply(A, V), apply(S, V)
@@ -68,7 +67,7 @@ def test_shell_matches_assembled(petsc, scene_name, material):
 def test_tangent_is_derivative_of_residual(petsc, scene_name):
     from hyperelastic import jacobians
     scene, space, system, X = state(petsc, scene_name)
-    S, _ = jacobians.make(system, "shell")
+    S = jacobians.make(system, "shell").mat
     V = X.duplicate()
     V.setRandom()
     check_is_derivative(system, X, V, apply(S, V))
@@ -89,7 +88,7 @@ def test_petsc_mffd_matches_exact(petsc, scene_name, mffd_type):
     exact tangent to 1e-5 relative: the thesis' formula has no differencing step, PETSc's does."""
     from hyperelastic import jacobians
     scene, space, system, X = state(petsc, scene_name)
-    S, _ = jacobians.make(system, "shell")
+    S = jacobians.make(system, "shell").mat
     M, snes = petsc_mffd(system, X, mffd_type)
     for _ in range(3):
         V = X.duplicate()
@@ -101,7 +100,7 @@ def test_petsc_mffd_matches_exact(petsc, scene_name, mffd_type):
 def test_shell_operator_is_symmetric(petsc):
     from hyperelastic import jacobians
     scene, space, system, X = state(petsc, "bend")
-    S, _ = jacobians.make(system, "shell")
+    S = jacobians.make(system, "shell").mat
     U, V = X.duplicate(), X.duplicate()
     U.setRandom()
     V.setRandom()
@@ -144,7 +143,8 @@ def test_lumped_and_consistent_mass_have_the_same_total(petsc):
     """Both mass matrices carry the body's total mass rho * volume in each direction."""
     totals = []
     for mass in ("consistent", "lumped"):
-        scene, space, system = make_problem(petsc, "bend", [("mass", mass)])
+        m = make_model(petsc, "bend", [("mass", mass)])
+        space, system = m.space, m.system
         inertia = next(e for e in system.effects if e.name == "inertia")
         ones = np.zeros(3 * space.nlv)
         ones[0::3] = 1.0

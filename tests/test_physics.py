@@ -21,7 +21,7 @@ def bar(l1_mesh):
 
 def forces(bar, name, x):
     X, tets, Dminv, vol, _ = bar
-    k = CellKernels(tets, Dminv, vol, MATERIALS[name].kernel_id, MU, LAM)
+    k = CellKernels(tets, Dminv, vol, MATERIALS[name].name, MU, LAM)
     f = np.zeros(x.size)
     k.forces(np.ascontiguousarray(x.ravel()), f)
     return f.reshape(-1, 3)

@@ -1,5 +1,6 @@
 """`hyperelastic study accuracy|refinement`: the quick studies run for real (about 2.5 min together)
 and what must hold of them is asserted."""
+import json
 import math
 import os
 
@@ -7,24 +8,22 @@ import numpy as np
 import pytest
 
 from conftest import hyperelastic, run_ok
-from hyperelastic import study as S
+from hyperelastic.experiments.table import read_csv
+from hyperelastic.study import measure, plan, report
 
 
 @pytest.fixture(scope="module")
 def accuracy(tmp_path_factory):
     out = tmp_path_factory.mktemp("accuracy")
     run_ok(["study", "accuracy", "-output_dir", out], timeout=900)
-    return out, S.read_csv(os.path.join(out, "accuracy.csv"))
+    return out, measure.read_csv(os.path.join(out, "accuracy.csv"))
 
 
 @pytest.fixture(scope="module")
 def refinement(tmp_path_factory):
     out = tmp_path_factory.mktemp("refinement")
     run_ok(["study", "refinement", "-output_dir", out], timeout=900)
-    import csv
-    with open(os.path.join(out, "refinement.csv"), newline="") as fh:
-        rows = list(csv.DictReader(fh))
-    return out, rows
+    return out, read_csv(os.path.join(out, "refinement.csv"))
 
 
 def finite(*vals):
@@ -33,7 +32,7 @@ def finite(*vals):
 
 def test_every_sweep_point_is_a_run_with_numbers_or_a_recorded_failure(accuracy):
     out, rows = accuracy
-    planned = S.plan(False).runs
+    planned = plan.plan(False).runs
     sweep = {r["id"]: r for r in rows if r["role"] == "sweep"}
     assert set(sweep) == {r.id for r in planned}
     for r in sweep.values():
@@ -56,10 +55,10 @@ def test_reference_is_the_most_accurate_of_its_sweep(accuracy):
     sweep point's error, down to where both are solver noise (< 1e-8 relative)."""
     _, rows = accuracy
     refs = [r for r in rows if r["role"] == "reference"]
-    assert len(refs) == len(S.configs(rows))
+    assert len(refs) == len(report.configs(rows))
     for ref in refs:
         cfg = (ref["scene"], ref["material"], ref["E"], ref["level"])
-        errs = [r["rel_err"] for r in S.sweep_rows(rows, cfg) if r["outcome"] != "failed"]
+        errs = [r["rel_err"] for r in report.sweep_rows(rows, cfg) if r["outcome"] != "failed"]
         assert ref["outcome"] == "finished" and errs
         assert ref["ref_err_est"] <= max(min(errs), 1e-8), (cfg, ref["ref_err_est"], min(errs))
 
@@ -67,7 +66,7 @@ def test_reference_is_the_most_accurate_of_its_sweep(accuracy):
 def test_tightening_the_newton_tolerance_never_increases_the_error_beyond_noise(accuracy):
     _, rows = accuracy
     groups = {}
-    for r in S.sweep_rows(rows):
+    for r in report.sweep_rows(rows):
         if r["outcome"] != "failed":
             groups.setdefault((r["scene"], r["material"], r["E"], r["level"], r["mode"], r["pc"], r["h"],
                                r["ksp_rtol"]), []).append(r)
@@ -89,8 +88,8 @@ def test_report_answers_in_numbers_and_the_mesh_error_shrinks(accuracy):
         text = fh.read()
     first = text.split("\n\n")[1]
     assert "relative error on L1 bend2" in first and "s of solve time" in first and "× less than" in first
-    best = S.cheapest(S.sweep_rows(rows, ("bend2", "stvk", 1e6, 1)), 1e-2)
-    assert best is not None and f"`{S.label(best)}`" in first
+    best = report.cheapest(report.sweep_rows(rows, ("bend2", "stvk", 1e6, 1)), 1e-2)
+    assert best is not None and f"`{report.label(best)}`" in first
     disc = {r["level"]: r["disc_err"] for r in rows if r["role"] == "disc" and r["E"] == 1e6 and r["scene"] == "bend2"}
     assert set(disc) == {1, 2, 3} and disc[3] == 0.0 and disc[1] > disc[2] > 0
 
@@ -120,7 +119,7 @@ def test_refinement_same_answer_on_one_and_two_ranks(refinement):
     par = [r for r in rows if r["nprocs"] == "2"]
     twin = [r for r in rows if r["twin"] == "True"]
     assert par and twin and par[0]["level"] == twin[0]["level"]
-    u1, u2 = np.array(eval(twin[0]["u_points"])), np.array(eval(par[0]["u_points"]))
+    u1, u2 = np.array(json.loads(twin[0]["u_points"])), np.array(json.loads(par[0]["u_points"]))
     assert np.abs(u1 - u2).max() <= 1e-7 * np.abs(u1).max()
 
 

@@ -9,8 +9,6 @@ import time
 
 import numpy as np
 
-BUILT = {}  # effect name -> number of instances constructed in this process (tests read it)
-
 
 class Effect:
     name = "effect"
@@ -19,7 +17,6 @@ class Effect:
     symmetric = True
 
     def __init__(self):
-        BUILT[self.name] = BUILT.get(self.name, 0) + 1
         self.evals = 0       # residual evaluations
         self.applies = 0     # Jacobian applications / assemblies
         self.seconds = 0.0

@@ -1,6 +1,6 @@
 import numpy as np
 
-from .base import BUILT, ramp
+from .base import ramp
 
 
 class Constraint:
@@ -9,7 +9,6 @@ class Constraint:
     name = "constraint"
 
     def __init__(self, X, vertices):
-        BUILT[self.name] = BUILT.get(self.name, 0) + 1
         self.vertices = np.asarray(vertices, np.int64)
         self.X0 = X[self.vertices]
         self.evals = self.applies = 0

@@ -1,17 +1,18 @@
-"""Constitutive models. Each module defines a Material with numpy reference functions
-psi(F), P(F), dP(F, dF) vectorized over a leading cell axis, and the id of its compiled kernel.
+"""Constitutive models, one home each: materials/NAME.py holds the numpy reference (psi(F), P(F),
+dP(F, dF) vectorized over a leading cell axis) in a class named by its module's MATERIAL, and
+materials/NAME.h the C kernel (stress, derivative preparation, directional derivative) that setup.py
+compiles into he_forces_NAME, he_kv_NAME, ... (see _kernels.c). A material is registered by adding
+NAME to REGISTRY below: its order is the order the hard-case matrix and the help list them in.
 
 Parameters are Young's modulus E, Poisson's ratio nu and density rho in SI units;
 Lame constants from thesis eqs. 3.28-3.29.
 """
-from ..errors import UserError
-from .linear import Linear
-from .stvk import StVK
-from .neohookean import NeoHookean
-from .snh import StableNeoHookean
-from .corotational import Corotational
+import importlib
 
-MATERIALS = {m.name: m for m in (Linear, StVK, NeoHookean, StableNeoHookean, Corotational)}
+from ..errors import UserError
+
+REGISTRY = ("linear", "stvk", "neohookean", "snh", "corotational")
+MATERIALS = {n: importlib.import_module(f".{n}", __name__).MATERIAL for n in REGISTRY}
 
 # Preset values of the thesis framework (K. Erleben, hyper-sim, simulate/create_params.m, 2011);
 # "bone" is its "cortical bone". E [Pa], nu [-], rho [kg/m^3].

@@ -31,7 +31,6 @@ class Corotational:
     The element rotation is taken per element, as in the thesis framework's corotational model; the
     tangent includes the derivative of R, so it is the exact Hessian of Psi."""
     name = "corotational"
-    kernel_id = 4
     defined_when_inverted = True
 
     @staticmethod
@@ -54,3 +53,6 @@ class Corotational:
         dR = R @ skew(w)
         trA = np.trace(A, axis1=-2, axis2=-1)
         return 2 * mu * (dF - dR) + (lam * trA)[..., None, None] * R + (lam * (s.sum(-1) - 3))[..., None, None] * dR
+
+
+MATERIAL = Corotational

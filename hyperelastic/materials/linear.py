@@ -7,7 +7,6 @@ class Linear:
     """Linear elasticity: eps = sym(F) - I, Psi = mu eps:eps + lam/2 tr(eps)^2,
     P = 2 mu eps + lam tr(eps) I (thesis eqs. 3.23, 3.27, 3.34)."""
     name = "linear"
-    kernel_id = 0
     defined_when_inverted = True
 
     @staticmethod
@@ -23,3 +22,6 @@ class Linear:
     @staticmethod
     def dP(F, dF, mu, lam):
         return 2 * mu * sym(dF) + lam * tr(dF)[..., None, None] * I3
+
+
+MATERIAL = Linear

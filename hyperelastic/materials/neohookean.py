@@ -8,7 +8,6 @@ class NeoHookean:
     P = mu (F - F^-T) + lam ln J F^-T (Bonet & Wood, Nonlinear Continuum Mechanics for FEA,
     1997, sec. 6.4.3). Undefined for J <= 0."""
     name = "neohookean"
-    kernel_id = 2
     defined_when_inverted = False
 
     @staticmethod
@@ -30,3 +29,6 @@ class NeoHookean:
         trm = np.einsum("...ij,...ij", FiT, dF)
         return (mu * dF + (mu - lam * lnJ)[..., None, None] * (FiT @ T(dF) @ FiT)
                 + lam * trm[..., None, None] * FiT)
+
+
+MATERIAL = NeoHookean

@@ -33,7 +33,6 @@ class StableNeoHookean:
     I_C = tr(F^T F). Defined for every F, inverted elements included; its Hessian is not positive
     definite everywhere (see -hessian_projection)."""
     name = "snh"
-    kernel_id = 3
     defined_when_inverted = True
 
     @staticmethod
@@ -61,3 +60,6 @@ class StableNeoHookean:
         return ((ms * (1 - 1 / (Ic + 1)))[..., None, None] * dF
                 + (2 * ms * fd / (Ic + 1) ** 2)[..., None, None] * F
                 + (ls * cd)[..., None, None] * C + (ls * (J - al))[..., None, None] * dcofactor(F, dF))
+
+
+MATERIAL = StableNeoHookean

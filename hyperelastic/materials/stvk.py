@@ -7,7 +7,6 @@ class StVK:
     """St. Venant-Kirchhoff: E = (F^T F - I)/2, Psi = mu E:E + lam/2 tr(E)^2,
     P = F (2 mu E + lam tr(E) I) (thesis eqs. 3.20, 3.35, 3.40)."""
     name = "stvk"
-    kernel_id = 1
     defined_when_inverted = True
 
     @staticmethod
@@ -27,3 +26,6 @@ class StVK:
         dE = sym(T(F) @ dF)
         dS = 2 * mu * dE + lam * tr(dE)[..., None, None] * I3
         return dF @ S + F @ dS
+
+
+MATERIAL = StVK

@@ -12,13 +12,13 @@ Test vector families (thesis sec. 7.1):
   tw  eq. 7.3 as printed, mu * randn + sigma; kept as a diagnostic: with mu ~ 0 such a vector is
       nearly the constant sigma (1, 1, ..., 1), a rigid translation, which k does not see
 """
-import csv
 import os
-import subprocess
 import sys
 
 import numpy as np
 
+from ..experiments import table
+from ..experiments.runner import command, run_hyperelastic
 from ..jacobians import PetscMFFD, seed_difference
 
 FAMILIES = ("e", "r", "t", "tw")
@@ -48,11 +48,11 @@ def simulate_state(out_dir, level=1, final_time=0.2, scene="squeeze", extra=()):
     path = os.path.join(d, tag + ".h5")
     if not os.path.isfile(path):
         tmp = f"{path}.{os.getpid()}.part.h5"      # scripts running side by side do not collide
-        cmd = [sys.executable, "-m", "hyperelastic", "run", scene, "-level", str(level), "-final_time",
-               str(final_time), "-jacobian", "assembled", "-output", tmp, "-quiet", *map(str, extra)]
-        p = subprocess.run(cmd, capture_output=True, text=True)
-        if p.returncode != 0:
-            raise RuntimeError(f"{' '.join(cmd)} failed: {p.stderr.strip()}")
+        args = ["run", scene, "-level", level, "-final_time", final_time, "-jacobian", "assembled", "-output", tmp,
+                "-quiet", *extra]
+        rc, err, _ = run_hyperelastic(args, tmp, timeout=None)
+        if rc != 0:
+            raise RuntimeError(f"{' '.join(command(args))} failed: {err.strip()}")
         os.replace(tmp, path)
         if os.path.exists(tmp[:-3] + ".xdmf"):          # the XDMF index of the temporary name
             os.remove(tmp[:-3] + ".xdmf")
@@ -74,7 +74,7 @@ class Bench:
         self.n = self.x.size
         self.nc = len(tets)
         Dminv, vol = reference_geometry(self.X, np.asarray(tets))
-        self.kern = CellKernels(tets, Dminv, vol, 0, 1.0, 1.0)
+        self.kern = CellKernels(tets, Dminv, vol, "linear", 1.0, 1.0)
         self.rho = float(rho)
         u = self.x - self.X.ravel()
         self.mu_real, self.sigma_real = float(u.mean()), float(u.std())
@@ -84,8 +84,7 @@ class Bench:
     def set_material(self, name, E, nu):
         from .. import materials
         lam, mu = materials.lame(E, nu)
-        self.kern.mat = materials.get(name).kernel_id
-        self.kern.mu, self.kern.lam = float(mu), float(lam)
+        self.kern.set_material(materials.get(name).name, mu, lam)
         self.material, self.E, self.nu = name, E, nu
         self.k0 = self.k(self.x)
         for m, _, _ in self._mffd.values():
@@ -204,20 +203,11 @@ def largest_feasible(h, err, tol):
 
 
 def write_csv(path, rows, fields=None):
-    fields = fields or list(rows[0].keys())
-    tmp = path + ".part"
-    with open(tmp, "w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=fields)
-        w.writeheader()
-        for r in rows:
-            w.writerow({k: (f"{v:.6g}" if isinstance(v, float) else v) for k, v in r.items()})
-    os.replace(tmp, path)
-    return path
+    return table.write_csv(path, rows, fields)
 
 
 def read_csv(path):
-    with open(path) as f:
-        return list(csv.DictReader(f))
+    return table.read_csv(path)
 
 
 def pyplot():

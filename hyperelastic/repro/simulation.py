@@ -5,36 +5,32 @@ Every run is a `hyperelastic run` subprocess; a run that stops (exit 3) is recor
 line and the frames it wrote, never dropped.
 """
 import os
-import subprocess
-import sys
-import time
 
 import numpy as np
 
+from .. import stats
+from ..experiments.recipes import MODES as JACOBIAN_MODES
+from ..experiments.runner import last_line, run_hyperelastic
 from .common import outdir, pyplot, write_csv
 
-MODES = {"assembled": ["-jacobian", "assembled"], "shell": ["-jacobian", "shell"], "snes_mf": ["-snes_mf"],
-         "snes_mf_operator": ["-snes_mf_operator"], "seed_fd": ["-jacobian", "seed_fd"]}
+MODES = {m: JACOBIAN_MODES[m] for m in ("assembled", "shell", "snes_mf", "snes_mf_operator", "seed_fd")}
 
 
 def run(scene, path, args):
     """One thesis run: fixed step size as in the thesis' framework (no step control), so a failing
     step ends the run as it did there."""
     args = ["-step_control", "0", *args]
-    cmd = [sys.executable, "-m", "hyperelastic", "run", scene, "-output", path, "-quiet", *map(str, args)]
-    t0 = time.perf_counter()
-    p = subprocess.run(cmd, capture_output=True, text=True)
-    wall = time.perf_counter() - t0
+    rc, err, wall = run_hyperelastic(["run", scene, "-output", path, "-quiet", *args], path, timeout=None)
     import h5py
-    res = {"exit": p.returncode, "error": p.stderr.strip().splitlines()[-1] if p.returncode else "", "wall_s": wall,
+    res = {"exit": rc, "error": last_line(err, rc) if rc else "", "wall_s": wall,
            "command": " ".join(["hyperelastic", "run", scene, *map(str, args)])}
     res.update(x=None, t=float("nan"), newton=0, ksp=0, J_min=float("nan"), steps=0)
     try:
         with h5py.File(path, "r") as f:
             res.update(X=f["mesh/points"][:], tets=f["mesh/tetra"][:], x=f["x"][-1], t=float(f["time"][-1]),
                        steps=int(f.attrs.get("steps_completed", 0)))
-            st = f["stats"]
-            col = {k: st[k][:] for k in ("newton_its", "ksp_its", "J_min") if k in st and len(st[k])}
+            st = stats.read(f)
+            col = {k: st[k] for k in ("newton_its", "ksp_its", "J_min") if k in st and len(st[k])}
     except (OSError, KeyError, IndexError):
         return res
     res.update(newton=int(np.nansum(col.get("newton_its", 0))), ksp=int(np.nansum(col.get("ksp_its", 0))))

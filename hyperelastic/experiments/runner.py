@@ -15,14 +15,18 @@ def mpiexec():
     return here if os.path.exists(here) else (shutil.which("mpiexec") or "mpiexec")
 
 
+def command(args, nprocs=1):
+    """The command line of `python -m hyperelastic ARGS`, under mpiexec -n nprocs when nprocs > 1."""
+    cmd = [sys.executable, "-m", "hyperelastic"] + [str(a) for a in args]
+    return [mpiexec(), "-n", str(nprocs)] + cmd if nprocs > 1 else cmd
+
+
 def run_hyperelastic(args, output, nprocs=1, timeout=900):
     """(exit status, stderr, wall seconds) of `python -m hyperelastic ARGS` writing `output` (removed
     first, so that a stale file is never read as this run's result); nprocs > 1 runs it under mpiexec."""
     if os.path.exists(output):
         os.remove(output)
-    cmd = [sys.executable, "-m", "hyperelastic"] + [str(a) for a in args]
-    if nprocs > 1:
-        cmd = [mpiexec(), "-n", str(nprocs)] + cmd
+    cmd = command(args, nprocs)
     env = dict(os.environ, OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1")
     t0 = time.perf_counter()
     try:

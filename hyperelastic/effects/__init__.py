@@ -1,0 +1,53 @@
+"""The effects a scene can call for, one module each (see base.py for the residual they add to), and
+`build`, which constructs exactly the ones a scene names: an effect not named is never built."""
+from collections import Counter
+
+import numpy as np
+
+from ..scene import FACES
+
+
+def face_set(space, names):
+    """Local vertices on the named bounding-box faces."""
+    return np.unique(np.concatenate([space.face_vertices(*FACES[f]) for f in names]))
+
+
+def build(scene, space, kernels):
+    """(effects, constraints) of the scene on the space, in the scene's order; `kernels` are the
+    cell kernels of its material on the space's cells."""
+    from .damping import RayleighDamping, ViscousDamping
+    from .dirichlet import Fixed, Prescribed
+    from .elasticity import Elasticity
+    from .gravity import Gravity
+    from .inertia import Inertia
+    from .traction import FollowerTwist, Traction
+    s, p, nlv, k = scene, scene.params, space.nlv, kernels
+    effects, constraints = [], []
+    for name in s.effects:
+        if name == "elasticity":
+            effects.append(Elasticity(k, s.material, s.hessian_projection))
+        elif name == "inertia":
+            effects.append(Inertia(k, s.rho, s.lumped, nlv))
+        elif name == "damping":
+            effects.append(ViscousDamping(k, p["damping"], s.lumped, nlv))
+        elif name == "rayleigh":
+            effects.append(RayleighDamping(k, s.rho, p["rayleigh_alpha"], p["rayleigh_beta"], s.lumped, nlv))
+        elif name == "gravity":
+            effects.append(Gravity(k, s.rho, p["gravity"], nlv))
+        elif name in ("traction", "follower_traction"):
+            tris = space.boundary_triangles(face_set(space, [p["traction_face"]]))
+            if name == "traction":
+                effects.append(Traction(space.X, tris, p["traction"], p["traction_ramp"], nlv))
+            else:
+                effects.append(FollowerTwist(space.X, tris, p["traction_twist"], p["traction_ramp"], nlv))
+        elif name == "fixed":
+            constraints.append(Fixed(space.X, face_set(space, p["fix"])))
+        elif name == "prescribed":
+            constraints.append(Prescribed(space.X, face_set(space, p["prescribe_faces"]), p["prescribe_motion"],
+                                          p["prescribe_amount"]))
+    return effects, constraints
+
+
+def built(effects, constraints):
+    """{effect name: instances built} of one run (stored in the output as JSON)."""
+    return dict(Counter(e.name for e in list(effects) + list(constraints)))

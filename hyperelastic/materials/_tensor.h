@@ -1,0 +1,40 @@
+/* 3x3 tensor helpers shared by the material kernels (row-major 3x3 arrays). */
+#ifndef HE_TENSOR_H
+#define HE_TENSOR_H
+#include <math.h>
+#include <stdint.h>
+#include <string.h>
+
+static inline double det3(const double *A) {
+  return A[0] * (A[4] * A[8] - A[5] * A[7]) - A[1] * (A[3] * A[8] - A[5] * A[6]) +
+         A[2] * (A[3] * A[7] - A[4] * A[6]);
+}
+
+/* C = A B */
+static inline void mm(const double *A, const double *B, double *C) {
+  for (int i = 0; i < 3; i++)
+    for (int j = 0; j < 3; j++)
+      C[3 * i + j] = A[3 * i] * B[j] + A[3 * i + 1] * B[3 + j] + A[3 * i + 2] * B[6 + j];
+}
+
+/* C = A^T B */
+static inline void mtm(const double *A, const double *B, double *C) {
+  for (int i = 0; i < 3; i++)
+    for (int j = 0; j < 3; j++)
+      C[3 * i + j] = A[i] * B[j] + A[3 + i] * B[3 + j] + A[6 + i] * B[6 + j];
+}
+
+/* C = "mixed cofactor" of (A, B): cof_mixed(F, F) is the cofactor matrix dJ/dF of F (row-major), and
+ * the directional derivative of cof at F along dF is cof_mixed(F, dF) + cof_mixed(dF, F). */
+static inline void cof_mixed(const double *A, const double *B, double *C) {
+  C[0] = A[4] * B[8] - A[5] * B[7];
+  C[1] = A[5] * B[6] - A[3] * B[8];
+  C[2] = A[3] * B[7] - A[4] * B[6];
+  C[3] = A[2] * B[7] - A[1] * B[8];
+  C[4] = A[0] * B[8] - A[2] * B[6];
+  C[5] = A[1] * B[6] - A[0] * B[7];
+  C[6] = A[1] * B[5] - A[2] * B[4];
+  C[7] = A[2] * B[3] - A[0] * B[5];
+  C[8] = A[0] * B[4] - A[1] * B[3];
+}
+#endif

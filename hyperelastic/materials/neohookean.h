@@ -1,0 +1,49 @@
+/* Compressible Neo-Hookean, Psi = mu/2 (I1-3) - mu lnJ + lam/2 (lnJ)^2 (Bonet & Wood, Nonlinear
+ * Continuum Mechanics, eq. 6.27); undefined for J <= 0 (stress and prepare return 1 there).
+ * Numpy reference: neohookean.py. */
+typedef struct { double FiT[9], c1, c2; } neohookean_cache;
+
+/* inverse-transpose of F and J = det F; returns J */
+static inline double inv_t(const double *F, double *FinvT) {
+  double J = det3(F), r = 1.0 / J;
+  cof_mixed(F, F, FinvT);
+  for (int k = 0; k < 9; k++) FinvT[k] *= r;
+  return J;
+}
+
+static inline int neohookean_stress(double mu, double lam, const double *F, double *P, double *psi) {
+  double FiT[9];
+  double J = det3(F);
+  if (!(J > 0)) {
+    for (int k = 0; k < 9; k++) P[k] = NAN;
+    if (psi) *psi = NAN;
+    return 1;
+  }
+  inv_t(F, FiT);
+  double lnJ = log(J), c = lam * lnJ - mu, I1 = 0;
+  for (int k = 0; k < 9; k++) { P[k] = mu * F[k] + c * FiT[k]; I1 += F[k] * F[k]; }
+  if (psi) *psi = 0.5 * mu * (I1 - 3) - mu * lnJ + 0.5 * lam * lnJ * lnJ;
+  return 0;
+}
+
+static inline int neohookean_prepare(double mu, double lam, const double *F, neohookean_cache *d) {
+  double J = det3(F);
+  if (!(J > 0)) return 1;
+  inv_t(F, d->FiT);
+  d->c1 = mu - lam * log(J); /* coefficient of F^-T dF^T F^-T */
+  d->c2 = lam;               /* coefficient of tr(F^-1 dF) F^-T */
+  return 0;
+}
+
+/* dP = mu dF + c1 F^-T dF^T F^-T + lam tr(F^-1 dF) F^-T */
+static inline void neohookean_dstress(double mu, double lam, const neohookean_cache *d, const double *dF,
+                                      double *dP) {
+  (void)lam;
+  const double *Q = d->FiT;
+  double T[9], U[9];
+  mtm(dF, Q, T); /* T = dF^T Q ; U = Q T = F^-T dF^T F^-T */
+  mm(Q, T, U);
+  double tr = 0; /* tr(F^-1 dF) = sum_ij F^-T_ij dF_ij */
+  for (int k = 0; k < 9; k++) tr += Q[k] * dF[k];
+  for (int k = 0; k < 9; k++) dP[k] = mu * dF[k] + d->c1 * U[k] + d->c2 * tr * Q[k];
+}

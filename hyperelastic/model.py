@@ -1,0 +1,91 @@
+"""The discrete model of a scene, built in one direction: Scene -> mesh -> Space -> effects -> System,
+with the initial state the System is calibrated at. Shared by the command line, the tests and the
+scripts (PETSc must already be initialized). The solver, the integrator and the output build on it
+(see cli.run)."""
+from dataclasses import dataclass
+
+import numpy as np
+from mpi4py import MPI
+
+from . import effects as effects_pkg
+from .errors import UserError
+from .kernels import CellKernels
+from .mesh import cached_bar, read
+from .space import Space
+from .system import System
+
+
+def collective(comm, fn):
+    """fn() run on rank 0: its result there (None on the other ranks), its UserError raised on every rank."""
+    mpi = comm.tompi4py()
+    res = err = None
+    if mpi.rank == 0:
+        try:
+            res = fn()
+        except UserError as e:
+            err = str(e)
+    err = mpi.bcast(err, root=0)
+    if err is not None:
+        raise UserError(err)
+    return res
+
+
+def rotation_matrix(r):
+    """Rodrigues' formula: the rotation by |r| radians about r."""
+    r = np.asarray(r, float)
+    th = np.linalg.norm(r)
+    if th == 0:
+        return np.eye(3)
+    k = r / th
+    K = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
+    return np.eye(3) + np.sin(th) * K + (1 - np.cos(th)) * K @ K
+
+
+def centroid(space):
+    """Mean of the mesh vertices (the same on every rank)."""
+    own = space.X[space.lvid_of_owned]
+    tot = space.mpi.allreduce(np.append(own.sum(axis=0), len(own)), op=MPI.SUM)
+    return tot[:3] / tot[3]
+
+
+def initial_state(scene, space):
+    """Local positions and velocities at t = 0: the reference configuration at rest, unless
+    -initial_scale (x = c + diag(s)(X - c)), -initial_rotation (x = c + R (x - c), R = exp([r]x)) or
+    -initial_spin (v = w x (x - c)) ask otherwise; c is the centroid."""
+    x, v = space.X.copy(), np.zeros_like(space.X)
+    sc = scene
+    if any(a is not None for a in (sc.initial_scale, sc.initial_rotation, sc.initial_spin)):
+        c = centroid(space)
+        if sc.initial_scale is not None:
+            x = c + (x - c) * np.asarray(sc.initial_scale)
+        if sc.initial_rotation is not None:
+            x = c + (x - c) @ rotation_matrix(sc.initial_rotation).T
+        if sc.initial_spin is not None:
+            v = np.cross(np.asarray(sc.initial_spin), x - c)
+    return x.ravel().copy(), v.ravel().copy()
+
+
+@dataclass
+class Model:
+    """Everything of a run except the solver, the integrator and the output."""
+    scene: object
+    points: np.ndarray          # the checked input mesh (rank 0; None elsewhere)
+    tets: np.ndarray
+    space: Space
+    kernels: CellKernels        # the material's cell kernels on the space's cells
+    system: System
+    x0: np.ndarray              # initial local positions and velocities
+    v0: np.ndarray
+
+
+def build_model(scene, comm):
+    """Read the scene's mesh (rank 0), distribute it, build the effects the scene names and the
+    System, calibrated at the initial state."""
+    mesh = collective(comm, lambda: read(scene.mesh if scene.mesh else cached_bar(scene.level)))
+    points, tets = mesh if mesh is not None else (None, None)
+    space = Space(comm, points, tets)
+    k = CellKernels(space.cells, space.Dminv, space.vol, scene.material.name, scene.mu, scene.lam)
+    effects, constraints = effects_pkg.build(scene, space, k)
+    x0, v0 = initial_state(scene, space)
+    system = System(space, effects, constraints, x0, v0, scene.dt)
+    return Model(scene, points, tets, space, k, system, x0, v0)

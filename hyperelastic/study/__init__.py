@@ -1,0 +1,85 @@
+"""What accuracy costs in time: `hyperelastic study accuracy` and `hyperelastic study refinement`.
+
+Accuracy versus time. Each sweep point is a real `python -m hyperelastic run` (sweep.py) of one
+*configuration* (scene, material, E, mesh level) with one *setting* (Jacobian mode, PC, Newton and
+Krylov tolerances, time step h). Its error is measured against the configuration's *reference*: the
+same scene and mesh run with h = h_min / REF_FACTOR (h_min the smallest h swept), the tightest
+tolerances and the exact tangent (assembled; GMRES + ILU(0) to ksp_rtol 1e-12: as exact as LU here and
+4x cheaper). The reference's own error is
+estimated against a *check* run at twice its step: backward Euler is first order, so
+e(h) ~ |x_2h - x_h|. Every run writes frames every 0.1 s; errors compare the frames at the same
+times:
+
+  err_final_max / err_final_rms   max / RMS over vertices of |x - x_ref| at the final time [m]
+  err_traj_max / err_traj_rms     the same over every frame of the trajectory [m]
+  rel_err                         err_traj_max / (largest vertex displacement of the reference)
+  energy_drift                    (total energy - the reference's) at the final time / the reference's
+                                  largest |total energy|; total = kinetic + elastic + gravity
+                                  potential - traction work (negative: extra numerical dissipation)
+
+Cost: solve time (the sum of the steps' wall time, rejected attempts included: what the setting
+costs, without the process start-up), wall time of the whole command, Newton and Krylov iterations,
+residual evaluations, rejected attempts, peak memory. A run that fails is a row with outcome
+'failed' and its one-line message, never dropped.
+
+The discretisation error is separate: runs with the reference's solver settings at one step DISC_H
+on each level, against the finest level's, P1-interpolated at fixed material points
+(MATERIAL_POINTS, the thesis framework's test point first). The time error at DISC_H is nearly the
+same on every mesh, so the difference is the mesh's.
+
+Refinement: a quasi-static ramped bend on gmsh levels L1...; displacement at the material points
+against the finest level, observed convergence order (least-squares slope of log error vs log
+edge length) and time per load step vs tets.
+"""
+import os
+import sys
+import time
+
+from ..errors import ArgParser, UserError
+
+STUDIES = ("accuracy", "refinement")
+
+
+def main(argv):
+    """`hyperelastic study accuracy|refinement [-output_dir DIR] [--full] [--jobs N] ...`"""
+    ap = ArgParser(prog="hyperelastic study", description="What accuracy costs in time.")
+    ap.add_argument("which", choices=STUDIES)
+    ap.add_argument("-output_dir", "--output-dir", dest="output_dir", default=None)
+    ap.add_argument("--full", action="store_true", help="the whole sweep (hours) instead of the quick default")
+    ap.add_argument("--jobs", type=int, default=2, help="runs at a time (default 2)")
+    ap.add_argument("--budget", type=float, default=600.0, help="refinement: seconds for the finer levels")
+    ap.add_argument("--from-csv", action="store_true", help="accuracy: redo report and figures from accuracy.csv")
+    a = ap.parse_args(argv)
+    if a.jobs < 1:
+        raise UserError("hyperelastic study: --jobs must be >= 1")
+    out = a.output_dir or os.path.join("output", f"study_{a.which}")
+    from ..output import writable_dir
+    writable_dir(out, "-output_dir")
+    command = "hyperelastic study " + " ".join(argv)
+    t0 = time.perf_counter()
+
+    def log(r):
+        what = r.get("id") or f"L{r['level']} np{r['nprocs']}"
+        extra = f": {r['message']}" if r["outcome"] == "failed" else ""
+        print(f"[{time.perf_counter() - t0:6.1f} s] {what} {r['outcome']}{extra}", file=sys.stderr, flush=True)
+    if a.which == "accuracy":
+        from .measure import accuracy, read_csv, write_csv
+        from .plan import plan
+        from .report import figures, report
+        if a.from_csv:
+            path = os.path.join(out, "accuracy.csv")
+            if not os.path.isfile(path):
+                raise UserError(f"--from-csv: no {path}")
+            rows, p = read_csv(path), plan(a.full)
+        else:
+            rows, p = accuracy(out, a.full, a.jobs, log)
+            write_csv(rows, os.path.join(out, "accuracy.csv"))
+        figures(rows, out)
+        report(rows, p, out, command)
+        print(os.path.join(out, "accuracy.md"))
+    else:
+        from .refinement import refinement, refinement_report
+        rows = refinement(out, a.full, a.jobs, a.budget, log=log)
+        refinement_report(rows, out, command)
+        print(os.path.join(out, "refinement.md"))
+    return 0
