@@ -77,7 +77,7 @@ def errors(path, ref_path):
 
 def at_points(path, P=MATERIAL_POINTS):
     """Displacement (k,3) at material points P in the last frame of a run."""
-    from .mesh import interpolate, locate
+    from ..mesh import interpolate, locate
     _, x, X, tets, _ = trajectory(path)
     cells, w = locate(X, tets, P)
     return interpolate(tets, cells, w, x[-1] - X)
