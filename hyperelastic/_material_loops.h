@@ -24,11 +24,13 @@ int64_t HE_FN(forces)(int64_t nc, const idx_t *cells, const double *Dminv, const
   return bad;
 }
 
-/* Elastic energy sum_e V Psi(F_e), and min/max of J = det F. Returns the number of undefined cells. */
+/* Elastic energy sum_e V Psi(F_e), and min/max of J = det F. Returns the number of undefined cells.
+ * The sum is compensated (Kahan): the energy line search compares energies that differ by far less
+ * than the energy itself near convergence, so its rounding error must stay at one ulp, not nc ulps. */
 int64_t HE_FN(energy)(int64_t nc, const idx_t *cells, const double *Dminv, const double *vol, const double *x,
                       double mu, double lam, double *out /* [energy, Jmin, Jmax] */) {
   int64_t bad = 0;
-  double W = 0, jmin = INFINITY, jmax = -INFINITY;
+  double W = 0, comp = 0, jmin = INFINITY, jmax = -INFINITY;
   for (int64_t e = 0; e < nc; e++) {
     double F[9], P[9], psi;
     gather_F(cells + 4 * e, Dminv + 9 * e, x, F);
@@ -36,7 +38,9 @@ int64_t HE_FN(energy)(int64_t nc, const idx_t *cells, const double *Dminv, const
     jmin = J < jmin ? J : jmin;
     jmax = J > jmax ? J : jmax;
     if (HE_MAT(stress)(mu, lam, F, P, &psi)) { bad++; continue; }
-    W += vol[e] * psi;
+    double term = vol[e] * psi - comp, sum = W + term;
+    comp = (sum - W) - term;
+    W = sum;
   }
   out[0] = W; out[1] = jmin; out[2] = jmax;
   return bad;

@@ -79,7 +79,10 @@ def run(argv):
     quiet = opts.flag("quiet")
     collective(comm, lambda: check_output_path(out))      # before any expensive work
     model = build_model(scene, comm)
-    solver = Solver(model.system, scene.jacobian, scene.assembly, guard=scene.inversion_guard)
+    solver = Solver(model.system, scene.jacobian, scene.assembly, guard=scene.inversion_guard,
+                    objective=scene.objective)
+    if solver.merit_note and not quiet and comm.getRank() == 0:
+        print(f"note: {solver.merit_note}", file=sys.stderr)
     attrs = run_attributes(model, scene_file, solver)
     stage.pop()
     writer = Writer(out, model.space, model.points, model.tets, attrs, resume=restart)

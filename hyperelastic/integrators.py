@@ -81,6 +81,8 @@ class BackwardEuler:
             last = t_end - self.t - h <= 1e-12 * H
             stats = self.advance(h, t_end if last else self.t + h)
             why = stats.pop("why", None)
+            if stats["rejected"]:
+                self._say(f"t={self.t:.4g}: step of h={h:.3g} rejected: {why}")
             self.stages["Output"].push()
             if self.writer:
                 self.writer.stats(stats)
@@ -96,6 +98,11 @@ class BackwardEuler:
             if self.h_try < H and self.streak >= sc.dt_grow_after:
                 self.h_try, self.streak = min(2 * self.h_try, H), 0
         return stats
+
+    def _say(self, line):
+        """A progress line on stderr (rank 0; not with -quiet)."""
+        if not self.quiet and self.sp.mpi.rank == 0:
+            print(line, file=sys.stderr, flush=True)
 
     def _after_step(self, n, nsteps, every):
         """After nominal step n: the frame, a checkpoint, and a stop on a signal (all ranks agree)."""
@@ -151,6 +158,7 @@ class BackwardEuler:
         sysm, sp = self.system, self.sp
         c0 = sysm.effect_counters()
         r0, rs0 = sysm.residual_evals, sysm.residual_seconds
+        o0, os0 = sysm.objective_evals, sysm.objective_seconds
         cuts0 = self.solver.inversion_cuts
         w0 = time.perf_counter()
         sysm.begin_step(t1, h, self.x, self.v)
@@ -162,6 +170,7 @@ class BackwardEuler:
         stats = {"step": self.step + 1, "time": t1, "dt": h, "snes_reason": int(reason),
                  "newton_its": snes.getIterationNumber(), "ksp_its": snes.getLinearSolveIterations(),
                  "residual_evals": sysm.residual_evals - r0, "residual_seconds": sysm.residual_seconds - rs0,
+                 "objective_evals": sysm.objective_evals - o0, "objective_seconds": sysm.objective_seconds - os0,
                  "inversion_cuts": self.solver.inversion_cuts - cuts0, "rejected": 1}
         for name, (ev, ap, sec) in sysm.effect_counters().items():
             e0 = c0[name]
@@ -169,8 +178,10 @@ class BackwardEuler:
             stats[effect_column(name, "applies")] = ap - e0[1]
             stats[effect_column(name, "seconds")] = sec - e0[2]
         if reason <= 0:
-            stats["why"] = (f"SNES did not converge ({self.solver.reason_name(reason)}) after "
-                            f"{stats['newton_its']} Newton iterations")
+            name = self.solver.reason_name(reason)
+            if name == "DIVERGED_LINEAR_SOLVE":
+                name += f": KSP {self.solver.ksp_reason_name()}"
+            stats["why"] = f"SNES did not converge ({name}) after {stats['newton_its']} Newton iterations"
             return self._rejected(stats, w0)
         x1 = sysm.impose(sysm.local(self.X, sysm.xl).copy())
         v1 = np.zeros_like(x1) if self.scene.quasistatic else (x1 - self.x) / h

@@ -47,6 +47,7 @@ def run_attributes(model, scene_file, solver):
             "effects_built": json.dumps(built, sort_keys=True), "hyperelastic_version": __version__,
             "petsc_version": ".".join(map(str, PETSc.Sys.getVersion())), "mpi_ranks": space.comm.getSize(),
             "jacobian": sc.jacobian + (f" ({solver.mf})" if solver.mf else ""),
+            "line_search_merit": solver.merit + (f" ({solver.merit_note})" if solver.merit_note else ""),
             "material": sc.material.name, "E": sc.E, "nu": sc.nu, "rho": sc.rho,
             "mesh": os.path.abspath(sc.mesh) if sc.mesh else f"bar level {sc.level}",
             "vertices_per_rank": np.array(space.mpi.allgather(space.nlv)),

@@ -41,6 +41,7 @@ class Scene:
     jacobian: str = "assembled"
     assembly: str = "setvalues"   # how the assembled tangent is filled (jacobians.AssembledChunked / Assembled)
     hessian_projection: bool = False
+    objective: bool = True        # register the incremental potential with SNES (energy line search merit)
     initial_scale: tuple = None   # x(0) = c + diag(s) (X - c), c the centroid (e.g. -1,1,1: mirrored)
     initial_spin: tuple = None    # v(0) = w x (X - c): angular velocity about the centroid [rad/s]
     initial_rotation: tuple = None  # x(0) = c + R(r) (X - c), r a rotation vector [rad] (after the scale)
@@ -125,6 +126,7 @@ def _read_solver(s, opts):
     s.jacobian = opts.choice("jacobian", JACOBIANS, s.jacobian)
     s.assembly = opts.choice("assembly", ASSEMBLIES, s.assembly)
     s.hessian_projection = opts.flag("hessian_projection", s.hessian_projection)
+    s.objective = opts.flag("objective", s.objective)
     s.inversion_guard = opts.flag("inversion_guard", not s.material.defined_when_inverted)
 
 

@@ -1,19 +1,30 @@
-"""SNES / KSP / PC from the options database, with this application's defaults:
-Newton with backtracking line search, CG + Jacobi (no PC under -snes_mf)."""
+"""SNES / KSP / PC from the options database, with this application's defaults: Newton with a
+backtracking line search on the incremental potential (energy merit, SNESSetObjective) where every
+effect has one, else on the residual norm; CG + Jacobi (no PC under -snes_mf)."""
 from mpi4py import MPI
 from petsc4py import PETSc
 
 from . import jacobians
 from .libpetsc import set_function_domain_error
 
-DEFAULTS = (("snes_linesearch_type", "bt"), ("ksp_type", "cg"), ("snes_max_it", "50"))
+MERITS = ("energy", "residual norm")
 
 
-def apply_defaults():
+def apply_defaults(merit="residual norm"):
+    """This application's defaults, where the options database does not set them. With the energy
+    merit, a Krylov solve that stops early (CG at negative curvature: DIVERGED_INDEFINITE_MAT) still
+    gives a descent direction for the energy (Steihaug 1983), so it does not end the Newton solve:
+    the line search decides; more Newton iterations are allowed for such steps."""
     opts = PETSc.Options()
-    for k, v in DEFAULTS:
+    energy = merit == "energy"
+    defaults = [("ksp_type", "cg"), ("snes_max_it", "100" if energy else "50")]
+    if opts.getString("snes_type", "newtonls") == "newtonls":
+        defaults.append(("snes_linesearch_type", "bt"))
+    for k, v in defaults:
         if not opts.hasName(k):
             opts.setValue(k, v)
+    if energy and not opts.hasName("snes_max_linear_solve_fail"):
+        opts.setValue("snes_max_linear_solve_fail", opts.getString("snes_max_it"))
     if not opts.hasName("pc_type"):
         opts.setValue("pc_type", "none" if opts.getBool("snes_mf", False) else "jacobi")
 
@@ -29,16 +40,26 @@ def matrix_free():
 
 
 class Solver:
-    def __init__(self, system, jacobian, assembly="setvalues", guard=False):
+    def __init__(self, system, jacobian, assembly="setvalues", guard=False, objective=True):
         """SNES on the system's residual with Jacobian mode `jacobian` (scene.JACOBIANS; filled by
-        `assembly` when assembled); guard: shorten Newton updates that would invert an element."""
+        `assembly` when assembled); guard: shorten Newton updates that would invert an element;
+        objective: register the system's incremental potential as the SNES objective (the line
+        search merit) when every effect has one (`merit`; `merit_note` says why not otherwise)."""
         self.system = system
         sp = system.space
-        apply_defaults()
+        self.merit_note = ""
+        if objective and not system.conservative:
+            self.merit_note = (f"{', '.join(system.nonconservative())} has no potential: the line search "
+                               "merit is the residual norm")
+        self.merit = MERITS[0] if objective and system.conservative else MERITS[1]
+        apply_defaults(self.merit)
         self.mf = matrix_free()
         self.R = sp.global_vec()
         self.snes = snes = PETSc.SNES().create(comm=sp.comm)
         snes.setFunction(self._residual, self.R)
+        if self.merit == "energy":
+            snes.setObjective(self._objective)
+            snes.setUpdate(self._newton_iterate)
         self.op = None
         if self.mf != "mf":   # under -snes_mf no Jacobian of ours is used: do not build one
             self.op = jacobians.make(system, jacobian, assembly)
@@ -58,6 +79,13 @@ class Solver:
         if self.system.undefined_cells():
             set_function_domain_error(snes)
         self.ev_res.end()
+
+    def _objective(self, snes, X):
+        return self.system.objective(X)
+
+    def _newton_iterate(self, snes, its):
+        """At the start of every Newton iteration: the objective is measured from this iterate."""
+        self.system.set_objective_base(snes.getSolution())
 
     def _precheck(self, X, Y):
         """Shorten the Newton update (X_new = X - lambda Y) so that no element inverts: the material
@@ -83,9 +111,18 @@ class Solver:
         self.ev_jac.end()
 
     def solve(self, X):
+        self.system.set_objective_base(None)
         self.snes.solve(None, X)
         return self.snes.getConvergedReason()
 
     def reason_name(self, reason):
-        names = {v: k for k, v in vars(PETSc.SNES.ConvergedReason).items() if isinstance(v, int)}
-        return names.get(reason, str(reason))
+        return _name(PETSc.SNES.ConvergedReason, reason)
+
+    def ksp_reason_name(self):
+        """The last Krylov solve's converged reason, by name."""
+        return _name(PETSc.KSP.ConvergedReason, self.snes.getKSP().getConvergedReason())
+
+
+def _name(enum, value):
+    names = {v: k for k, v in vars(enum).items() if isinstance(v, int) and not k.startswith("_")}
+    return names.get(value, str(value))

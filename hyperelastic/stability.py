@@ -331,6 +331,34 @@ def report(rows, out, command):
     return bad
 
 
+def totals(rows):
+    """Outcome counts and summed cost of a matrix."""
+    t = {k: sum(r["outcome"] == k for r in rows) for k in ("finished", "recovered", "failed")}
+    for k in ("rejections", "newton_its", "ksp_its", "wall_s"):
+        t[k] = sum(r.get(k) or 0 for r in rows)
+    return t
+
+
+def compare(old, new):
+    """Markdown lines: two matrices side by side (totals, then every cell whose outcome, rejections
+    or failure differ), cells matched by id."""
+    old_by = {r["id"]: r for r in old}
+    both = [r for r in new if r["id"] in old_by]
+    a, b = totals([old_by[r["id"]] for r in both]), totals(both)
+    lines = [f"| over the {len(both)} cells in both | before | now |", "|---|---|---|"]
+    lines += [f"| {k.replace('_', ' ')} | {fmt(a[k], '.0f')} | {fmt(b[k], '.0f')} |" for k in a]
+    lines += ["", "Cells whose outcome or number of rejected attempts changed:", "",
+              "| cell | before: outcome, rejected, Newton | now: outcome, rejected, Newton | now: message |",
+              "|---|---|---|---|"]
+    for r in both:
+        o = old_by[r["id"]]
+        if (o["outcome"], o.get("rejections")) != (r["outcome"], r.get("rejections")):
+            lines.append(f"| {r['id']} | {o['outcome']}, {o.get('rejections', 0)}, {o.get('newton_its', 0)} | "
+                         f"{r['outcome']}, {r.get('rejections', 0)}, {r.get('newton_its', 0)} | "
+                         f"{r['message'][:120]} |")
+    return lines
+
+
 def main(argv=None):
     """scripts/stability_matrix.py OUT [--full] [--jobs N] [--from-csv]"""
     ap = argparse.ArgumentParser(prog="scripts/stability_matrix.py", description=USAGE,
@@ -339,6 +367,8 @@ def main(argv=None):
     ap.add_argument("--full", action="store_true", help="the whole matrix instead of the quick subset")
     ap.add_argument("--jobs", type=int, default=2, help="runs in parallel (default 2)")
     ap.add_argument("--from-csv", action="store_true", help="redo stability.md and .png from OUT/stability.csv")
+    ap.add_argument("--compare", metavar="OLD_CSV", help="append a side-by-side comparison with an earlier "
+                    "stability.csv to OUT/stability.md")
     a = ap.parse_args(argv)
     os.makedirs(a.out, exist_ok=True)
     command = "scripts/stability_matrix.py " + " ".join(argv if argv is not None else sys.argv[1:])
@@ -348,6 +378,7 @@ def main(argv=None):
         command = f"scripts/stability_matrix.py OUT {made}".rstrip() + " (report redone with --from-csv)"
         heatmap(rows, os.path.join(a.out, "stability.png"))
         bad = report(rows, a.out, command)
+        _append_comparison(a.compare, rows, a.out)
         print(f"rewrote {a.out}/stability.md, stability.png; {len(bad)} property violations")
         return 1 if bad else 0
     cells = full_matrix() if a.full else quick_matrix()
@@ -360,7 +391,15 @@ def main(argv=None):
     write_csv(rows, os.path.join(a.out, "stability.csv"))
     heatmap(rows, os.path.join(a.out, "stability.png"))
     bad = report(rows, a.out, command)
+    _append_comparison(a.compare, rows, a.out)
     print(f"wrote {a.out}/stability.csv, stability.md, stability.png; {len(bad)} property violations")
     for cid, what in bad:
         print(f"  VIOLATED {cid}: {what}")
     return 1 if bad else 0
+
+
+def _append_comparison(old_csv, rows, out):
+    if old_csv:
+        lines = ["", f"## Compared with {old_csv}", ""] + compare(read_rows(old_csv), rows)
+        with open(os.path.join(out, "stability.md"), "a") as fh:
+            fh.write("\n".join(lines) + "\n")

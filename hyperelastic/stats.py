@@ -14,6 +14,8 @@ COLUMNS = {
     "ksp_its": (int, "Krylov iterations, summed over the Newton iterations"),
     "residual_evals": (int, "residual evaluations (MFFD's included)"),
     "residual_seconds": (float, "wall time in residual evaluations [s]"),
+    "objective_evals": (int, "evaluations of the incremental potential (the energy line search's merit)"),
+    "objective_seconds": (float, "wall time in objective evaluations [s]"),
     "inversion_cuts": (int, "Newton updates the inversion guard shortened"),
     "rejected": (int, "1: step control refused the attempt (the state did not move); 0: accepted"),
     "wall_s": (float, "wall time of the attempt [s]"),

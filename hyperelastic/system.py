@@ -7,6 +7,7 @@ for every Jacobian mode including PETSc's MFFD, and J stays symmetric when J_ff 
 the mean diagonal of J at the initial state (computed once, in the constructor), so the constrained
 block does not spoil conditioning.
 """
+import math
 import time
 
 import numpy as np
@@ -40,6 +41,11 @@ class System:
         self.g_owned_c = np.zeros(len(self.c_owned_pos))
         self.residual_evals = 0
         self.residual_seconds = 0.0
+        self.objective_evals = 0
+        self.objective_seconds = 0.0
+        self.base = None                 # the Newton iterate the objective is measured from
+        # the incremental potential exists when every effect has one (follower loads have none)
+        self.conservative = all(e.conservative for e in effects)
         self.x_lin = None
         self._calibrate(x0, v0, dt)
 
@@ -104,6 +110,69 @@ class System:
     def _add(self, r, R):
         self.vl.getArray()[:] = r
         self.space.add_to_global(self.vl, R)
+
+    # --- objective -----------------------------------------------------------------------------
+    def nonconservative(self):
+        """Names of the effects without a potential."""
+        return [e.name for e in self.effects if not e.conservative]
+
+    def energy(self, X):
+        """(E(X), |E|): the incremental potential at X, i.e. the effects' potentials at X with the
+        constrained dofs imposed plus 1/2 s |X_c - g_c|^2 for the constrained rows (gradient
+        s (X_c - g_c), as in `finish`), so that its gradient is the residual, constrained rows
+        included; and the sum of the terms' magnitudes (the scale of its rounding error). +inf where
+        the material is undefined. The ranks' parts are summed exactly (math.fsum of the gathered
+        parts, in rank order): the same value on every rank."""
+        x = self.impose(self.local(X, self.xl).copy())
+        pots = [e.potential(x) for e in self.effects]
+        if len(self.c_owned_pos):
+            d = X.getArray(readonly=True)[self.c_owned_pos] - self.g_owned_c
+            pots.append(0.5 * self.scale * float(d @ d))
+        ok = all(map(math.isfinite, pots))
+        part = (math.fsum(pots), math.fsum(map(abs, pots))) if ok else (math.inf, math.inf)
+        parts = self.space.mpi.allgather(part)
+        if not all(math.isfinite(p[0]) for p in parts):
+            return math.inf, math.inf
+        return math.fsum(p[0] for p in parts), math.fsum(p[1] for p in parts)
+
+    def set_objective_base(self, X):
+        """The Newton iterate Z the objective is measured from (None: absolute energies)."""
+        if X is None:
+            self.base = None
+            return
+        self.base = X.copy()
+        self.base_E, self.base_mag = self.energy(X)
+
+    def objective(self, X):
+        """The SNES objective: E(X) - E(Z), Z the current Newton iterate (set_objective_base), or E(X)
+        before one is set. A line search compares energies that, near convergence, differ by less
+        than the rounding error of E itself (a Newton step there changes E by ~|R|^2/|J|, i.e. 1e-16
+        of E at |R| ~ 1e-8 |R_0|), and then backtracks on noise. So the difference is taken relative
+        to Z, and where it is below 1e-9 of the energy's scale it is computed from the gradient
+        instead: E(Z + d) - E(Z) = int_0^1 R(Z + s d).d ds by 2-point Gauss-Legendre, exact for
+        energies quartic along the line (linear, St.VK, inertia, damping, dead loads) and accurate to
+        O(|d|^5) for the others; its rounding error is ~eps |R| |d|, which vanishes at convergence."""
+        t0 = time.perf_counter()
+        E, mag = self.energy(X)
+        out = E
+        if self.base is not None and math.isfinite(E):
+            out = E - self.base_E
+            if abs(out) <= 1e-9 * max(mag, self.base_mag):
+                out = self._difference_by_gradient(X)
+        self.objective_evals += 1
+        self.objective_seconds += time.perf_counter() - t0
+        return out
+
+    def _difference_by_gradient(self, X):
+        D = X.copy()
+        D.axpy(-1.0, self.base)
+        P, R = X.duplicate(), X.duplicate()
+        total = 0.0
+        for s in (0.5 - 0.5 / math.sqrt(3.0), 0.5 + 0.5 / math.sqrt(3.0)):
+            P.waxpy(s, D, self.base)
+            self.residual(P, R)
+            total += 0.5 * R.dot(D)
+        return total
 
     def undefined_cells(self):
         """Cells (on all ranks) where the material was undefined at the last residual; only

@@ -1,6 +1,9 @@
 """Effects: each adds its terms to the backward-Euler residual
     R(x) = M (x - x^n - h v^n)/h^2 + C (x - x^n)/h + k(x) - f
 and to its Jacobian J = M/h^2 + C/h + K (or the quasi-static R = k(x) - f, J = K).
+A conservative effect also gives its part of the incremental potential
+    E(x) = 1/2 h^-2 (x - x^)^T M (x - x^) + 1/2 h^-1 (x - x^n)^T C (x - x^n) + Psi(x) - f^T x,
+x^ = x^n + h v^n, whose gradient is R (the SNES objective: backward Euler as energy minimization).
 
 All arrays are local (owned + ghost vertices, 3 dofs each); contributions are additive over the
 cells a rank owns, so summing local arrays into the global vector assembles them.
@@ -13,6 +16,7 @@ import numpy as np
 class Effect:
     name = "effect"
     linear = True          # residual affine in x (seed_fd differences only the nonlinear effects)
+    conservative = True    # the residual is the gradient of `potential` (the SNES objective, see system.py)
     cell_blocks = False    # contributes 12x12 blocks on the cell pattern
     symmetric = True
 
@@ -46,6 +50,11 @@ class Effect:
 
     def coo_values(self, out):
         """Fill the values of the extra COO entries."""
+
+    def potential(self, x):
+        """This effect's part of the incremental potential at local positions x, whose gradient is its
+        residual (additive over ranks like the residual). Only for conservative effects."""
+        raise NotImplementedError(f"{self.name} has no potential")
 
     def energy(self, x, v):
         """Contribution to the step's statistics: dict of name -> value (summed over ranks)."""

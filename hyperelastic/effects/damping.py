@@ -22,6 +22,9 @@ class ViscousDamping(Effect):
     def residual(self, x, r):
         self.C.apply(x - self.xn, r, 1.0 / self.h)
 
+    def potential(self, x):
+        return 0.5 / self.h * self.C.quadratic(x - self.xn)
+
     @timed("applies")
     def apply(self, v, y):
         self.C.apply(v, y, 1.0 / self.h)
@@ -67,6 +70,12 @@ class RayleighDamping(Effect):
     @timed("evals")
     def residual(self, x, r):
         self._apply(x - self.xn, r)
+
+    def potential(self, x):
+        d = x - self.xn
+        y = np.zeros_like(d)
+        self._apply(d, y)
+        return 0.5 * float(d @ y)
 
     @timed("applies")
     def apply(self, v, y):

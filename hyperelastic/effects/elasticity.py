@@ -33,6 +33,12 @@ class Elasticity(Effect):
     def residual(self, x, r):
         self.undefined = self.k.forces(x, r)
 
+    def potential(self, x):
+        """Psi(x) = sum_e V_e psi(F_e); +inf where the material is undefined (inverted cells), so that
+        an energy line search backs off from them."""
+        W, _, _, bad = self.k.energy(x)
+        return float("inf") if bad else W
+
     def linearize(self, x):
         self.x = x.copy()
         if self.projection:

@@ -18,6 +18,9 @@ class Gravity(Effect):
     def residual(self, x, r):
         r -= self.f
 
+    def potential(self, x):
+        return -float(self.f @ x)
+
     def energy(self, x, v):
         # potential energy of gravity, -f.x (reference: x = 0)
         return {"gravity_potential": -float(self.f @ x)}

@@ -23,6 +23,9 @@ class Inertia(Effect):
     def residual(self, x, r):
         self.M.apply(x - self.target, r, 1.0 / self.h ** 2)
 
+    def potential(self, x):
+        return 0.5 / self.h ** 2 * self.M.quadratic(x - self.target)
+
     @timed("applies")
     def apply(self, v, y):
         self.M.apply(v, y, 1.0 / self.h ** 2)

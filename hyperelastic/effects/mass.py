@@ -20,6 +20,14 @@ class MassOperator:
         else:
             self.k.mass_apply(scale * self.coef, v, y)
 
+    def quadratic(self, v):
+        """v^T M v over the local cells (additive over ranks; lumped: the local vertex shares)."""
+        if self.lumped:
+            return float(self.diagonal @ (v * v))
+        y = np.zeros_like(v)
+        self.k.mass_apply(self.coef, v, y)
+        return float(v @ y)
+
     def add_diag(self, d, scale=1.0):
         d += scale * self.diagonal
 

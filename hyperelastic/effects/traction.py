@@ -27,6 +27,9 @@ class Traction(Effect):
     def residual(self, x, r):
         r -= self.s * self.f0
 
+    def potential(self, x):
+        return -self.s * float(self.f0 @ x)
+
     def energy(self, x, v):
         return {"traction_work": self.s * float(self.f0 @ x)}
 
@@ -38,6 +41,7 @@ class FollowerTwist(Effect):
     Its Jacobian -dF/dx is not symmetric (T is skew): use GMRES with it."""
     name = "follower_traction"
     symmetric = False
+    conservative = False   # t = T x with T skew has no potential
 
     def __init__(self, X, tris, k, scale=None, nlv=0):
         super().__init__()
