@@ -162,9 +162,7 @@ class BackwardEuler:
         cuts0 = self.solver.inversion_cuts
         w0 = time.perf_counter()
         sysm.begin_step(t1, h, self.x, self.v)
-        guess = self.x + (0.0 if self.scene.quasistatic else h) * self.v
-        self.X.getArray()[:] = sp.owned_array(guess)
-        sysm.impose_global(self.X)
+        self._initial_guess(h)
         reason = self.solver.solve(self.X)
         snes = self.solver.snes
         stats = {"step": self.step + 1, "time": t1, "dt": h, "snes_reason": int(reason),
@@ -200,6 +198,19 @@ class BackwardEuler:
             if k in en:
                 stats[k] = en[k]
         return stats
+
+    def _initial_guess(self, h):
+        """Newton's start in self.X: the explicit predictor x^n + h v^n with the step's boundary
+        positions. Where the material is undefined when inverted and that start inverts cells (fast
+        prescribed ends outrunning their neighbours' predicted motion), the previous positions x^n
+        instead, if they do not (the residual there is defined, so Newton can start)."""
+        sysm, sp = self.system, self.sp
+        guesses = [self.x + h * self.v] if not self.scene.quasistatic and self.v.any() else []
+        for guess in guesses + [self.x]:
+            self.X.getArray()[:] = sp.owned_array(guess)
+            sysm.impose_global(self.X)
+            if not sysm.check_domain or guess is self.x or sysm.defined_at(self.X):
+                return
 
     def _rejected(self, stats, w0):
         stats["wall_s"] = time.perf_counter() - w0

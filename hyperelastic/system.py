@@ -43,7 +43,8 @@ class System:
         self.residual_seconds = 0.0
         self.objective_evals = 0
         self.objective_seconds = 0.0
-        self.base = None                 # the Newton iterate the objective is measured from
+        self.base = None                 # the Newton iterate the objective is measured from ...
+        self.measured = False            # ... when set (set_objective_base)
         # the incremental potential exists when every effect has one (follower loads have none)
         self.conservative = all(e.conservative for e in effects)
         self.x_lin = None
@@ -137,11 +138,13 @@ class System:
 
     def set_objective_base(self, X):
         """The Newton iterate Z the objective is measured from (None: absolute energies)."""
+        self.measured = X is not None
         if X is None:
-            self.base = None
             return
-        self.base = X.copy()
-        self.base_E, self.base_mag = self.energy(X)
+        if self.base is None:
+            self.base = X.duplicate()
+        X.copy(self.base)
+        self.base_E = None                # E(Z), computed when first needed
 
     def objective(self, X):
         """The SNES objective: E(X) - E(Z), Z the current Newton iterate (set_objective_base), or E(X)
@@ -153,15 +156,24 @@ class System:
         energies quartic along the line (linear, St.VK, inertia, damping, dead loads) and accurate to
         O(|d|^5) for the others; its rounding error is ~eps |R| |d|, which vanishes at convergence."""
         t0 = time.perf_counter()
-        E, mag = self.energy(X)
-        out = E
-        if self.base is not None and math.isfinite(E):
-            out = E - self.base_E
-            if abs(out) <= 1e-9 * max(mag, self.base_mag):
-                out = self._difference_by_gradient(X)
+        if self.measured and self._at_base(X):
+            out = 0.0                     # the line search's first evaluation: at Z itself
+        else:
+            E, mag = self.energy(X)
+            out = E
+            if self.measured and math.isfinite(E):
+                if self.base_E is None:
+                    self.base_E, self.base_mag = self.energy(self.base)
+                out = E - self.base_E
+                if abs(out) <= 1e-9 * max(mag, self.base_mag):
+                    out = self._difference_by_gradient(X)
         self.objective_evals += 1
         self.objective_seconds += time.perf_counter() - t0
         return out
+
+    def _at_base(self, X):
+        same = bool(np.array_equal(X.getArray(readonly=True), self.base.getArray(readonly=True)))
+        return self.space.mpi.allreduce(same, op=MPI.LAND)
 
     def _difference_by_gradient(self, X):
         D = X.copy()
@@ -173,6 +185,12 @@ class System:
             self.residual(P, R)
             total += 0.5 * R.dot(D)
         return total
+
+    def defined_at(self, X):
+        """Whether the material is defined in every cell at X (constrained dofs imposed), on all ranks."""
+        x = self.impose(self.local(X, self.xl).copy())
+        bad = sum(e.k.energy(x)[3] for e in self.effects if getattr(e, "material", None) is not None)
+        return self.space.mpi.allreduce(bad, op=MPI.SUM) == 0
 
     def undefined_cells(self):
         """Cells (on all ranks) where the material was undefined at the last residual; only

@@ -166,3 +166,16 @@ def test_recipes_agree_with_default(tmp_path, recipe):
     assert d["x"].shape == r["x"].shape
     disp = np.abs(d["x"][-1] - d["points"]).max()
     assert np.abs(d["x"][-1] - r["x"][-1]).max() <= 1e-6 * disp
+
+
+@pytest.mark.parametrize("scene", ["bend", "squeeze", "sag"])
+def test_same_answer_as_the_residual_norm_merit(tmp_path, scene):
+    """Where both merits converge without rejection, the trajectories agree to the solver tolerance."""
+    base = ["run", scene, "-level", "1", "-final_time", "0.1", "-snes_rtol", "1e-10", "-snes_atol", "1e-9",
+            "-ksp_rtol", "1e-10", "-snes_stol", "0", "-quiet"]
+    run_ok(base + ["-output", tmp_path / "e.h5"])
+    run_ok(base + ["-objective", "0", "-output", tmp_path / "r.h5"])
+    e, r = read_h5(tmp_path / "e.h5"), read_h5(tmp_path / "r.h5")
+    assert e["stats"]["rejected"].sum() == 0 and r["stats"]["rejected"].sum() == 0
+    disp = np.abs(r["x"][-1] - r["points"]).max()
+    assert np.abs(e["x"] - r["x"]).max() <= 1e-8 * disp

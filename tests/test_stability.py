@@ -198,8 +198,9 @@ def quick(tmp_path_factory):
 
 def test_quick_matrix_properties(quick):
     """No NaN/Inf anywhere; energy never grows without external work; rigid motions stay rigid;
-    snh unfolds; stiff cells do not fail; nu = 0.499 finishes."""
+    snh unfolds; no cell fails unless physics explains it (Neo-Hookean pushed through J = 0)."""
     assert S.violations(quick) == []
+    assert [r["id"] for r in quick if r["outcome"] == "failed"] == ["invert-neohookean-E1e6-nu0.3-h0.01-assembled"]
     assert all(r["outcome"] in ("finished", "recovered", "failed") for r in quick)
     for r in quick:
         if r["outcome"] == "failed":
@@ -228,6 +229,12 @@ def test_matrix_script_writes_report(tmp_path, quick):
     back = sm.read_rows(tmp_path / "s.csv")
     assert [r["id"] for r in back] == [r["id"] for r in quick]
     assert all(b["steps"] == q["steps"] and b["outcome"] == q["outcome"] for b, q in zip(back, quick))
+    # two matrices side by side: the totals, and the cells whose outcome changed
+    altered = [dict(r, outcome="failed", rejections=7) if r["id"] == back[0]["id"] else r for r in back]
+    lines = sm.compare(back, altered)
+    assert f"| failed | {sum(r['outcome'] == 'failed' for r in back)} | " \
+           f"{sum(r['outcome'] == 'failed' for r in altered)} |" in lines
+    assert [ln for ln in lines if ln.startswith(f"| {back[0]['id']} |")]
     sm.heatmap(quick, tmp_path / "s.png")
     assert sm.report(quick, str(tmp_path), "test") == []
     text = (tmp_path / "stability.md").read_text()
