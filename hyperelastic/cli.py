@@ -17,10 +17,46 @@ EXIT_USER, EXIT_SOLVE, EXIT_INTERNAL = 2, 3, 1
 
 
 def _petsc(argv):
+    _check_options_files(argv)
     import petsc4py
     petsc4py.init([sys.argv[0]] + list(argv))
     from petsc4py import PETSc
     return PETSc
+
+
+def _check_options_files(argv, chain=()):
+    """Every `-options_file F` of the arguments, and those the files include in turn, must be a
+    readable regular UTF-8 file that does not include itself: PETSc itself would print a multi-line
+    error and leave no communicator (missing file), wait forever (a FIFO), or recurse until SIGSEGV
+    (a file that includes itself, or two that include each other)."""
+    import shlex
+    for i, a in enumerate(argv):
+        if a != "-options_file":
+            continue
+        if i + 1 >= len(argv):
+            raise UserError("option -options_file: needs a file")
+        path = argv[i + 1]
+        real = os.path.realpath(path)
+        if real in chain:
+            names = " -> ".join([os.path.basename(c) for c in chain] + [os.path.basename(real)])
+            raise UserError(f"options file '{path}' includes itself ({names})")
+        if not os.path.isfile(path):
+            why = "does not exist" if not os.path.exists(path) else "is not a regular file"
+            raise UserError(f"options file '{path}' {why}")
+        try:
+            with open(path, encoding="utf-8") as fh:
+                text = fh.read()
+        except OSError as e:
+            raise UserError(f"options file '{path}': cannot be read ({e.strerror})") from None
+        except UnicodeDecodeError:
+            raise UserError(f"options file '{path}': not UTF-8 text") from None
+        inner = []
+        for line in text.splitlines():
+            try:
+                inner += shlex.split(line.split("#", 1)[0])
+            except ValueError:
+                continue   # a malformed line is PETSc's (or the scene reader's) to report
+        _check_options_files(inner, chain + (real,))
 
 
 def _restart_args(argv):
@@ -215,12 +251,11 @@ def _error(msg, every_rank=False):
     if comm is not None:   # no 'unused options' report after an error: the one line says what is wrong
         from petsc4py import PETSc
         PETSc.Options().setValue("options_left", "0")
-    if comm is not None:
+    try:
         rank = comm.getRank()
-    elif "mpi4py.MPI" in sys.modules:      # MPI is up but PETSc is not yet (e.g. run --restart)
-        rank = sys.modules["mpi4py.MPI"].COMM_WORLD.rank
-    else:
-        rank = 0
+    except (AttributeError, ValueError):   # PETSc not (or not successfully) initialized: ask MPI
+        from mpi4py import MPI
+        rank = MPI.COMM_WORLD.rank
     if every_rank or rank == 0:
         print(f"hyperelastic: error: {msg}", file=sys.stderr, flush=True)
 

@@ -203,3 +203,42 @@ def test_mesh_command(tmp_path):
     assert "vertices" in p.stdout and "tets" in p.stdout and "min edge" in p.stdout
     one_line_error(hyperelastic(["mesh", "nothing", "--level", "1", "-o", out]), "unknown mesh geometry")
     one_line_error(hyperelastic(["mesh", "bar", "--level", "0", "-o", out]), "level")
+
+
+def options_files(d):
+    """{case: (path given to -options_file, words of the error)}: files PETSc would choke on."""
+    os.makedirs(d, exist_ok=True)
+    j = lambda n: os.path.join(d, n)  # noqa: E731
+    with open(j("self.opts"), "w") as fh:
+        fh.write(f"-dt 0.01\n-options_file {j('self.opts')}\n")
+    with open(j("a.opts"), "w") as fh:
+        fh.write(f"-options_file {j('b.opts')}\n")
+    with open(j("b.opts"), "w") as fh:
+        fh.write(f"# b includes a\n-options_file {j('a.opts')}\n")
+    with open(j("utf16.opts"), "wb") as fh:
+        fh.write("-dt 0.01\n".encode("utf-16"))
+    os.mkfifo(j("fifo.opts"))
+    return {"missing": (j("missing.opts"), ("does not exist",)), "self": (j("self.opts"), ("includes itself",)),
+            "mutual": (j("a.opts"), ("a.opts -> b.opts -> a.opts",)), "directory": (d, ("not a regular file",)),
+            "fifo": (j("fifo.opts"), ("not a regular file",)), "utf16": (j("utf16.opts"), ("not UTF-8",))}
+
+
+@pytest.mark.parametrize("case", ["missing", "self", "mutual", "directory", "fifo", "utf16"])
+def test_bad_options_file(tmp_path, case):
+    """-options_file that is missing, includes itself (directly or through another), is a directory, a
+    FIFO or not UTF-8: one line, exit 2, within 20 s (no traceback, hang or SIGSEGV), files untouched."""
+    cases = options_files(str(tmp_path / "o"))
+    path, words = cases[case]
+    before = {f: open(f, "rb").read() for f in (str(tmp_path / "o" / n) for n in ("self.opts", "a.opts", "b.opts"))}
+    p = hyperelastic(["run", "bend", "-options_file", path, "-quiet", "-output", tmp_path / "o.h5"], timeout=20)
+    assert p.returncode == 2
+    one_line_error(p, *words)
+    assert {f: open(f, "rb").read() for f in before} == before
+    assert not (tmp_path / "o.h5").exists()
+
+
+def test_bad_options_file_under_mpi(tmp_path):
+    path, words = options_files(str(tmp_path / "o"))["mutual"]
+    p = hyperelastic(["run", "bend", "-options_file", path, "-quiet"], nprocs=2, timeout=60)
+    assert p.returncode == 2
+    one_line_error(p, *words)
