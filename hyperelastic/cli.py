@@ -115,14 +115,24 @@ def run(argv):
     quiet = opts.flag("quiet")
     collective(comm, lambda: check_output_path(out))      # before any expensive work
     model = build_model(scene, comm)
+    ts = None
+    if scene.integrator == "ts":
+        from .ts_integrator import make_ts
+        ts = make_ts(comm)
     solver = Solver(model.system, scene.jacobian, scene.assembly, guard=scene.inversion_guard,
-                    objective=scene.objective)
+                    objective=scene.objective and ts is None, snes=ts.getSNES() if ts else None)
     if solver.merit_note and not quiet and comm.getRank() == 0:
         print(f"note: {solver.merit_note}", file=sys.stderr)
     attrs = run_attributes(model, scene_file, solver)
     stage.pop()
     writer = Writer(out, model.space, model.points, model.tets, attrs, resume=restart)
-    integ = BackwardEuler(scene, model.system, solver, writer, model.x0, model.v0, checkpoint=restart, quiet=quiet)
+    if ts is not None:
+        from .ts_integrator import GeneralizedAlpha
+        integ = GeneralizedAlpha(scene, model.system, solver, writer, model.x0, model.v0, ts, checkpoint=restart,
+                                 quiet=quiet)
+    else:
+        integ = BackwardEuler(scene, model.system, solver, writer, model.x0, model.v0, checkpoint=restart,
+                              quiet=quiet)
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, lambda signum, frame: integ.request_stop(signum))
     try:

@@ -18,31 +18,129 @@ def step_count(final_time, dt):
     return n
 
 
-class BackwardEuler:
-    def __init__(self, scene, system, solver, writer, x0, v0, checkpoint=None, quiet=False):
-        """Steps the system from the initial state (x0, v0: local arrays at t = 0), or from a
-        checkpoint's state (output.read_checkpoint) when given, writing frames and statistics to
-        `writer` (None: nothing is written). The scene gives the time settings."""
+class Integrator:
+    """What every time integrator of a run shares: the state (x, v, t, step), frames, statistics
+    rows, checkpoints, clean stops on SIGINT/SIGTERM and the progress line."""
+
+    def __init__(self, scene, system, solver, writer, x0, v0, quiet=False):
         self.scene, self.system, self.solver, self.writer = scene, system, solver, writer
         self.quiet = quiet
-        sp = system.space
-        self.sp = sp
-        self.X = sp.global_vec()
+        self.sp = system.space
         self.x, self.v = x0, v0
         self.t = 0.0
         self.step = 0
-        self.h_try = None      # step size of the next attempt (step control)
-        self.streak = 0        # accepted steps since the last change of h_try
         self.rejections = 0
-        self.n0 = 0            # nominal steps already done (a restart starts later)
         self.signal = 0        # set by request_stop (the SIGINT/SIGTERM handler of the command line)
         self.stages = {k: PETSc.Log.Stage(k) for k in ("Step", "Output")}
-        if checkpoint is not None:
-            self._resume(checkpoint)
+        system.begin_step(0.0, scene.dt, x0, v0)
+        self.energy0 = total_energy(system.energies(x0, v0))   # for energy_dissipated
 
     def request_stop(self, signum):
         """Stop at the next frame with a checkpoint (honoured on every rank)."""
         self.signal = signum
+
+    def _say(self, line):
+        """A progress line on stderr (rank 0; not with -quiet)."""
+        if not self.quiet and self.sp.mpi.rank == 0:
+            print(line, file=sys.stderr, flush=True)
+
+    def _write_stats(self, stats):
+        self.stages["Output"].push()
+        if self.writer:
+            self.writer.stats(stats)
+        self.stages["Output"].pop()
+
+    def _energy_stats(self, x1, v1, stats):
+        """The energies of the state (x1, v1) into the stats row; False if they or x1 are not finite."""
+        en = self.system.energies(x1, v1)
+        vals = [en.get("kinetic", 0.0), en["elastic"]] + [en[k] for k in ("gravity_potential", "traction_work")
+                                                        if k in en]
+        finite = self.sp.mpi.allreduce(bool(np.isfinite(x1).all()), op=MPI.LAND) and all(map(math.isfinite, vals))
+        if not finite:
+            return False
+        tot = total_energy(en)
+        stats.update({"kinetic": en.get("kinetic", 0.0), "elastic": en["elastic"], "J_min": en["J_min"],
+                      "J_max": en["J_max"], "energy_total": tot, "energy_dissipated": self.energy0 - tot})
+        for k in ("gravity_potential", "traction_work"):
+            if k in en:
+                stats[k] = en[k]
+        return True
+
+    def _output(self, n_done, framed, last, x_frame=None):
+        """After a completed step: the frame (x_frame, default the state's x), a checkpoint every
+        -checkpoint_every steps, and a stop on a signal (all ranks agree). Returns whether a
+        checkpoint was written."""
+        sc = self.scene
+        self.stages["Output"].push()
+        if self.writer and framed:
+            self.writer.frame(self.t, self.x if x_frame is None else x_frame)
+        # a signal is honoured at a frame (all ranks agree), after a checkpoint of that state
+        stop = framed and self.sp.mpi.allreduce(self.signal, op=MPI.MAX)
+        ck = bool(sc.checkpoint_every and n_done % sc.checkpoint_every == 0 and not last)
+        if self.writer and (stop or ck):
+            self.checkpoint(n_done)
+        self.stages["Output"].pop()
+        if stop:
+            name = signal.Signals(stop).name
+            if self.writer:
+                self.writer.set_attr("interrupted", f"{name} at t={self.t:.6g} (step {self.step})")
+            raise Interrupted(f"interrupted by {name} at t={self.t:.6g} (step {self.step}); state saved: "
+                              f"continue with `hyperelastic run --restart {self.writer.path if self.writer else 'FILE'}`",
+                              stop)
+        return ck and self.writer is not None
+
+    def _progress(self, state, n, nsteps, stats, t_start, force=False):
+        """The progress line, every 2 s and at the end (state: {'last_print': time})."""
+        now = time.perf_counter()
+        if not self.quiet and self.sp.mpi.rank == 0 and (now - state["last_print"] > 2.0 or force):
+            state["last_print"] = now
+            rej = f" rejected {self.rejections}" if self.rejections else ""
+            of = f"/{nsteps}" if nsteps else ""
+            print(f"t={self.t:.4g}/{self.scene.final_time:.4g} step {n + 1}{of} newton {stats['newton_its']} "
+                  f"ksp {stats['ksp_its']}{rej} [{now - t_start:.1f} s]", file=sys.stderr, flush=True)
+
+    def _counters(self):
+        s = self.system
+        return (s.effect_counters(), s.residual_evals, s.residual_seconds, s.objective_evals, s.objective_seconds,
+                self.solver.inversion_cuts)
+
+    def _counter_stats(self, c0):
+        """The counters' increments since the snapshot c0 (_counters) as statistics columns."""
+        c1 = self._counters()
+        keys = ("residual_evals", "residual_seconds", "objective_evals", "objective_seconds", "inversion_cuts")
+        stats = {k: b - a for k, a, b in zip(keys, c0[1:], c1[1:])}
+        for name, (ev, ap, sec) in c1[0].items():
+            e0 = c0[0][name]
+            stats[effect_column(name, "evals")] = ev - e0[0]
+            stats[effect_column(name, "applies")] = ap - e0[1]
+            stats[effect_column(name, "seconds")] = sec - e0[2]
+        return stats
+
+    def _fail(self, where, why):
+        if self.writer:
+            self.writer.set_attr("failure", f"{where}: {why}")
+        raise SolveError(f"{where}: {why}")
+
+
+def total_energy(en):
+    """kinetic + elastic + gravity potential - traction work of an energies() dict: the energy a
+    conservative scene keeps (with a ramped traction, the load's potential moves with the ramp)."""
+    return (en.get("kinetic", 0.0) + en["elastic"] + en.get("gravity_potential", 0.0)
+            - en.get("traction_work", 0.0))
+
+
+class BackwardEuler(Integrator):
+    def __init__(self, scene, system, solver, writer, x0, v0, checkpoint=None, quiet=False):
+        """Steps the system from the initial state (x0, v0: local arrays at t = 0), or from a
+        checkpoint's state (output.read_checkpoint) when given, writing frames and statistics to
+        `writer` (None: nothing is written). The scene gives the time settings."""
+        super().__init__(scene, system, solver, writer, x0, v0, quiet)
+        self.X = self.sp.global_vec()
+        self.h_try = None      # step size of the next attempt (step control)
+        self.streak = 0        # accepted steps since the last change of h_try
+        self.n0 = 0            # nominal steps already done (a restart starts later)
+        if checkpoint is not None:
+            self._resume(checkpoint)
 
     def run(self):
         """Steps of the nominal size -dt; frames every round(1/(fps dt)) of them. With step control
@@ -58,18 +156,13 @@ class BackwardEuler:
             self.system.begin_step(0.0, H, self.x, self.v)
             self.writer.frame(0.0, self.system.impose(self.x.copy()))
         t_start = time.perf_counter()
-        last_print = t_start
+        progress = {"last_print": t_start}
         self.h_try = H if self.h_try is None else self.h_try
         for n in range(self.n0, nsteps):
             t_end = self.t + (min(H, sc.final_time - self.t) if n == nsteps - 1 else H)
             stats = self._nominal_step(t_end, H)
-            self._after_step(n, nsteps, every)
-            now = time.perf_counter()
-            if not self.quiet and self.sp.mpi.rank == 0 and (now - last_print > 2.0 or n == nsteps - 1):
-                last_print = now
-                rej = f" rejected {self.rejections}" if self.rejections else ""
-                print(f"t={self.t:.4g}/{sc.final_time:.4g} step {n + 1}/{nsteps} newton {stats['newton_its']} "
-                      f"ksp {stats['ksp_its']}{rej} [{now - t_start:.1f} s]", file=sys.stderr, flush=True)
+            self._output(n + 1, (n + 1) % every == 0 or n == nsteps - 1, n == nsteps - 1)
+            self._progress(progress, n, nsteps, stats, t_start, force=n == nsteps - 1)
         return self
 
     def _nominal_step(self, t_end, H):
@@ -83,47 +176,18 @@ class BackwardEuler:
             why = stats.pop("why", None)
             if stats["rejected"]:
                 self._say(f"t={self.t:.4g}: step of h={h:.3g} rejected: {why}")
-            self.stages["Output"].push()
-            if self.writer:
-                self.writer.stats(stats)
-            self.stages["Output"].pop()
+            self._write_stats(stats)
             if stats["rejected"]:
                 self.rejections += 1
                 self.streak = 0
                 self.h_try = 0.5 * h
                 if not sc.step_control or self.h_try < sc.dt_min:
-                    self._fail(stats, why)
+                    self._fail_step(stats, why)
                 continue
             self.streak += 1
             if self.h_try < H and self.streak >= sc.dt_grow_after:
                 self.h_try, self.streak = min(2 * self.h_try, H), 0
         return stats
-
-    def _say(self, line):
-        """A progress line on stderr (rank 0; not with -quiet)."""
-        if not self.quiet and self.sp.mpi.rank == 0:
-            print(line, file=sys.stderr, flush=True)
-
-    def _after_step(self, n, nsteps, every):
-        """After nominal step n: the frame, a checkpoint, and a stop on a signal (all ranks agree)."""
-        sc = self.scene
-        self.stages["Output"].push()
-        framed = (n + 1) % every == 0 or n == nsteps - 1
-        if self.writer and framed:
-            self.writer.frame(self.t, self.x)
-        # a signal is honoured at a frame (all ranks agree), after a checkpoint of that state
-        stop = framed and self.sp.mpi.allreduce(self.signal, op=MPI.MAX)
-        ck = sc.checkpoint_every and (n + 1) % sc.checkpoint_every == 0 and n < nsteps - 1
-        if self.writer and (stop or ck):
-            self.checkpoint(n + 1)
-        self.stages["Output"].pop()
-        if stop:
-            name = signal.Signals(stop).name
-            if self.writer:
-                self.writer.set_attr("interrupted", f"{name} at t={self.t:.6g} (step {self.step})")
-            raise Interrupted(f"interrupted by {name} at t={self.t:.6g} (step {self.step}); state saved: "
-                              f"continue with `hyperelastic run --restart {self.writer.path if self.writer else 'FILE'}`",
-                              stop)
 
     def checkpoint(self, n):
         self.writer.checkpoint(self.x, self.v, t=self.t, step=self.step, n=n, h_try=self.h_try, streak=self.streak,
@@ -136,14 +200,12 @@ class BackwardEuler:
         self.t, self.step, self.n0 = float(state["t"]), int(state["step"]), int(state["n"])
         self.h_try, self.streak, self.rejections = float(state["h_try"]), int(state["streak"]), int(state["rejections"])
 
-    def _fail(self, stats, why):
+    def _fail_step(self, stats, why):
         sc = self.scene
         where = f"step {self.step + 1} (t={stats['time']:.6g}, h={stats['dt']:.3g})"
         if sc.step_control:
             why += f"; step control reached -dt_min {sc.dt_min:.3g} after {self.rejections} rejected attempts"
-        if self.writer:
-            self.writer.set_attr("failure", f"{where}: {why}")
-        raise SolveError(f"{where}: {why}")
+        self._fail(where, why)
 
     def advance(self, h, t1=None):
         """One attempt of a step of size h from (x, v, t) to t1 (default t + h). Returns its stats
@@ -155,11 +217,8 @@ class BackwardEuler:
             self.stages["Step"].pop()
 
     def _advance(self, h, t1):
-        sysm, sp = self.system, self.sp
-        c0 = sysm.effect_counters()
-        r0, rs0 = sysm.residual_evals, sysm.residual_seconds
-        o0, os0 = sysm.objective_evals, sysm.objective_seconds
-        cuts0 = self.solver.inversion_cuts
+        sysm = self.system
+        c0 = self._counters()
         w0 = time.perf_counter()
         sysm.begin_step(t1, h, self.x, self.v)
         self._initial_guess(h)
@@ -167,14 +226,7 @@ class BackwardEuler:
         snes = self.solver.snes
         stats = {"step": self.step + 1, "time": t1, "dt": h, "snes_reason": int(reason),
                  "newton_its": snes.getIterationNumber(), "ksp_its": snes.getLinearSolveIterations(),
-                 "residual_evals": sysm.residual_evals - r0, "residual_seconds": sysm.residual_seconds - rs0,
-                 "objective_evals": sysm.objective_evals - o0, "objective_seconds": sysm.objective_seconds - os0,
-                 "inversion_cuts": self.solver.inversion_cuts - cuts0, "rejected": 1}
-        for name, (ev, ap, sec) in sysm.effect_counters().items():
-            e0 = c0[name]
-            stats[effect_column(name, "evals")] = ev - e0[0]
-            stats[effect_column(name, "applies")] = ap - e0[1]
-            stats[effect_column(name, "seconds")] = sec - e0[2]
+                 **self._counter_stats(c0), "rejected": 1}
         if reason <= 0:
             name = self.solver.reason_name(reason)
             if name == "DIVERGED_LINEAR_SOLVE":
@@ -183,20 +235,12 @@ class BackwardEuler:
             return self._rejected(stats, w0)
         x1 = sysm.impose(sysm.local(self.X, sysm.xl).copy())
         v1 = np.zeros_like(x1) if self.scene.quasistatic else (x1 - self.x) / h
-        en = sysm.energies(x1, v1)
-        vals = [en.get("kinetic", 0.0), en["elastic"]] + [en[k] for k in ("gravity_potential", "traction_work")
-                                                        if k in en]
-        finite = sp.mpi.allreduce(bool(np.isfinite(x1).all()), op=MPI.LAND) and all(map(math.isfinite, vals))
-        if not finite:   # a NaN/Inf state never reaches the output
+        if not self._energy_stats(x1, v1, stats):   # a NaN/Inf state never reaches the output
             stats["why"] = "non-finite positions or energies after a converged solve"
             return self._rejected(stats, w0)
         self.x, self.v, self.t = x1, v1, t1
         self.step += 1
-        stats.update({"rejected": 0, "kinetic": en.get("kinetic", 0.0), "elastic": en["elastic"],
-                      "J_min": en["J_min"], "J_max": en["J_max"], "wall_s": time.perf_counter() - w0})
-        for k in ("gravity_potential", "traction_work"):
-            if k in en:
-                stats[k] = en[k]
+        stats.update({"rejected": 0, "wall_s": time.perf_counter() - w0})
         return stats
 
     def _initial_guess(self, h):

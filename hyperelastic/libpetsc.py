@@ -16,6 +16,9 @@ def lib():
         path = max(glob.glob(os.path.join(d, "libpetsc.so*")), key=os.path.getsize)
         _lib = ctypes.CDLL(path)
         _lib.SNESSetFunctionDomainError.argtypes = [ctypes.c_void_p]
+        _lib.TSAlpha2GetParams.argtypes = [ctypes.c_void_p] + [ctypes.POINTER(ctypes.c_double)] * 4
+        _lib.TSEvaluateWLTE.argtypes = [ctypes.c_void_p, ctypes.c_int, ctypes.POINTER(ctypes.c_int),
+                                        ctypes.POINTER(ctypes.c_double)]
         _lib.PetscErrorMessage.argtypes = [ctypes.c_int, ctypes.POINTER(ctypes.c_char_p),
                                            ctypes.POINTER(ctypes.c_char_p)]
     return _lib
@@ -25,6 +28,24 @@ def set_function_domain_error(snes):
     """SNESSetFunctionDomainError: the residual was asked for outside the material's domain
     (an inverted element for Neo-Hookean); SNES then stops with DIVERGED_FUNCTION_DOMAIN."""
     lib().SNESSetFunctionDomainError(ctypes.c_void_p(snes.handle))
+
+
+def alpha2_params(ts):
+    """TSAlpha2GetParams: (alpha_m, alpha_f, gamma, beta) in use now (TSALPHA2 sets (1, 1, 1, 1/2) while
+    it computes its starting acceleration by two backward Euler half steps)."""
+    v = [ctypes.c_double() for _ in range(4)]
+    err = lib().TSAlpha2GetParams(ctypes.c_void_p(ts.handle), *[ctypes.byref(x) for x in v])
+    if err:
+        raise RuntimeError(f"TSAlpha2GetParams failed ({err})")
+    return tuple(x.value for x in v)
+
+
+def evaluate_wlte(ts):
+    """TSEvaluateWLTE in the infinity norm: the weighted local truncation error estimate of the last
+    step (what the adaptor compares with 1), or -1 where the method has none (no adaptor)."""
+    order, w = ctypes.c_int(), ctypes.c_double()
+    err = lib().TSEvaluateWLTE(ctypes.c_void_p(ts.handle), 3, ctypes.byref(order), ctypes.byref(w))   # NORM_INFINITY
+    return w.value if not err else -1.0
 
 
 def error_message(code):

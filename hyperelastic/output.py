@@ -46,7 +46,7 @@ def run_attributes(model, scene_file, solver):
             "scene": sc.name, "scene_file": os.path.abspath(scene_file), "effects": ",".join(sc.effects),
             "effects_built": json.dumps(built, sort_keys=True), "hyperelastic_version": __version__,
             "petsc_version": ".".join(map(str, PETSc.Sys.getVersion())), "mpi_ranks": space.comm.getSize(),
-            "jacobian": sc.jacobian + (f" ({solver.mf})" if solver.mf else ""),
+            "jacobian": sc.jacobian + (f" ({solver.mf})" if solver.mf else ""), "integrator": sc.integrator,
             "line_search_merit": solver.merit + (f" ({solver.merit_note})" if solver.merit_note else ""),
             "material": sc.material.name, "E": sc.E, "nu": sc.nu, "rho": sc.rho,
             "mesh": os.path.abspath(sc.mesh) if sc.mesh else f"bar level {sc.level}",

@@ -51,9 +51,11 @@ class Scene:
     inversion_guard: bool = False # shorten Newton updates that would invert an element (default: on for
                                   # materials undefined when inverted)
     checkpoint_every: int = 0     # write the full state every N steps (0: only on SIGINT/SIGTERM)
+    integrator: str = "beuler"    # beuler: backward Euler (thesis); ts: PETSc TS (-ts_type alpha2)
 
 
 JACOBIANS = ("assembled", "shell", "seed_fd", "seed_fd2")
+INTEGRATORS = ("beuler", "ts")
 ASSEMBLIES = ("setvalues", "coo")
 
 
@@ -120,6 +122,9 @@ def _read_time(s, opts):
         raise UserError(f"option -dt_min: {s.dt_min:g} must be <= -dt {s.dt:g}")
     s.dt_grow_after = opts.integer("dt_grow_after", s.dt_grow_after, minimum=1)
     s.checkpoint_every = opts.integer("checkpoint_every", s.checkpoint_every, minimum=0)
+    s.integrator = opts.choice("integrator", INTEGRATORS, s.integrator)
+    if s.integrator == "ts" and s.quasistatic:
+        raise UserError("option -integrator ts: integrates dynamics; -quasistatic steps use -integrator beuler")
 
 
 def _read_solver(s, opts):

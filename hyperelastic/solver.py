@@ -40,36 +40,44 @@ def matrix_free():
 
 
 class Solver:
-    def __init__(self, system, jacobian, assembly="setvalues", guard=False, objective=True):
+    def __init__(self, system, jacobian, assembly="setvalues", guard=False, objective=True, snes=None):
         """SNES on the system's residual with Jacobian mode `jacobian` (scene.JACOBIANS; filled by
         `assembly` when assembled); guard: shorten Newton updates that would invert an element;
         objective: register the system's incremental potential as the SNES objective (the line
-        search merit) when every effect has one (`merit`; `merit_note` says why not otherwise)."""
+        search merit) when every effect has one (`merit`; `merit_note` says why not otherwise).
+        snes: a PETSc TS's SNES (ts_integrator.py), whose function and Jacobian the TS sets and whose
+        options the TS reads; the operator `op` is built here all the same."""
         self.system = system
         sp = system.space
         self.merit_note = ""
-        if objective and not system.conservative:
+        if snes is not None and objective:
+            self.merit_note = "under -integrator ts the line search merit is the residual norm"
+        elif objective and not system.conservative:
             self.merit_note = (f"{', '.join(system.nonconservative())} has no potential: the line search "
                                "merit is the residual norm")
-        self.merit = MERITS[0] if objective and system.conservative else MERITS[1]
+        self.merit = MERITS[0] if objective and system.conservative and snes is None else MERITS[1]
         apply_defaults(self.merit)
         self.mf = matrix_free()
         self.R = sp.global_vec()
-        self.snes = snes = PETSc.SNES().create(comm=sp.comm)
-        snes.setFunction(self._residual, self.R)
+        own = snes is None
+        self.snes = snes = PETSc.SNES().create(comm=sp.comm) if own else snes
+        if own:
+            snes.setFunction(self._residual, self.R)
         if self.merit == "energy":
             snes.setObjective(self._objective)
             snes.setUpdate(self._newton_iterate)
         self.op = None
         if self.mf != "mf":   # under -snes_mf no Jacobian of ours is used: do not build one
             self.op = jacobians.make(system, jacobian, assembly)
-            snes.setJacobian(self._jacobian, self.op.mat, self.op.mat)
+            if own:
+                snes.setJacobian(self._jacobian, self.op.mat, self.op.mat)
         self.inversion_cuts = 0   # Newton updates shortened so that no element inverts
         self.guard = None
         if guard:
             self.guard = system.elastic_kernels()
             snes.setLineSearchPreCheck(self._precheck)
-        snes.setFromOptions()
+        if own:
+            snes.setFromOptions()
         self.ev_res = PETSc.Log.Event("HE_Residual")
         self.ev_jac = PETSc.Log.Event("HE_Jacobian")
 
@@ -116,13 +124,13 @@ class Solver:
         return self.snes.getConvergedReason()
 
     def reason_name(self, reason):
-        return _name(PETSc.SNES.ConvergedReason, reason)
+        return enum_name(PETSc.SNES.ConvergedReason, reason)
 
     def ksp_reason_name(self):
         """The last Krylov solve's converged reason, by name."""
-        return _name(PETSc.KSP.ConvergedReason, self.snes.getKSP().getConvergedReason())
+        return enum_name(PETSc.KSP.ConvergedReason, self.snes.getKSP().getConvergedReason())
 
 
-def _name(enum, value):
+def enum_name(enum, value):
     names = {v: k for k, v in vars(enum).items() if isinstance(v, int) and not k.startswith("_")}
     return names.get(value, str(value))

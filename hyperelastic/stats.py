@@ -25,6 +25,12 @@ COLUMNS = {
     "J_max": (float, "largest volume ratio det F over the cells after the step"),
     "gravity_potential": (float, "potential of gravity -f.x [J] (scenes with gravity)"),
     "traction_work": (float, "work potential f.x of the dead-load traction [J] (scenes with traction)"),
+    "energy_total": (float, "kinetic + elastic + gravity potential - traction work after the step [J]"),
+    "energy_dissipated": (float, "total energy at t = 0 minus energy_total [J]: physical damping plus the "
+                                 "integrator's numerical dissipation (and the work of prescribed motions)"),
+    "error_estimate": (float, "-integrator ts with an adaptor: the step's weighted local error estimate "
+                              "(TSEvaluateWLTE, accepted when <= 1)"),
+    "dt_next": (float, "-integrator ts: the step size chosen for the next step [s]"),
 }
 # effect_<name>_<kind>, for every effect the run built
 EFFECT_COLUMNS = {

@@ -34,6 +34,7 @@ class System:
         self.g = np.zeros(n)                                    # prescribed positions (local)
         self.xl = space.local_vec()
         self.vl = space.local_vec()
+        self.al = None                   # accelerations (second-order form only)
         self.scale = 1.0
         # materials undefined for J <= 0: every residual counts the cells where they were evaluated there
         self.check_domain = any(not getattr(getattr(e, "material", None), "defined_when_inverted", True)
@@ -73,6 +74,24 @@ class System:
             g[c.vertices] = c.positions(t)
         self.g_owned_c = self.space.owned_array(self.g)[self.c_owned_pos]   # targets of the owned rows
 
+    def begin_stage(self, t_stage, t1, h, xn, vn, alpha_f):
+        """The second-order (PETSc TS, generalized-alpha) form at the stage time t_stage of a step of size h
+        from (xn, vn) to t1: the loads at t_stage, and the constrained dofs' targets at the stage,
+        x_a = xn + alpha_f (g(t1) - xn) (what TSALPHA2 computes from X1 when X1_c = g(t1))."""
+        self.begin_step(t1, h, xn, vn)
+        for e in self.effects:
+            if e.order == 0:
+                e.begin_step(t_stage, h, xn, vn)
+        c = self.cdofs
+        self.g[c] = alpha_f * (self.g[c] - xn[c]) + xn[c]
+        self.g_owned_c = self.space.owned_array(self.g)[self.c_owned_pos]
+
+    def set_rate_weights(self, shift_v, shift_a):
+        """Jacobian weights of the damping (shift_v) and inertia (shift_a) effects."""
+        for e in self.effects:
+            if e.order:
+                e.set_weight(shift_v if e.order == 1 else shift_a)
+
     def impose(self, x):
         """x (local array) with constrained dofs set to their prescribed positions."""
         x[self.cdofs] = self.g[self.cdofs]
@@ -96,6 +115,33 @@ class System:
         t0 = time.perf_counter()
         x = self.impose(self.local(X, self.xl).copy())
         r = self.residual_local(x)
+        self.finish(r, X, R)
+        self.residual_evals += 1
+        self.residual_seconds += time.perf_counter() - t0
+
+    def residual_rates(self, X, V, A, R, shift_v, shift_a):
+        """R = F(x, v, a) = M a + C v + k(x) - f at the stage (begin_stage), with the constrained rows
+        s (X_c - g_c). The free rows are evaluated at the state the step has when its constrained dofs
+        are on target: x_c = g_c, and v_c, a_c moved by shift_v d, shift_a d (d = g_c - X_c), the
+        derivatives of the stage velocity and acceleration with respect to the stage position. So
+        they do not depend on X_c, and the Jacobian is [[J_ff, 0], [0, s I]] as in backward Euler."""
+        t0 = time.perf_counter()
+        x = self.local(X, self.xl).copy()
+        v = self.local(V, self.vl).copy()
+        if self.al is None:
+            self.al = self.space.local_vec()
+        a = self.local(A, self.al).copy()
+        c = self.cdofs
+        d = self.g[c] - x[c]
+        x[c] = self.g[c]
+        v[c] += shift_v * d
+        a[c] += shift_a * d
+        r = np.zeros_like(x)
+        for e in self.effects:
+            if e.order == 0:
+                e.residual(x, r)
+            else:
+                e.rate_residual(v if e.order == 1 else a, r)
         self.finish(r, X, R)
         self.residual_evals += 1
         self.residual_seconds += time.perf_counter() - t0

@@ -5,6 +5,12 @@ A conservative effect also gives its part of the incremental potential
     E(x) = 1/2 h^-2 (x - x^)^T M (x - x^) + 1/2 h^-1 (x - x^n)^T C (x - x^n) + Psi(x) - f^T x,
 x^ = x^n + h v^n, whose gradient is R (the SNES objective: backward Euler as energy minimization).
 
+Under PETSc TS (ts_integrator.py) the same effects give the second-order form
+    F(t, x, v, a) = M a + C v + k(x) - f(t)
+with Jacobian K + shift_v C + shift_a M: an effect of `order` 1 (damping) or 2 (inertia) adds its
+operator applied to v or a (`rate_residual`), and its Jacobian weight becomes the shift (`set_weight`)
+instead of 1/h or 1/h^2; the effects of order 0 are used as they are, at the stage time.
+
 All arrays are local (owned + ghost vertices, 3 dofs each); contributions are additive over the
 cells a rank owns, so summing local arrays into the global vector assembles them.
 """
@@ -19,6 +25,7 @@ class Effect:
     conservative = True    # the residual is the gradient of `potential` (the SNES objective, see system.py)
     cell_blocks = False    # contributes 12x12 blocks on the cell pattern
     symmetric = True
+    order = 0              # 0: acts on positions; 1: on velocities (damping); 2: on accelerations (inertia)
 
     def __init__(self):
         self.evals = 0       # residual evaluations
@@ -31,6 +38,13 @@ class Effect:
 
     def residual(self, x, r):
         """r += this effect's residual at local positions x."""
+
+    def rate_residual(self, u, r):
+        """r += this effect's operator applied to u (v for order 1, a for order 2; TS form)."""
+        raise NotImplementedError(f"{self.name} has no rate form")
+
+    def set_weight(self, w):
+        """The Jacobian weight of an order 1 or 2 effect (1/h or 1/h^2 in backward Euler; TS: the shift)."""
 
     def linearize(self, x):
         """Remember the linearization point for apply/diag/values."""

@@ -5,9 +5,11 @@ from .mass import MassOperator
 
 
 class ViscousDamping(Effect):
-    """Viscous damping C (x - x^n)/h, C = c int N^T N dV (thesis eqs. 4.15, 4.40); Jacobian C/h."""
+    """Viscous damping C (x - x^n)/h, C = c int N^T N dV (thesis eqs. 4.15, 4.40); Jacobian C/h.
+    Under PETSc TS: C v, Jacobian weight shift_v."""
     name = "damping"
     cell_blocks = True
+    order = 1
 
     def __init__(self, kernels, c, lumped, nlv):
         super().__init__()
@@ -16,39 +18,50 @@ class ViscousDamping(Effect):
 
     def begin_step(self, t, h, xn, vn):
         self.h = h
+        self.w = 1.0 / h           # weight of C in the Jacobian
         self.xn = xn
 
     @timed("evals")
     def residual(self, x, r):
-        self.C.apply(x - self.xn, r, 1.0 / self.h)
+        self.C.apply(x - self.xn, r, self.w)
+
+    @timed("evals")
+    def rate_residual(self, v, r):
+        """r += C v (TS form)."""
+        self.C.apply(v, r, 1.0)
+
+    def set_weight(self, w):
+        self.w = w
 
     def potential(self, x):
         return 0.5 / self.h * self.C.quadratic(x - self.xn)
 
     @timed("applies")
     def apply(self, v, y):
-        self.C.apply(v, y, 1.0 / self.h)
+        self.C.apply(v, y, self.w)
 
     @timed("applies")
     def diag(self, d):
-        self.C.add_diag(d, 1.0 / self.h)
+        self.C.add_diag(d, self.w)
 
     @timed("applies")
     def add_cell_blocks(self, vals, lo=0, hi=None):
-        self.C.add_blocks(vals, 1.0 / self.h, lo, hi)
+        self.C.add_blocks(vals, self.w, lo, hi)
 
     def coo_pattern(self):
         return self.C.coo_pattern()
 
     def coo_values(self, out):
-        self.C.coo_values(out, 1.0 / self.h)
+        self.C.coo_values(out, self.w)
 
 
 class RayleighDamping(Effect):
     """Rayleigh damping (alpha M + beta K(x^n)) (x - x^n)/h. The stiffness is frozen at the start
-    of the step, so the residual is affine in x and its Jacobian (alpha M + beta K(x^n))/h is exact."""
+    of the step, so the residual is affine in x and its Jacobian (alpha M + beta K(x^n))/h is exact.
+    Under PETSc TS: (alpha M + beta K(x^n)) v, x^n the state at the start of the step, weight shift_v."""
     name = "rayleigh"
     cell_blocks = True
+    order = 1
 
     def __init__(self, kernels, rho, alpha, beta, lumped, nlv):
         super().__init__()
@@ -58,14 +71,23 @@ class RayleighDamping(Effect):
 
     def begin_step(self, t, h, xn, vn):
         self.h = h
+        self.w, self.bw = 1.0 / h, self.beta / h     # weights of M and K(x^n)
         self.xn = xn.copy()
 
-    def _apply(self, v, y):
-        self.M.apply(v, y, 1.0 / self.h)
+    def set_weight(self, w):
+        self.w, self.bw = w, self.beta * w
+
+    def _apply(self, v, y, w=None, bw=None):
+        self.M.apply(v, y, self.w if w is None else w)
         if self.beta:
             tmp = np.zeros_like(y)
             self.k.kv(self.xn, v, tmp)
-            y += (self.beta / self.h) * tmp
+            y += (self.bw if bw is None else bw) * tmp
+
+    @timed("evals")
+    def rate_residual(self, v, r):
+        """r += (alpha M + beta K(x^n)) v (TS form)."""
+        self._apply(v, r, 1.0, self.beta)
 
     @timed("evals")
     def residual(self, x, r):
@@ -83,22 +105,22 @@ class RayleighDamping(Effect):
 
     @timed("applies")
     def diag(self, d):
-        self.M.add_diag(d, 1.0 / self.h)
+        self.M.add_diag(d, self.w)
         if self.beta:
             tmp = np.zeros_like(d)
             self.k.tangent_diag(self.xn, tmp)
-            d += (self.beta / self.h) * tmp
+            d += self.bw * tmp
 
     @timed("applies")
     def add_cell_blocks(self, vals, lo=0, hi=None):
-        self.M.add_blocks(vals, 1.0 / self.h, lo, hi)
+        self.M.add_blocks(vals, self.w, lo, hi)
         if self.beta:
             k = self.k if lo == 0 and hi in (None, self.k.nc) else self.k.part(lo, hi)
             K, _ = k.tangent(self.xn)             # scaled by beta/h, so not accumulated in place
-            vals += (self.beta / self.h) * K
+            vals += self.bw * K
 
     def coo_pattern(self):
         return self.M.coo_pattern()
 
     def coo_values(self, out):
-        self.M.coo_values(out, 1.0 / self.h)
+        self.M.coo_values(out, self.w)

@@ -1,0 +1,262 @@
+"""Dynamics through PETSc TS (-integrator ts): the second-order form
+    F(t, x, v, a) = M a + C v + k(x) - f(t) = 0,   dF/dx + shift_v dF/dv + shift_a dF/da = K + shift_v C + shift_a M
+registered with TSSetI2Function / TSSetI2Jacobian and integrated by TSALPHA2, the generalized-alpha
+method for second-order systems (Chung & Hulbert 1993; -ts_alpha_radius rho_inf, -ts_alpha_alpha_m ...),
+with PETSc's step adaptors (-ts_adapt_type none|basic|dsp, -ts_rtol, -ts_atol, -ts_adapt_monitor).
+
+The same effects (effects/base.py: order 0, 1 and 2 terms), Jacobian modes, MFFD options and Dirichlet
+elimination as backward Euler (system.residual_rates); the TS's own SNES and KSP read the usual options.
+The run is stepped here, one TSStep at a time, so that frames land on their times, statistics rows
+(rejected attempts included) are written, checkpoints and signals work as in backward Euler.
+
+TSALPHA2 starts (and restarts) from (x, v) by estimating the acceleration with two backward Euler half
+steps; it keeps the acceleration internally, with no call to read or set it. So a checkpoint stores
+(x, v, t, h), and every -checkpoint_every checkpoint is also a TSRestartStep of the uninterrupted run:
+a restart from it repeats exactly what the run did (bitwise on the same rank count). A stop by
+SIGINT/SIGTERM between checkpoints restarts the acceleration estimate there, which the uninterrupted
+run did not: the continued run then agrees with it to the integrator's accuracy, not bitwise.
+"""
+import ctypes
+import math
+import time
+
+import numpy as np
+from mpi4py import MPI
+from petsc4py import PETSc
+
+from .errors import UserError
+from .integrators import Integrator, step_count
+from .libpetsc import alpha2_params, evaluate_wlte, lib, set_function_domain_error
+from .solver import enum_name
+
+STARTUP = (1.0, 1.0, 1.0, 0.5)   # TSALPHA2's parameters during its starting backward Euler half steps
+_POST_STAGE = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p, ctypes.c_double, ctypes.c_int32,
+                               ctypes.c_void_p)
+
+
+def apply_defaults():
+    """This application's TS defaults, where the options database does not set them: generalized-alpha;
+    a failed Newton solve is an ordinary rejected step (retried smaller) rather than the end of the run;
+    at most 20 rejected attempts per step."""
+    opts = PETSc.Options()
+    for k, v in (("ts_type", "alpha2"), ("ts_max_snes_failures", "-1"), ("ts_max_step_rejections", "20")):
+        if not opts.hasName(k):
+            opts.setValue(k, v)
+
+
+def make_ts(comm):
+    """The TS of a run (before the Solver, which configures its SNES)."""
+    apply_defaults()
+    ts = PETSc.TS().create(comm=comm)
+    ts.setType(PETSc.Options().getString("ts_type"))
+    if ts.getType() != "alpha2":
+        raise UserError(f"option -ts_type: '{ts.getType()}' is not supported (-integrator ts integrates the "
+                        "second-order form with alpha2)")
+    return ts
+
+
+class GeneralizedAlpha(Integrator):
+    def __init__(self, scene, system, solver, writer, x0, v0, ts, checkpoint=None, quiet=False):
+        super().__init__(scene, system, solver, writer, x0, v0, quiet)
+        sp = self.sp
+        self.ts = ts
+        self.snes = ts.getSNES()
+        self.stage_key = None
+        self.shifts = (0.0, 0.0)
+        self.attempts = []                   # SNES solves of the current TSStep (_post_stage)
+        self.c_last = self._counters()
+        self.w_last = time.perf_counter()
+        self.n0, self.h = 0, scene.dt
+        self.streak = 0
+        ts.setI2Function(self._function, sp.global_vec())
+        if solver.op is not None:
+            ts.setI2Jacobian(self._jacobian, solver.op.mat, solver.op.mat)
+        ts.setTimeStep(scene.dt)
+        ts.setMaxTime(scene.final_time)
+        ts.setExactFinalTime(PETSc.TS.ExactFinalTime.MATCHSTEP)
+        ts.setStepLimits(scene.dt_min, max(scene.final_time, scene.dt))
+        ts.setErrorIfStepFails(False)
+        ts.setFromOptions()
+        self.adaptive = PETSc.Options().getString("ts_adapt_type", "none") != "none"
+        self._callback = _POST_STAGE(self._post_stage)      # kept alive as long as the TS
+        lib().TSSetPostStage.argtypes = [ctypes.c_void_p, _POST_STAGE]
+        err = lib().TSSetPostStage(ctypes.c_void_p(ts.handle), self._callback)
+        if err:
+            raise RuntimeError(f"TSSetPostStage failed ({err})")
+        if checkpoint is not None:
+            self._resume(checkpoint)
+        self.U = sp.global_vec()
+        self.U.getArray()[:] = sp.owned_array(self.x)      # the state as TS had it (constrained dofs too)
+        self.V = sp.global_vec()
+        self.V.getArray()[:] = sp.owned_array(self.v)
+        ts.setTime(self.t)
+        ts.setStepNumber(self.step)
+        ts.setSolution2(self.U, self.V)
+        ts.setUp()
+
+    # --- the second-order form ------------------------------------------------------------------
+    def _stage(self, ts, t):
+        """Loads, constrained targets and Jacobian weights of the stage at time t of the current attempt."""
+        h = ts.getTimeStep()
+        p = alpha2_params(ts)
+        key = (t, h, p)
+        if key == self.stage_key:
+            return
+        self.stage_key = key
+        am, af, gamma, beta = p
+        t1 = t + (1.0 - af) * h               # the end of the step (stage time t = t_n + alpha_f h)
+        self.system.begin_stage(t, t1, h, self.x, self.v, af)
+        self.shifts = (gamma / (h * beta), am / (af * h * h * beta))   # dV/dX1, dA/dX1 over alpha_f (as TSALPHA2)
+        self.system.set_rate_weights(*self.shifts)
+
+    def _function(self, ts, t, U, V, A, R):
+        self._stage(ts, t)
+        self.system.residual_rates(U, V, A, R, *self.shifts)
+        if self.system.undefined_cells():
+            set_function_domain_error(self.snes)
+
+    def _jacobian(self, ts, t, U, V, A, shift_v, shift_a, J, P):
+        self._stage(ts, t)
+        self.system.set_rate_weights(shift_v, shift_a)
+        self.system.linearize(U)
+        self.solver.op.update()
+        if J.handle != P.handle:
+            J.assemble()   # MFFD operator (-snes_mf_operator): new base point
+
+    def _post_stage(self, ts_handle, t, stage, y):
+        """After every SNES solve of a step (TSPostStage): one attempt's figures."""
+        try:
+            snes = self.snes
+            reason = snes.getConvergedReason()
+            row = {"dt": self.ts.getTimeStep(), "stage_time": t, "startup": alpha2_params(self.ts) == STARTUP,
+                   "snes_reason": int(reason), "newton_its": snes.getIterationNumber(),
+                   "ksp_its": snes.getLinearSolveIterations(), **self._counter_stats(self.c_last),
+                   "wall_s": time.perf_counter() - self.w_last}
+            if reason <= 0:
+                name = self.solver.reason_name(reason)
+                if name == "DIVERGED_LINEAR_SOLVE":
+                    name += f": KSP {self.solver.ksp_reason_name()}"
+                row["why"] = f"SNES did not converge ({name}) after {row['newton_its']} Newton iterations"
+            self.attempts.append(row)
+            self.c_last, self.w_last = self._counters(), time.perf_counter()
+        except Exception as e:          # an exception cannot cross the C callback: keep it for step()
+            self.attempts.append({"error": e})
+        return 0
+
+    # --- stepping -----------------------------------------------------------------------------
+    def run(self):
+        """TSSteps until -final_time. Frames every round(1/(fps dt)) dt as in backward Euler: a step that
+        would pass a frame time is shortened to end on it. Without an adaptor the step is -dt, shortened
+        by PETSc after a failed solve and grown back (doubling) after -dt_grow_after accepted steps."""
+        sc, sysm = self.scene, self.system
+        every = max(1, int(round(1.0 / (sc.fps * sc.dt))))
+        period = every * sc.dt
+        nsteps = None if self.adaptive else step_count(sc.final_time, sc.dt)
+        if self.writer and self.n0 == 0 and self.step == 0:
+            sysm.begin_step(0.0, sc.dt, self.x, self.v)
+            self.writer.frame(0.0, sysm.impose(self.x.copy()))
+        t_start = time.perf_counter()
+        progress = {"last_print": t_start}
+        eps = 1e-9 * sc.dt
+        while self.t < sc.final_time - eps:
+            nxt = min((self.writer.nframes if self.writer else round(self.t / period) + 1) * period, sc.final_time)
+            if nxt <= self.t + eps:
+                nxt = min(nxt + period, sc.final_time)
+            h = min(self.h, nxt - self.t)
+            if nxt - (self.t + h) < eps:
+                h = nxt - self.t                 # end on the frame time exactly
+            stats = self._step(h)
+            framed = abs(self.t - nxt) <= eps or self.t >= sc.final_time - eps
+            if self._output(self.step, framed, self.t >= sc.final_time - eps, x_frame=self.x_out):
+                self.ts.restartStep()            # a checkpoint is where a restart begins (module doc)
+            self._progress(progress, self.step - 1, nsteps, stats, t_start, force=self.t >= sc.final_time - eps)
+        return self
+
+    def _step(self, h):
+        """One TSStep of (at most) size h: a stats row per attempt; the state moves to its end."""
+        sc, sysm, sp = self.scene, self.system, self.sp
+        ts = self.ts
+        ts.setTimeStep(h)
+        self.attempts = []
+        self.c_last, self.w_last = self._counters(), time.perf_counter()
+        t0, x0, v0 = self.t, self.x, self.v
+        self.stages["Step"].push()
+        try:
+            ts.step()
+        finally:
+            self.stages["Step"].pop()
+        errors = [a["error"] for a in self.attempts if "error" in a]
+        if errors:
+            raise errors[0]
+        failed = ts.getConvergedReason() < 0
+        startup = [a for a in self.attempts if a["startup"]]
+        tries = [a for a in self.attempts if not a["startup"]]
+        for a in startup:                     # the starting half steps are part of the step that follows
+            if tries:
+                for k, v in a.items():
+                    if k not in ("dt", "stage_time", "startup", "snes_reason", "why") and k in tries[0]:
+                        tries[0][k] += v
+        rows = []
+        for i, a in enumerate(tries):
+            accepted = i == len(tries) - 1 and not failed
+            row = {k: v for k, v in a.items() if k not in ("stage_time", "startup", "why")}
+            row.update({"step": self.step + 1, "time": t0 + a["dt"], "rejected": 0 if accepted else 1})
+            rows.append((row, a.get("why", "the error estimate exceeds the tolerance (TS adaptor)")))
+        if failed or not rows:
+            for row, why in rows:
+                self._write_stats(row)
+            self.rejections += len(rows)
+            reason = ts.getConvergedReason()
+            why = rows[-1][1] if rows else "no attempt"
+            self._fail(f"step {self.step + 1} (t={t0:.6g}, h={h:.3g})",
+                       f"TS {enum_name(PETSc.TS.ConvergedReason, reason)} after {len(rows)} attempts; last: {why}")
+        for row, why in rows[:-1]:
+            self._say(f"t={t0:.4g}: step of h={row['dt']:.3g} rejected: {why}")
+            self._write_stats(row)
+        self.rejections += len(rows) - 1
+        row = rows[-1][0]
+        self.t = ts.getTime()
+        row["time"] = self.t
+        U, V = ts.getSolution2()
+        x_raw, v1 = sysm.local(U, sysm.xl).copy(), sysm.local(V, sysm.vl).copy()
+        sysm.begin_step(self.t, row["dt"], x0, v0)        # loads and constrained positions at the step's end
+        x1 = sysm.impose(x_raw.copy())
+        if not self._energy_stats(x1, v1, row):
+            self._write_stats(row)
+            self._fail(f"step {self.step + 1} (t={self.t:.6g}, h={row['dt']:.3g})",
+                       "non-finite positions or energies after a converged solve")
+        wlte = evaluate_wlte(ts) if self.adaptive and not startup else -1.0
+        row["error_estimate"] = wlte if wlte >= 0 else math.nan
+        row["dt_next"] = ts.getTimeStep()
+        self._write_stats(row)
+        self.x, self.v = x_raw, v1
+        self.x_out = x1
+        self.step += 1
+        self._next_h(len(rows) > 1, row["dt_next"], h)
+        return row
+
+    def _next_h(self, rejected, proposed, h):
+        """The next step's size: the adaptor's proposal; without an adaptor -dt, or after rejections the
+        size PETSc reduced to, doubled back toward -dt after -dt_grow_after accepted steps."""
+        sc = self.scene
+        if self.adaptive:
+            self.h = proposed
+            return
+        if rejected:
+            self.h, self.streak = proposed, 0
+            return
+        self.streak += 1
+        if self.h < sc.dt and self.streak >= sc.dt_grow_after:
+            self.h, self.streak = min(2 * self.h, sc.dt), 0
+
+    def checkpoint(self, n):
+        """x and v as TS holds them (checkpoint_every: the uninterrupted run restarts here too)."""
+        self.writer.checkpoint(self.x, self.v, t=self.t, step=self.step, n=n, h_try=self.h, streak=self.streak,
+                               rejections=self.rejections, nframes=self.writer.nframes, nstats=self.writer.nstats)
+
+    def _resume(self, state):
+        sp = self.sp
+        self.x, self.v = sp.scatter(state["x"]), sp.scatter(state["v"])
+        self.t, self.step, self.n0 = float(state["t"]), int(state["step"]), int(state["n"])
+        self.h, self.streak, self.rejections = float(state["h_try"]), int(state["streak"]), int(state["rejections"])
+
