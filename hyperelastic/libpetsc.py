@@ -40,11 +40,13 @@ def alpha2_params(ts):
     return tuple(x.value for x in v)
 
 
-def evaluate_wlte(ts):
-    """TSEvaluateWLTE in the infinity norm: the weighted local truncation error estimate of the last
-    step (what the adaptor compares with 1), or -1 where the method has none (no adaptor)."""
+def evaluate_wlte(ts, norm="2"):
+    """TSEvaluateWLTE: the weighted local truncation error estimate of the step just solved, in the
+    adaptor's norm (-ts_adapt_wnormtype 2 (default) or infinity), which it accepts when <= 1; -1 where
+    the method has none (no adaptor)."""
     order, w = ctypes.c_int(), ctypes.c_double()
-    err = lib().TSEvaluateWLTE(ctypes.c_void_p(ts.handle), 3, ctypes.byref(order), ctypes.byref(w))   # NORM_INFINITY
+    kind = 3 if norm.lower() in ("infinity", "inf") else 1          # NORM_INFINITY, NORM_2
+    err = lib().TSEvaluateWLTE(ctypes.c_void_p(ts.handle), kind, ctypes.byref(order), ctypes.byref(w))
     return w.value if not err else -1.0
 
 

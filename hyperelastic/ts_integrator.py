@@ -77,7 +77,9 @@ class GeneralizedAlpha(Integrator):
         ts.setStepLimits(scene.dt_min, max(scene.final_time, scene.dt))
         ts.setErrorIfStepFails(False)
         ts.setFromOptions()
-        self.adaptive = PETSc.Options().getString("ts_adapt_type", "none") != "none"
+        opts = PETSc.Options()
+        self.adaptive = opts.getString("ts_adapt_type", "none") != "none"
+        self.wnorm = opts.getString("ts_adapt_wnormtype", "2")
         self._callback = _POST_STAGE(self._post_stage)      # kept alive as long as the TS
         lib().TSSetPostStage.argtypes = [ctypes.c_void_p, _POST_STAGE]
         err = lib().TSSetPostStage(ctypes.c_void_p(ts.handle), self._callback)
@@ -132,6 +134,11 @@ class GeneralizedAlpha(Integrator):
                    "snes_reason": int(reason), "newton_its": snes.getIterationNumber(),
                    "ksp_its": snes.getLinearSolveIterations(), **self._counter_stats(self.c_last),
                    "wall_s": time.perf_counter() - self.w_last}
+            if self.adaptive and not row["startup"] and not any(a.get("startup") for a in self.attempts):
+                # the adaptor's estimate, as it is about to compute it (after the step, TSALPHA2 would
+                # use the next step's size); not in a (re)starting step, where evaluating it changes it
+                wlte = evaluate_wlte(self.ts, self.wnorm) if reason > 0 else -1.0
+                row["error_estimate"] = wlte if wlte >= 0 else math.nan
             if reason <= 0:
                 name = self.solver.reason_name(reason)
                 if name == "DIVERGED_LINEAR_SOLVE":
@@ -159,9 +166,7 @@ class GeneralizedAlpha(Integrator):
         progress = {"last_print": t_start}
         eps = 1e-9 * sc.dt
         while self.t < sc.final_time - eps:
-            nxt = min((self.writer.nframes if self.writer else round(self.t / period) + 1) * period, sc.final_time)
-            if nxt <= self.t + eps:
-                nxt = min(nxt + period, sc.final_time)
+            nxt = min((math.floor(self.t / period + 1e-6) + 1) * period, sc.final_time)   # the next frame time
             h = min(self.h, nxt - self.t)
             if nxt - (self.t + h) < eps:
                 h = nxt - self.t                 # end on the frame time exactly
@@ -200,6 +205,8 @@ class GeneralizedAlpha(Integrator):
         for i, a in enumerate(tries):
             accepted = i == len(tries) - 1 and not failed
             row = {k: v for k, v in a.items() if k not in ("stage_time", "startup", "why")}
+            if "error_estimate" in a and not accepted and "why" not in a:
+                a["why"] = f"the error estimate {a['error_estimate']:.3g} exceeds 1 (TS adaptor)"
             row.update({"step": self.step + 1, "time": t0 + a["dt"], "rejected": 0 if accepted else 1})
             rows.append((row, a.get("why", "the error estimate exceeds the tolerance (TS adaptor)")))
         if failed or not rows:
@@ -207,7 +214,7 @@ class GeneralizedAlpha(Integrator):
                 self._write_stats(row)
             self.rejections += len(rows)
             reason = ts.getConvergedReason()
-            why = rows[-1][1] if rows else "no attempt"
+            why = rows[-1][1] if rows else startup[-1].get("why", "?") + " (starting half step)" if startup else "?"
             self._fail(f"step {self.step + 1} (t={t0:.6g}, h={h:.3g})",
                        f"TS {enum_name(PETSc.TS.ConvergedReason, reason)} after {len(rows)} attempts; last: {why}")
         for row, why in rows[:-1]:
@@ -225,8 +232,6 @@ class GeneralizedAlpha(Integrator):
             self._write_stats(row)
             self._fail(f"step {self.step + 1} (t={self.t:.6g}, h={row['dt']:.3g})",
                        "non-finite positions or energies after a converged solve")
-        wlte = evaluate_wlte(ts) if self.adaptive and not startup else -1.0
-        row["error_estimate"] = wlte if wlte >= 0 else math.nan
         row["dt_next"] = ts.getTimeStep()
         self._write_stats(row)
         self.x, self.v = x_raw, v1
