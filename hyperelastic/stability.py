@@ -28,6 +28,7 @@ OUT/stability.csv, OUT/stability.md (table, properties, locking) and OUT/stabili
 
     scripts/stability_matrix.py OUT            # the quick subset (the one `make test` checks), ~2 min
     scripts/stability_matrix.py OUT --full     # the whole matrix (see hyperelastic/stability.py)
+    scripts/stability_matrix.py OUT --integrators   # the quick subset, backward Euler beside generalized-alpha
     scripts/stability_matrix.py OUT --from-csv --compare OLD/stability.csv   # report again, beside an older run
 """
 MATERIALS = REGISTRY        # every registered material, in the registry's order
@@ -38,7 +39,9 @@ E_AXIS = {"1e2": 1e2, "1e6": 1e6, "rubber": 1e7, "cancellous_bone": 4.5e8, "bone
 NU_AXIS = (0.0, 0.3, 0.45, 0.49, 0.499)
 H_AXIS = (1e-1, 1e-2, 1e-3)
 # the matrix's modes: the exact tangent assembled, and PETSc's MFFD operator with it as preconditioner
-MODES = {"assembled": JACOBIAN_MODES["assembled"], "mf_operator": JACOBIAN_MODES["snes_mf_operator"]}
+MODES = {"assembled": JACOBIAN_MODES["assembled"], "mf_operator": JACOBIAN_MODES["snes_mf_operator"],
+         # generalized-alpha through PETSc TS (issue 18), exact assembled tangent, rho_inf = 1
+         "alpha2": JACOBIAN_MODES["assembled"] + ["-integrator", "ts"]}
 # cell scene -> (built-in scene, extra options); 'sliver' is squeeze-free: stretch on a sliver mesh
 SCENES = {
     "twist3": ("twist3", []), "bend3": ("bend3", []), "squeeze": ("squeeze", []), "stretch": ("stretch", []),
@@ -73,7 +76,8 @@ def full_matrix():
     """Every scene x material x mode at the base point (E = 1e6, nu = 0.3, h = 1e-2); the E axis on
     twist3, squeeze and stretch; the nu axis on squeeze and bend2; the h axis on twist3 and spin
     (assembled tangent for the axes, both modes at the extremes of E)."""
-    cells = [Cell(s, m, mode=md) for s in SCENES if s != "bend2" for m in MATERIALS for md in MODES]
+    cells = [Cell(s, m, mode=md) for s in SCENES if s != "bend2" for m in MATERIALS for md in MODES
+             if md != "alpha2"]
     cells += [Cell(s, m, E=e) for s in ("twist3", "squeeze", "stretch") for m in MATERIALS for e in E_AXIS]
     cells += [Cell(s, m, E=e, mode="mf_operator") for s in ("twist3", "stretch") for m in MATERIALS
               for e in ("steel", "1e15")]
@@ -93,6 +97,13 @@ def quick_matrix():
     cells += [Cell("squeeze", "neohookean", nu=nu) for nu in (0.3, 0.499)]
     cells += [Cell("squeeze", "stvk")]
     return cells
+
+
+def integrator_matrix():
+    """The quick subset's backward Euler cells (assembled tangent) and the same cells with generalized-alpha
+    (scripts/stability_matrix.py OUT --integrators): where each integrator survives."""
+    be = [c for c in quick_matrix() if c.mode == "assembled"]
+    return be + [Cell(c.scene, c.material, c.E, c.nu, c.h, "alpha2") for c in be]
 
 
 def sliver_mesh(out_dir):
@@ -383,6 +394,8 @@ def main(argv=None):
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("out")
     ap.add_argument("--full", action="store_true", help="the whole matrix instead of the quick subset")
+    ap.add_argument("--integrators", action="store_true", help="the quick subset with backward Euler and with "
+                    "generalized-alpha (-integrator ts) side by side")
     ap.add_argument("--jobs", type=int, default=2, help="runs in parallel (default 2)")
     ap.add_argument("--from-csv", action="store_true", help="redo stability.md and .png from OUT/stability.csv")
     ap.add_argument("--compare", metavar="OLD_CSV", help="append a side-by-side comparison with an earlier "
@@ -399,7 +412,7 @@ def main(argv=None):
         _append_comparison(a.compare, rows, a.out)
         print(f"rewrote {a.out}/stability.md, stability.png; {len(bad)} property violations")
         return 1 if bad else 0
-    cells = full_matrix() if a.full else quick_matrix()
+    cells = full_matrix() if a.full else integrator_matrix() if a.integrators else quick_matrix()
     print(f"{len(cells)} cells, {a.jobs} at a time", flush=True)
 
     def log(r):

@@ -44,13 +44,15 @@ def one(args, out):
 
 
 def loglog_at(target, errs, costs):
-    """The cost at error `target`, interpolated log-log between the two sweep points around it (None if
-    the sweep does not reach it)."""
+    """('', cost) at error `target`, interpolated log-log between the two sweep points around it; ('<=', the
+    cheapest run's cost) when every run meets it; None when no run does."""
     pts = sorted(zip(errs, costs))
+    if pts and pts[-1][0] <= target:          # every run meets it: the cheapest one bounds the cost
+        return ("<=", min(costs))
     for (e0, c0), (e1, c1) in zip(pts, pts[1:]):
         if e0 <= target <= e1:
             w = np.log(target / e0) / np.log(e1 / e0)
-            return float(np.exp(np.log(c0) + w * np.log(c1 / c0)))
+            return ("", float(np.exp(np.log(c0) + w * np.log(c1 / c0))))
     return None
 
 
@@ -78,12 +80,12 @@ def accuracy(out_dir, jobs):
         print(f"{name:18s} {val:9.3g} {rows[-1][3]:6d} {rows[-1][4]:8d} {rows[-1][5]:6d} {err:9.2e} {cost:8.3f}")
     print("\ncost at a given error (log-log interpolation between sweep points; '-': not reached)")
     for target in (1e-2, 1e-3):
-        line = [f"error {target:g}:"]
+        line = []
         for name in SETTINGS:
             rs = [r for r in rows if r[0] == name]
             c = loglog_at(target, [r[6] for r in rs], [r[7] for r in rs])
-            line.append(f"{name} {c:.3f} s" if c else f"{name} -")
-        print("  " + "; ".join(line))
+            line.append(f"{name} {c[0]}{c[1]:.3f} s" if c else f"{name} -")
+        print(f"  error {target:g}: " + "; ".join(line))
     print("\nadaptive: requested tolerance vs measured error")
     for r in rows:
         if r[1] == "rtol":

@@ -84,7 +84,7 @@ def at_points(path, P=MATERIAL_POINTS):
 
 
 CSV_COLUMNS = ("id", "role", "scene", "material", "E", "level", "mode", "pc", "h", "snes_rtol", "ksp_rtol",
-               "final_time", "outcome", "rc", "message", "rel_err", "err_final_max", "err_final_rms", "err_traj_max",
+               "ts_rtol", "final_time", "outcome", "rc", "message", "rel_err", "err_final_max", "err_final_rms", "err_traj_max",
                "err_traj_rms", "energy_drift", "ref_displacement", "solve_s", "wall_s", "steps", "rejections",
                "newton_its", "ksp_its", "residual_evals", "peak_rss_mb", "tets", "disc_err", "disc_level", "ref_err_est")
 
@@ -125,7 +125,8 @@ def analyse_accuracy(rows, refs):
         if r["role"] == "reference":
             check = by_id[replace(refs[cfg], h=refs[cfg].h * 2, role="check").id]
             if check["outcome"] != "failed":
-                r["ref_err_est"] = errors(r["path"], check["path"])["rel_err"]   # first order: e(h) ~ |x_2h - x_h|
+                # second order (generalized-alpha): x_2h - x = 4 (x_h - x), so e(h) ~ |x_2h - x_h| / 3
+                r["ref_err_est"] = errors(r["path"], check["path"])["rel_err"] / 3.0
         r.update(errors(r["path"], ref["path"]))
 
 

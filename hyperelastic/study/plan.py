@@ -14,10 +14,17 @@ POINT_NAMES = ("test point (4.5,1.5,1.5)", "tip (5,0,0)", "top edge (0,2,2)")
 # Jacobian mode -> options of its solver recipe without the PC (the PC is set separately; -snes_mf has
 # none); seed_fd with fixed steps as in the thesis' framework (step control would retry each of its
 # failures ten times at 50 Newton iterations each); the reference: exact tangent, linear solves to 1e-12
-# (GMRES: twist's follower load is not symmetric)
+# (GMRES: twist's follower load is not symmetric), generalized-alpha (second order; rho_inf = 0.5 damps the
+# modes its step does not resolve) -- a backward Euler reference at h/4 is itself ~1e-3 off, more than
+# the second-order runs' errors
 MODES = {"assembled": without_pc("exact"), "shell": without_pc("shell"), "snes_mf": without_pc("mffd"),
          "snes_mf_operator": without_pc("mffd_operator"), "seed_fd": without_pc("seed_fd") + ["-step_control", "0"],
-         "reference": without_pc("reference")}
+         "reference": without_pc("reference") + ["-integrator", "ts", "-ts_alpha_radius", "0.5"],
+         # the integrators (issue 18): PETSc TS generalized-alpha, fixed steps at two spectral radii, and
+         # adaptive steps (h: the first step; Run.ts_rtol: the adaptor's tolerance), exact assembled tangent
+         "alpha2": without_pc("exact") + ["-integrator", "ts"],
+         "alpha2_r05": without_pc("exact") + ["-integrator", "ts", "-ts_alpha_radius", "0.5"],
+         "alpha2_adapt": without_pc("exact") + ["-integrator", "ts", "-ts_adapt_type", "basic"]}
 # preconditioner -> the PC options of the recipe that has it
 PCS = {"jacobi": pc_of("exact"), "bjacobi_icc": pc_of("bjacobi_icc"), "gamg": pc_of("gamg"), "none": pc_of("mffd"),
        "ilu": pc_of("reference")}
@@ -43,6 +50,7 @@ class Run:
     ksp_rtol: float = 1e-5
     role: str = "sweep"              # sweep | reference | check | disc
     final_time: float = 0.3
+    ts_rtol: float = 0.0             # alpha2_adapt: -ts_rtol = -ts_atol
 
     @property
     def config(self):
@@ -51,7 +59,7 @@ class Run:
     @property
     def id(self):
         return (f"{self.scene}-{self.material}-E{self.E:g}-L{self.level}-{self.mode}-{self.pc}-h{self.h:g}"
-                f"-r{self.snes_rtol:g}-k{self.ksp_rtol:g}-{self.role}")
+                f"-r{self.snes_rtol:g}-k{self.ksp_rtol:g}-{self.role}" + (f"-a{self.ts_rtol:g}" if self.ts_rtol else ""))
 
     def args(self, out):
         a = ["run", self.scene, "-level", self.level, "-material", self.material]
@@ -61,6 +69,8 @@ class Run:
               "-output", out, "-quiet"]
         if self.role != "sweep":
             a += ["-snes_atol", repr(REF_SNES_ATOL), "-snes_max_it", "100"]
+        if self.ts_rtol:
+            a += ["-ts_rtol", repr(self.ts_rtol), "-ts_atol", repr(self.ts_rtol)]
         return a + MODES[self.mode] + PCS[self.pc]
 
 
@@ -84,6 +94,10 @@ def _grid(scene, material, E, level, modes, pcs, hs, rtols, ksps=(1e-5,), T=0.3)
             for m in modes for pc in pcs for h in hs for r in rtols for k in ksps]
 
 
+def _adaptive(cfg, tols, T, h0=0.01, pc="jacobi"):
+    return [Run(*cfg, "alpha2_adapt", pc, h0, 1e-8, final_time=T, ts_rtol=tol) for tol in tols]
+
+
 def plan(full=False):
     """The quick default (~2 min on 2 cores: bend2 and squeeze on L1/L2, St.VK and Neo-Hookean, E up
     to steel) or --full (four scenes, two materials, E up to steel, h 1e-1 ... 1e-4, L1-L3; hours)."""
@@ -94,6 +108,9 @@ def plan(full=False):
         main = ("bend2", "stvk", 1e6, 1)
         runs = _grid(*main, ("assembled",), ("jacobi",), hs, (1e-2, 1e-4, 1e-8), T=T)
         runs += _grid(*main, modes[1:], ("jacobi",), hs, (1e-6,), T=T)
+        runs += _grid(*main, ("alpha2", "alpha2_r05"), ("jacobi",), (0.05, 0.02, 0.01, 0.005, 0.0025), (1e-6, 1e-8), T=T)
+        runs += _adaptive(main, (1e-2, 1e-3, 1e-4, 1e-5), T)
+        runs += _grid(*main, ("alpha2",), ("gamg",), (0.02, 0.005), (1e-8,), T=T)
         runs += _grid(*main, ("assembled",), ("bjacobi_icc", "gamg"), (0.05, 0.01, 0.002), (1e-6,), T=T)
         runs += _grid(*main, ("assembled",), ("jacobi",), (0.05, 0.01, 0.002), (1e-8,), (1e-2, 1e-8), T=T)
         runs += _grid("bend2", "stvk", 1e6, 2, ("assembled",), ("jacobi",), h4, (1e-2, 1e-8), T=T)
@@ -113,6 +130,8 @@ def plan(full=False):
         for mat in ("stvk", "neohookean"):
             E0 = 2.1e11 if scene == "sag" else 1e6
             runs += _grid(scene, mat, E0, 1, modes, ("jacobi",), hs, rtols, T=T)
+            runs += _grid(scene, mat, E0, 1, ("alpha2", "alpha2_r05"), ("jacobi", "gamg"), hs, (1e-6, 1e-8), T=T)
+            runs += _adaptive((scene, mat, E0, 1), (1e-2, 1e-3, 1e-4, 1e-5, 1e-6), T)
             runs += _grid(scene, mat, E0, 1, ("assembled",), ("bjacobi_icc", "gamg"), hs, (1e-6,), T=T)
             runs += _grid(scene, mat, E0, 1, ("assembled", "snes_mf"), ("jacobi",), hs, (1e-8,), (1e-2, 1e-8, 1e-10),
                           T=T)
