@@ -31,6 +31,9 @@ class Integrator:
         self.step = 0
         self.rejections = 0
         self.signal = 0        # set by request_stop (the SIGINT/SIGTERM handler of the command line)
+        self.h_try = None      # step size of the next attempt (step control)
+        self.streak = 0        # accepted steps since the last change of h_try
+        self.n0 = 0            # nominal steps already done (a restart starts later)
         self.stages = {k: PETSc.Log.Stage(k) for k in ("Step", "Output")}
         system.begin_step(0.0, scene.dt, x0, v0)
         self.energy0 = total_energy(system.energies(x0, v0))   # for energy_dissipated
@@ -116,6 +119,19 @@ class Integrator:
             stats[effect_column(name, "seconds")] = sec - e0[2]
         return stats
 
+    def checkpoint(self, n):
+        """The state, the step-size state and the output counters (-integrator ts: x and v as TS holds them;
+        there the uninterrupted run restarts at the checkpoints too)."""
+        self.writer.checkpoint(self.x, self.v, t=self.t, step=self.step, n=n, h_try=self.h_try, streak=self.streak,
+                               rejections=self.rejections, nframes=self.writer.nframes, nstats=self.writer.nstats)
+
+    def _resume(self, state):
+        """Continue from a checkpoint (output.read_checkpoint): the same state, step control included."""
+        sp = self.sp
+        self.x, self.v = sp.scatter(state["x"]), sp.scatter(state["v"])
+        self.t, self.step, self.n0 = float(state["t"]), int(state["step"]), int(state["n"])
+        self.h_try, self.streak, self.rejections = float(state["h_try"]), int(state["streak"]), int(state["rejections"])
+
     def _fail(self, where, why):
         if self.writer:
             self.writer.set_attr("failure", f"{where}: {why}")
@@ -136,9 +152,6 @@ class BackwardEuler(Integrator):
         `writer` (None: nothing is written). The scene gives the time settings."""
         super().__init__(scene, system, solver, writer, x0, v0, quiet)
         self.X = self.sp.global_vec()
-        self.h_try = None      # step size of the next attempt (step control)
-        self.streak = 0        # accepted steps since the last change of h_try
-        self.n0 = 0            # nominal steps already done (a restart starts later)
         if checkpoint is not None:
             self._resume(checkpoint)
 
@@ -188,17 +201,6 @@ class BackwardEuler(Integrator):
             if self.h_try < H and self.streak >= sc.dt_grow_after:
                 self.h_try, self.streak = min(2 * self.h_try, H), 0
         return stats
-
-    def checkpoint(self, n):
-        self.writer.checkpoint(self.x, self.v, t=self.t, step=self.step, n=n, h_try=self.h_try, streak=self.streak,
-                               rejections=self.rejections, nframes=self.writer.nframes, nstats=self.writer.nstats)
-
-    def _resume(self, state):
-        """Continue from a checkpoint (output.read_checkpoint): the same state, step control included."""
-        sp = self.sp
-        self.x, self.v = sp.scatter(state["x"]), sp.scatter(state["v"])
-        self.t, self.step, self.n0 = float(state["t"]), int(state["step"]), int(state["n"])
-        self.h_try, self.streak, self.rejections = float(state["h_try"]), int(state["streak"]), int(state["rejections"])
 
     def _fail_step(self, stats, why):
         sc = self.scene

@@ -159,7 +159,11 @@ def analyse(cell, path, rc, stderr, wall):
         row["J_max_final"] = float(st["J_max"][acc][-1])
         tot = stats.total_energy(st, with_traction=False)
         V0 = float(signed_volumes(X, tets).sum())
-        scale = float(np.abs(tot).max()) + 1e-10 * Eyoung * V0   # + a roundoff floor of O(E) energies
+        parts = np.abs(st["kinetic"][acc]) + np.abs(st["elastic"][acc]) + np.abs(st.get("gravity_potential",
+                                                                                        np.zeros(n))[acc])
+        # relative to the energies summed (their rounding error; a falling body's total is ~0 while its
+        # kinetic and potential energies are large) + a roundoff floor of O(E) energies
+        scale = float(max(np.abs(tot).max(), parts.max())) + 1e-10 * Eyoung * V0
         row["energy_growth"] = float(max(np.diff(tot).max(initial=0.0), 0.0) / scale)
         row["elastic_max_rel"] = float(np.abs(st["elastic"][acc]).max() / (Eyoung * V0))
         row["volume_ratio"] = float(signed_volumes(xs[-1], tets).sum() / V0)

@@ -66,8 +66,7 @@ class GeneralizedAlpha(Integrator):
         self.attempts = []                   # SNES solves of the current TSStep (_post_stage)
         self.c_last = self._counters()
         self.w_last = time.perf_counter()
-        self.n0, self.h = 0, scene.dt
-        self.streak = 0
+        self.h_try = scene.dt
         ts.setI2Function(self._function, sp.global_vec())
         if solver.op is not None:
             ts.setI2Jacobian(self._jacobian, solver.op.mat, solver.op.mat)
@@ -167,7 +166,7 @@ class GeneralizedAlpha(Integrator):
         eps = 1e-9 * sc.dt
         while self.t < sc.final_time - eps:
             nxt = min((math.floor(self.t / period + 1e-6) + 1) * period, sc.final_time)   # the next frame time
-            h = min(self.h, nxt - self.t)
+            h = min(self.h_try, nxt - self.t)
             if nxt - (self.t + h) < eps:
                 h = nxt - self.t                 # end on the frame time exactly
             stats = self._step(h)
@@ -245,23 +244,11 @@ class GeneralizedAlpha(Integrator):
         size PETSc reduced to, doubled back toward -dt after -dt_grow_after accepted steps."""
         sc = self.scene
         if self.adaptive:
-            self.h = proposed
+            self.h_try = proposed
             return
         if rejected:
-            self.h, self.streak = proposed, 0
+            self.h_try, self.streak = proposed, 0
             return
         self.streak += 1
-        if self.h < sc.dt and self.streak >= sc.dt_grow_after:
-            self.h, self.streak = min(2 * self.h, sc.dt), 0
-
-    def checkpoint(self, n):
-        """x and v as TS holds them (checkpoint_every: the uninterrupted run restarts here too)."""
-        self.writer.checkpoint(self.x, self.v, t=self.t, step=self.step, n=n, h_try=self.h, streak=self.streak,
-                               rejections=self.rejections, nframes=self.writer.nframes, nstats=self.writer.nstats)
-
-    def _resume(self, state):
-        sp = self.sp
-        self.x, self.v = sp.scatter(state["x"]), sp.scatter(state["v"])
-        self.t, self.step, self.n0 = float(state["t"]), int(state["step"]), int(state["n"])
-        self.h, self.streak, self.rejections = float(state["h_try"]), int(state["streak"]), int(state["rejections"])
-
+        if self.h_try < sc.dt and self.streak >= sc.dt_grow_after:
+            self.h_try, self.streak = min(2 * self.h_try, sc.dt), 0
