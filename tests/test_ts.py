@@ -107,3 +107,32 @@ def test_ts_bad_input(tmp_path):
     one_line_error(hyperelastic(["run", "bend", "-level", 1, "-integrator", "ts", "-ts_type", "bdf"]), "alpha2")
     one_line_error(hyperelastic(["run", "bend", "-level", 1, "-integrator", "ts", "-quasistatic"]), "quasistatic")
     one_line_error(hyperelastic(["run", "bend", "-level", 1, "-integrator", "rk4"]), "-integrator")
+
+
+def test_signal_stop_and_restart(tmp_path):
+    """SIGTERM stops a TS run at a frame with a checkpoint and one line; --restart finishes it. The frames
+    before the stop are the uninterrupted run's bitwise; after it they agree to the integrator's accuracy
+    (TSALPHA2 re-estimates its acceleration at a restart that the uninterrupted run did not make)."""
+    import signal
+    import time
+    from test_checkpoint import RUN, start, wait_for_file
+    extra = ["-integrator", "ts"]
+    ref_path = tmp_path / "ref.h5"
+    run_ok(["run", *RUN, *extra, "-output", ref_path])
+    ref = read_h5(ref_path)
+    out = tmp_path / "o.h5"
+    p = start(out, extra=extra)
+    wait_for_file(out)
+    time.sleep(1.0)
+    p.send_signal(signal.SIGTERM)
+    _, err = p.communicate(timeout=120)
+    if p.returncode == 0:
+        pytest.skip("the run finished before the signal arrived")
+    assert p.returncode == 128 + signal.SIGTERM and len(err.strip().splitlines()) == 1, err
+    n = len(read_h5(out)["time"])
+    assert 0 < n < len(ref["time"]) and np.array_equal(read_h5(out)["x"], ref["x"][:n])
+    run_ok(["run", "--restart", out, "-quiet"])
+    r = read_h5(out)
+    assert np.array_equal(r["time"], ref["time"])
+    scale = np.abs(ref["x"] - ref["x"][0]).max()
+    assert np.abs(r["x"] - ref["x"]).max() <= 1e-3 * scale
