@@ -3,6 +3,7 @@
   hyperelastic run SCENE [PETSc options]         simulate a scene (built-in name or options file)
   hyperelastic run --restart FILE.h5 [options]   continue a run from the last checkpoint in FILE.h5
   hyperelastic mesh bar --level N -o FILE.msh    generate a gmsh mesh of the thesis' bar
+  hyperelastic mesh PART.geo --size H -o F.msh   mesh your own .geo/.step (physical groups kept; --refine N)
   hyperelastic plot FILE.h5 [-o FILE.png]        picture of a frame (default: the last)
   hyperelastic scenes                            list the built-in scenes
   hyperelastic study accuracy|refinement [-output_dir DIR] [--full] [--jobs N]
@@ -121,8 +122,11 @@ def run(argv):
         ts = make_ts(comm)
     solver = Solver(model.system, scene.jacobian, scene.assembly, guard=scene.inversion_guard,
                     objective=scene.objective and ts is None, snes=ts.getSNES() if ts else None)
-    if solver.merit_note and not quiet and comm.getRank() == 0:
-        print(f"note: {solver.merit_note}", file=sys.stderr)
+    if not quiet and comm.getRank() == 0:
+        for line in model.set_lines():
+            print(f"set {line}", file=sys.stderr)
+        if solver.merit_note:
+            print(f"note: {solver.merit_note}", file=sys.stderr)
     attrs = run_attributes(model, scene_file, solver)
     stage.pop()
     writer = Writer(out, model.space, model.points, model.tets, attrs, resume=restart)
@@ -155,18 +159,23 @@ def peak_rss_mb(comm):
 
 
 def mesh_cmd(argv):
-    ap = ArgParser(prog="hyperelastic mesh", description="Generate a tetrahedral mesh with gmsh.")
-    ap.add_argument("geometry", help="name of a .geo file under meshes/ (e.g. bar)")
+    ap = ArgParser(prog="hyperelastic mesh", description="Generate a tetrahedral mesh with gmsh, keeping the "
+                   "geometry's physical groups.")
+    ap.add_argument("geometry", help="a .geo or .step file, or the name of a .geo file under meshes/ (e.g. bar)")
     ap.add_argument("--level", type=int, help="refinement level: 1..8 = thesis L1..L8, 9.. finer (~2x tets each)")
     ap.add_argument("--size", type=float, help="target edge length instead of a level")
+    ap.add_argument("--refine", type=int, default=0, help="also write N uniformly refined meshes OUT_r1 .. OUT_rN")
     ap.add_argument("-o", "--output", required=True, help="output .msh file")
     a = ap.parse_args(argv)
     if (a.level is None) == (a.size is None):
         raise UserError("hyperelastic mesh: give exactly one of --level N or --size H")
+    if a.refine < 0:
+        raise UserError(f"hyperelastic mesh: --refine {a.refine} must be >= 0")
     from .mesh import generate
-    st = generate(a.geometry, a.level, a.output, a.size)
-    print(f"{a.output}: level {a.level or '-'} target edge {st['target_size']:.4g}: {st['vertices']} vertices, "
-          f"{st['tets']} tets, min edge {st['min_edge']:.4g}")
+    st = generate(a.geometry, a.level, a.output, a.size, a.refine)
+    for s in (st if a.refine else [st]):
+        print(f"{s['file']}: level {a.level or '-'} target edge {s['target_size']:.4g}: {s['vertices']} vertices, "
+              f"{s['tets']} tets, min edge {s['min_edge']:.4g}")
     return 0
 
 

@@ -29,39 +29,70 @@ def cache_dir():
     return d
 
 
-def generate(name, level, out, size=None):
-    """Generate meshes/<name>.geo with gmsh at the target edge length of `level` (or `size` when
-    given); returns its statistics."""
+CAD_SUFFIXES = (".geo", ".step", ".stp", ".brep", ".iges", ".igs")
+
+
+def geometry_file(name):
+    """The geometry a `mesh` command names: a user's .geo/.step/.brep file, or meshes/<name>.geo."""
+    if name.lower().endswith(CAD_SUFFIXES):
+        if not os.path.isfile(name):
+            raise UserError(f"geometry '{name}': no such file")
+        return name
     geo = os.path.join(GEO_DIR, f"{name}.geo")
     if not os.path.isfile(geo):
         known = sorted(f[:-4] for f in os.listdir(GEO_DIR) if f.endswith(".geo"))
-        raise UserError(f"unknown mesh geometry '{name}' (known: {', '.join(known)})")
+        raise UserError(f"unknown mesh geometry '{name}' (known: {', '.join(known)}; or give a .geo or .step file)")
+    return geo
+
+
+def generate(name, level, out, size=None, refine=0):
+    """Mesh a geometry (meshes/<name>.geo, or a user's .geo/.step file) with gmsh at the target edge
+    length of `level` (or `size` when given), keeping its physical groups; returns its statistics.
+    With refine = N, also N uniformly refined meshes (each tet split into 8), OUT_r1.msh ... OUT_rN.msh,
+    and returns a list of statistics."""
+    geo = geometry_file(name)
     if size is None:
         size = level_size(level)
     elif not size > 0:
         raise UserError(f"mesh size {size} must be > 0")
+    outs = [out] + [f"{os.path.splitext(out)[0]}_r{i}.msh" for i in range(1, refine + 1)]
     from .output import check_output_path
-    check_output_path(out)
+    for o in outs:
+        check_output_path(o)
     import gmsh
     gmsh.initialize(["gmsh", "-v", "0"], readConfigFiles=False)
+    tmps = []
     try:
         gmsh.option.setNumber("General.Terminal", 0)
         gmsh.option.setNumber("General.NumThreads", 1)
-        gmsh.open(geo)
+        try:
+            _quiet(gmsh.open, geo)
+        except Exception as e:
+            raise UserError(f"geometry '{name}': gmsh cannot read it ({str(e).strip()[:200]})") from None
         gmsh.option.setNumber("Mesh.MeshSizeMin", size)
         gmsh.option.setNumber("Mesh.MeshSizeMax", size)
         gmsh.option.setNumber("Mesh.MeshSizeExtendFromBoundary", 0)
         gmsh.option.setNumber("Mesh.Algorithm3D", 1)
+        gmsh.option.setNumber("Mesh.ElementOrder", 1)
         gmsh.option.setNumber("Mesh.MshFileVersion", 4.1)
         gmsh.option.setNumber("Mesh.SaveAll", 0)
-        gmsh.model.mesh.generate(3)
-        tmp = out + f".tmp{os.getpid()}.msh"
-        gmsh.write(tmp)
+        try:
+            gmsh.model.mesh.generate(3)
+        except Exception as e:
+            raise UserError(f"geometry '{name}': gmsh cannot mesh it ({str(e).strip()[:200]})") from None
+        for i, o in enumerate(outs):
+            if i:
+                gmsh.model.mesh.refine()
+            tmps.append(o + f".tmp{os.getpid()}.msh")
+            gmsh.write(tmps[-1])
     finally:
         gmsh.finalize()
-    os.replace(tmp, out)
-    pts, tets = read(out)
-    return describe(pts, tets) | {"level": level, "target_size": size, "file": out}
+    stats = []
+    for i, (o, tmp) in enumerate(zip(outs, tmps)):
+        os.replace(tmp, o)
+        pts, tets = read(o)
+        stats.append(describe(pts, tets) | {"level": level, "target_size": size / 2 ** i, "file": o})
+    return stats if refine else stats[0]
 
 
 def describe(points, tets):
@@ -88,6 +119,18 @@ def size_for_tets(tets):
 def read(path):
     """Read a tetrahedral mesh with meshio and check it; returns (points (n,3) float64, tets (m,4) int64).
     Any defect raises UserError naming the file and the first bad element."""
+    m = read_mesh(path)
+    return m.points, m.tets
+
+
+def read_mesh(path):
+    """The checked tetrahedral mesh of `path` with its boundary facets and named sets (sets.Mesh)."""
+    from .sets import Mesh
+    points, tets, m = _read_meshio(path)
+    return Mesh.from_meshio(path, points, tets, m)
+
+
+def _read_meshio(path):
     if not os.path.exists(path):
         raise UserError(f"mesh '{path}': no such file")
     if os.path.isdir(path):
@@ -106,11 +149,16 @@ def read(path):
     blocks = [c.data for c in m.cells if c.type == "tetra"]
     if not blocks:
         found = sorted({c.type for c in m.cells})
+        if "tetra10" in found:
+            raise UserError(f"mesh '{path}': has second-order tetrahedra (tetra10), which are not supported yet; "
+                            "mesh with first-order elements (gmsh -3 -order 1, or Mesh.ElementOrder = 1)")
         what = ", ".join(found) if found else "no cells"
-        raise UserError(f"mesh '{path}': contains no tetrahedra (found: {what})")
+        hint = ("; a gmsh file with physical surfaces but no 'Physical Volume' holds no tetrahedra"
+                if "triangle" in found else "")
+        raise UserError(f"mesh '{path}': contains no tetrahedra (found: {what}){hint}")
     tets = np.concatenate(blocks).astype(np.int64)
     check(points, tets, path)
-    return points, tets
+    return points, tets, m
 
 
 def _quiet(fn, *args):

@@ -10,7 +10,8 @@ from mpi4py import MPI
 from . import effects as effects_pkg
 from .errors import UserError
 from .kernels import CellKernels
-from .mesh import cached_bar, read
+from .mesh import cached_bar, read_mesh
+from .scene import facet_set_uses
 from .space import Space
 from .system import System
 
@@ -76,16 +77,48 @@ class Model:
     system: System
     x0: np.ndarray              # initial local positions and velocities
     v0: np.ndarray
+    sets: list = None           # [{name, kind, count, measure, ...}] of the sets the run uses (all ranks)
+
+    def set_lines(self):
+        """One line per set: name, facets or tets, area or volume."""
+        return [s["line"] for s in self.sets]
+
+
+def load_mesh(scene):
+    """(sets.Mesh, DMPlex labels, set report) of the scene's mesh, on rank 0: the facet sets its options
+    name (an unknown name is a UserError listing the mesh's) and its regions."""
+    from .sets import REGION_LABEL, VERTEX_VALUE, facet_label
+    mesh = read_mesh(scene.mesh if scene.mesh else cached_bar(scene.level))
+    labels, report = {}, []
+    for option, name in facet_set_uses(scene):
+        if facet_label(name) in labels:
+            continue
+        s = mesh.find(name, "facets", option)
+        labels[facet_label(name)] = {v: ("vertices" if v == VERTEX_VALUE else "cells", idx)
+                                     for v, idx in mesh.label_strata(s).items()}
+        report.append({"name": name, "kind": "facets", "tag": None if s.tag is None else int(s.tag), "count": len(s.items),
+                       "measure": mesh.area(s.items), "line": mesh.describe(s)})
+    regions = [g for g in mesh.groups.values() if g.kind == "tets"]
+    if regions:
+        labels[REGION_LABEL] = {}
+        for i, g in enumerate(regions):
+            value = g.tag if g.tag is not None else i + 1
+            labels[REGION_LABEL][value] = ("cells", g.items)
+            report.append({"name": g.name, "kind": "tets", "tag": int(value), "count": len(g.items),
+                           "measure": mesh.volume(g.items), "line": mesh.describe(g)})
+    return mesh, labels, report
 
 
 def build_model(scene, comm):
-    """Read the scene's mesh (rank 0), distribute it, build the effects the scene names and the
-    System, calibrated at the initial state."""
-    mesh = collective(comm, lambda: read(scene.mesh if scene.mesh else cached_bar(scene.level)))
-    points, tets = mesh if mesh is not None else (None, None)
-    space = Space(comm, points, tets)
+    """Read the scene's mesh (rank 0), distribute it with the sets the scene uses, build the effects
+    the scene names and the System, calibrated at the initial state."""
+    loaded = collective(comm, lambda: load_mesh(scene))
+    mesh, labels, report = loaded if loaded is not None else (None, None, None)
+    points, tets = (mesh.points, mesh.tets) if mesh is not None else (None, None)
+    space = Space(comm, points, tets, labels)
+    report = space.mpi.bcast(report, root=0)
     k = CellKernels(space.cells, space.Dminv, space.vol, scene.material.name, scene.mu, scene.lam)
     effects, constraints = effects_pkg.build(scene, space, k)
     x0, v0 = initial_state(scene, space)
     system = System(space, effects, constraints, x0, v0, scene.dt)
-    return Model(scene, points, tets, space, k, system, x0, v0)
+    return Model(scene, points, tets, space, k, system, x0, v0, report)

@@ -52,7 +52,8 @@ def run_attributes(model, scene_file, solver):
             "mesh": os.path.abspath(sc.mesh) if sc.mesh else f"bar level {sc.level}",
             "vertices_per_rank": np.array(space.mpi.allgather(space.nlv)),
             "cells_per_rank": np.array(space.mpi.allgather(space.nc)),
-            "mass_matrix_builds": built.get("inertia", 0)}
+            "mass_matrix_builds": built.get("inertia", 0),
+            "sets": json.dumps([{k: v for k, v in s.items() if k != "line"} for s in model.sets])}
 
 
 CHECKPOINT_ATTRS = ("t", "step", "n", "h_try", "streak", "rejections", "nframes", "nstats")

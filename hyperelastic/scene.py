@@ -11,8 +11,6 @@ DEFAULT_MATERIAL = "stvk"
 DEFAULT_EFFECTS = ("elasticity", "inertia")
 EFFECTS = ("elasticity", "inertia", "damping", "rayleigh", "gravity", "traction", "follower_traction",
            "fixed", "prescribed")
-FACES = {"left": (0, "min"), "right": (0, "max"), "front": (1, "min"), "back": (1, "max"),
-         "bottom": (2, "min"), "top": (2, "max")}
 # an effect is implied by the option that carries its parameter (e.g. -gravity adds gravity)
 IMPLIED_BY = {"damping": "damping", "rayleigh": ("rayleigh_alpha", "rayleigh_beta"), "gravity": "gravity",
               "traction": "traction", "follower_traction": "traction_twist", "fixed": "fix",
@@ -59,14 +57,39 @@ INTEGRATORS = ("beuler", "ts")
 ASSEMBLIES = ("setvalues", "coo")
 
 
-def faces(opts, name):
-    fs = opts.names(name)
-    if not fs:
-        raise UserError(f"option -{name}: needs a face list (e.g. left,right)")
-    for f in fs:
-        if f not in FACES:
-            raise UserError(f"option -{name}: unknown face '{f}' (choose from {', '.join(FACES)})")
-    return fs
+def facet_sets(opts, name, default=None, components=False):
+    """The facet sets an option names: a comma list of physical surface names or tags, or bounding-box
+    faces (left, right, front, back, bottom, top); resolved against the mesh when it is read. With
+    `components`, each may end in :x, :yz, ... (the components it holds; default all three). Returns
+    [(name, components)]."""
+    items = opts.names(name, default or "")
+    if not items:
+        raise UserError(f"option -{name}: needs a list of surfaces (physical names or tags, or left, right, "
+                        "front, back, bottom, top)")
+    out = []
+    for it in items:
+        set_name, sep, comps = it.partition(":")
+        if not set_name:
+            raise UserError(f"option -{name}: '{it}' names no surface")
+        if sep and not components:
+            raise UserError(f"option -{name}: '{it}': components (:{comps}) are not taken here")
+        if sep and (not comps or set(comps) - set("xyz") or len(set(comps)) != len(comps)):
+            raise UserError(f"option -{name}: '{it}': components must be some of x, y, z once each (e.g. "
+                            f"{set_name}:x or {set_name}:xz)")
+        out.append((set_name, comps if sep else "xyz"))
+    return out
+
+
+def facet_set_uses(s):
+    """(option, set name) of every facet set the scene's effects use, in order."""
+    p, out = s.params, []
+    if "fixed" in s.effects:
+        out += [("fix", n) for n, _ in p["fix"]]
+    if "traction" in s.effects or "follower_traction" in s.effects:
+        out += [("traction_face", n) for n, _ in p["traction_face"]]
+    if "prescribed" in s.effects:
+        out += [("prescribe_faces", n) for n, _ in p["prescribe_faces"]]
+    return out
 
 
 def load_scene(scene_arg):
@@ -183,7 +206,7 @@ def _gravity(s, opts, p):
 
 
 def _traction_face(opts, p):
-    p["traction_face"] = opts.choice("traction_face", tuple(FACES), "right")
+    p["traction_face"] = facet_sets(opts, "traction_face", "right")
     p["traction_ramp"] = opts.real("traction_ramp", None)
 
 
@@ -206,7 +229,7 @@ def _follower_traction(s, opts, p):
 def _fixed(s, opts, p):
     if not opts.has("fix"):
         _needs(s, "fixed", "-fix faces (e.g. left)")
-    p["fix"] = faces(opts, "fix")
+    p["fix"] = facet_sets(opts, "fix", components=True)
     return True
 
 
@@ -214,7 +237,7 @@ def _prescribed(s, opts, p):
     from .effects.dirichlet import Prescribed
     if not opts.has("prescribe_motion") or not opts.has("prescribe_faces"):
         _needs(s, "prescribed", "-prescribe_faces and -prescribe_motion")
-    p["prescribe_faces"] = faces(opts, "prescribe_faces")
+    p["prescribe_faces"] = facet_sets(opts, "prescribe_faces", components=True)
     p["prescribe_motion"] = opts.choice("prescribe_motion", Prescribed.MOTIONS, None)
     p["prescribe_amount"] = opts.real("prescribe_amount", 1.0)
     return True

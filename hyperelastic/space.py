@@ -22,18 +22,22 @@ def reference_geometry(X, cells):
 
 
 class Space:
-    def __init__(self, comm, points=None, tets=None):
-        """points/tets: the checked input mesh on rank 0 (ignored on other ranks)."""
+    def __init__(self, comm, points=None, tets=None, labels=None):
+        """points/tets: the checked input mesh on rank 0 (ignored on other ranks); labels (rank 0):
+        {label name: {value: ("cells" | "vertices", input indices)}}, set on the serial DMPlex and
+        carried through distribution (see sets.py for the facet sets' values)."""
         self.comm = comm
         self.mpi = comm.tompi4py()
-        vperm, sf = self._distribute(points, tets)
+        vperm, sf = self._distribute(points, tets, labels or {})
         dm = self.dm
         vStart, vEnd = dm.getDepthStratum(0)
         self.nlv = nlv = vEnd - vStart
         self.section = self._dof_section(vStart, vEnd)
         # local vertex index of each point (vertices are numbered by their dof offset / 3)
         lvid = np.array([self.section.getOffset(v) // 3 for v in range(vStart, vEnd)], dtype=np.int64)
+        self._lvid, self._vStart = lvid, vStart
         cStart, cEnd = dm.getHeightStratum(0)
+        self._cStart = cStart
         self.cells = np.empty((cEnd - cStart, 4), dtype=IDX)
         for c in range(cStart, cEnd):
             self.cells[c - cStart] = lvid[dm.getCone(c) - vStart]
@@ -59,12 +63,13 @@ class Space:
         self._gorder = np.concatenate(allids) if self.mpi.rank == 0 else None
         self.lvid_of_owned = np.flatnonzero(self.owned)
 
-    def _distribute(self, points, tets):
-        """The serial DMPlex of the spatially ordered mesh (rank 0), distributed with the `simple`
-        partitioner; returns (vertex permutation of the ordering on rank 0, migration SF or None)."""
+    def _distribute(self, points, tets, labels):
+        """The serial DMPlex of the spatially ordered mesh (rank 0) with its labels, distributed with
+        the `simple` partitioner; returns (vertex permutation of the ordering on rank 0, migration SF
+        or None). -dm_view shows the distributed DMPlex and its labels."""
         comm = self.comm
         if comm.getRank() == 0:
-            p, t, vperm, _ = spatial_order(points, tets)
+            p, t, vperm, corder = spatial_order(points, tets)
             nv_total, nc_total = len(p), len(t)
         else:
             p, t = np.zeros((0, 3)), np.zeros((0, 4), np.int64)
@@ -72,11 +77,32 @@ class Space:
             nv_total = nc_total = 0
         self.nv_total, self.nc_total = self.mpi.bcast((nv_total, nc_total), root=0)
         dm = PETSc.DMPlex().createFromCellList(3, t.astype(PETSc.IntType), p, interpolate=False, comm=comm)
+        if comm.getRank() == 0 and labels:
+            self._set_labels(dm, labels, corder, vperm)
+        self.label_names = self.mpi.bcast(list(labels) if comm.getRank() == 0 else None, root=0)
         part = dm.getPartitioner()
         part.setType(PETSc.Partitioner.Type.SIMPLE)
         sf = dm.distribute(overlap=0) if comm.getSize() > 1 else None
         self.dm = dm
+        dm.viewFromOptions("-dm_view")
         return vperm, sf
+
+    @staticmethod
+    def _set_labels(dm, labels, corder, vperm):
+        """Labels on the serial DMPlex (cells first, then vertices, in the spatial order)."""
+        nc = len(corder)
+        cpos = np.empty(nc, np.int64)
+        cpos[corder] = np.arange(nc)
+        vpos = np.empty(len(vperm), np.int64)
+        vpos[vperm] = np.arange(len(vperm))
+        for name, strata in labels.items():
+            dm.createLabel(name)
+            lab = dm.getLabel(name)
+            for value, (kind, idx) in strata.items():
+                idx = np.asarray(idx, np.int64)
+                pts = cpos[idx] if kind == "cells" else nc + vpos[idx]
+                lab.setStratumIS(int(value), PETSc.IS().createGeneral(np.sort(pts).astype(PETSc.IntType),
+                                                                      comm=PETSc.COMM_SELF))
 
     def _dof_section(self, vStart, vEnd):
         """3 dofs on each vertex."""
@@ -165,20 +191,51 @@ class Space:
         out[self._gorder] = np.concatenate(parts)
         return out
 
-    def face_vertices(self, axis, side, tol=0.01):
-        """Local vertices within tol of the min (side='min') or max face of the bounding box."""
-        ref = self.bbox[0][axis] if side == "min" else self.bbox[1][axis]
-        return np.flatnonzero(np.abs(self.X[:, axis] - ref) < tol)
+    # --- labelled sets -------------------------------------------------------------------------
+    def label_strata(self, name):
+        """{value: local points} of label `name` on this rank ({} when it has none of its points)."""
+        if name not in self.label_names or not self.dm.hasLabel(name):
+            return {}
+        lab = self.dm.getLabel(name)
+        out = {}
+        for v in lab.getValueIS().getIndices():
+            pts = lab.getStratumIS(int(v)).getIndices()
+            if len(pts):
+                out[int(v)] = np.asarray(pts, np.int64)
+        return out
 
-    def boundary_triangles(self, vset):
-        """Faces of local cells whose three vertices all lie in the local vertex set `vset`
-        (a face on a planar boundary belongs to exactly one cell). Returns (ntri, 3) local ids."""
-        mark = np.zeros(self.nlv, bool)
-        mark[vset] = True
-        m = mark[self.cells]
-        tris = []
-        for drop in range(4):
-            keep = [i for i in range(4) if i != drop]
-            sel = m[:, keep].all(axis=1)
-            tris.append(self.cells[sel][:, keep])
-        return np.concatenate(tris).astype(np.int64)
+    def cell_values(self, name):
+        """(nc,) value of label `name` on each local cell (0: none)."""
+        out = np.zeros(len(self.cells), np.int64)
+        for v, pts in self.label_strata(name).items():
+            pts = pts[pts < self._cStart + len(self.cells)]
+            out[pts - self._cStart] = v
+        return out
+
+    def set_vertices(self, name):
+        """Local vertices (owned and ghost) of the facet set labelled `name`."""
+        from .sets import VERTEX_VALUE, facet_label
+        pts = self.label_strata(facet_label(name)).get(VERTEX_VALUE, np.zeros(0, np.int64))
+        return np.sort(self._lvid[pts - self._vStart])
+
+    def set_triangles(self, names):
+        """(ntri, 3) local vertex ids of the boundary facets of the named sets (a facet in several of
+        them once) held by this rank's cells, ordered so that (b - a) x (c - a) points outward."""
+        from .sets import FACE_VERTICES, VERTEX_VALUE, facet_label, orient_outward
+        mask = np.zeros(len(self.cells), np.int64)
+        for name in names:
+            for v, pts in self.label_strata(facet_label(name)).items():
+                if v != VERTEX_VALUE:
+                    mask[pts - self._cStart] |= v
+        cells = np.flatnonzero(mask)
+        order = np.argsort(self.orig[self.cells[cells]], axis=1, kind="stable")   # by input vertex id
+        tris, opp = [], []
+        for j in range(4):
+            sel = (mask[cells] >> j) & 1 == 1
+            k = order[sel, j]                              # the local corner without the face
+            c = self.cells[cells[sel]].astype(np.int64)
+            tris.append(c[np.arange(len(k))[:, None], FACE_VERTICES[k]])
+            opp.append(c[np.arange(len(k)), k])
+        if not tris or not sum(map(len, tris)):
+            return np.zeros((0, 3), np.int64)
+        return orient_outward(self.X, np.concatenate(tris), np.concatenate(opp))

@@ -26,7 +26,7 @@ class System:
         n = 3 * space.nlv
         mask = np.zeros(n, bool)
         for c in constraints:
-            mask[(3 * c.vertices[:, None] + np.arange(3)).ravel()] = True
+            mask[c.dofs] = True
         self.cmask = mask
         self.cdofs = np.flatnonzero(mask)
         owned_mask = mask.reshape(-1, 3)[space.lvid_of_owned].ravel()
@@ -69,9 +69,8 @@ class System:
     def begin_step(self, t, h, xn, vn):
         for e in self.effects:
             e.begin_step(t, h, xn, vn)
-        g = self.g.reshape(-1, 3)
         for c in self.constraints:
-            g[c.vertices] = c.positions(t)
+            self.g[c.dofs] = c.values(t)
         self.g_owned_c = self.space.owned_array(self.g)[self.c_owned_pos]   # targets of the owned rows
 
     def begin_stage(self, t_stage, t1, h, xn, vn, alpha_f):

@@ -4,12 +4,16 @@ from collections import Counter
 
 import numpy as np
 
-from ..scene import FACES
 
 
-def face_set(space, names):
-    """Local vertices on the named bounding-box faces."""
-    return np.unique(np.concatenate([space.face_vertices(*FACES[f]) for f in names]))
+def held(space, specs):
+    """(local vertices, (n, 3) held components) of [(set name, components)] (a vertex in several sets
+    holds the union of their components)."""
+    comps = np.zeros((space.nlv, 3), bool)
+    for name, cs in specs:
+        comps[np.ix_(space.set_vertices(name), ["xyz".index(c) for c in cs])] = True
+    vertices = np.flatnonzero(comps.any(axis=1))
+    return vertices, comps[vertices]
 
 
 def build(scene, space, kernels):
@@ -35,16 +39,16 @@ def build(scene, space, kernels):
         elif name == "gravity":
             effects.append(Gravity(k, s.rho, p["gravity"], nlv))
         elif name in ("traction", "follower_traction"):
-            tris = space.boundary_triangles(face_set(space, [p["traction_face"]]))
+            tris = space.set_triangles([n for n, _ in p["traction_face"]])
             if name == "traction":
                 effects.append(Traction(space.X, tris, p["traction"], p["traction_ramp"], nlv))
             else:
                 effects.append(FollowerTwist(space.X, tris, p["traction_twist"], p["traction_ramp"], nlv))
         elif name == "fixed":
-            constraints.append(Fixed(space.X, face_set(space, p["fix"])))
+            constraints.append(Fixed(space.X, *held(space, p["fix"])))
         elif name == "prescribed":
-            constraints.append(Prescribed(space.X, face_set(space, p["prescribe_faces"]), p["prescribe_motion"],
-                                          p["prescribe_amount"]))
+            vertices, comps = held(space, p["prescribe_faces"])
+            constraints.append(Prescribed(space.X, vertices, p["prescribe_motion"], p["prescribe_amount"], comps))
     return effects, constraints
 
 

@@ -4,22 +4,29 @@ from .base import ramp
 
 
 class Constraint:
-    """Dirichlet condition on all three components of a set of local vertices: positions g(t).
-    Imposed by the system (see system.py) by elimination, not as a residual term."""
+    """Dirichlet condition on components of a set of local vertices: positions g(t). `comps` (n, 3)
+    bool says which components of each vertex are held (default: all three; e.g. a symmetry plane
+    x = 0 holds x only). Imposed by the system (see system.py) by elimination, not as a residual term."""
     name = "constraint"
 
-    def __init__(self, X, vertices):
+    def __init__(self, X, vertices, comps=None):
         self.vertices = np.asarray(vertices, np.int64)
+        self.comps = np.ones((len(self.vertices), 3), bool) if comps is None else np.asarray(comps, bool)
         self.X0 = X[self.vertices]
+        self.dofs = (3 * self.vertices[:, None] + np.arange(3))[self.comps]      # local dofs, row-major
         self.evals = self.applies = 0
         self.seconds = 0.0
 
     def positions(self, t):
         raise NotImplementedError
 
+    def values(self, t):
+        """Prescribed positions of the held dofs (in the order of self.dofs)."""
+        return self.positions(t)[self.comps]
+
 
 class Fixed(Constraint):
-    """Vertices held at their reference positions."""
+    """Vertices (or some of their components) held at their reference positions."""
     name = "fixed"
 
     def positions(self, t):
@@ -33,8 +40,8 @@ class Prescribed(Constraint):
     name = "prescribed"
     MOTIONS = ("rotate_x", "rotate_y", "squeeze_x", "stretch_x")
 
-    def __init__(self, X, vertices, motion, amount):
-        super().__init__(X, vertices)
+    def __init__(self, X, vertices, motion, amount, comps=None):
+        super().__init__(X, vertices, comps)
         self.motion = motion
         self.amount = float(amount)
 

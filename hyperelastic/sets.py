@@ -1,0 +1,205 @@
+"""Boundary facets and named sets of a tetrahedral mesh.
+
+A boundary facet is a triangle that belongs to exactly one tetrahedron; nothing else is ever loaded or
+treated as a face. Sets of boundary facets come from the mesh's physical surfaces (gmsh physical groups
+of dimension 2, by name or tag; meshio cell sets or integer cell tags of other formats) or from the
+bounding box (left/right = x min/max, front/back = y, bottom/top = z: the boundary facets whose three
+vertices lie on that plane, to 1e-6 of the box diagonal). Regions are sets of tetrahedra (physical
+volumes). Everything here works on the input mesh on rank 0; space.py carries the sets through
+distribution as DMPlex labels.
+"""
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .errors import UserError
+
+BOX = {"left": (0, "min"), "right": (0, "max"), "front": (1, "min"), "back": (1, "max"),
+       "bottom": (2, "min"), "top": (2, "max")}
+BOX_TOL = 1e-6                 # of the bounding box diagonal
+FACE_VERTICES = np.array([[1, 2, 3], [0, 2, 3], [0, 1, 3], [0, 1, 2]])   # face k: opposite vertex k
+VERTEX_VALUE = 16              # label value of a set's vertices (cells carry their faces' bitmask 1..15)
+# integer cell data other formats use for region / boundary tags (meshio names)
+TAG_KEYS = ("gmsh:physical", "medit:ref", "cell_tags", "CellEntityIds", "region", "tag")
+REGION_LABEL = "Cell Sets"     # the DMPlex label of the regions (value: physical tag), as PETSc's gmsh reader
+
+
+def facet_label(name):
+    """The DMPlex label of facet set `name`."""
+    return f"facets:{name}"
+
+
+def _keys(tris):
+    """One int64 (or row) key per triangle of sorted vertex ids."""
+    t = np.sort(tris, axis=1).astype(np.int64)
+    if t.size and t.max() < 2 ** 21:
+        return (t[:, 0] << 42) | (t[:, 1] << 21) | t[:, 2]
+    return np.ascontiguousarray(t).view([("a", np.int64), ("b", np.int64), ("c", np.int64)]).ravel()
+
+
+def boundary_facets(tets, path="mesh"):
+    """(cell, k) of every boundary facet (face k, opposite vertex k, of exactly one tetrahedron), in
+    cell order. A triangle shared by three or more tetrahedra (overlapping or duplicated cells) is a
+    UserError."""
+    faces = tets[:, FACE_VERTICES].reshape(-1, 3)
+    _, inv, cnt = np.unique(_keys(faces), return_inverse=True, return_counts=True)
+    c = cnt[inv]
+    over = np.flatnonzero(c > 2)
+    if len(over):
+        i = over[0]
+        raise UserError(f"mesh '{path}': triangle {sorted(faces[i].tolist())} is shared by {c[i]} tetrahedra "
+                        f"(overlapping or duplicate tetrahedra, e.g. {i // 4})")
+    idx = np.flatnonzero(c == 1)
+    return idx // 4, idx % 4
+
+
+@dataclass
+class NamedSet:
+    name: str
+    tag: object                 # int physical tag, or None
+    kind: str                   # "facets" or "tets"
+    items: np.ndarray           # boundary facet indices, or tetrahedron indices
+    ignored: int = 0            # triangles of the group that are not boundary facets
+
+
+@dataclass
+class Mesh:
+    path: str
+    points: np.ndarray
+    tets: np.ndarray
+    facet_cell: np.ndarray = None
+    facet_k: np.ndarray = None
+    groups: dict = field(default_factory=dict)     # name -> NamedSet (physical surfaces and volumes)
+
+    @classmethod
+    def from_meshio(cls, path, points, tets, m=None):
+        mesh = cls(path, np.ascontiguousarray(points[:, :3], np.float64), tets)
+        mesh.facet_cell, mesh.facet_k = boundary_facets(tets, path)
+        if m is not None:
+            mesh._read_groups(m)
+        return mesh
+
+    # --- geometry ----------------------------------------------------------------------------
+    def facets(self, idx=None):
+        """(n, 3) vertex ids of boundary facets `idx` (all by default), ordered so that the normal
+        (b - a) x (c - a) points out of the body."""
+        idx = slice(None) if idx is None else idx
+        cell, k = self.facet_cell[idx], self.facet_k[idx]
+        tri = self.tets[cell[:, None], FACE_VERTICES[k]]
+        opp = self.tets[cell, k]
+        return orient_outward(self.points, tri, opp)
+
+    def area(self, idx):
+        t = self.facets(idx)
+        P = self.points
+        return float(0.5 * np.linalg.norm(np.cross(P[t[:, 1]] - P[t[:, 0]], P[t[:, 2]] - P[t[:, 0]]), axis=1).sum())
+
+    def volume(self, cells):
+        from .mesh import signed_volumes
+        return float(np.abs(signed_volumes(self.points, self.tets[cells])).sum())
+
+    # --- named sets --------------------------------------------------------------------------
+    def _read_groups(self, m):
+        """Physical surfaces (boundary facets) and volumes (tetrahedra) of a meshio mesh."""
+        names = {(int(v[0]), int(v[1])): k for k, v in getattr(m, "field_data", {}).items()
+                 if np.ndim(v) == 1 and len(v) >= 2}
+        key = next((k for k in TAG_KEYS if k in m.cell_data), None)
+        tri_sets, tet_sets = {}, {}
+        off = 0
+        for i, block in enumerate(m.cells):
+            n = len(block.data)
+            if block.type == "tetra":
+                ids = np.arange(off, off + n)
+                off += n
+            if key is not None and block.type in ("triangle", "tetra"):
+                tags = np.asarray(m.cell_data[key][i]).astype(np.int64)
+                dim = 2 if block.type == "triangle" else 3
+                for tag in np.unique(tags):
+                    name = names.get((int(tag), dim), str(int(tag)))
+                    sel = tags == tag
+                    dst = tri_sets if dim == 2 else tet_sets
+                    part = block.data[sel] if dim == 2 else ids[sel]
+                    dst.setdefault((name, int(tag)), []).append(part)
+        if key is None:                 # named cell sets (e.g. from XDMF / MED), no tags
+            for name, per_block in getattr(m, "cell_sets", {}).items():
+                if name.startswith("gmsh:"):
+                    continue
+                off = 0
+                for block, sel in zip(m.cells, per_block):
+                    sel = np.asarray(sel, np.int64)
+                    if block.type == "triangle" and len(sel):
+                        tri_sets.setdefault((name, None), []).append(block.data[sel])
+                    elif block.type == "tetra":
+                        if len(sel):
+                            tet_sets.setdefault((name, None), []).append(off + sel)
+                        off += len(block.data)
+        bkeys = _keys(self.facets())
+        order = np.argsort(bkeys)
+        for (name, tag), parts in tri_sets.items():
+            k = _keys(np.concatenate(parts).astype(np.int64))
+            pos = np.clip(np.searchsorted(bkeys[order], k), 0, len(order) - 1)
+            found = bkeys[order][pos] == k
+            self.groups[name] = NamedSet(name, tag, "facets", np.unique(order[pos[found]]), int((~found).sum()))
+        for (name, tag), parts in tet_sets.items():
+            self.groups[name] = NamedSet(name, tag, "tets", np.unique(np.concatenate(parts)))
+
+    def names(self, kind):
+        return [g.name for g in self.groups.values() if g.kind == kind]
+
+    def box_facets(self, name):
+        """Boundary facets on a bounding-box plane: all three vertices within BOX_TOL of the diagonal."""
+        axis, side = BOX[name]
+        lo, hi = self.points.min(axis=0), self.points.max(axis=0)
+        tol = BOX_TOL * float(np.linalg.norm(hi - lo))
+        ref = lo[axis] if side == "min" else hi[axis]
+        on = np.abs(self.points[:, axis] - ref) <= tol
+        return np.flatnonzero(on[self.facets()].all(axis=1))
+
+    def find(self, spec, kind, option):
+        """The NamedSet `spec` names: a physical group's name or tag, or (facets) a box face name.
+        UserError listing what the mesh has when there is no such set."""
+        for g in self.groups.values():
+            if g.kind == kind and (g.name == spec or (g.tag is not None and str(g.tag) == spec)):
+                return g
+        if kind == "facets" and spec in BOX:
+            return NamedSet(spec, None, "facets", self.box_facets(spec))
+        have = [f"{g.name}" + (f" ({g.tag})" if g.tag is not None and str(g.tag) != g.name else "")
+                for g in self.groups.values() if g.kind == kind]
+        what = "surfaces" if kind == "facets" else "volumes"
+        listed = ", ".join(have) if have else "none"
+        extra = f"; box faces: {', '.join(BOX)}" if kind == "facets" else ""
+        raise UserError(f"option -{option}: mesh '{self.path}' has no {what[:-1]} '{spec}' "
+                        f"(physical {what}: {listed}{extra})")
+
+    def describe(self, s):
+        """One line about a set: name, size and area or volume."""
+        if s.kind == "facets":
+            line = f"{s.name}: {len(s.items)} facets, area {self.area(s.items):.6g}"
+            if s.ignored:
+                line += f" ({s.ignored} interior triangles of the group ignored)"
+            return line
+        return f"{s.name}: {len(s.items)} tets, volume {self.volume(s.items):.6g}"
+
+    def label_strata(self, s):
+        """{value: input cell or vertex indices} of a facet set as a DMPlex label: each cell holding
+        facets of the set gets the bitmask of which of its faces (bit j: the face without the cell's
+        j-th smallest input vertex id, so any cone order gives the same faces), the set's vertices
+        get VERTEX_VALUE."""
+        cell, k = self.facet_cell[s.items], self.facet_k[s.items]
+        excluded = self.tets[cell, k]
+        rank = (self.tets[cell] < excluded[:, None]).sum(axis=1)
+        masks = np.zeros(len(self.tets), np.int64)
+        np.bitwise_or.at(masks, cell, 1 << rank)
+        out = {int(v): np.flatnonzero(masks == v) for v in np.unique(masks[cell])}
+        out[VERTEX_VALUE] = np.unique(self.facets(s.items))
+        return out
+
+
+def orient_outward(points, tri, opp):
+    """Triangles (n,3) with the vertex order that makes (b - a) x (c - a) point away from `opp`."""
+    tri = np.array(tri, np.int64, copy=True)
+    a, b, c = (points[tri[:, i]] for i in range(3))
+    inward = np.einsum("ij,ij->i", np.cross(b - a, c - a), points[opp] - a) > 0
+    tri[inward, 1], tri[inward, 2] = tri[inward, 2].copy(), tri[inward, 1].copy()
+    return tri
+

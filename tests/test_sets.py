@@ -1,0 +1,167 @@
+"""Your own part: boundary facets, physical groups as sets, component-wise conditions (issue 14).
+
+The meshes are made from examples/*.geo by `hyperelastic mesh`, as a user would."""
+import json
+
+import numpy as np
+import pytest
+
+from conftest import ROOT, hyperelastic, make_model, read_h5, run_ok
+
+
+def one_line_error(p, *words):
+    lines = p.stderr.strip().splitlines()
+    assert p.returncode == 2 and len(lines) == 1, (p.returncode, p.stderr)
+    for w in words:
+        assert w in lines[0], (w, lines[0])
+    return lines[0]
+
+
+@pytest.fixture(scope="session")
+def parts(tmp_path_factory):
+    """{name: .msh path} of the example parts, meshed once."""
+    d = tmp_path_factory.mktemp("parts")
+    out = {}
+    for name, h in (("plate_hole", 0.008), ("bracket", 0.008), ("cube", 0.35)):
+        out[name] = str(d / f"{name}.msh")
+        run_ok(["mesh", f"{ROOT}/examples/{name}.geo", "--size", h, "-o", out[name]])
+    return out
+
+
+def held_vertices(model):
+    """(input-mesh vertex ids, held components (n,3)) of the constrained dofs (1 rank)."""
+    mask = model.system.cmask.reshape(-1, 3)
+    v = np.flatnonzero(mask.any(axis=1))
+    return model.space.orig[v], mask[v]
+
+
+def traction_force(model):
+    eff = next(e for e in model.system.effects if e.name == "traction")
+    return eff.f0.reshape(-1, 3).sum(axis=0)
+
+
+def test_mesh_command_keeps_physical_groups(parts, tmp_path):
+    import meshio
+    m = meshio.read(parts["plate_hole"])
+    assert set(m.field_data) == {"clamp", "load", "solid"}
+    p = run_ok(["mesh", f"{ROOT}/examples/cube.geo", "--size", 0.5, "--refine", 1, "-o", tmp_path / "c.msh"])
+    assert "c_r1.msh" in p.stdout
+    m0, m1 = meshio.read(tmp_path / "c.msh"), meshio.read(tmp_path / "c_r1.msh")
+    n0, n1 = (sum(len(c.data) for c in mm.cells if c.type == "tetra") for mm in (m0, m1))
+    assert n1 == 8 * n0 and set(m1.field_data) == set(m0.field_data)
+    one_line_error(hyperelastic(["mesh", tmp_path / "nosuch.geo", "--size", 1, "-o", tmp_path / "x.msh"]),
+                   "no such file")
+
+
+def test_second_order_mesh_is_refused(tmp_path):
+    import gmsh
+    path = str(tmp_path / "t10.msh")
+    gmsh.initialize(["gmsh", "-v", "0"], readConfigFiles=False)
+    try:
+        gmsh.option.setNumber("General.Terminal", 0)
+        gmsh.model.occ.addBox(0, 0, 0, 1, 1, 1)
+        gmsh.model.occ.synchronize()
+        gmsh.option.setNumber("Mesh.MeshSizeMax", 0.5)
+        gmsh.model.mesh.generate(3)
+        gmsh.model.mesh.setOrder(2)
+        gmsh.write(path)
+    finally:
+        gmsh.finalize()
+    one_line_error(hyperelastic(["run", "bend", "-mesh", path, "-output", tmp_path / "o.h5"]),
+                   "tetra10", "not supported", "ElementOrder")
+    assert not (tmp_path / "o.h5").exists()
+
+
+@pytest.mark.parametrize("part,clamp_axis,load_area", [("plate_hole", 0, 0.1 * 0.01), ("bracket", 0, 0.06 * 0.01)])
+def test_thin_part_sets(petsc, parts, part, clamp_axis, load_area):
+    """The regression of the issue: on a 1 cm part, a box face is exactly its boundary facets (not a
+    slab of vertices within 0.01), and a load integrates over exactly the named facets."""
+    import meshio
+    pts = meshio.read(parts[part]).points
+    common = [("mesh", parts[part]), ("traction_face", "load"), ("traction", "0,0,-1000"), ("quasistatic", "1")]
+    model = make_model(petsc, "bend", common + [("fix", "bottom")])
+    v, comps = held_vertices(model)
+    assert comps.all()
+    assert set(v) == set(np.flatnonzero(pts[:, 2] == pts[:, 2].min()))
+    f = traction_force(model)
+    assert abs(f[2] + 1000 * load_area) <= 1e-12 * 1000 * load_area and f[0] == f[1] == 0
+    model = make_model(petsc, "bend", common + [("fix", "clamp")])
+    v, _ = held_vertices(model)
+    assert set(v) == set(np.flatnonzero(pts[:, clamp_axis] == 0.0))
+    sets = {s["name"]: s for s in model.sets}
+    assert sets["load"]["kind"] == "facets" and abs(sets["load"]["measure"] - load_area) <= 1e-12 * load_area
+    assert sets["solid"]["kind"] == "tets" and sets["solid"]["count"] == len(model.tets)
+    # the box face at x max is the load face of both parts: the same facets
+    model = make_model(petsc, "bend", common[:1] + [("traction_face", "right"), ("traction", "0,0,-1000"),
+                                                    ("quasistatic", "1"), ("fix", "1")])
+    assert np.array_equal(traction_force(model), f)
+
+
+def test_unknown_set_names_what_the_mesh_has(parts, tmp_path):
+    line = one_line_error(hyperelastic(["run", "bend", "-mesh", parts["bracket"], "-fix", "clamps",
+                                        "-output", tmp_path / "o.h5"]), "-fix", "'clamps'")
+    assert "clamp (1), load (2)" in line and "box faces: left" in line
+    assert not (tmp_path / "o.h5").exists()
+
+
+def test_sets_printed_and_stored(parts, tmp_path):
+    out = tmp_path / "o.h5"
+    p = run_ok(["run", "bend", "-mesh", parts["plate_hole"], "-fix", "clamp", "-traction_face", "load",
+                "-final_time", 0.01, "-dt", 0.01, "-output", out, "-dm_view"])
+    assert "set clamp: " in p.stderr and " facets, area 0.001" in p.stderr
+    assert "set solid: " in p.stderr and "tets, volume" in p.stderr
+    assert "facets:clamp" in p.stdout and "Cell Sets" in p.stdout        # -dm_view shows the labels
+    sets = json.loads(read_h5(out)["attrs"]["sets"])
+    assert [s["name"] for s in sets] == ["clamp", "load", "solid"]
+
+
+def cube_stretch(parts, tmp_path, material, nprocs=1, amount=0.1):
+    """A cube stretched along x by its x max face (x held only), on three symmetry rollers: the
+    state is homogeneous. Returns (reference points, final positions)."""
+    scene = tmp_path / "uniaxial.opts"
+    scene.write_text("-effects elasticity,fixed,prescribed\n-quasistatic\n-dt 1\n-final_time 1\n"
+                     "-fix xmin:x,ymin:y,zmin:z\n-prescribe_faces xmax:x\n-prescribe_motion stretch_x\n"
+                     f"-prescribe_amount {amount}\n-snes_rtol 1e-14\n-snes_atol 1e-13\n-ksp_rtol 1e-14\n")
+    out = tmp_path / f"u{nprocs}.h5"
+    run_ok(["run", scene, "-mesh", parts["cube"], "-material", material, "-E", 1e6, "-nu", 0.3,
+            "-output", out, "-quiet"], nprocs=nprocs)
+    r = read_h5(out)
+    return r["points"], r["x"][-1]
+
+
+def test_uniaxial_stretch_on_rollers_linear(parts, tmp_path):
+    """Linear elasticity: u = (e X, -nu e Y, -nu e Z) exactly (the patch test)."""
+    X, x = cube_stretch(parts, tmp_path, "linear")
+    e, nu = 0.1, 0.3
+    exact = X * np.array([1 + e, 1 - nu * e, 1 - nu * e])
+    assert np.abs(x - exact).max() < 1e-10
+
+
+def test_uniaxial_stretch_on_rollers_neohookean(parts, tmp_path):
+    """Compressible Neo-Hookean (Bonet & Wood 6.4.3), F = diag(a, b, b) with a = 1.1: the lateral
+    stretch b solves P22 = mu (b - 1/b) + lam ln(a b^2) / b = 0."""
+    X, x = cube_stretch(parts, tmp_path, "neohookean")
+    E, nu, a = 1e6, 0.3, 1.1
+    lam, mu = E * nu / ((1 + nu) * (1 - 2 * nu)), E / (2 * (1 + nu))
+    lo, hi = 0.5, 1.0                       # P22 < 0 at lo, > 0 at hi: bisect to rounding
+    for _ in range(200):
+        b = 0.5 * (lo + hi)
+        lo, hi = (b, hi) if mu * (b - 1 / b) + lam * np.log(a * b * b) / b < 0 else (lo, b)
+    exact = X * np.array([a, b, b])
+    assert np.abs(x - exact).max() < 1e-10
+
+
+@pytest.mark.parametrize("case", ["cube", "plate"])
+def test_sets_same_on_two_ranks(parts, tmp_path, case):
+    if case == "cube":
+        _, x1 = cube_stretch(parts, tmp_path, "stvk", 1)
+        _, x2 = cube_stretch(parts, tmp_path, "stvk", 2)
+    else:
+        args = ["run", "bend", "-mesh", parts["plate_hole"], "-fix", "clamp:xyz,bottom:z", "-traction_face",
+                "load", "-traction", "0,0,-1e4", "-E", 70e9, "-rho", 2700, "-dt", 1e-4, "-final_time", 5e-4,
+                "-quiet", "-snes_rtol", 1e-12, "-ksp_rtol", 1e-12]
+        run_ok([*args, "-output", tmp_path / "p1.h5"])
+        run_ok([*args, "-output", tmp_path / "p2.h5"], nprocs=2)
+        x1, x2 = read_h5(tmp_path / "p1.h5")["x"], read_h5(tmp_path / "p2.h5")["x"]
+        assert np.abs(x1[-1] - x1[0]).max() > 1e-9          # it moved
+    assert np.abs(x1 - x2).max() <= 1e-8 * max(1.0, np.abs(x1).max())
