@@ -129,7 +129,9 @@ def run(argv):
             print(f"note: {solver.merit_note}", file=sys.stderr)
     attrs = run_attributes(model, scene_file, solver)
     stage.pop()
-    writer = Writer(out, model.space, model.points, model.tets, attrs, resume=restart)
+    from .sets import REGION_LABEL
+    writer = Writer(out, model.space, model.points, model.tets, attrs, resume=restart, kernels=model.kernels,
+                    region=model.space.cell_values(REGION_LABEL))
     if ts is not None:
         from .ts_integrator import GeneralizedAlpha
         integ = GeneralizedAlpha(scene, model.system, solver, writer, model.x0, model.v0, ts, checkpoint=restart,

@@ -76,7 +76,7 @@ class Integrator:
         sc = self.scene
         self.stages["Output"].push()
         if self.writer and framed:
-            self.writer.frame(self.t, self.x if x_frame is None else x_frame)
+            self.writer.frame(self.t, self.x if x_frame is None else x_frame, self.v)
         # a signal is honoured at a frame (all ranks agree), after a checkpoint of that state
         stop = framed and self.sp.mpi.allreduce(self.signal, op=MPI.MAX)
         ck = bool(sc.checkpoint_every and n_done % sc.checkpoint_every == 0 and not last)
@@ -167,7 +167,7 @@ class BackwardEuler(Integrator):
         every = max(1, int(round(1.0 / (sc.fps * H))))
         if self.writer and self.n0 == 0:
             self.system.begin_step(0.0, H, self.x, self.v)
-            self.writer.frame(0.0, self.system.impose(self.x.copy()))
+            self.writer.frame(0.0, self.system.impose(self.x.copy()), self.v)
         t_start = time.perf_counter()
         progress = {"last_print": t_start}
         self.h_try = H if self.h_try is None else self.h_try

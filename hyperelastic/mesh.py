@@ -123,11 +123,57 @@ def read(path):
     return m.points, m.tets
 
 
-def read_mesh(path):
-    """The checked tetrahedral mesh of `path` with its boundary facets and named sets (sets.Mesh)."""
+def read_mesh(path, frame=-1):
+    """The checked tetrahedral mesh of `path` with its boundary facets and named sets (sets.Mesh). An
+    output file of this application (.h5, or the .xdmf beside it) gives the mesh in the configuration
+    of its frame `frame` (default: the last), with its regions."""
     from .sets import Mesh
+    if path.lower().endswith(".xdmf") and _is_output(os.path.splitext(path)[0] + ".h5"):
+        path = os.path.splitext(path)[0] + ".h5"
+    if path.lower().endswith((".h5", ".hdf5")) and _is_output(path):
+        return _read_output(path, frame)
     points, tets, m = _read_meshio(path)
     return Mesh.from_meshio(path, points, tets, m)
+
+
+def _is_output(path):
+    """Whether `path` is an output file of `hyperelastic run` (HDF5 with mesh/points, mesh/tetra and x)."""
+    if not os.path.isfile(path):
+        return False
+    try:
+        import h5py
+        with h5py.File(path, "r") as f:
+            return all(k in f for k in ("mesh/points", "mesh/tetra", "x"))
+    except (OSError, ValueError):
+        return False
+
+
+def _read_output(path, frame):
+    """sets.Mesh of frame `frame` of an output file: its positions become the reference, its regions
+    (mesh/region, named as the run's attribute `sets` names them) are kept."""
+    import json
+    import h5py
+    from .sets import Mesh, NamedSet
+    with h5py.File(path, "r") as f:
+        nf = f["x"].shape[0]
+        if nf == 0:
+            points = f["mesh/points"][:]
+        elif not -nf <= frame < nf:
+            raise UserError(f"mesh '{path}': has no frame {frame} (it has {nf}: 0..{nf - 1})")
+        else:
+            points = f["x"][frame]
+        tets = f["mesh/tetra"][:].astype(np.int64)
+        region = f["mesh/region"][:] if "mesh/region" in f else np.zeros(len(tets), np.int64)
+        try:
+            named = {int(s["tag"]): s["name"] for s in json.loads(f.attrs.get("sets", "[]")) if s["kind"] == "tets"}
+        except (ValueError, KeyError, TypeError):
+            named = {}
+    check(points, tets, path)
+    mesh = Mesh.from_meshio(path, points, tets)
+    for tag in np.unique(region[region != 0]):
+        name = named.get(int(tag), str(int(tag)))
+        mesh.groups[name] = NamedSet(name, int(tag), "tets", np.flatnonzero(region == tag))
+    return mesh
 
 
 def _read_meshio(path):

@@ -88,7 +88,7 @@ def load_mesh(scene):
     """(sets.Mesh, DMPlex labels, set report) of the scene's mesh, on rank 0: the facet sets its options
     name (an unknown name is a UserError listing the mesh's) and its regions."""
     from .sets import REGION_LABEL, VERTEX_VALUE, facet_label
-    mesh = read_mesh(scene.mesh if scene.mesh else cached_bar(scene.level))
+    mesh = read_mesh(scene.mesh, scene.mesh_frame) if scene.mesh else read_mesh(cached_bar(scene.level))
     labels, report = {}, []
     for option, name in facet_set_uses(scene):
         if facet_label(name) in labels:

@@ -1,9 +1,14 @@
 """HDF5 output (rank 0 writes, flushed every frame) and an XDMF time series beside it.
 
-Layout: mesh/points (nv,3), mesh/tetra (nc,4) in the input mesh's numbering; time (F,);
-x (F,nv,3) positions in the input vertex order; stats/<column> (S,) one entry per step attempt
-(the columns: stats.py);
+Layout: mesh/points (nv,3), mesh/tetra (nc,4) in the input mesh's numbering (mesh/region (nc,): the
+region tag of each tet, 0 for none); time (F,); x (F,nv,3) positions in the input vertex order;
+frames/<i>/<field> the fields of frame i (fields.py: displacement, velocity (nv,3); J, energy_density,
+von_mises (nc,)); stats/<column> (S,) one entry per step attempt (the columns: stats.py);
 attributes: see run_attributes.
+
+The XDMF beside it is a temporal collection of uniform grids on the reference mesh, each frame with its
+fields as attributes (the layout meshio's TimeSeriesReader and VTK's XDMF reader read; ParaView: Warp By
+Vector with displacement shows the deformed body).
 """
 import os
 
@@ -82,10 +87,13 @@ def read_checkpoint(path):
 
 
 class Writer:
-    def __init__(self, path, space, points, tets, attrs, resume=None):
+    def __init__(self, path, space, points, tets, attrs, resume=None, kernels=None, region=None):
         """A new output file, or (resume = a checkpoint's state) the existing one cut back to the
-        frames and statistics rows the checkpoint had."""
+        frames and statistics rows the checkpoint had. kernels: the elastic cell kernels, for the cell
+        fields (none without); region: the local cells' region tags (collective)."""
         self.space = space
+        self.kernels = kernels
+        self.points = None if points is None else np.asarray(points, np.float64)
         self.root = space.mpi.rank == 0
         self.path = path
         self.xdmf = os.path.splitext(path)[0] + ".xdmf"
@@ -95,6 +103,7 @@ class Writer:
         if resume is not None:
             self._resume(resume, attrs)
             return
+        reg = space.gather_cells(np.zeros(space.nc, np.int64) if region is None else np.asarray(region, np.int64))
         if not self.root:
             return
         import h5py
@@ -102,6 +111,7 @@ class Writer:
         nv = len(points)
         f.create_dataset("mesh/points", data=np.asarray(points, np.float64))
         f.create_dataset("mesh/tetra", data=np.asarray(tets, np.int64))
+        f.create_dataset("mesh/region", data=reg)
         f.create_dataset("time", shape=(0,), maxshape=(None,), dtype=np.float64, chunks=(256,))
         f.create_dataset("x", shape=(0, nv, 3), maxshape=(None, nv, 3), dtype=np.float64, chunks=(1, nv, 3))
         f.create_group("stats")
@@ -119,6 +129,10 @@ class Writer:
         self.nv, self.nc = f["mesh/points"].shape[0], f["mesh/tetra"].shape[0]
         f["time"].resize((self.nframes,))
         f["x"].resize((self.nframes, self.nv, 3))
+        self.points = f["mesh/points"][:]
+        for k in list(f.get("frames", {})):
+            if int(k) >= self.nframes:
+                del f["frames"][k]
         for k in f["stats"]:
             f["stats"][k].resize((self.nstats,))
         for k in ("failure", "interrupted"):
@@ -151,8 +165,14 @@ class Writer:
         f.attrs["checkpoint_slot"] = slot
         f.flush()
 
-    def frame(self, t, x_local):
+    def frame(self, t, x_local, v_local=None):
+        """Frame at time t: positions x, velocities v (local arrays) and the fields (fields.py). Collective."""
+        from .fields import cell_fields
         full = self.space.gather(x_local)
+        vel = self.space.gather(v_local) if v_local is not None else None
+        cells = {}
+        if self.kernels is not None:
+            cells = {k: self.space.gather_cells(a) for k, a in cell_fields(self.kernels, x_local).items()}
         if not self.root:
             return
         f = self.f
@@ -161,6 +181,14 @@ class Writer:
         f["x"].resize((i + 1, self.nv, 3))
         f["x"][i] = full
         f["time"][i] = t
+        g = f.require_group(f"frames/{i}")
+        for k in list(g):
+            del g[k]
+        g.create_dataset("displacement", data=full - self.points)
+        if vel is not None:
+            g.create_dataset("velocity", data=vel)
+        for k, a in cells.items():
+            g.create_dataset(k, data=a)
         self.nframes += 1
         self._flush_stats()
         f.flush()
@@ -207,23 +235,25 @@ class Writer:
             self.f = None
 
     def _write_xdmf(self):
+        """The XDMF of all frames so far (rewritten whole, atomically, at each frame)."""
         h5 = os.path.basename(self.path)
         times = self.f["time"][:]
-        nv, nc, nf = self.nv, self.nc, self.nframes
+        nv, nc = self.nv, self.nc
+        mesh = (f'    <Topology TopologyType="Tetrahedron" NumberOfElements="{nc}">\n'
+                f'     <DataItem Dimensions="{nc} 4" NumberType="Int" Precision="8" Format="HDF">{h5}:/mesh/tetra'
+                '</DataItem>\n    </Topology>\n    <Geometry GeometryType="XYZ">\n'
+                f'     <DataItem Dimensions="{nv} 3" NumberType="Float" Precision="8" Format="HDF">{h5}:/mesh/points'
+                '</DataItem>\n    </Geometry>')
         grids = []
         for i, t in enumerate(times):
-            grids.append(f"""   <Grid Name="frame{i}" GridType="Uniform">
-    <Time Value="{t:.17g}"/>
-    <Topology TopologyType="Tetrahedron" NumberOfElements="{nc}">
-     <DataItem Dimensions="{nc} 4" NumberType="Int" Precision="8" Format="HDF">{h5}:/mesh/tetra</DataItem>
-    </Topology>
-    <Geometry GeometryType="XYZ">
-     <DataItem ItemType="HyperSlab" Dimensions="1 {nv} 3" Type="HyperSlab">
-      <DataItem Dimensions="3 3" Format="XML">{i} 0 0 1 1 1 1 {nv} 3</DataItem>
-      <DataItem Dimensions="{nf} {nv} 3" NumberType="Float" Precision="8" Format="HDF">{h5}:/x</DataItem>
-     </DataItem>
-    </Geometry>
-   </Grid>""")
+            g = self.f.get(f"frames/{i}", {})
+            attrs = [self._attribute(h5, "/mesh/region", "region", (nc,), "Cell", "Int")]
+            for name in g:
+                shape = g[name].shape
+                attrs.append(self._attribute(h5, f"/frames/{i}/{name}", name, shape,
+                                             "Node" if len(shape) == 2 else "Cell", "Float"))
+            grids.append(f'   <Grid Name="frame{i}" GridType="Uniform">\n{mesh}\n    <Time Value="{t:.17g}"/>\n'
+                         + "\n".join(attrs) + "\n   </Grid>")
         text = ('<?xml version="1.0" ?>\n<Xdmf Version="3.0">\n <Domain>\n'
                 '  <Grid Name="hyperelastic" GridType="Collection" CollectionType="Temporal">\n'
                 + "\n".join(grids) + "\n  </Grid>\n </Domain>\n</Xdmf>\n")
@@ -231,3 +261,11 @@ class Writer:
         with open(tmp, "w") as fh:
             fh.write(text)
         os.replace(tmp, self.xdmf)
+
+    @staticmethod
+    def _attribute(h5, dset, name, shape, center, number):
+        kind = "Vector" if len(shape) == 2 else "Scalar"
+        dims = " ".join(map(str, shape))
+        return (f'    <Attribute Name="{name}" AttributeType="{kind}" Center="{center}">\n'
+                f'     <DataItem Dimensions="{dims}" NumberType="{number}" Precision="8" Format="HDF">{h5}:{dset}'
+                '</DataItem>\n    </Attribute>')

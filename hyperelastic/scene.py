@@ -22,6 +22,7 @@ class Scene:
     """A scene's settings, with the application's defaults (the only place they are written)."""
     name: str
     mesh: str = None            # path, or None for the cached bar at `level`
+    mesh_frame: int = -1        # the frame of an output file given as -mesh (default: the last)
     level: int = 1
     material: object = None     # a materials class (default: DEFAULT_MATERIAL)
     E: float = 1e6
@@ -114,6 +115,7 @@ def read_scene(name, opts=None):
 
 def _read_material(s, opts):
     s.mesh = opts.string("mesh", s.mesh)
+    s.mesh_frame = opts.integer("mesh_frame", s.mesh_frame)
     s.level = opts.integer("level", s.level, minimum=1)
     s.material = materials.get(opts.string("material", DEFAULT_MATERIAL))
     preset = opts.string("preset", None)

@@ -73,13 +73,14 @@ class Space:
             nv_total, nc_total = len(p), len(t)
         else:
             p, t = np.zeros((0, 3)), np.zeros((0, 4), np.int64)
-            vperm = None
+            vperm = corder = None
             nv_total = nc_total = 0
         self.nv_total, self.nc_total = self.mpi.bcast((nv_total, nc_total), root=0)
         dm = PETSc.DMPlex().createFromCellList(3, t.astype(PETSc.IntType), p, interpolate=False, comm=comm)
         if comm.getRank() == 0 and labels:
             self._set_labels(dm, labels, corder, vperm)
         self.label_names = self.mpi.bcast(list(labels) if comm.getRank() == 0 else None, root=0)
+        self._corder = corder
         part = dm.getPartitioner()
         part.setType(PETSc.Partitioner.Type.SIMPLE)
         sf = dm.distribute(overlap=0) if comm.getSize() > 1 else None
@@ -119,14 +120,21 @@ class Space:
 
     def _input_indices(self, lvid, vStart, vEnd, vperm, sf):
         """The input-mesh index of each local vertex (through the migration SF on several ranks)."""
+        cStart, cEnd = self.dm.getHeightStratum(0)
         if sf is None:
             serial_vertex = np.arange(vStart, vEnd) - vStart
+            serial_cell = np.arange(cStart, cEnd)
         else:
             nroots, ilocal, iremote = sf.getGraph()
             leaves = np.arange(len(iremote)) if ilocal is None else np.asarray(ilocal)
             orig_point = np.full(self.dm.getChart()[1], -1, np.int64)
             orig_point[leaves] = np.asarray(iremote).reshape(-1, 2)[:, 1]
             serial_vertex = orig_point[vStart:vEnd] - self.nc_total  # serial DM: cells first, then vertices
+            serial_cell = orig_point[cStart:cEnd]
+        corder = self.mpi.bcast(self._corder, root=0)
+        self.cell_orig = np.asarray(corder, np.int64)[serial_cell]     # input-mesh index of each local cell
+        cids = self.mpi.gather(self.cell_orig, root=0)
+        self._corder_gather = np.concatenate(cids) if self.mpi.rank == 0 else None
         vperm = self.mpi.bcast(vperm, root=0)
         orig = np.empty(self.nlv, np.int64)
         orig[lvid] = vperm[serial_vertex]
@@ -189,6 +197,16 @@ class Space:
             return None
         out = np.empty((self.nv_total, 3))
         out[self._gorder] = np.concatenate(parts)
+        return out
+
+    def gather_cells(self, local_array):
+        """(nc_total, ...) array of per-cell values in the input mesh's cell order on rank 0; None elsewhere."""
+        parts = self.mpi.gather(np.ascontiguousarray(local_array), root=0)
+        if self.mpi.rank != 0:
+            return None
+        cat = np.concatenate(parts)
+        out = np.empty_like(cat)
+        out[self._corder_gather] = cat
         return out
 
     # --- labelled sets -------------------------------------------------------------------------

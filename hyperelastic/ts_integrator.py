@@ -160,7 +160,7 @@ class GeneralizedAlpha(Integrator):
         nsteps = None if self.adaptive else step_count(sc.final_time, sc.dt)
         if self.writer and self.n0 == 0 and self.step == 0:
             sysm.begin_step(0.0, sc.dt, self.x, self.v)
-            self.writer.frame(0.0, sysm.impose(self.x.copy()))
+            self.writer.frame(0.0, sysm.impose(self.x.copy()), self.v)
         t_start = time.perf_counter()
         progress = {"last_print": t_start}
         eps = 1e-9 * sc.dt

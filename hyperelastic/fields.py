@@ -1,0 +1,50 @@
+"""Output fields of a frame: point fields (displacement, velocity) and cell fields (J, strain-energy
+density, von Mises stress of the Cauchy stress, region), evaluated on the local cells from the
+material's numpy reference (materials/NAME.py) and gathered into the input numbering by the Writer.
+
+Cauchy stress sigma = P F^T / J (Bonet & Wood, eq. 5.41); von Mises sqrt(3/2 s:s), s = dev sigma. Where
+the material is undefined (J <= 0 for Neo-Hookean) the energy density and stress are NaN.
+"""
+import numpy as np
+
+from . import materials
+
+POINT_FIELDS = ("displacement", "velocity")
+CELL_FIELDS = ("J", "energy_density", "von_mises")
+
+
+def deformation_gradients(cells, Dminv, x):
+    """F = Ds Dm^-1 per cell (n, 3, 3) from local positions x (flat)."""
+    xc = x.reshape(-1, 3)[cells]
+    Ds = np.stack([xc[:, 1] - xc[:, 0], xc[:, 2] - xc[:, 0], xc[:, 3] - xc[:, 0]], axis=-1)
+    return Ds @ Dminv.reshape(-1, 3, 3)
+
+
+def _per_cell(fn, F, *args):
+    """fn(F, ...) vectorized, NaN for the cells where it fails (a singular F in an inverse)."""
+    try:
+        return fn(F, *args)
+    except np.linalg.LinAlgError:
+        out = []
+        for f in F:
+            try:
+                out.append(fn(f[None], *args)[0])
+            except np.linalg.LinAlgError:
+                out.append(np.full(np.shape(fn(np.eye(3)[None], *args))[1:], np.nan))
+        return np.array(out)
+
+
+def cell_fields(kernels, x):
+    """{J, energy_density, von_mises}: (nc,) arrays on the local cells of `kernels` at positions x."""
+    F = deformation_gradients(kernels.cells, kernels.Dminv, x)
+    mat = materials.get(kernels.material)
+    with np.errstate(all="ignore"):
+        J = np.linalg.det(F)
+        psi = _per_cell(mat.psi, F, kernels.mu, kernels.lam)
+        P = _per_cell(mat.P, F, kernels.mu, kernels.lam)
+        sigma = P @ np.swapaxes(F, -1, -2) / J[:, None, None]
+        s = sigma - np.trace(sigma, axis1=-2, axis2=-1)[:, None, None] / 3.0 * np.eye(3)
+        vm = np.sqrt(1.5 * np.einsum("cij,cij->c", s, s))
+    psi = np.where(np.isfinite(psi), psi, np.nan)
+    vm = np.where(np.isfinite(vm), vm, np.nan)
+    return {"J": J, "energy_density": psi, "von_mises": vm}
