@@ -10,10 +10,10 @@ from .options import Options, insert_defaults, parse_options_file, resolve_scene
 DEFAULT_MATERIAL = "stvk"
 DEFAULT_EFFECTS = ("elasticity", "inertia")
 EFFECTS = ("elasticity", "inertia", "damping", "rayleigh", "gravity", "traction", "follower_traction",
-           "fixed", "prescribed")
+           "pressure", "fixed", "prescribed")
 # an effect is implied by the option that carries its parameter (e.g. -gravity adds gravity)
 IMPLIED_BY = {"damping": "damping", "rayleigh": ("rayleigh_alpha", "rayleigh_beta"), "gravity": "gravity",
-              "traction": "traction", "follower_traction": "traction_twist", "fixed": "fix",
+              "traction": "traction", "follower_traction": "traction_twist", "pressure": "pressure", "fixed": "fix",
               "prescribed": "prescribe_motion"}
 
 
@@ -88,6 +88,8 @@ def facet_set_uses(s):
         out += [("fix", n) for n, _ in p["fix"]]
     if "traction" in s.effects or "follower_traction" in s.effects:
         out += [("traction_face", n) for n, _ in p["traction_face"]]
+    if "pressure" in s.effects:
+        out += [("pressure_faces", n) for n, _ in p["pressure_faces"]]
     if "prescribed" in s.effects:
         out += [("prescribe_faces", n) for n, _ in p["prescribe_faces"]]
     return out
@@ -228,6 +230,15 @@ def _follower_traction(s, opts, p):
     return True
 
 
+def _pressure(s, opts, p):
+    p["pressure"] = opts.real("pressure", None)
+    if p["pressure"] is None or not opts.has("pressure_faces"):
+        _needs(s, "pressure", "-pressure p and -pressure_faces surfaces")
+    p["pressure_faces"] = facet_sets(opts, "pressure_faces")
+    p["pressure_ramp"] = opts.real("pressure_ramp", None)
+    return True
+
+
 def _fixed(s, opts, p):
     if not opts.has("fix"):
         _needs(s, "fixed", "-fix faces (e.g. left)")
@@ -247,4 +258,5 @@ def _prescribed(s, opts, p):
 
 # effect -> reader of its parameters (returns False when they switch the effect off)
 PARAMETERS = {"damping": _damping, "rayleigh": _rayleigh, "gravity": _gravity, "traction": _traction,
-              "follower_traction": _follower_traction, "fixed": _fixed, "prescribed": _prescribed}
+              "follower_traction": _follower_traction, "pressure": _pressure, "fixed": _fixed,
+              "prescribed": _prescribed}

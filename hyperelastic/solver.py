@@ -1,6 +1,7 @@
 """SNES / KSP / PC from the options database, with this application's defaults: Newton with a
 backtracking line search on the incremental potential (energy merit, SNESSetObjective) where every
-effect has one, else on the residual norm; CG + Jacobi (no PC under -snes_mf)."""
+effect has one, else on the residual norm; CG (GMRES when an effect's tangent is not symmetric: follower
+loads) + Jacobi (no PC under -snes_mf)."""
 from mpi4py import MPI
 from petsc4py import PETSc
 
@@ -10,14 +11,14 @@ from .libpetsc import set_function_domain_error
 MERITS = ("energy", "residual norm")
 
 
-def apply_defaults(merit="residual norm"):
+def apply_defaults(merit="residual norm", symmetric=True):
     """This application's defaults, where the options database does not set them. With the energy
     merit, a Krylov solve that stops early (CG at negative curvature: DIVERGED_INDEFINITE_MAT) still
     gives a descent direction for the energy (Steihaug 1983), so it does not end the Newton solve:
     the line search decides; more Newton iterations are allowed for such steps."""
     opts = PETSc.Options()
     energy = merit == "energy"
-    defaults = [("ksp_type", "cg"), ("snes_max_it", "100" if energy else "50")]
+    defaults = [("ksp_type", "cg" if symmetric else "gmres"), ("snes_max_it", "100" if energy else "50")]
     if opts.getString("snes_type", "newtonls") == "newtonls":
         defaults.append(("snes_linesearch_type", "bt"))
     for k, v in defaults:
@@ -56,7 +57,7 @@ class Solver:
             self.merit_note = (f"{', '.join(system.nonconservative())} has no potential: the line search "
                                "merit is the residual norm")
         self.merit = MERITS[0] if objective and system.conservative and snes is None else MERITS[1]
-        apply_defaults(self.merit)
+        apply_defaults(self.merit, all(e.symmetric for e in system.effects))
         self.mf = matrix_free()
         self.R = sp.global_vec()
         own = snes is None

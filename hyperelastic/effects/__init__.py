@@ -24,7 +24,7 @@ def build(scene, space, kernels):
     from .elasticity import Elasticity
     from .gravity import Gravity
     from .inertia import Inertia
-    from .traction import FollowerTwist, Traction
+    from .traction import FollowerTwist, Pressure, Traction
     s, p, nlv, k = scene, scene.params, space.nlv, kernels
     effects, constraints = [], []
     for name in s.effects:
@@ -44,6 +44,9 @@ def build(scene, space, kernels):
                 effects.append(Traction(space.X, tris, p["traction"], p["traction_ramp"], nlv))
             else:
                 effects.append(FollowerTwist(space.X, tris, p["traction_twist"], p["traction_ramp"], nlv))
+        elif name == "pressure":
+            tris = space.set_triangles([n for n, _ in p["pressure_faces"]])
+            effects.append(Pressure(space.X, tris, p["pressure"], p["pressure_ramp"]))
         elif name == "fixed":
             constraints.append(Fixed(space.X, *held(space, p["fix"])))
         elif name == "prescribed":
