@@ -133,3 +133,25 @@ def test_fields_same_on_two_ranks(bend_out, tmp_path):
             u, w = a[f"frames/2/{name}"][:], b[f"frames/2/{name}"][:]
             assert np.abs(u - w).max() <= 1e-8 * max(1.0, np.abs(u).max()), name
         assert np.array_equal(a["mesh/region"][:], b["mesh/region"][:])
+
+
+def test_readme_your_own_part_runs_as_written(tmp_path):
+    """The commands of the README's "Your own part", as written, in a fresh directory holding the
+    project's examples/ and scripts/ and its .venv."""
+    import shlex
+    from conftest import BIN, ROOT
+    text = open(os.path.join(ROOT, "README.md")).read()
+    block = text.split("## Your own part", 1)[1].split("\n\n")[1]
+    cmds = [line.strip() for line in block.splitlines() if line.startswith("    ")]
+    assert len(cmds) == 3 and cmds[0].startswith(".venv/bin/hyperelastic mesh examples/")
+    for d in ("examples", "scripts"):
+        os.symlink(os.path.join(ROOT, d), tmp_path / d)
+    os.symlink(os.path.dirname(BIN), tmp_path / ".venv")
+    (tmp_path / "output").mkdir()
+    for c in cmds:
+        p = subprocess.run(shlex.split(c), cwd=tmp_path, capture_output=True, text=True, timeout=300)
+        assert p.returncode == 0, (c, p.stderr)
+        if " run " in c:
+            for line in text.split("loads `load`", 1)[1].split("\n\n")[1].splitlines():
+                assert line.strip() in p.stderr, line               # the set lines the README shows
+    assert (tmp_path / "output" / "bracket.png").stat().st_size > 10000
