@@ -229,3 +229,17 @@ def test_hydrostatic_pressure_on_rollers_neohookean(parts, tmp_path):
     assert np.abs(outs[0]["x"][-1] - b * X).max() < 1e-9
     assert abs(b - 1) > 0.03
     assert np.abs(outs[0]["x"] - outs[1]["x"]).max() <= 1e-8
+
+
+def test_tags_of_other_formats(petsc, parts, tmp_path):
+    """A .vtu with integer cell tags (no names): sets by tag; the same clamp as the .msh by name."""
+    import meshio
+    m = meshio.read(parts["plate_hole"])
+    vtu = str(tmp_path / "plate.vtu")
+    meshio.write(vtu, meshio.Mesh(m.points, [(c.type, c.data) for c in m.cells],
+                                  cell_data={"cell_tags": [np.asarray(a) for a in m.cell_data["gmsh:physical"]]}))
+    by_tag = held_vertices(make_model(petsc, "bend", [("mesh", vtu), ("fix", "1"), ("traction_face", "2"),
+                                                      ("traction", "0,0,-1")]))[0]
+    by_name = held_vertices(make_model(petsc, "bend", [("mesh", parts["plate_hole"]), ("fix", "clamp"),
+                                                       ("traction_face", "load"), ("traction", "0,0,-1")]))[0]
+    assert len(by_tag) > 0 and set(by_tag) == set(by_name)
