@@ -35,7 +35,14 @@ def _per_cell(fn, F, *args):
 
 
 def cell_fields(kernels, x):
-    """{J, energy_density, von_mises}: (nc,) arrays on the local cells of `kernels` at positions x."""
+    """{J, energy_density, von_mises}: (nc,) arrays on the local cells of `kernels` at positions x
+    (with a material per region: each region's cells by its material)."""
+    if hasattr(kernels, "parts"):
+        out = {k: np.full(kernels.nc, np.nan) for k in ("J", "energy_density", "von_mises")}
+        for idx, k in kernels.parts:
+            for name, a in cell_fields(k, x).items():
+                out[name][idx] = a
+        return out
     F = deformation_gradients(kernels.cells, kernels.Dminv, x)
     mat = materials.get(kernels.material)
     with np.errstate(all="ignore"):

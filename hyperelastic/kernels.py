@@ -145,3 +145,70 @@ class CellKernels:
         """y += coef * (consistent P1 mass pattern) v."""
         _lib.he_mass_apply(self.nc, _ptr(self.cells, IDX), _ptr(self.vol, np.float64), float(coef),
                            _ptr(v, np.float64), _ptr(y, np.float64))
+
+
+class RegionKernels:
+    """Cell kernels of several materials, each on a subset of the local cells (a material per region,
+    -regions), with CellKernels' interface: sums over all cells, per-cell arrays in the local cell
+    order. Geometric kernels (mass, max_step, apply_blocks) do not depend on the material and run on
+    all cells at once."""
+
+    def __init__(self, cells, Dminv, vol, parts):
+        """parts: [(local cell indices, material name, mu, lam)]; each cell in exactly one."""
+        first = parts[0]
+        self.all = CellKernels(cells, Dminv, vol, first[1], first[2], first[3])
+        self.cells, self.Dminv, self.vol, self.nc = self.all.cells, self.all.Dminv, self.all.vol, self.all.nc
+        self.spec = [(np.asarray(idx, np.int64), m, mu, lam) for idx, m, mu, lam in parts]
+        self.parts = [(idx, CellKernels(self.cells[idx], self.Dminv[idx], self.vol[idx], m, mu, lam))
+                      for idx, m, mu, lam in self.spec if len(idx)]
+        self.material = None      # several: see self.parts
+
+    def part(self, lo, hi):
+        """The same kernels on cells lo..hi-1 (cached)."""
+        cache = self.__dict__.setdefault("_parts", {})
+        if (lo, hi) not in cache:
+            sub = [(idx[(idx >= lo) & (idx < hi)] - lo, m, mu, lam) for idx, m, mu, lam in self.spec]
+            cache[(lo, hi)] = RegionKernels(self.cells[lo:hi], self.Dminv[lo:hi], self.vol[lo:hi], sub)
+        return cache[(lo, hi)]
+
+    def forces(self, x, f):
+        return sum(k.forces(x, f) for _, k in self.parts)
+
+    def energy(self, x):
+        W, jmin, jmax, bad = 0.0, np.inf, -np.inf, 0
+        for _, k in self.parts:
+            w, lo, hi, b = k.energy(x)
+            W, jmin, jmax, bad = W + w, min(jmin, lo), max(jmax, hi), bad + b
+        return W, jmin, jmax, bad
+
+    def kv(self, x, v, y):
+        return sum(k.kv(x, v, y) for _, k in self.parts)
+
+    def tangent(self, x, vals=None, accumulate=False):
+        if vals is None:
+            vals = np.zeros((self.nc, 12, 12))
+        assert vals.shape == (self.nc, 12, 12)
+        bad = 0
+        for idx, k in self.parts:
+            K, b = k.tangent(x)
+            bad += b
+            if accumulate:
+                vals[idx] += K
+            else:
+                vals[idx] = K
+        return vals, bad
+
+    def tangent_diag(self, x, diag):
+        return sum(k.tangent_diag(x, diag) for _, k in self.parts)
+
+    def max_step(self, x, d, frac=0.9):
+        return self.all.max_step(x, d, frac)
+
+    def apply_blocks(self, blocks, v, y):
+        self.all.apply_blocks(blocks, v, y)
+
+    def add_mass_blocks(self, coef, vals):
+        self.all.add_mass_blocks(coef, vals)
+
+    def mass_apply(self, coef, v, y):
+        self.all.mass_apply(coef, v, y)

@@ -9,7 +9,7 @@ from mpi4py import MPI
 
 from . import effects as effects_pkg
 from .errors import UserError
-from .kernels import CellKernels
+from .kernels import CellKernels, RegionKernels
 from .mesh import cached_bar, read_mesh
 from .scene import facet_set_uses
 from .space import Space
@@ -104,9 +104,55 @@ def load_mesh(scene):
         for i, g in enumerate(regions):
             value = g.tag if g.tag is not None else i + 1
             labels[REGION_LABEL][value] = ("cells", g.items)
-            report.append({"name": g.name, "kind": "tets", "tag": int(value), "count": len(g.items),
-                           "measure": mesh.volume(g.items), "line": mesh.describe(g)})
+    material_regions(scene, mesh, labels, report)
+    for i, g in enumerate(regions):
+        if not any(r.get("group") == g.name for r in report):
+            report.append({"name": g.name, "kind": "tets", "tag": int(g.tag if g.tag is not None else i + 1),
+                           "count": len(g.items), "measure": mesh.volume(g.items), "line": mesh.describe(g)})
     return mesh, labels, report
+
+
+def material_regions(scene, mesh, labels, report):
+    """The MATERIAL_LABEL of -regions (value i+1 on the cells of the i-th region; a cell in two of them
+    is an error) and a report line per region with its material, and for the cells in none."""
+    from .sets import MATERIAL_LABEL
+    if not scene.regions:
+        return
+    owner = np.zeros(len(mesh.tets), np.int64)
+    labels[MATERIAL_LABEL] = {}
+    for i, r in enumerate(scene.regions):
+        g = mesh.find(r.name, "tets", "regions")
+        twice = owner[g.items] != 0
+        if twice.any():
+            other = scene.regions[owner[g.items][twice][0] - 1].name
+            raise UserError(f"option -regions: regions '{other}' and '{r.name}' share {int(twice.sum())} tets; "
+                            "a tet can have one material")
+        owner[g.items] = i + 1
+        labels[MATERIAL_LABEL][i + 1] = ("cells", g.items)
+        report.append({"name": r.name, "group": g.name, "kind": "tets", "tag": None if g.tag is None else int(g.tag),
+                       "count": len(g.items), "measure": mesh.volume(g.items), "material": r.describe(),
+                       "line": f"{mesh.describe(g)}; {r.describe()}"})
+    rest = np.flatnonzero(owner == 0)
+    if len(rest):
+        sc = scene
+        report.append({"name": "(other cells)", "kind": "tets", "tag": None, "count": len(rest),
+                       "measure": mesh.volume(rest), "material": f"{sc.material.name}, E {sc.E:g}, nu {sc.nu:g}, rho {sc.rho:g}",
+                       "line": f"(other cells): {len(rest)} tets, volume {mesh.volume(rest):.6g}; the scene's "
+                               f"{sc.material.name}, E {sc.E:g}, nu {sc.nu:g}, rho {sc.rho:g}"})
+
+
+def cell_kernels(scene, space):
+    """(elastic cell kernels, density: a scalar, or per local cell with -regions) of the scene's
+    material(s) on the space's cells."""
+    sc = scene
+    if not sc.regions:
+        return CellKernels(space.cells, space.Dminv, space.vol, sc.material.name, sc.mu, sc.lam), sc.rho
+    from .sets import MATERIAL_LABEL
+    which = space.cell_values(MATERIAL_LABEL)
+    mats = [(sc.material.name, sc.mu, sc.lam, sc.rho)] + [(r.material.name, r.mu, r.lam, r.rho) for r in sc.regions]
+    parts = [(np.flatnonzero(which == i), m[0], m[1], m[2]) for i, m in enumerate(mats)]
+    density = np.array([m[3] for m in mats])[which]
+    return RegionKernels(space.cells, space.Dminv, space.vol, parts), density
 
 
 def build_model(scene, comm):
@@ -117,8 +163,8 @@ def build_model(scene, comm):
     points, tets = (mesh.points, mesh.tets) if mesh is not None else (None, None)
     space = Space(comm, points, tets, labels)
     report = space.mpi.bcast(report, root=0)
-    k = CellKernels(space.cells, space.Dminv, space.vol, scene.material.name, scene.mu, scene.lam)
-    effects, constraints = effects_pkg.build(scene, space, k)
+    k, density = cell_kernels(scene, space)
+    effects, constraints = effects_pkg.build(scene, space, k, density)
     x0, v0 = initial_state(scene, space)
     system = System(space, effects, constraints, x0, v0, scene.dt)
     return Model(scene, points, tets, space, k, system, x0, v0, report)

@@ -54,6 +54,8 @@ def run_attributes(model, scene_file, solver):
             "jacobian": sc.jacobian + (f" ({solver.mf})" if solver.mf else ""), "integrator": sc.integrator,
             "line_search_merit": solver.merit + (f" ({solver.merit_note})" if solver.merit_note else ""),
             "material": sc.material.name, "E": sc.E, "nu": sc.nu, "rho": sc.rho,
+            "regions": json.dumps([{"name": r.name, "material": r.material.name, "E": r.E, "nu": r.nu, "rho": r.rho}
+                                   for r in sc.regions]),
             "mesh": os.path.abspath(sc.mesh) if sc.mesh else f"bar level {sc.level}",
             "vertices_per_rank": np.array(space.mpi.allgather(space.nlv)),
             "cells_per_rank": np.array(space.mpi.allgather(space.nc)),

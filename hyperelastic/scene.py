@@ -1,6 +1,7 @@
 """What a scene calls for: mesh, material, effects with their parameters, time settings.
 Everything is read and validated here, before any mesh is loaded or file written."""
 import os
+import re
 from dataclasses import dataclass, field
 
 from . import materials
@@ -51,6 +52,23 @@ class Scene:
                                   # materials undefined when inverted)
     checkpoint_every: int = 0     # write the full state every N steps (0: only on SIGINT/SIGTERM)
     integrator: str = "beuler"    # beuler: backward Euler (thesis); ts: PETSc TS (-ts_type alpha2)
+    regions: list = field(default_factory=list)  # [Region]: a material per physical volume (-regions)
+
+
+@dataclass
+class Region:
+    """A physical volume with its own material, read from options with the region's name as prefix
+    (-NAME_material, -NAME_preset, -NAME_E, -NAME_nu, -NAME_rho; defaults: the scene's own)."""
+    name: str
+    material: object
+    E: float
+    nu: float
+    rho: float
+    lam: float
+    mu: float
+
+    def describe(self):
+        return f"{self.material.name}, E {self.E:g}, nu {self.nu:g}, rho {self.rho:g}"
 
 
 JACOBIANS = ("assembled", "shell", "seed_fd", "seed_fd2")
@@ -109,33 +127,68 @@ def read_scene(name, opts=None):
     opts = opts or Options()
     s = Scene(name=name)
     _read_material(s, opts)
+    s.regions = _read_regions(s, opts)
     _read_time(s, opts)
     _read_solver(s, opts)
     s.effects = _read_effects(s, opts)
     return s
 
 
+def _material_parameters(opts, prefix, default, where):
+    """(material class, E, nu, rho) from -PREFIXmaterial, -PREFIXpreset, -PREFIXE, -PREFIXnu, -PREFIXrho,
+    over `default` (material, E, nu, rho); validated."""
+    mat = opts.string(f"{prefix}material", None)
+    try:
+        mat = default[0] if mat is None else materials.get(mat)
+    except UserError as e:
+        raise UserError(f"option -{prefix}material: {e}") from None
+    preset = opts.string(f"{prefix}preset", None)
+    E, nu, rho = default[1:]
+    if preset is not None:
+        if preset not in materials.PRESETS:
+            raise UserError(f"option -{prefix}preset: unknown preset '{preset}' (choose from "
+                            f"{', '.join(sorted(materials.PRESETS))})")
+        E, nu, rho = materials.PRESETS[preset]
+    E, nu, rho = opts.real(f"{prefix}E", E), opts.real(f"{prefix}nu", nu), opts.real(f"{prefix}rho", rho)
+    materials.check_parameters(E, nu, rho, where=where)
+    return mat, E, nu, rho
+
+
 def _read_material(s, opts):
     s.mesh = opts.string("mesh", s.mesh)
     s.mesh_frame = opts.integer("mesh_frame", s.mesh_frame)
     s.level = opts.integer("level", s.level, minimum=1)
-    s.material = materials.get(opts.string("material", DEFAULT_MATERIAL))
-    preset = opts.string("preset", None)
-    E, nu, rho = s.E, s.nu, s.rho
-    if preset is not None:
-        if preset not in materials.PRESETS:
-            raise UserError(f"option -preset: unknown preset '{preset}' (choose from "
-                            f"{', '.join(sorted(materials.PRESETS))})")
-        E, nu, rho = materials.PRESETS[preset]
-    s.E = opts.real("E", E)
-    s.nu = opts.real("nu", nu)
-    s.rho = opts.real("rho", rho)
-    materials.check_parameters(s.E, s.nu, s.rho, where=f"scene '{s.name}'")
+    s.material, s.E, s.nu, s.rho = _material_parameters(
+        opts, "", (materials.get(DEFAULT_MATERIAL), s.E, s.nu, s.rho), f"scene '{s.name}'")
     s.lam, s.mu = materials.lame(s.E, s.nu)
     s.lumped = opts.choice("mass", ("consistent", "lumped"), "lumped" if s.lumped else "consistent") == "lumped"
     s.initial_scale = opts.vector("initial_scale")
     s.initial_spin = opts.vector("initial_spin")
     s.initial_rotation = opts.vector("initial_rotation")
+
+
+def _read_regions(s, opts):
+    """-regions A,B,...: physical volumes (names or tags) each with its own material, read with the
+    region's name as option prefix; cells in none of them keep the scene's material."""
+    out = []
+    for name in opts.names("regions"):
+        if not re.fullmatch(r"[A-Za-z0-9_]+", name):
+            raise UserError(f"option -regions: '{name}' cannot be an option prefix (letters, digits and _ "
+                            "only; give the physical volume's tag instead)")
+        if any(r.name == name for r in out):
+            raise UserError(f"option -regions: '{name}' is listed twice")
+        mat, E, nu, rho = _material_parameters(opts, f"{name}_", (s.material, s.E, s.nu, s.rho),
+                                               f"region '{name}'")
+        lam, mu = materials.lame(E, nu)
+        out.append(Region(name, mat, E, nu, rho, lam, mu))
+    if opts.has("regions") and not out:
+        raise UserError("option -regions: needs a list of physical volumes (names or tags)")
+    return out
+
+
+def materials_of(s):
+    """The material classes a scene uses (its own and its regions')."""
+    return [s.material] + [r.material for r in s.regions]
 
 
 def _read_time(s, opts):
@@ -159,7 +212,8 @@ def _read_solver(s, opts):
     s.assembly = opts.choice("assembly", ASSEMBLIES, s.assembly)
     s.hessian_projection = opts.flag("hessian_projection", s.hessian_projection)
     s.objective = opts.flag("objective", s.objective)
-    s.inversion_guard = opts.flag("inversion_guard", not s.material.defined_when_inverted)
+    s.inversion_guard = opts.flag("inversion_guard",
+                                  not all(m.defined_when_inverted for m in materials_of(s)))
 
 
 def _read_effects(s, opts):

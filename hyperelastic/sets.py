@@ -21,6 +21,7 @@ FACE_VERTICES = np.array([[1, 2, 3], [0, 2, 3], [0, 1, 3], [0, 1, 2]])   # face 
 VERTEX_VALUE = 16              # label value of a set's vertices (cells carry their faces' bitmask 1..15)
 # integer cell data other formats use for region / boundary tags (meshio names)
 TAG_KEYS = ("gmsh:physical", "medit:ref", "cell_tags", "CellEntityIds", "region", "tag")
+MATERIAL_LABEL = "material"   # value i+1 on the cells of the i-th region of -regions (its material)
 REGION_LABEL = "Cell Sets"     # the DMPlex label of the regions (value: physical tag), as PETSc's gmsh reader
 
 

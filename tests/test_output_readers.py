@@ -141,17 +141,19 @@ def test_readme_your_own_part_runs_as_written(tmp_path):
     import shlex
     from conftest import BIN, ROOT
     text = open(os.path.join(ROOT, "README.md")).read()
-    block = text.split("## Your own part", 1)[1].split("\n\n")[1]
-    cmds = [line.strip() for line in block.splitlines() if line.startswith("    ")]
-    assert len(cmds) == 3 and cmds[0].startswith(".venv/bin/hyperelastic mesh examples/")
+    section = text.split("## Your own part", 1)[1].split("\n## ", 1)[0]
+    cmds = [line.strip() for line in section.splitlines() if line.startswith("    .venv/bin/")]
+    assert len(cmds) == 5 and cmds[0].startswith(".venv/bin/hyperelastic mesh examples/")
     for d in ("examples", "scripts"):
         os.symlink(os.path.join(ROOT, d), tmp_path / d)
     os.symlink(os.path.dirname(BIN), tmp_path / ".venv")
     (tmp_path / "output").mkdir()
+    shown = {"bracket": [line.strip() for line in section.split("loads `load`", 1)[1].split("\n\n")[1].splitlines()],
+             "bimaterial": [section.split("prints `", 1)[1].split("`", 1)[0]]}
     for c in cmds:
         p = subprocess.run(shlex.split(c), cwd=tmp_path, capture_output=True, text=True, timeout=300)
         assert p.returncode == 0, (c, p.stderr)
         if " run " in c:
-            for line in text.split("loads `load`", 1)[1].split("\n\n")[1].splitlines():
-                assert line.strip() in p.stderr, line               # the set lines the README shows
+            for line in shown["bracket" if "bracket" in c else "bimaterial"]:
+                assert line in p.stderr, line                       # the set lines the README shows
     assert (tmp_path / "output" / "bracket.png").stat().st_size > 10000

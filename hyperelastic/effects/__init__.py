@@ -16,9 +16,10 @@ def held(space, specs):
     return vertices, comps[vertices]
 
 
-def build(scene, space, kernels):
+def build(scene, space, kernels, density=None):
     """(effects, constraints) of the scene on the space, in the scene's order; `kernels` are the
-    cell kernels of its material on the space's cells."""
+    cell kernels of its material(s) on the space's cells, `density` the scene's (default) or one per
+    local cell (-regions)."""
     from .damping import RayleighDamping, ViscousDamping
     from .dirichlet import Fixed, Prescribed
     from .elasticity import Elasticity
@@ -26,18 +27,19 @@ def build(scene, space, kernels):
     from .inertia import Inertia
     from .traction import FollowerTwist, Pressure, Traction
     s, p, nlv, k = scene, scene.params, space.nlv, kernels
+    rho = s.rho if density is None else density
     effects, constraints = [], []
     for name in s.effects:
         if name == "elasticity":
-            effects.append(Elasticity(k, s.material, s.hessian_projection))
+            effects.append(Elasticity(k, s.hessian_projection))
         elif name == "inertia":
-            effects.append(Inertia(k, s.rho, s.lumped, nlv))
+            effects.append(Inertia(k, rho, s.lumped, nlv))
         elif name == "damping":
             effects.append(ViscousDamping(k, p["damping"], s.lumped, nlv))
         elif name == "rayleigh":
-            effects.append(RayleighDamping(k, s.rho, p["rayleigh_alpha"], p["rayleigh_beta"], s.lumped, nlv))
+            effects.append(RayleighDamping(k, rho, p["rayleigh_alpha"], p["rayleigh_beta"], s.lumped, nlv))
         elif name == "gravity":
-            effects.append(Gravity(k, s.rho, p["gravity"], nlv))
+            effects.append(Gravity(k, rho, p["gravity"], nlv))
         elif name in ("traction", "follower_traction"):
             tris = space.set_triangles([n for n, _ in p["traction_face"]])
             if name == "traction":

@@ -18,14 +18,15 @@ class Elasticity(Effect):
     linear = False
     cell_blocks = True
 
-    def __init__(self, kernels, material, projection=False):
+    def __init__(self, kernels, projection=False):
         super().__init__()
         self.projection = projection   # -hessian_projection: PSD-projected element tangents
         self.blocks = None
         self.projected_cells = 0
         self.k = kernels
-        self.material = material
-        self.linear = material.name == "linear"
+        names = [k.material for _, k in kernels.parts] if hasattr(kernels, "parts") else [kernels.material]
+        self.material = ",".join(dict.fromkeys(names))     # the material name(s)
+        self.linear = all(n == "linear" for n in names)
         self.x = None
         self.undefined = 0   # cells where the material was undefined at the last evaluation
 
