@@ -11,11 +11,12 @@ from .options import Options, insert_defaults, parse_options_file, resolve_scene
 DEFAULT_MATERIAL = "stvk"
 DEFAULT_EFFECTS = ("elasticity", "inertia")
 EFFECTS = ("elasticity", "inertia", "damping", "rayleigh", "gravity", "traction", "follower_traction",
-           "pressure", "fixed", "prescribed")
+           "pressure", "loads", "fixed", "prescribed")
 # an effect is implied by the option that carries its parameter (e.g. -gravity adds gravity)
 IMPLIED_BY = {"damping": "damping", "rayleigh": ("rayleigh_alpha", "rayleigh_beta"), "gravity": "gravity",
-              "traction": "traction", "follower_traction": "traction_twist", "pressure": "pressure", "fixed": "fix",
-              "prescribed": "prescribe_motion"}
+              "traction": "traction", "follower_traction": "traction_twist", "pressure": "pressure", "loads": "loads",
+              "fixed": "fix", "prescribed": ("prescribe_motion", "prescribe_x", "prescribe_y", "prescribe_z",
+                                             "prescribe_ux", "prescribe_uy", "prescribe_uz")}
 
 
 @dataclass
@@ -110,6 +111,8 @@ def facet_set_uses(s):
         out += [("pressure_faces", n) for n, _ in p["pressure_faces"]]
     if "prescribed" in s.effects:
         out += [("prescribe_faces", n) for n, _ in p["prescribe_faces"]]
+    if "loads" in s.effects:
+        out += [(f"{load['name']}_faces", n) for load in p["loads"] for n, _ in load["faces"]]
     return out
 
 
@@ -172,9 +175,7 @@ def _read_regions(s, opts):
     region's name as option prefix; cells in none of them keep the scene's material."""
     out = []
     for name in opts.names("regions"):
-        if not re.fullmatch(r"[A-Za-z0-9_]+", name):
-            raise UserError(f"option -regions: '{name}' cannot be an option prefix (letters, digits and _ "
-                            "only; give the physical volume's tag instead)")
+        _option_prefix(name, "regions")
         if any(r.name == name for r in out):
             raise UserError(f"option -regions: '{name}' is listed twice")
         mat, E, nu, rho = _material_parameters(opts, f"{name}_", (s.material, s.E, s.nu, s.rho),
@@ -263,9 +264,26 @@ def _gravity(s, opts, p):
     return True
 
 
+def time_function(opts, prefix):
+    """A load's time function: -PREFIX_time EXPR (an expression of t), or -PREFIX_ramp A (A min(t,1));
+    None (factor 1) without either."""
+    from .expressions import TimeFunction
+    if opts.has(f"{prefix}_time") and opts.has(f"{prefix}_ramp"):
+        raise UserError(f"options -{prefix}_time and -{prefix}_ramp: give one time function, not both")
+    if opts.has(f"{prefix}_time"):
+        return TimeFunction(opts.string(f"{prefix}_time"), f"option -{prefix}_time")
+    return opts.real(f"{prefix}_ramp", None)
+
+
+def _option_prefix(name, option):
+    if not re.fullmatch(r"[A-Za-z0-9_]+", name):
+        raise UserError(f"option -{option}: '{name}' cannot be an option prefix (letters, digits and _ only; a "
+                        "physical group can also be named by its tag)")
+
+
 def _traction_face(opts, p):
     p["traction_face"] = facet_sets(opts, "traction_face", "right")
-    p["traction_ramp"] = opts.real("traction_ramp", None)
+    p["traction_ramp"] = time_function(opts, "traction")
 
 
 def _traction(s, opts, p):
@@ -289,7 +307,30 @@ def _pressure(s, opts, p):
     if p["pressure"] is None or not opts.has("pressure_faces"):
         _needs(s, "pressure", "-pressure p and -pressure_faces surfaces")
     p["pressure_faces"] = facet_sets(opts, "pressure_faces")
-    p["pressure_ramp"] = opts.real("pressure_ramp", None)
+    p["pressure_ramp"] = time_function(opts, "pressure")
+    return True
+
+
+def _loads(s, opts, p):
+    """-loads A,B,...: loads each with its own surfaces and time function, read with the load's name as
+    prefix: -A_traction tx,ty,tz (dead, per reference area) or -A_pressure p (follower), -A_faces S1,...,
+    -A_time EXPR or -A_ramp R."""
+    out = []
+    for name in opts.names("loads"):
+        _option_prefix(name, "loads")
+        if any(d["name"] == name for d in out):
+            raise UserError(f"option -loads: '{name}' is listed twice")
+        tr, pr = opts.has(f"{name}_traction"), opts.has(f"{name}_pressure")
+        if tr == pr:
+            raise UserError(f"load '{name}': give one of -{name}_traction tx,ty,tz or -{name}_pressure p")
+        if not opts.has(f"{name}_faces"):
+            raise UserError(f"load '{name}': needs -{name}_faces (physical surface names or tags, or box faces)")
+        out.append({"name": name, "kind": "traction" if tr else "pressure",
+                    "value": opts.vector(f"{name}_traction") if tr else opts.real(f"{name}_pressure"),
+                    "faces": facet_sets(opts, f"{name}_faces"), "scale": time_function(opts, name)})
+    if not out:
+        _needs(s, "loads", "-loads NAME,... with -NAME_traction or -NAME_pressure and -NAME_faces")
+    p["loads"] = out
     return True
 
 
@@ -301,16 +342,37 @@ def _fixed(s, opts, p):
 
 
 def _prescribed(s, opts, p):
-    from .effects.dirichlet import Prescribed
-    if not opts.has("prescribe_motion") or not opts.has("prescribe_faces"):
-        _needs(s, "prescribed", "-prescribe_faces and -prescribe_motion")
+    """-prescribe_faces S[:xyz],... moved by a preset (-prescribe_motion M, amount -prescribe_amount A)
+    and/or per component by expressions of t, X, Y, Z, A: positions -prescribe_x/_y/_z or displacements
+    -prescribe_ux/_uy/_uz (an expression replaces the preset's for its component); components
+    with neither stay at their reference positions."""
+    from .effects.dirichlet import PRESETS
+    from .expressions import Expression
+    given = [k for k in ("x", "y", "z") if opts.has(f"prescribe_{k}") or opts.has(f"prescribe_u{k}")]
+    if not opts.has("prescribe_faces") or not (opts.has("prescribe_motion") or given):
+        _needs(s, "prescribed", "-prescribe_faces and -prescribe_motion or expressions -prescribe_x/_ux ...")
     p["prescribe_faces"] = facet_sets(opts, "prescribe_faces", components=True)
-    p["prescribe_motion"] = opts.choice("prescribe_motion", Prescribed.MOTIONS, None)
     p["prescribe_amount"] = opts.real("prescribe_amount", 1.0)
+    motion = opts.choice("prescribe_motion", tuple(PRESETS), None) if opts.has("prescribe_motion") else None
+    p["prescribe_motion"] = motion
+    exprs = dict(PRESETS[motion]) if motion else {}
+    held = set("".join(c for _, c in p["prescribe_faces"]))
+    for k in "xyz":
+        if opts.has(f"prescribe_{k}") and opts.has(f"prescribe_u{k}"):
+            raise UserError(f"options -prescribe_{k} and -prescribe_u{k}: give the position or the displacement "
+                            f"of component {k}, not both")
+        for kind, key in (("position", f"prescribe_{k}"), ("displacement", f"prescribe_u{k}")):
+            if opts.has(key):
+                if k not in held:
+                    raise UserError(f"option -{key}: component {k} is not held on any of -prescribe_faces "
+                                    f"({','.join(n + ':' + c for n, c in p['prescribe_faces'])})")
+                exprs[k] = (opts.string(key), kind, f"option -{key}")
+    p["prescribe"] = {k: (Expression(text, ("t", "X", "Y", "Z", "A"), where), kind)
+                      for k, (text, kind, *w) in exprs.items() for where in [w[0] if w else f"preset {motion}"]}
     return True
 
 
 # effect -> reader of its parameters (returns False when they switch the effect off)
 PARAMETERS = {"damping": _damping, "rayleigh": _rayleigh, "gravity": _gravity, "traction": _traction,
-              "follower_traction": _follower_traction, "pressure": _pressure, "fixed": _fixed,
+              "follower_traction": _follower_traction, "pressure": _pressure, "loads": _loads, "fixed": _fixed,
               "prescribed": _prescribed}

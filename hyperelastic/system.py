@@ -14,6 +14,7 @@ import numpy as np
 from mpi4py import MPI
 
 from . import effects as effects_pkg
+from .errors import UserError
 
 
 class System:
@@ -37,8 +38,7 @@ class System:
         self.al = None                   # accelerations (second-order form only)
         self.scale = 1.0
         # materials undefined for J <= 0: every residual counts the cells where they were evaluated there
-        self.check_domain = any(not getattr(getattr(e, "material", None), "defined_when_inverted", True)
-                                for e in effects)
+        self.check_domain = any(not getattr(e, "defined_when_inverted", True) for e in effects)
         self.g_owned_c = np.zeros(len(self.c_owned_pos))
         self.residual_evals = 0
         self.residual_seconds = 0.0
@@ -69,8 +69,15 @@ class System:
     def begin_step(self, t, h, xn, vn):
         for e in self.effects:
             e.begin_step(t, h, xn, vn)
+        err = None
         for c in self.constraints:
-            self.g[c.dofs] = c.values(t)
+            try:
+                self.g[c.dofs] = c.values(t)
+            except UserError as e:         # an expression not finite at some rank's vertices
+                err = err or str(e)
+        errs = [e for e in self.space.mpi.allgather(err) if e]
+        if errs:
+            raise UserError(errs[0])
         self.g_owned_c = self.space.owned_array(self.g)[self.c_owned_pos]   # targets of the owned rows
 
     def begin_stage(self, t_stage, t1, h, xn, vn, alpha_f):
@@ -300,8 +307,8 @@ class System:
     def energies(self, x, v):
         out = {}
         for e in self.effects:
-            for k, val in e.energy(x, v).items():
-                out[k] = val
+            for k, val in e.energy(x, v).items():     # several instances (e.g. loads): summed
+                out[k] = val if k not in out else (min if k == "J_min" else max if k == "J_max" else sum)((out[k], val))
         mpi = self.space.mpi
         res = {k: mpi.allreduce(out.pop(k), op=op) for k, op in (("J_min", MPI.MIN), ("J_max", MPI.MAX))
                if k in out}
@@ -313,7 +320,11 @@ class System:
         return res
 
     def effect_counters(self):
-        return {e.name: (e.evals, e.applies, e.seconds) for e in self.effects}
+        out = {}
+        for e in self.effects:               # several instances of an effect (e.g. loads): summed
+            prev = out.get(e.name, (0, 0, 0.0))
+            out[e.name] = (prev[0] + e.evals, prev[1] + e.applies, prev[2] + e.seconds)
+        return out
 
     def built(self):
         """{effect name: instances built} of this run."""

@@ -49,11 +49,18 @@ def build(scene, space, kernels, density=None):
         elif name == "pressure":
             tris = space.set_triangles([n for n, _ in p["pressure_faces"]])
             effects.append(Pressure(space.X, tris, p["pressure"], p["pressure_ramp"]))
+        elif name == "loads":
+            for load in p["loads"]:
+                tris = space.set_triangles([n for n, _ in load["faces"]])
+                if load["kind"] == "traction":
+                    effects.append(Traction(space.X, tris, load["value"], load["scale"], nlv))
+                else:
+                    effects.append(Pressure(space.X, tris, load["value"], load["scale"]))
         elif name == "fixed":
             constraints.append(Fixed(space.X, *held(space, p["fix"])))
         elif name == "prescribed":
             vertices, comps = held(space, p["prescribe_faces"])
-            constraints.append(Prescribed(space.X, vertices, p["prescribe_motion"], p["prescribe_amount"], comps))
+            constraints.append(Prescribed(space.X, vertices, p["prescribe"], p["prescribe_amount"], comps))
     return effects, constraints
 
 

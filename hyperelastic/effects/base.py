@@ -91,6 +91,14 @@ def timed(kind):
     return deco
 
 
+def load_factor(scale, t):
+    """A load's factor at time t: 1 without a time function; `scale` a number A: the ramp A min(t,1);
+    a callable (a time function of -NAME_time): its value."""
+    if scale is None:
+        return 1.0
+    return float(scale(t)) if callable(scale) else ramp(t, scale)
+
+
 def ramp(t, scale, ramp_time=1.0):
     """Load factor scale * min(t / ramp_time, 1) (the thesis framework's min(t,1) ramps)."""
     return scale * min(t / ramp_time, 1.0)

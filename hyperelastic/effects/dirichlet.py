@@ -33,31 +33,38 @@ class Fixed(Constraint):
         return self.X0
 
 
-class Prescribed(Constraint):
-    """Prescribed time-dependent positions of the thesis framework's scenes, with s = amount*min(t,1):
-    rotate_x (about the x axis through the origin by angle s), rotate_y (about the y axis),
-    squeeze_x (x = X/(1+s), y = Y, z = Z) and stretch_x (x = X (1+s))."""
-    name = "prescribed"
-    MOTIONS = ("rotate_x", "rotate_y", "squeeze_x", "stretch_x")
+# The thesis framework's prescribed motions as expressions of t and the reference coordinates X, Y, Z,
+# with s = A min(t,1) (A = -prescribe_amount): rotations about the x and y axes through the origin by
+# the angle s, a squeeze x = X/(1+s) and a stretch x = X (1+s). Components not listed stay at X.
+_S = "(A*min(t, 1))"
+PRESETS = {
+    "rotate_x": {"y": f"cos{_S}*Y - sin{_S}*Z", "z": f"sin{_S}*Y + cos{_S}*Z"},
+    "rotate_y": {"x": f"cos{_S}*X + sin{_S}*Z", "z": f"-sin{_S}*X + cos{_S}*Z"},
+    "squeeze_x": {"x": f"X/(1 + {_S})"},
+    "stretch_x": {"x": f"X*(1 + {_S})"},
+}
+PRESETS = {m: {k: (e, "position") for k, e in d.items()} for m, d in PRESETS.items()}
 
-    def __init__(self, X, vertices, motion, amount, comps=None):
+
+class Prescribed(Constraint):
+    """Time-dependent positions of a set: per component an expression (expressions.Expression in t,
+    X, Y, Z and the amount A) giving the position or the displacement; evaluated vectorized over the
+    set's vertices. The presets above are the thesis' four motions."""
+    name = "prescribed"
+
+    def __init__(self, X, vertices, expressions, amount=1.0, comps=None):
+        """expressions: {"x"|"y"|"z": (Expression, "position" | "displacement")}."""
         super().__init__(X, vertices, comps)
-        self.motion = motion
+        self.expressions = expressions
         self.amount = float(amount)
 
     def positions(self, t):
-        s = ramp(t, self.amount)
         X = self.X0
         out = X.copy()
-        c, sn = np.cos(s), np.sin(s)
-        if self.motion == "rotate_x":
-            out[:, 1] = c * X[:, 1] - sn * X[:, 2]
-            out[:, 2] = sn * X[:, 1] + c * X[:, 2]
-        elif self.motion == "rotate_y":
-            out[:, 0] = c * X[:, 0] + sn * X[:, 2]
-            out[:, 2] = -sn * X[:, 0] + c * X[:, 2]
-        elif self.motion == "squeeze_x":
-            out[:, 0] = X[:, 0] / (1.0 + s)
-        elif self.motion == "stretch_x":
-            out[:, 0] = X[:, 0] * (1.0 + s)
+        if not len(X):
+            return out
+        for k, (expr, kind) in self.expressions.items():
+            i = "xyz".index(k)
+            val = expr(t=t, X=X[:, 0], Y=X[:, 1], Z=X[:, 2], A=self.amount)
+            out[:, i] = val if kind == "position" else X[:, i] + val
         return out

@@ -27,6 +27,8 @@ class Elasticity(Effect):
         names = [k.material for _, k in kernels.parts] if hasattr(kernels, "parts") else [kernels.material]
         self.material = ",".join(dict.fromkeys(names))     # the material name(s)
         self.linear = all(n == "linear" for n in names)
+        from .. import materials
+        self.defined_when_inverted = all(materials.get(n).defined_when_inverted for n in names)
         self.x = None
         self.undefined = 0   # cells where the material was undefined at the last evaluation
 

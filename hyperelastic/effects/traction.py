@@ -1,6 +1,6 @@
 import numpy as np
 
-from .base import Effect, ramp, timed
+from .base import Effect, load_factor, timed
 
 
 def triangle_areas(X, tris):
@@ -9,7 +9,7 @@ def triangle_areas(X, tris):
 
 class Traction(Effect):
     """Dead-load surface traction t [Pa] per unit reference area on a face, scaled by
-    ramp * min(t,1) when a ramp is given: f_a = int t N_a dA = t A/3 per triangle vertex."""
+    its time function (base.load_factor: a ramp A min(t,1) or -NAME_time): f_a = int t N_a dA = t A/3 per triangle vertex."""
     name = "traction"
 
     def __init__(self, X, tris, traction, scale=None, nlv=0):
@@ -21,7 +21,7 @@ class Traction(Effect):
         self.s = 1.0
 
     def begin_step(self, t, h, xn, vn):
-        self.s = 1.0 if self.scale_param is None else ramp(t, self.scale_param)
+        self.s = load_factor(self.scale_param, t)
 
     @timed("evals")
     def residual(self, x, r):
@@ -53,7 +53,7 @@ class FollowerTwist(Effect):
         self.Mf = (np.ones((3, 3)) + np.eye(3)) / 12.0
 
     def begin_step(self, t, h, xn, vn):
-        self.s = 1.0 if self.scale_param is None else ramp(t, self.scale_param)
+        self.s = load_factor(self.scale_param, t)
 
     def _force(self, x, out, sign):
         xt = x.reshape(-1, 3)[self.tris]                         # (ntri, 3 vertices, 3)
@@ -109,7 +109,7 @@ class Pressure(Effect):
         self.x_lin = None
 
     def begin_step(self, t, h, xn, vn):
-        self.s = 1.0 if self.scale_param is None else ramp(t, self.scale_param)
+        self.s = load_factor(self.scale_param, t)
 
     def _corners(self, x):
         xt = x.reshape(-1, 3)[self.tris]
