@@ -134,3 +134,40 @@ def test_study_bad_arguments_are_one_line():
         assert p.returncode == 2, (args, p.stderr)
         lines = p.stderr.strip().splitlines()
         assert len(lines) == 1 and lines[0].startswith("hyperelastic: error: hyperelastic study"), p.stderr
+
+
+def test_refinement_of_a_users_part(tmp_path):
+    """`study refinement --part`: the bimaterial bar's .geo meshed and refined twice, the scene run on
+    each mesh, the watched end displacement converging (changes shrink, positive order, Richardson)."""
+    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    out = tmp_path / "study"
+    run_ok(["study", "refinement", "--part", f"{root}/examples/bimaterial.geo", "--scene",
+            f"{root}/examples/bimaterial.opts", "--size", 0.25, "--refine", 2, "--watch", "point:2,0.125,0.125",
+            "--run-args", "-soft_material linear -stiff_material linear -traction 0,2e3,0", "-output_dir", out])
+    rows = read_csv(out / "refinement.csv")
+    assert [r["outcome"] for r in rows] == ["finished"] * 3
+    tets = [int(r["tets"]) for r in rows]
+    assert tets[1] == 8 * tets[0] and tets[2] == 8 * tets[1]
+    q = [float(r["quantity"]) for r in rows]
+    assert 0 < q[0] < q[1] < q[2]                       # P1 is too stiff: the deflection grows with refinement
+    change = [float(r["change"]) for r in rows]
+    assert change[0] > change[1] > change[2] == 0
+    assert float(rows[0]["order"]) > 0.5 and float(rows[0]["richardson_limit"]) > q[2]
+    assert (out / "refinement.png").stat().st_size > 1000
+    assert "observed order" in (out / "refinement.md").read_text()
+
+
+@pytest.mark.parametrize("args, words", [
+    (["--part", "x.geo", "--size", "1"], ["--part goes with"]),
+    (["--scene", "x.opts"], ["--scene belongs to"]),
+    (["--part", "EX/bimaterial.geo", "--scene", "EX/bimaterial.opts", "--size", "0.25", "--watch", "tip"], ["--watch tip"]),
+    (["--part", "EX/bimaterial.geo", "--scene", "EX/bimaterial.opts", "--size", "0.25", "--refine", "1"], ["at least 3"]),
+    (["--part", "EX/bimaterial.geo", "--scene", "EX/bimaterial.opts", "--size", "-1"], ["--size -1"]),
+])
+def test_part_refinement_bad_arguments(tmp_path, args, words):
+    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    args = [a.replace("EX/", f"{root}/examples/") for a in args]
+    p = hyperelastic(["study", "refinement", "-output_dir", tmp_path / "o", *args])
+    lines = p.stderr.strip().splitlines()
+    assert p.returncode == 2 and len(lines) == 1, p.stderr
+    assert all(w in lines[0] for w in words), lines[0]

@@ -49,7 +49,21 @@ def main(argv):
     ap.add_argument("--jobs", type=int, default=2, help="runs at a time (default 2)")
     ap.add_argument("--budget", type=float, default=600.0, help="refinement: seconds for the finer levels")
     ap.add_argument("--from-csv", action="store_true", help="accuracy: redo report and figures from accuracy.csv")
+    ap.add_argument("--part", help="refinement: a .geo/.step of your own part (default: the thesis' bar)")
+    ap.add_argument("--scene", help="refinement --part: the scene (options file) to run on each mesh")
+    ap.add_argument("--size", type=float, help="refinement --part: edge length of the coarsest mesh")
+    ap.add_argument("--refine", type=int, default=2, help="refinement --part: uniform refinements (default 2)")
+    ap.add_argument("--watch", default="max_displacement", help="refinement --part: the quantity, one of "
+                    "max_displacement, point:X,Y,Z, elastic_energy")
+    ap.add_argument("--run-args", default="", help="refinement --part: more options for every run (quoted)")
     a = ap.parse_args(argv)
+    part_opts = [o for o in ("scene", "size") if getattr(a, o) is not None]
+    if a.part is None and part_opts:
+        raise UserError(f"hyperelastic study: --{part_opts[0]} belongs to refinement --part PART")
+    if a.part is not None and (a.which != "refinement" or a.scene is None or a.size is None):
+        raise UserError("hyperelastic study: --part goes with refinement, --scene SCENE.opts and --size H")
+    if a.part is not None and not (a.size > 0 and a.size < float("inf")):
+        raise UserError(f"hyperelastic study: --size {a.size} must be a positive number")
     if a.jobs < 1:
         raise UserError("hyperelastic study: --jobs must be >= 1")
     out = a.output_dir or os.path.join("output", f"study_{a.which}")
@@ -59,7 +73,7 @@ def main(argv):
     t0 = time.perf_counter()
 
     def log(r):
-        what = r.get("id") or f"L{r['level']} np{r['nprocs']}"
+        what = r.get("id") or (f"r{r['level']} ({r['tets']} tets)" if a.part else f"L{r['level']} np{r['nprocs']}")
         extra = f": {r['message']}" if r["outcome"] == "failed" else ""
         print(f"[{time.perf_counter() - t0:6.1f} s] {what} {r['outcome']}{extra}", file=sys.stderr, flush=True)
     if a.which == "accuracy":
@@ -77,6 +91,12 @@ def main(argv):
         figures(rows, out)
         report(rows, p, out, command)
         print(os.path.join(out, "accuracy.md"))
+    elif a.part is not None:
+        from .part import part_refinement, part_report, split_run_args
+        rows = part_refinement(a.part, a.scene, a.watch, a.size, a.refine, out, a.jobs,
+                               split_run_args(a.run_args), log=log)
+        part_report(rows, out, command, a.part, a.scene, a.watch)
+        print(os.path.join(out, "refinement.md"))
     else:
         from .refinement import refinement, refinement_report
         rows = refinement(out, a.full, a.jobs, a.budget, log=log)

@@ -1,0 +1,163 @@
+"""Mesh refinement on a user's part: `hyperelastic study refinement --part PART.geo --scene SCENE.opts
+--size H --refine N --watch Q`. The part is meshed at edge length H and refined uniformly N times with
+gmsh (`hyperelastic mesh`, physical groups kept, 8x the tets each time, h halved), the scene runs on
+every mesh, and the watched quantity's convergence is reported: its change against the finest mesh,
+the observed order (slope of log change vs log h), and a Richardson estimate of its limit from the
+three finest meshes (q_inf = q_N + (q_N - q_{N-1}) / (2^p - 1), p = log2 of the ratio of the last two
+changes; Roache, "Verification and Validation in Computational Science", 1998, ch. 5)."""
+import math
+import os
+import shlex
+
+import numpy as np
+
+from ..errors import UserError
+from ..experiments.runner import last_line, parallel_map, run_hyperelastic
+from ..experiments.table import write_csv
+from ..stability import fmt
+from .measure import read_cost, slope
+
+WATCH_HELP = ("max_displacement (largest |u| over the vertices), point:X,Y,Z (|u| at that material point), "
+              "elastic_energy (at the end)")
+
+
+def parse_watch(spec):
+    """(kind, point or None) of a --watch value; UserError for anything else."""
+    if spec in ("max_displacement", "elastic_energy"):
+        return spec, None
+    if spec.startswith("point:"):
+        try:
+            p = [float(v) for v in spec[6:].split(",")]
+        except ValueError:
+            p = []
+        if len(p) != 3 or not all(map(math.isfinite, p)):
+            raise UserError(f"--watch {spec}: point:X,Y,Z needs three finite coordinates")
+        return "point", np.array(p)
+    raise UserError(f"--watch {spec}: unknown quantity (choose from {WATCH_HELP})")
+
+
+def watched(path, kind, point):
+    """The watched quantity of a finished run (last frame / last step)."""
+    import h5py
+    from .. import stats
+    from ..mesh import interpolate, locate
+    with h5py.File(path, "r") as f:
+        x, X, tets = f["x"][-1], f["mesh/points"][:], f["mesh/tetra"][:]
+        if kind == "elastic_energy":
+            return float(stats.read(f)["elastic"][-1])
+    u = x - X
+    if kind == "max_displacement":
+        return float(np.linalg.norm(u, axis=1).max())
+    cells, w = locate(X, tets, point)
+    return float(np.linalg.norm(interpolate(tets, cells, w, u)[0]))
+
+
+def meshes(part, size, refine, out_dir):
+    """[(level, .msh path, tets, target h)] of the part at size and its N uniform refinements."""
+    from ..mesh import generate
+    path = os.path.join(out_dir, os.path.splitext(os.path.basename(part))[0] + ".msh")
+    st = generate(part, None, path, size, refine)
+    st = st if refine else [st]
+    return [(i, s["file"], s["tets"], size / 2 ** i) for i, s in enumerate(st)]
+
+
+def part_refinement(part, scene, watch, size, refine, out_dir, jobs=1, run_args=(), parallel_from=20000, log=None):
+    """Rows, one per mesh: tets, h, the watched quantity, its change against the finest mesh, the
+    run's cost; plus (in each row) the fitted order and the Richardson limit."""
+    kind, point = parse_watch(watch)
+    if refine < 2:
+        raise UserError(f"--refine {refine}: a convergence order needs at least 3 meshes (--refine 2)")
+    if not os.path.isfile(scene):
+        raise UserError(f"--scene '{scene}': no such file")
+    d = os.path.join(out_dir, "runs")
+    os.makedirs(d, exist_ok=True)
+    levels = meshes(part, size, refine, d)
+
+    def one(level):
+        i, msh, tets, h = level
+        n = 2 if tets >= parallel_from else 1
+        path = os.path.join(d, f"part_r{i}.h5")
+        rc, err, wall = run_hyperelastic(["run", scene, "-mesh", msh, "-output", path, "-quiet", *run_args],
+                                         path, nprocs=n, timeout=3600)
+        row = {"level": i, "mesh": msh, "nprocs": n, "tets": tets, "h": h, "rc": rc, "wall_s": wall,
+               "outcome": "finished" if rc == 0 else "failed", "message": last_line(err, rc) if rc else ""}
+        row.update(read_cost(path))
+        if rc == 0:
+            row["quantity"] = watched(path, kind, point)
+            row["s_per_step"] = row["solve_s"] / max(row["steps"], 1)
+        return row
+
+    rows = parallel_map(one, levels, jobs, log)
+    analyse(rows)
+    return rows
+
+
+def analyse(rows):
+    """In place: change against the finest finished mesh, the observed order over the others, and
+    Richardson's limit from the three finest (needs the changes to shrink monotonically)."""
+    ok = [r for r in rows if r["outcome"] == "finished"]
+    if len(ok) < 3:
+        return
+    qf = ok[-1]["quantity"]
+    for r in ok:
+        r["change"] = abs(r["quantity"] - qf)
+    order = slope([r["h"] for r in ok[:-1]], [r["change"] for r in ok[:-1]])
+    q1, q2, q3 = (r["quantity"] for r in ok[-3:])
+    d1, d2 = q2 - q1, q3 - q2
+    p = math.log2(d1 / d2) if d1 * d2 > 0 and abs(d2) < abs(d1) else float("nan")
+    limit = q3 + d2 / (2 ** p - 1) if math.isfinite(p) else float("nan")
+    for r in rows:
+        r["order"], r["richardson_p"], r["richardson_limit"] = order, p, limit
+
+
+COLUMNS = ("level", "nprocs", "tets", "h", "quantity", "change", "order", "richardson_p", "richardson_limit",
+           "outcome", "message", "steps", "newton_its", "ksp_its", "solve_s", "s_per_step", "wall_s",
+           "peak_rss_mb", "mesh")
+
+
+def part_report(rows, out_dir, command, part, scene, watch):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    write_csv(os.path.join(out_dir, "refinement.csv"), rows, COLUMNS)
+    ok = [r for r in rows if r["outcome"] == "finished"]
+    fig, (a1, a2) = plt.subplots(1, 2, figsize=(11, 4.2))
+    if ok:
+        a1.semilogx([r["h"] for r in ok], [r["quantity"] for r in ok], "o-", label=watch)
+        if math.isfinite(ok[0].get("richardson_limit", float("nan"))):
+            a1.axhline(ok[0]["richardson_limit"], ls="--", color="gray", label="Richardson limit")
+        ch = [r for r in ok[:-1] if r.get("change")]
+        if ch:
+            a2.loglog([r["h"] for r in ch], [r["change"] for r in ch], "s-",
+                      label=f"|q - q_finest|, slope {ok[0].get('order', float('nan')):.2f}")
+    for a, yl in ((a1, watch), (a2, "change against the finest mesh")):
+        a.set_xlabel("target edge length h")
+        a.set_ylabel(yl)
+        a.legend(fontsize=7)
+    fig.suptitle(f"{os.path.basename(part)} with {os.path.basename(scene)}", fontsize=9)
+    fig.tight_layout()
+    fig.savefig(os.path.join(out_dir, "refinement.png"), dpi=110)
+    plt.close(fig)
+    L = [f"# Mesh refinement of {os.path.basename(part)}", ""]
+    if len(ok) >= 3:
+        r0 = ok[0]
+        L += [f"**{watch}: {ok[-1]['quantity']:.6g} on the finest mesh ({ok[-1]['tets']:,} tets); observed order "
+              f"{r0['order']:.2f} (slope of the change against the finest mesh vs h); Richardson's limit from the "
+              f"three finest: {fmt(r0['richardson_limit'], '.6g')} (p = {fmt(r0['richardson_p'], '.2f')}).**", ""]
+    else:
+        L += ["Fewer than three meshes finished: no order.", ""]
+    L += [f"Command: `{command}`. Scene: `{scene}`; each mesh is the previous one split uniformly (8x the tets, "
+          "h halved; `hyperelastic mesh --refine`). Figure: `refinement.png`.", "",
+          "| mesh | ranks | tets | h | quantity | change vs finest | Newton | Krylov | solve (s) | wall (s) | outcome |",
+          "|" + "---|" * 11]
+    for r in rows:
+        out = r["outcome"] if r["outcome"] != "failed" else f"failed: {r['message'][:80]}"
+        L.append(f"| r{r['level']} | {r['nprocs']} | {r['tets']:,} | {r['h']:.4g} | {fmt(r.get('quantity'), '.6g')} | "
+                 f"{fmt(r.get('change'), '.3g')} | {fmt(r.get('newton_its'))} | {fmt(r.get('ksp_its'))} | "
+                 f"{fmt(r.get('solve_s'))} | {r['wall_s']:.3g} | {out} |")
+    with open(os.path.join(out_dir, "refinement.md"), "w") as fh:
+        fh.write("\n".join(L) + "\n")
+
+
+def split_run_args(text):
+    return shlex.split(text or "")
