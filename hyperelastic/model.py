@@ -150,7 +150,8 @@ def cell_kernels(scene, space):
     from .sets import MATERIAL_LABEL
     which = space.cell_values(MATERIAL_LABEL)
     mats = [(sc.material.name, sc.mu, sc.lam, sc.rho)] + [(r.material.name, r.mu, r.lam, r.rho) for r in sc.regions]
-    parts = [(np.flatnonzero(which == i), m[0], m[1], m[2]) for i, m in enumerate(mats)]
+    unused = space.mpi.allreduce(int((which == 0).sum())) == 0     # every cell is in a listed region
+    parts = [(np.flatnonzero(which == i), m[0], m[1], m[2]) for i, m in enumerate(mats) if i or not unused]
     density = np.array([m[3] for m in mats])[which]
     return RegionKernels(space.cells, space.Dminv, space.vol, parts), density
 

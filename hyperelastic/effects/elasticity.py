@@ -24,7 +24,9 @@ class Elasticity(Effect):
         self.blocks = None
         self.projected_cells = 0
         self.k = kernels
-        names = [k.material for _, k in kernels.parts] if hasattr(kernels, "parts") else [kernels.material]
+        # every material of the scene, also those with no cells on this rank: what follows (the domain
+        # check's collective, the linear flag) must be the same on every rank
+        names = [m for _, m, _, _ in kernels.spec] if hasattr(kernels, "spec") else [kernels.material]
         self.material = ",".join(dict.fromkeys(names))     # the material name(s)
         self.linear = all(n == "linear" for n in names)
         from .. import materials

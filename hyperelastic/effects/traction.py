@@ -7,6 +7,13 @@ def triangle_areas(X, tris):
     return 0.5 * np.linalg.norm(np.cross(X[tris[:, 1]] - X[tris[:, 0]], X[tris[:, 2]] - X[tris[:, 0]]), axis=1)
 
 
+def triangle_coo_pattern(tris):
+    """(rows, cols) of the dense 9x9 blocks coupling the dofs of each triangle's three vertices,
+    row-major in (vertex a, component i) x (vertex b, component j)."""
+    dofs = (3 * tris[:, :, None] + np.arange(3)).reshape(-1, 9)   # (ntri, 9)
+    return np.repeat(dofs, 9, axis=1).ravel(), np.tile(dofs, (1, 9)).ravel()
+
+
 class Traction(Effect):
     """Dead-load surface traction t [Pa] per unit reference area on a face, scaled by
     its time function (base.load_factor: a ramp A min(t,1) or -NAME_time): f_a = int t N_a dA = t A/3 per triangle vertex."""
@@ -77,10 +84,7 @@ class FollowerTwist(Effect):
         pass  # T has a zero diagonal
 
     def coo_pattern(self):
-        dofs = (3 * self.tris[:, :, None] + np.arange(3)).reshape(-1, 9)   # (ntri, 9)
-        rows = np.repeat(dofs, 9, axis=1).ravel()
-        cols = np.tile(dofs, (1, 9)).ravel()
-        return rows, cols
+        return triangle_coo_pattern(self.tris)
 
     def coo_values(self, out):
         blk = -self.s * np.einsum("t,ab,ij->taibj", self.A, self.Mf, self.T)  # (ntri,3,3,3,3)
@@ -141,10 +145,7 @@ class Pressure(Effect):
         pass  # the diagonal entries of [w]x are zero
 
     def coo_pattern(self):
-        dofs = (3 * self.tris[:, :, None] + np.arange(3)).reshape(-1, 9)   # (ntri, 9)
-        rows = np.repeat(dofs, 9, axis=1).ravel()
-        cols = np.tile(dofs, (1, 9)).ravel()
-        return rows, cols
+        return triangle_coo_pattern(self.tris)
 
     def coo_values(self, out):
         w = self._edges()                                               # (ntri, b, 3)
