@@ -15,6 +15,7 @@ import sys
 from .errors import ArgParser, Interrupted, SolveError, UserError
 
 EXIT_USER, EXIT_SOLVE, EXIT_INTERNAL = 2, 3, 1
+OPTIONS_FILES = []      # every options file the command line reads (inputs an output must not overwrite)
 
 
 def _petsc(argv):
@@ -38,6 +39,7 @@ def _check_options_files(argv, chain=()):
             raise UserError("option -options_file: needs a file")
         path = argv[i + 1]
         real = os.path.realpath(path)
+        OPTIONS_FILES.append(path)
         if real in chain:
             names = " -> ".join([os.path.basename(c) for c in chain] + [os.path.basename(real)])
             raise UserError(f"options file '{path}' includes itself ({names})")
@@ -114,7 +116,10 @@ def run(argv):
     opts = Options()
     out = opts.string("output", os.path.join("output", f"{scene.name}.h5"))
     quiet = opts.flag("quiet")
-    collective(comm, lambda: check_output_path(out))      # before any expensive work
+    inputs = [scene_file, scene.mesh] + OPTIONS_FILES
+    if restart is not None:
+        inputs = [i for i in inputs if i and os.path.realpath(i) != os.path.realpath(out)]
+    collective(comm, lambda: check_output_path(out, inputs))      # before any expensive work
     model = build_model(scene, comm)
     ts = None
     if scene.integrator == "ts":
@@ -141,12 +146,17 @@ def run(argv):
                               quiet=quiet)
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, lambda signum, frame: integ.request_stop(signum))
+    ended = False
     try:
         integ.run()
+        ended = True
+    except Interrupted:
+        ended = True          # stopped on request with a checkpoint: keep it, even before a first step
+        raise
     finally:
         writer.set_attr("steps_completed", integ.step)
         writer.set_attr("peak_rss_mb", peak_rss_mb(comm))
-        writer.close()
+        writer.close(keep=ended)
     if not quiet and comm.getRank() == 0:
         print(f"wrote {out} ({integ.step} steps, {writer.nframes} frames)", file=sys.stderr)
     return 0

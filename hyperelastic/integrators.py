@@ -88,7 +88,7 @@ class Integrator:
             if self.writer:
                 self.writer.set_attr("interrupted", f"{name} at t={self.t:.6g} (step {self.step})")
             raise Interrupted(f"interrupted by {name} at t={self.t:.6g} (step {self.step}); state saved: "
-                              f"continue with `hyperelastic run --restart {self.writer.path if self.writer else 'FILE'}`",
+                              f"continue with `hyperelastic run --restart {self.writer.final if self.writer else 'FILE'}`",
                               stop)
         return ck and self.writer is not None
 

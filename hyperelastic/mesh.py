@@ -58,7 +58,7 @@ def generate(name, level, out, size=None, refine=0):
     outs = [out] + [f"{os.path.splitext(out)[0]}_r{i}.msh" for i in range(1, refine + 1)]
     from .output import check_output_path
     for o in outs:
-        check_output_path(o)
+        check_output_path(o, suffixes=None)
     import gmsh
     gmsh.initialize(["gmsh", "-v", "0"], readConfigFiles=False)
     tmps = []

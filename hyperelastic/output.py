@@ -29,10 +29,32 @@ def writable_dir(d, who):
         raise UserError(f"{who}: directory '{d}' is not writable")
 
 
-def check_output_path(path):
-    """Raise UserError unless `path` can be written (checked before any work is done)."""
+PARTIAL = ".partial"      # a run writes FILE.h5.partial until it has completed a step (Writer._commit)
+
+
+def output_names(path):
+    """The files an output path stands for: the HDF5 file, the XDMF beside it and the partial file."""
+    return [path, os.path.splitext(path)[0] + ".xdmf", path + PARTIAL]
+
+
+def check_output_path(path, inputs=(), suffixes=(".h5", ".hdf5")):
+    """Raise UserError unless `path` can be written without touching an input (checked before any work
+    is done). The name must end in .h5 or .hdf5, so that the XDMF beside it never is the HDF5 file;
+    neither may be (or be the data of) an input file: the mesh, the scene or an options file."""
     if os.path.isdir(path):
         raise UserError(f"output '{path}' is a directory")
+    if suffixes and not path.lower().endswith(suffixes):
+        raise UserError(f"option -output: '{path}' must end in .h5 or .hdf5 (the .xdmf is written beside it)")
+    taken = {}
+    for name in inputs:
+        if not name:
+            continue
+        stem, ext = os.path.splitext(name)
+        for p in [name] + ([stem + ".h5", stem + ".hdf5", stem + ".xdmf"] if ext.lower() in (".h5", ".hdf5", ".xdmf") else []):
+            taken[os.path.realpath(p)] = name
+    for p in (output_names(path) if suffixes else [path]):
+        if os.path.realpath(p) in taken:
+            raise UserError(f"option -output: '{path}' would overwrite the input '{taken[os.path.realpath(p)]}'")
     writable_dir(os.path.dirname(os.path.abspath(path)) or ".", f"output '{path}'")
     if os.path.exists(path) and not os.access(path, os.W_OK):
         raise UserError(f"output '{path}': not writable")
@@ -97,7 +119,11 @@ class Writer:
         self.kernels = kernels
         self.points = None if points is None else np.asarray(points, np.float64)
         self.root = space.mpi.rank == 0
-        self.path = path
+        # written under FILE.h5.partial until a step is complete (see _commit): a run that fails before
+        # leaves an earlier FILE.h5 (and its XDMF) byte-identical
+        self.final = path
+        self.path = path + PARTIAL
+        self.committed = False
         self.xdmf = os.path.splitext(path)[0] + ".xdmf"
         self.nframes = 0
         self.nstats = 0
@@ -109,7 +135,7 @@ class Writer:
         if not self.root:
             return
         import h5py
-        self.f = f = h5py.File(path, "w")
+        self.f = f = h5py.File(self.path, "w")
         nv = len(points)
         f.create_dataset("mesh/points", data=np.asarray(points, np.float64))
         f.create_dataset("mesh/tetra", data=np.asarray(tets, np.int64))
@@ -126,7 +152,9 @@ class Writer:
         self.nframes, self.nstats = int(st["nframes"]), int(st["nstats"])
         if not self.root:
             return
+        import shutil
         import h5py
+        shutil.copyfile(self.final, self.path)        # the checkpoint's file stays as it is until _commit
         self.f = f = h5py.File(self.path, "r+")
         self.nv, self.nc = f["mesh/points"].shape[0], f["mesh/tetra"].shape[0]
         f["time"].resize((self.nframes,))
@@ -143,7 +171,6 @@ class Writer:
         f.attrs["restarts"] = int(f.attrs.get("restarts", 0)) + 1
         f.attrs["options"] = attrs["options"]      # what this part ran with (a later restart uses it)
         f.flush()
-        self._write_xdmf()
 
     def checkpoint(self, x_local, v_local, **state):
         """The full state into checkpoint/<slot>, alternating two slots; the root attribute
@@ -194,7 +221,8 @@ class Writer:
         self.nframes += 1
         self._flush_stats()
         f.flush()
-        self._write_xdmf()
+        if self.committed:
+            self._write_xdmf()
 
     def stats(self, row):
         """One statistics row; rows are kept in memory and written with the next frame, checkpoint
@@ -206,6 +234,17 @@ class Writer:
             column_type(k)        # only declared columns (stats.py)
         self._pending.append(dict(row))
         self.nstats += 1
+        if not self.committed and not row.get("rejected", 0):
+            self._commit()
+
+    def _commit(self):
+        """The first completed step: FILE.h5.partial becomes FILE.h5 (an atomic rename of the open file)
+        and the XDMF is written; from here on the run writes into FILE.h5."""
+        self._flush_stats()
+        self.f.flush()
+        os.replace(self.path, self.final)
+        self.path, self.committed = self.final, True
+        self._write_xdmf()
 
     def _flush_stats(self):
         rows, self._pending = self._pending, []
@@ -229,16 +268,22 @@ class Writer:
         if self.root:
             self.f.attrs[key] = value
 
-    def close(self):
+    def close(self, keep=True):
+        """Flush and close. A run that completed no step replaces an earlier FILE.h5 only when `keep`
+        (it ended normally or was interrupted with a checkpoint); else its partial file is removed."""
         if self.root and getattr(self, "f", None) is not None:
             self._flush_stats()
             self.f.flush()
+            if not self.committed and (keep or not os.path.exists(self.final)):
+                self._commit()
             self.f.close()
             self.f = None
+            if not self.committed and os.path.exists(self.path):
+                os.remove(self.path)
 
     def _write_xdmf(self):
         """The XDMF of all frames so far (rewritten whole, atomically, at each frame)."""
-        h5 = os.path.basename(self.path)
+        h5 = os.path.basename(self.final)
         times = self.f["time"][:]
         nv, nc = self.nv, self.nc
         mesh = (f'    <Topology TopologyType="Tetrahedron" NumberOfElements="{nc}">\n'

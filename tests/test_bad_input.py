@@ -247,3 +247,43 @@ def test_bad_options_file_under_mpi(tmp_path):
     p = hyperelastic(["run", "bend", "-options_file", path, "-quiet"], nprocs=2, timeout=60)
     assert p.returncode == 2
     one_line_error(p, *words)
+
+
+def _digest(*paths):
+    import hashlib
+    return [hashlib.sha256(open(p, "rb").read()).hexdigest() for p in paths]
+
+
+def test_failed_run_keeps_the_previous_result(tmp_path):
+    """A run (or a restart) that fails before completing a step leaves the earlier FILE.h5 and its XDMF
+    byte-identical and no partial file; a successful one replaces them (issue 15: no result lost)."""
+    out, xdmf = tmp_path / "out.h5", tmp_path / "out.xdmf"
+    base = ["run", "bend", "-final_time", 0.05, "-checkpoint_every", 2, "-quiet", "-output", out]
+    assert hyperelastic(base).returncode == 0
+    before = _digest(out, xdmf)
+    for args in (base + ["-pc_type", "lu", "-jacobian", "shell"],
+                 ["run", "--restart", out, "-final_time", 0.1, "-pc_type", "lu", "-jacobian", "shell"]):
+        one_line_error(hyperelastic(args), "PETSc")
+        assert _digest(out, xdmf) == before, args
+        assert sorted(os.listdir(tmp_path)) == ["out.h5", "out.xdmf"]
+    assert hyperelastic(["run", "--restart", out, "-final_time", 0.1, "-quiet"]).returncode == 0
+    assert _digest(out, xdmf) != before
+
+
+def test_output_never_overwrites_an_input(tmp_path):
+    mesh = tmp_path / "m.msh"
+    assert hyperelastic(["mesh", "bar", "--level", 1, "-o", mesh]).returncode == 0
+    assert hyperelastic(["run", "bend", "-final_time", 0.02, "-quiet", "-output", tmp_path / "r.h5"]).returncode == 0
+    opts = tmp_path / "o.opts"
+    opts.write_text("-final_time 0.02\n")
+    keep = [mesh, tmp_path / "r.h5", tmp_path / "r.xdmf", opts]
+    before = _digest(*keep)
+    one_line_error(hyperelastic(["run", "bend", "-output", tmp_path / "o.xdmf"]), "must end in .h5")
+    one_line_error(hyperelastic(["run", "bend", "-mesh", mesh, "-output", mesh]), "must end in .h5")
+    one_line_error(hyperelastic(["run", "bend", "-mesh", tmp_path / "r.xdmf", "-output", tmp_path / "r.h5"]),
+                   "would overwrite the input")
+    one_line_error(hyperelastic(["run", "bend", "-mesh", tmp_path / "r.h5", "-output", tmp_path / "r.hdf5"]),
+                   "would overwrite the input")     # its XDMF would be r.xdmf, the input's
+    one_line_error(hyperelastic(["run", opts, "-output", tmp_path / "o.h5", "-options_file", tmp_path / "o.h5"]),
+                   "options file")
+    assert _digest(*keep) == before
