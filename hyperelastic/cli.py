@@ -15,23 +15,25 @@ import sys
 from .errors import ArgParser, Interrupted, SolveError, UserError
 
 EXIT_USER, EXIT_SOLVE, EXIT_INTERNAL = 2, 3, 1
-OPTIONS_FILES = []      # every options file the command line reads (inputs an output must not overwrite)
 
 
 def _petsc(argv):
-    _check_options_files(argv)
+    """(petsc4py.PETSc initialized with argv, the options files argv reads)."""
+    files = _check_options_files(argv)
     import petsc4py
     petsc4py.init([sys.argv[0]] + list(argv))
     from petsc4py import PETSc
-    return PETSc
+    return PETSc, files
 
 
 def _check_options_files(argv, chain=()):
     """Every `-options_file F` of the arguments, and those the files include in turn, must be a
     readable regular UTF-8 file that does not include itself: PETSc itself would print a multi-line
     error and leave no communicator (missing file), wait forever (a FIFO), or recurse until SIGSEGV
-    (a file that includes itself, or two that include each other)."""
+    (a file that includes itself, or two that include each other). Returns their paths (the inputs an
+    output must not overwrite)."""
     import shlex
+    files = []
     for i, a in enumerate(argv):
         if a != "-options_file":
             continue
@@ -39,7 +41,7 @@ def _check_options_files(argv, chain=()):
             raise UserError("option -options_file: needs a file")
         path = argv[i + 1]
         real = os.path.realpath(path)
-        OPTIONS_FILES.append(path)
+        files.append(path)
         if real in chain:
             names = " -> ".join([os.path.basename(c) for c in chain] + [os.path.basename(real)])
             raise UserError(f"options file '{path}' includes itself ({names})")
@@ -59,7 +61,8 @@ def _check_options_files(argv, chain=()):
                 inner += shlex.split(line.split("#", 1)[0])
             except ValueError:
                 continue   # a malformed line is PETSc's (or the scene reader's) to report
-        _check_options_files(inner, chain + (real,))
+        files += _check_options_files(inner, chain + (real,))
+    return files
 
 
 def _restart_args(argv):
@@ -100,7 +103,7 @@ def run(argv):
         raise UserError("run: needs a SCENE (a built-in name or an options file); see `hyperelastic scenes`")
     else:
         scene_arg, petsc_args = argv[0], argv[1:]
-    PETSc = _petsc(petsc_args)
+    PETSc, options_files = _petsc(petsc_args)
     import signal
     from .integrators import BackwardEuler
     from .model import build_model, collective
@@ -116,7 +119,7 @@ def run(argv):
     opts = Options()
     out = opts.string("output", os.path.join("output", f"{scene.name}.h5"))
     quiet = opts.flag("quiet")
-    inputs = [scene_file, scene.mesh] + OPTIONS_FILES
+    inputs = [scene_file, scene.mesh] + options_files
     if restart is not None:
         inputs = [i for i in inputs if i and os.path.realpath(i) != os.path.realpath(out)]
     collective(comm, lambda: check_output_path(out, inputs))      # before any expensive work

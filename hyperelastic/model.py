@@ -11,7 +11,7 @@ from . import effects as effects_pkg
 from .errors import UserError
 from .kernels import CellKernels, RegionKernels
 from .mesh import cached_bar, read_mesh
-from .scene import facet_set_uses
+from .scene import describe_material, facet_set_uses
 from .space import Space
 from .system import System
 
@@ -134,11 +134,10 @@ def material_regions(scene, mesh, labels, report):
                        "line": f"{mesh.describe(g)}; {r.describe()}"})
     rest = np.flatnonzero(owner == 0)
     if len(rest):
-        sc = scene
+        own = describe_material(scene.material, scene.E, scene.nu, scene.rho)
         report.append({"name": "(other cells)", "kind": "tets", "tag": None, "count": len(rest),
-                       "measure": mesh.volume(rest), "material": f"{sc.material.name}, E {sc.E:g}, nu {sc.nu:g}, rho {sc.rho:g}",
-                       "line": f"(other cells): {len(rest)} tets, volume {mesh.volume(rest):.6g}; the scene's "
-                               f"{sc.material.name}, E {sc.E:g}, nu {sc.nu:g}, rho {sc.rho:g}"})
+                       "measure": mesh.volume(rest), "material": own,
+                       "line": f"(other cells): {len(rest)} tets, volume {mesh.volume(rest):.6g}; the scene's {own}"})
 
 
 def cell_kernels(scene, space):

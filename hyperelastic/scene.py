@@ -69,7 +69,12 @@ class Region:
     mu: float
 
     def describe(self):
-        return f"{self.material.name}, E {self.E:g}, nu {self.nu:g}, rho {self.rho:g}"
+        return describe_material(self.material, self.E, self.nu, self.rho)
+
+
+def describe_material(material, E, nu, rho):
+    """One line of a material and its parameters, as the set report prints it."""
+    return f"{material.name}, E {E:g}, nu {nu:g}, rho {rho:g}"
 
 
 JACOBIANS = ("assembled", "shell", "seed_fd", "seed_fd2")
@@ -355,7 +360,8 @@ def _prescribed(s, opts, p):
     p["prescribe_amount"] = opts.real("prescribe_amount", 1.0)
     motion = opts.choice("prescribe_motion", tuple(PRESETS), None) if opts.has("prescribe_motion") else None
     p["prescribe_motion"] = motion
-    exprs = dict(PRESETS[motion]) if motion else {}
+    where = f"preset {motion}"
+    exprs = {k: (text, kind, where) for k, (text, kind) in PRESETS[motion].items()} if motion else {}
     held = set("".join(c for _, c in p["prescribe_faces"]))
     for k in "xyz":
         if opts.has(f"prescribe_{k}") and opts.has(f"prescribe_u{k}"):
@@ -368,7 +374,7 @@ def _prescribed(s, opts, p):
                                     f"({','.join(n + ':' + c for n, c in p['prescribe_faces'])})")
                 exprs[k] = (opts.string(key), kind, f"option -{key}")
     p["prescribe"] = {k: (Expression(text, ("t", "X", "Y", "Z", "A"), where), kind)
-                      for k, (text, kind, *w) in exprs.items() for where in [w[0] if w else f"preset {motion}"]}
+                      for k, (text, kind, where) in exprs.items()}
     return True
 
 

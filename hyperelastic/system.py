@@ -75,9 +75,12 @@ class System:
                 self.g[c.dofs] = c.values(t)
             except UserError as e:         # an expression not finite at some rank's vertices
                 err = err or str(e)
-        errs = [e for e in self.space.mpi.allgather(err) if e]
-        if errs:
-            raise UserError(errs[0])
+        if any(c.evaluates for c in self.constraints):    # raised on every rank, or none waits
+            errs = [e for e in self.space.mpi.allgather(err) if e]
+            if errs:
+                raise UserError(errs[0])
+        elif err:
+            raise UserError(err)
         self.g_owned_c = self.space.owned_array(self.g)[self.c_owned_pos]   # targets of the owned rows
 
     def begin_stage(self, t_stage, t1, h, xn, vn, alpha_f):

@@ -92,9 +92,10 @@ def main(argv):
         report(rows, p, out, command)
         print(os.path.join(out, "accuracy.md"))
     elif a.part is not None:
-        from .part import part_refinement, part_report, split_run_args
+        import shlex
+        from .part import part_refinement, part_report
         rows = part_refinement(a.part, a.scene, a.watch, a.size, a.refine, out, a.jobs,
-                               split_run_args(a.run_args), log=log)
+                               shlex.split(a.run_args), log=log)
         part_report(rows, out, command, a.part, a.scene, a.watch)
         print(os.path.join(out, "refinement.md"))
     else:

@@ -7,7 +7,6 @@ three finest meshes (q_inf = q_N + (q_N - q_{N-1}) / (2^p - 1), p = log2 of the 
 changes; Roache, "Verification and Validation in Computational Science", 1998, ch. 5)."""
 import math
 import os
-import shlex
 
 import numpy as np
 
@@ -157,7 +156,3 @@ def part_report(rows, out_dir, command, part, scene, watch):
                  f"{fmt(r.get('solve_s'))} | {r['wall_s']:.3g} | {out} |")
     with open(os.path.join(out_dir, "refinement.md"), "w") as fh:
         fh.write("\n".join(L) + "\n")
-
-
-def split_run_args(text):
-    return shlex.split(text or "")
