@@ -97,6 +97,10 @@ def _restart_args(argv):
 def run(argv):
     """`hyperelastic run`: Scene -> Model (mesh, space, effects, system) -> Solver -> Writer -> integrator."""
     restart = None
+    if argv and argv[0] in ("--help", "-help", "-h"):
+        from .catalog import help_text
+        print(help_text())
+        return 0
     if argv and argv[0] == "--restart":
         scene_arg, petsc_args, restart = _restart_args(argv)
     elif not argv or argv[0].startswith("-"):
@@ -117,6 +121,10 @@ def run(argv):
     stage.push()
     scene, scene_file = load_scene(scene_arg)
     opts = Options()
+    if opts.has("help") and comm.getRank() == 0:
+        from .catalog import help_text, option_names
+        names = option_names([r.name for r in scene.regions], [ld["name"] for ld in scene.params.get("loads", [])])
+        print(help_text({n: opts.o.getString(n, "") for n in names if opts.has(n)}), flush=True)
     out = opts.string("output", os.path.join("output", f"{scene.name}.h5"))
     quiet = opts.flag("quiet")
     inputs = [scene_file, scene.mesh] + options_files
@@ -130,6 +138,12 @@ def run(argv):
         ts = make_ts(comm)
     solver = Solver(model.system, scene.jacobian, scene.assembly, guard=scene.inversion_guard,
                     objective=scene.objective and ts is None, snes=ts.getSNES() if ts else None)
+    if ts is not None:
+        ts.setFromOptions()      # (again when the integrator is set up) so that its options count as used
+    from .catalog import check_solver_options
+    check_solver_options(PETSc.Options())
+    if opts.has("help"):         # PETSc printed its own options as its solvers read them
+        return 0
     if not quiet and comm.getRank() == 0:
         for line in model.set_lines():
             print(f"set {line}", file=sys.stderr)

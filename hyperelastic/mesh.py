@@ -15,9 +15,15 @@ GEO_DIR = os.path.join(_root, "meshes")
 LEVEL_SIZES = {1: 0.80, 2: 0.75, 3: 0.65, 4: 0.50, 5: 0.45, 6: 0.40, 7: 0.35, 8: 0.30}
 
 
+MAX_LEVEL = 14     # ~64x the tets of L8: beyond, gmsh would run for hours on this kind of machine
+
+
 def level_size(level):
     if level < 1:
         raise UserError(f"mesh level {level} must be >= 1")
+    if level > MAX_LEVEL:
+        raise UserError(f"mesh level {level}: levels go up to {MAX_LEVEL} (~2x the tets per level; for a finer "
+                        "mesh give -mesh FILE)")
     if level in LEVEL_SIZES:
         return LEVEL_SIZES[level]
     return LEVEL_SIZES[8] * 2.0 ** (-(level - 8) / 3.0)
@@ -263,6 +269,9 @@ def check(points, tets, path):
     bad = np.flatnonzero(~np.isfinite(points).all(axis=1))
     if len(bad):
         raise UserError(f"mesh '{path}': vertex {bad[0]} has a non-finite coordinate {points[bad[0]].tolist()}")
+    bad = np.flatnonzero((np.abs(points) > 1e30).any(axis=1))
+    if len(bad):
+        raise UserError(f"mesh '{path}': vertex {bad[0]} has a coordinate beyond 1e30 {points[bad[0]].tolist()}")
     bad = np.flatnonzero(((tets < 0) | (tets >= len(points))).any(axis=1))
     if len(bad):
         raise UserError(f"mesh '{path}': tetrahedron {bad[0]} has a vertex index out of range "
@@ -294,6 +303,37 @@ def check(points, tets, path):
         i = int(np.flatnonzero(V < 0)[0])
         raise UserError(f"mesh '{path}': tetrahedron {i} is inverted (negative volume {V[i]:.3g}, "
                         f"vertices {tets[i].tolist()})")
+    check_faces(points, tets, path)
+
+
+def check_faces(points, tets, path):
+    """A conforming mesh of a solid: every triangle is a face of one tetrahedron (the boundary) or of
+    two on opposite sides of it. A face of three or more tetrahedra, or two on the same side, means
+    duplicate or overlapping tetrahedra."""
+    F = np.sort(tets[:, [[1, 2, 3], [0, 2, 3], [0, 1, 3], [0, 1, 2]]], axis=2).reshape(-1, 3)
+    opposite = tets.reshape(-1)                     # the vertex of the tet not on each face
+    n = np.int64(len(points))
+    if float(n) ** 3 < 2.0 ** 62:
+        key = (F[:, 0].astype(np.int64) * n + F[:, 1]) * n + F[:, 2]
+        order = np.argsort(key, kind="stable")
+        same = key[order][1:] == key[order][:-1]
+    else:
+        order = np.lexsort(F.T[::-1])
+        same = (F[order][1:] == F[order][:-1]).all(axis=1)
+    triple = np.flatnonzero(same[1:] & same[:-1])
+    if len(triple):
+        cells = sorted(int(c) for c in order[triple[0]:triple[0] + 3] // 4)
+        raise UserError(f"mesh '{path}': tetrahedra {cells[0]}, {cells[1]} and {cells[2]} share a face "
+                        f"{F[order[triple[0]]].tolist()} (duplicate or overlapping tetrahedra)")
+    i, j = order[:-1][same], order[1:][same]        # the two sides of each interior face
+    a, b, c = (points[F[i, k]] for k in range(3))
+    side = lambda q: np.einsum("ij,ij->i", np.cross(b - a, c - a), points[q] - a)
+    bad = np.flatnonzero(side(opposite[i]) * side(opposite[j]) >= 0)
+    if len(bad):
+        c1, c2 = sorted((int(i[bad[0]] // 4), int(j[bad[0]] // 4)))
+        what = "are the same tetrahedron" if sorted(tets[c1]) == sorted(tets[c2]) else "overlap"
+        raise UserError(f"mesh '{path}': tetrahedra {c1} and {c2} {what} (on the same side of their shared face "
+                        f"{F[i[bad[0]]].tolist()})")
 
 
 def morton_order(centroids):

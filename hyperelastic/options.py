@@ -6,6 +6,7 @@ values are defaults: an option given on the command line wins.
 import math
 import os
 import shlex
+import sys
 
 from petsc4py import PETSc
 
@@ -14,6 +15,9 @@ from .errors import UserError
 _root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 OPTIONS_DIR = os.path.join(_root, "options")
 SCENES_DIR = os.path.join(OPTIONS_DIR, "scenes")
+
+
+MAX_MAGNITUDE = 1e30    # bound on any real an option gives (the products the kernels form stay finite)
 
 
 def builtin_scenes():
@@ -86,6 +90,11 @@ class Options:
             raise UserError(f"option -{name}: '{s}' is not a number") from None
         if not math.isfinite(v):
             raise UserError(f"option -{name}: {s} is not a finite number")
+        if abs(v) > MAX_MAGNITUDE:
+            raise UserError(f"option -{name}: {s} is beyond {MAX_MAGNITUDE:g} in magnitude (no physical value in "
+                            "SI units is)")
+        if v != 0 and abs(v) < sys.float_info.min:
+            raise UserError(f"option -{name}: {s} is below the smallest normal number ({sys.float_info.min:.3g})")
         if minimum is not None and (v <= minimum if exclusive else v < minimum):
             raise UserError(f"option -{name}: {s} must be {'>' if exclusive else '>='} {minimum:g}")
         if maximum is not None and v > maximum:
@@ -131,6 +140,8 @@ class Options:
             raise UserError(f"option -{name}: '{s}' is not a list of {n} numbers (e.g. 0,0,-9.81)") from None
         if len(vals) != n or not all(math.isfinite(v) for v in vals):
             raise UserError(f"option -{name}: '{s}' is not a list of {n} finite numbers (e.g. 0,0,-9.81)")
+        if max(abs(v) for v in vals) > MAX_MAGNITUDE:
+            raise UserError(f"option -{name}: '{s}' has a value beyond {MAX_MAGNITUDE:g} in magnitude")
         return vals
 
     def names(self, name, default=""):

@@ -77,6 +77,7 @@ def describe_material(material, E, nu, rho):
     return f"{material.name}, E {E:g}, nu {nu:g}, rho {rho:g}"
 
 
+MAX_STEPS, MAX_FRAMES = 1e9, 1e6   # a run beyond these is a typo, not a simulation on this machine
 JACOBIANS = ("assembled", "shell", "seed_fd", "seed_fd2")
 INTEGRATORS = ("beuler", "ts")
 ASSEMBLIES = ("setvalues", "coo")
@@ -124,10 +125,20 @@ def facet_set_uses(s):
 def load_scene(scene_arg):
     """(Scene, path of its options file) for a built-in scene name or an options file: the file's
     options become defaults under the command line's, then everything is read and validated."""
+    from .catalog import check_application_options, check_petsc_values
     path = resolve_scene(scene_arg)
     insert_defaults(parse_options_file(path))
+    opts = Options()
+    check_application_options(sorted(opts.o.getAll()), _prefixes(opts, "regions"), _prefixes(opts, "loads"))
+    check_petsc_values(opts.o)
     name = os.path.splitext(os.path.basename(path))[0]
     return read_scene(name), path
+
+
+def _prefixes(opts, option):
+    """The names -regions / -loads list (the prefixes of their options), unchecked."""
+    s = opts.o.getString(option, "") if opts.has(option) else ""
+    return [w.strip() for w in (s or "").split(",") if w.strip()]
 
 
 def read_scene(name, opts=None):
@@ -171,6 +182,9 @@ def _read_material(s, opts):
     s.lam, s.mu = materials.lame(s.E, s.nu)
     s.lumped = opts.choice("mass", ("consistent", "lumped"), "lumped" if s.lumped else "consistent") == "lumped"
     s.initial_scale = opts.vector("initial_scale")
+    if s.initial_scale is not None and 0.0 in s.initial_scale:
+        raise UserError(f"option -initial_scale: {opts.string('initial_scale')} has a zero scale (every element "
+                        "would be flat)")
     s.initial_spin = opts.vector("initial_spin")
     s.initial_rotation = opts.vector("initial_rotation")
 
@@ -209,12 +223,28 @@ def _read_time(s, opts):
     s.dt_grow_after = opts.integer("dt_grow_after", s.dt_grow_after, minimum=1)
     s.checkpoint_every = opts.integer("checkpoint_every", s.checkpoint_every, minimum=0)
     s.integrator = opts.choice("integrator", INTEGRATORS, s.integrator)
+    if s.final_time > 0 and s.dt > s.final_time:
+        raise UserError(f"option -dt: {s.dt:g} is longer than -final_time {s.final_time:g}")
+    if s.final_time / s.dt > MAX_STEPS:
+        raise UserError(f"options -final_time {s.final_time:g} and -dt {s.dt:g}: more than {MAX_STEPS:.0e} steps")
+    if s.final_time * s.fps > MAX_FRAMES:
+        raise UserError(f"options -final_time {s.final_time:g} and -frames_per_second {s.fps:g}: more than "
+                        f"{MAX_FRAMES:.0e} frames")
+    if s.quasistatic and s.initial_spin is not None and any(s.initial_spin):
+        raise UserError("options -quasistatic and -initial_spin: a quasi-static run has no velocity to start with")
     if s.integrator == "ts" and s.quasistatic:
         raise UserError("option -integrator ts: integrates dynamics; -quasistatic steps use -integrator beuler")
 
 
 def _read_solver(s, opts):
     s.jacobian = opts.choice("jacobian", JACOBIANS, s.jacobian)
+    mf, mf_op = opts.flag("snes_mf"), opts.flag("snes_mf_operator")
+    if mf and mf_op:
+        raise UserError("options -snes_mf and -snes_mf_operator: choose one (-snes_mf_operator preconditions MFFD "
+                        "with -jacobian's matrix, -snes_mf uses none)")
+    if mf and s.jacobian != "assembled":
+        raise UserError(f"options -snes_mf and -jacobian {s.jacobian}: -snes_mf uses no Jacobian of ours (MFFD "
+                        "replaces it); -snes_mf_operator preconditions with it")
     s.assembly = opts.choice("assembly", ASSEMBLIES, s.assembly)
     s.hessian_projection = opts.flag("hessian_projection", s.hessian_projection)
     s.objective = opts.flag("objective", s.objective)

@@ -4,6 +4,7 @@ from collections import Counter
 
 import numpy as np
 
+from ..errors import UserError
 
 
 def held(space, specs):
@@ -61,6 +62,12 @@ def build(scene, space, kernels, density=None):
         elif name == "prescribed":
             vertices, comps = held(space, p["prescribe_faces"])
             constraints.append(Prescribed(space.X, vertices, p["prescribe"], p["prescribe_amount"], comps))
+    if len(constraints) == 2:         # -fix and -prescribe_faces: no component may be held by both
+        both = space.mpi.allreduce(len(np.intersect1d(constraints[0].dofs, constraints[1].dofs)))
+        if both:
+            raise UserError("options -fix and -prescribe_faces hold the same components of some vertices (a "
+                            "shared surface or edge): give each component of a vertex one condition (e.g. "
+                            "-fix S:xz with -prescribe_faces S:y)")
     return effects, constraints
 
 

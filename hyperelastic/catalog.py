@@ -1,0 +1,255 @@
+"""Every option of the application, with its default and a line of help: the one list that
+`hyperelastic run --help` / `-help` prints, that the unknown-option check reads, and that the README's
+option table is generated from (`python -m hyperelastic.catalog --markdown`; a test keeps them equal).
+
+Options named after a region or a load (`-soft_E`, `-pull_faces`) are written with the placeholder
+REGION or LOAD and expanded with the names the scene lists in -regions / -loads.
+
+Options that are not the application's are PETSc's: they pass the first check when they belong to a
+PETSc family (snes_, ksp_, pc_, ts_, mat_, dm_, log_ ...); once SNES (and TS) have read the options
+database, an option of the solver families (snes_, ksp_, pc_, ts_) that PETSc did not use is an
+error too, except the families PETSc reads only later (sub-solvers, multigrid levels, viewers)."""
+import difflib
+import re
+import sys
+import textwrap
+from dataclasses import dataclass
+
+from . import materials
+from .errors import UserError
+from .scene import ASSEMBLIES, DEFAULT_EFFECTS, EFFECTS, INTEGRATORS, JACOBIANS, Scene
+
+
+@dataclass(frozen=True)
+class Row:
+    names: tuple      # the options of the row, without the dash
+    synopsis: str     # how the row shows them (README's first column)
+    help: str         # what they do (backticks: code)
+    default: str = ""
+
+
+_S = Scene(name="SCENE")
+_PRESET_MOTIONS = "rotate_x, rotate_y, squeeze_x, stretch_x"
+
+ROWS = (
+    Row(("mesh", "mesh_frame"), "-mesh FILE", "any tetrahedral mesh meshio reads (.msh with physical groups, .vtu, "
+        ".mesh …), or an output of this application (.h5 or its .xdmf: the configuration of frame `-mesh_frame N`, "
+        "default the last, becomes the reference; regions kept)", "cached bar at `-level`"),
+    Row(("level",), "-level N", "bar mesh level: 1..8 = thesis L1..L8 (edge 0.80 … 0.30), 9.. finer (≈2× tets each)",
+        f"{_S.level}"),
+    Row(("material",), "-material NAME", "`linear`, `stvk`, `neohookean`, `snh` (Stable Neo-Hookean, defined for "
+        "J ≤ 0), `corotational`", "stvk"),
+    Row(("hessian_projection",), "-hessian_projection", "element tangents projected to positive semi-definite "
+        "(eigenvalues clamped at 0); the residual is unchanged", "off"),
+    Row(("objective",), "-objective", "register the incremental potential E(x) (backward Euler as energy "
+        "minimization) with SNES, so the line search uses the energy as merit; a scene with an effect that has none "
+        "(follower traction) falls back to the residual norm and says so. `-objective 0`: residual-norm merit", "on"),
+    Row(("inversion_guard",), "-inversion_guard", "shorten any Newton update that would invert an element (a "
+        "line-search pre-check)", "on for neohookean"),
+    Row(("step_control", "dt_grow_after"), "-step_control", "reject a step whose solve fails (or gives NaN/Inf), "
+        "retry with h/2; regrow ×2 after `-dt_grow_after N` accepted steps", f"on, N = {_S.dt_grow_after}"),
+    Row(("dt_min",), "-dt_min", "below this step size the run stops with one line naming step, time and reason",
+        "dt/1024"),
+    Row(("initial_scale", "initial_rotation", "initial_spin"),
+        "-initial_scale sx,sy,sz / -initial_rotation rx,ry,rz / -initial_spin wx,wy,wz",
+        "initial state about the centroid c: x = c + diag(s)(X − c), then rotated by the rotation vector r; "
+        "v = w × (x − c) (no scale may be 0; no spin with `-quasistatic`)", "rest"),
+    Row(("E", "nu", "rho"), "-E -nu -rho", "Young's modulus [Pa], Poisson's ratio, density [kg/m³]",
+        f"{_S.E:g}, {_S.nu:g}, {_S.rho:g}"),
+    Row(("regions", "REGION_material", "REGION_preset", "REGION_E", "REGION_nu", "REGION_rho"), "-regions R1,R2,…",
+        "a material per physical volume (name or tag): `-R1_material`, `-R1_preset`, `-R1_E`, `-R1_nu`, `-R1_rho` "
+        "(PETSc-style prefixes; defaults: the un-prefixed ones, which also hold for cells in no listed region); each "
+        "region's parameters checked like the scene's", "one material"),
+    Row(("preset",), "-preset NAME", ", ".join(materials.PRESETS)),
+    Row(("mass",), "-mass", "`consistent` or `lumped` (also used for damping matrices)",
+        "lumped" if _S.lumped else "consistent"),
+    Row(("effects",), "-effects LIST", f"effects the scene names: {', '.join(EFFECTS)}", ",".join(DEFAULT_EFFECTS)),
+    Row(("damping",), "-damping c", "viscous damping C = c∫NᵀN (0 removes the effect)"),
+    Row(("rayleigh_alpha", "rayleigh_beta"), "-rayleigh_alpha a -rayleigh_beta b", "Rayleigh damping (αM + βK(xⁿ))"),
+    Row(("gravity",), "-gravity gx,gy,gz", "body force ρg"),
+    Row(("traction", "traction_twist", "traction_face", "traction_ramp", "traction_time"),
+        "-traction tx,ty,tz / -traction_twist k", "dead-load traction [Pa per reference area] / follower twist on the "
+        "surfaces `-traction_face S1,S2,…`, scaled by `-traction_ramp A` (A·min(t,1)) or by a time function "
+        "`-traction_time EXPR`", "right"),
+    Row(("pressure", "pressure_faces", "pressure_ramp", "pressure_time"), "-pressure p -pressure_faces S1,S2,…",
+        "follower pressure [Pa] normal to the current surface (positive pushes in), exact tangent; `-pressure_ramp A` "
+        "or `-pressure_time EXPR`"),
+    Row(("loads", "LOAD_traction", "LOAD_pressure", "LOAD_faces", "LOAD_time", "LOAD_ramp"), "-loads L1,L2,…",
+        "any number of loads, each with its own surfaces and time function: `-L1_traction tx,ty,tz` (dead) or "
+        "`-L1_pressure p` (follower), `-L1_faces S1,…`, `-L1_time EXPR` or `-L1_ramp A`"),
+    Row(("fix",), "-fix S[:xyz],…", "hold surfaces at their reference positions, all components or those named: "
+        "`-fix base` (clamp), `-fix symmetry:x` (roller / symmetry plane); a component may not be both fixed and "
+        "prescribed on the same surface"),
+    Row(("prescribe_faces", "prescribe_motion", "prescribe_amount"),
+        "-prescribe_faces S[:xyz],… -prescribe_motion M -prescribe_amount A",
+        f"a preset motion of the surfaces: M = {_PRESET_MOTIONS} with s = A·min(t,1)"),
+    Row(("prescribe_x", "prescribe_y", "prescribe_z", "prescribe_ux", "prescribe_uy", "prescribe_uz"),
+        "-prescribe_x/_y/_z EXPR, -prescribe_ux/_uy/_uz EXPR", "per component, the position (or displacement) of "
+        "the `-prescribe_faces` vertices as an expression of `t`, the reference `X, Y, Z` and `A`; replaces the "
+        "preset's for that component; components with neither stay at their reference"),
+    Row(("quasistatic",), "-quasistatic", "no inertia or damping: solve k(x) = f(t) per step", "off"),
+    Row(("dt", "final_time", "frames_per_second"), "-dt -final_time -frames_per_second",
+        "time step, end time, output frames per second (at most 1e9 steps and 1e6 frames)",
+        f"{_S.dt:g}, {_S.final_time:g}, {_S.fps:g}"),
+    Row(("jacobian",), "-jacobian MODE", "`assembled` (AIJ, block size 3), `shell` (exact, matrix-free), "
+        "`seed_fd`, `seed_fd2` (the thesis' formulas); not with `-snes_mf`, which uses none", _S.jacobian),
+    Row(("assembly",), "-assembly setvalues|coo", "how the assembled tangent is filled: `setvalues` preallocates the "
+        "AIJ from the cell adjacency once and adds 12×12 cell blocks in chunks of 8192 cells (~1 KB/tet in all); "
+        "`coo` uses PETSc's COO path (a ~3× faster fill, ~5.6 KB/tet)", _S.assembly),
+    Row(("output",), "-output FILE.h5", "output file (an `.xdmf` is written beside it); it may not be an input",
+        "output/SCENE.h5"),
+    Row(("checkpoint_every",), "-checkpoint_every N", "write the full state (x, v, t, step-control state) into "
+        "FILE.h5 every N steps", "0 (only on a signal)"),
+    Row(("integrator",), "-integrator beuler|ts", "`beuler`: backward Euler (the thesis' integrator, one SNES solve "
+        "per step); `ts`: PETSc TS on the second-order form M a + C v + k(x) = f(t) with `-ts_type alpha2` "
+        "(generalized-α; `-ts_alpha_radius ρ∞`, `-ts_alpha_alpha_m/_alpha_f/_gamma/_beta`), `-ts_adapt_type "
+        "none|basic|dsp` with `-ts_rtol -ts_atol`, `-ts_adapt_monitor`, `-ts_max_snes_failures`, "
+        "`-ts_max_step_rejections`", _S.integrator),
+    Row(("quiet",), "-quiet", "no progress lines"),
+    Row(("debug",), "-debug", "a Python traceback instead of the one-line error"),
+    Row(("help",), "-help", "this list (with the scene's values), then PETSc's own options as its solvers read "
+        "them; nothing is run or written"),
+)
+
+# the choices a row's values come from, checked against the scene reader's own lists by the tests
+CHOICES = {"material": materials.REGISTRY, "jacobian": JACOBIANS, "assembly": ASSEMBLIES,
+           "integrator": INTEGRATORS, "effects": EFFECTS}
+
+# The PETSc families an option may belong to (its first word): passed on to PETSc.
+PETSC_FAMILIES = frozenset(
+    "snes ksp pc ts tao mat vec dm dmplex petscpartitioner petscsection sf is ao log options malloc memory info "
+    "help version viewer draw sub mg fieldsplit fp on start stop debugger no check objects history use device "
+    "petsc skip error display nox x saws python bv characteristic pf random".split())
+# the solver families whose options PETSc has read once SNES/TS read the database (checked then) ...
+SOLVER_FAMILIES = ("snes_", "ksp_", "pc_", "ts_")
+# ... except those read only later: viewers at the end of a solve, MFFD and matrix options at set-up
+READ_LATER = re.compile(r"(^|_)view($|_)")
+
+# PETSc options a user is likely to mistype, for the suggestion (facts from the PETSc manual pages)
+COMMON_PETSC = (
+    "snes_type snes_rtol snes_atol snes_stol snes_max_it snes_max_funcs snes_monitor snes_converged_reason "
+    "snes_view snes_linesearch_type snes_linesearch_monitor snes_mf snes_mf_operator snes_lag_jacobian "
+    "snes_lag_preconditioner snes_lag_preconditioner_persists snes_ksp_ew snes_max_linear_solve_fail "
+    "snes_divergence_tolerance snes_test_jacobian snes_tr_delta0 ksp_type ksp_rtol ksp_atol ksp_divtol "
+    "ksp_max_it ksp_monitor ksp_converged_reason ksp_view ksp_gmres_restart ksp_norm_type ksp_initial_guess_nonzero "
+    "pc_type pc_factor_mat_solver_type pc_factor_levels pc_gamg_threshold pc_gamg_agg_nsmooths "
+    "pc_gamg_reuse_interpolation pc_gamg_square_graph pc_mg_levels pc_jacobi_type ts_type ts_alpha_radius "
+    "ts_alpha_alpha_m ts_alpha_alpha_f ts_alpha_gamma ts_alpha_beta ts_adapt_type ts_rtol ts_atol ts_monitor "
+    "ts_adapt_monitor ts_max_snes_failures ts_max_step_rejections ts_adapt_dt_min ts_adapt_dt_max "
+    "mat_mffd_type mat_mffd_err mat_view log_view options_file options_left dm_view help malloc_debug "
+    "sub_pc_type sub_ksp_type mg_levels_ksp_type mg_levels_pc_type mg_coarse_pc_type").split()
+
+
+# PETSc's numeric options whose wrong values it would take silently or reject only later: name ->
+# (integer?, smallest value, largest value) (-1 is "unlimited" where PETSc has it)
+PETSC_VALUES = {
+    "snes_rtol": (False, 0, None), "snes_atol": (False, 0, None), "snes_stol": (False, 0, None),
+    "ksp_rtol": (False, 0, 1), "ksp_atol": (False, 0, None), "ts_rtol": (False, 0, None),
+    "ts_atol": (False, 0, None), "mat_mffd_err": (False, 0, None), "ts_alpha_radius": (False, 0, 1),
+    "snes_max_it": (True, 0, None), "snes_max_funcs": (True, -1, None), "ksp_max_it": (True, 0, None),
+    "ksp_gmres_restart": (True, 1, None), "snes_max_linear_solve_fail": (True, 0, None),
+    "ts_max_snes_failures": (True, -1, None), "ts_max_step_rejections": (True, -1, None),
+    "snes_lag_jacobian": (True, -2, None), "snes_lag_preconditioner": (True, -2, None),
+}
+PETSC_WORDS = ("default", "petsc_default", "decide", "petsc_decide", "determine", "petsc_determine",
+               "current", "petsc_current")
+
+
+def check_petsc_values(opts):
+    """Values of PETSC_VALUES' options: numbers in range (PETSc's symbolic DEFAULT/DECIDE/... pass)."""
+    import math
+    for key, (integer, lo, hi) in PETSC_VALUES.items():
+        if not opts.hasName(key):
+            continue
+        text = (opts.getString(key, "") or "").strip()
+        if text.lower() in PETSC_WORDS:
+            continue
+        try:
+            v = int(text) if integer else float(text)
+        except ValueError:
+            kind = "an integer" if integer else "a number"
+            raise UserError(f"option -{key}: '{text}' is not {kind}") from None
+        if not math.isfinite(v):
+            raise UserError(f"option -{key}: {text} is not a finite number")
+        if v < lo or (hi is not None and v > hi):
+            rng = f">= {lo}" if hi is None else f"in [{lo}, {hi}]"
+            raise UserError(f"option -{key}: {text} must be {rng}")
+
+
+def option_names(regions=(), loads=()):
+    """Every application option name, the placeholders expanded with the scene's region and load names."""
+    out = []
+    for row in ROWS:
+        for n in row.names:
+            if n.startswith("REGION_"):
+                out += [r + n[6:] for r in regions]
+            elif n.startswith("LOAD_"):
+                out += [ld + n[4:] for ld in loads]
+            else:
+                out.append(n)
+    return out
+
+
+def suggestion(key, candidates):
+    """' (did you mean -X?)' for the closest candidate, or ''."""
+    close = difflib.get_close_matches(key, list(candidates), n=1, cutoff=0.7)
+    return f" (did you mean -{close[0]}?)" if close else ""
+
+
+def check_application_options(keys, regions=(), loads=()):
+    """Every option in `keys` (the options database: command line, scene and options files) is the
+    application's or belongs to a PETSc family; else one line naming the closest known option."""
+    known = set(option_names(regions, loads))
+    for key in keys:
+        if key in known or key.split("_", 1)[0] in PETSC_FAMILIES:
+            continue
+        raise UserError(f"unknown option -{key}{suggestion(key, sorted(known) + COMMON_PETSC)}")
+
+
+def check_solver_options(opts):
+    """After SNES (and TS) have read the options database: an option of the solver families that PETSc
+    did not use is unknown (a misspelling), or meaningless for this run (`-ts_type` under backward Euler,
+    `-ksp_gmres_restart` under CG): one line, before any output is written."""
+    used = []
+    for key in sorted(opts.getAll()):
+        if not key.startswith(SOLVER_FAMILIES) or READ_LATER.search(key):
+            continue
+        if opts.used(key):
+            used.append(key)
+            continue
+        if key.startswith("ts_") and not opts.used("ts_type"):
+            raise UserError(f"option -{key}: PETSc TS options need -integrator ts")
+        hint = suggestion(key, [c for c in COMMON_PETSC + used if c != key])
+        raise UserError(f"option -{key}: not used by PETSc for this run (unknown, or not for the solver types "
+                        f"chosen){hint}")
+
+
+def _plain(text):
+    return text.replace("`", "")
+
+
+def help_text(values=None, width=100):
+    """The options in PETSc's -help style: '  -name <value>: help'. `values`: the scene's values by option
+    name (shown instead of the defaults)."""
+    values = values or {}
+    lines = ["Options of hyperelastic (defaults in <>; PETSc's own follow with -help on a scene):"]
+    for row in ROWS:
+        shown = [f"{n}={values[n]}" for n in row.names if n in values]
+        now = ", ".join(shown) if shown else _plain(row.default)
+        lines.append(textwrap.fill(f"  {row.synopsis} <{now}>: {_plain(row.help)}", width=width,
+                                   subsequent_indent="      ", break_on_hyphens=False))
+    return "\n".join(lines)
+
+
+def markdown_table():
+    """The README's option table."""
+    def cell(s):
+        return s.replace("|", "\\|")
+    out = ["| option | meaning | default |", "|---|---|---|"]
+    for row in ROWS:
+        out.append(f"| `{cell(row.synopsis)}` | {cell(row.help)} | {cell(row.default)} |")
+    return "\n".join(out)
+
+
+if __name__ == "__main__":
+    print(markdown_table() if "--markdown" in sys.argv[1:] else help_text())

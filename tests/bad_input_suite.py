@@ -1,0 +1,702 @@
+"""The bad-input suite (issue 15): at least 600 distinct bad inputs generated from a seed, each checked
+against the README's promise — exit 2 (bad input) or 3 (solver failure), exactly one line on stderr
+starting `hyperelastic: error:` and no traceback, within 20 s, and every file that existed before
+byte-identical afterwards (no new or removed files either).
+
+    .venv/bin/python tests/bad_input_suite.py [--seed S] [--jobs N] [--only CATEGORY] [--list] [--every K]
+
+runs the whole suite (or every K-th case) and prints the counts by category and outcome;
+tests/test_bad_input_suite.py runs the quick subset (every QUICK_EVERY-th case) in `make test`.
+
+Every case runs in a directory of its own holding a previous result (prev.h5 with a checkpoint, and
+prev.xdmf), a good mesh, a good scene and an options file; most runs write to prev.h5, so a run that
+lost or touched the previous result would fail the check. Progress lines are off (-quiet) so that
+the one line is the error.
+"""
+import argparse
+import hashlib
+import os
+import random
+import resource
+import shutil
+import signal
+import stat
+import subprocess
+import sys
+import tempfile
+import time
+from collections import Counter
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass, field
+
+import numpy as np
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+BIN = os.path.dirname(sys.executable)
+SEED = 15
+TIME_LIMIT = 20.0
+QUICK_EVERY = 9
+
+
+@dataclass
+class Case:
+    name: str                  # unique
+    category: str
+    args: list                 # after `hyperelastic`
+    setup: object = None       # fn(dir) writing the case's own inputs
+    nprocs: int = 1
+    words: tuple = ()          # each must appear in the error line
+    rcs: tuple = (2, 3)
+    fsize: int = 0             # RLIMIT_FSIZE in bytes (a full disk), 0: none
+    after: object = None       # fn(dir) -> error text or None: a further check
+    files: dict = field(default_factory=dict)
+
+
+# ---------------------------------------------------------------------------------------- world
+def cube(n=2):
+    """A structured tetrahedral mesh of the unit cube, positively oriented."""
+    g = np.linspace(0, 1, n + 1)
+    P = np.array([[x, y, z] for z in g for y in g for x in g])
+    idx = lambda i, j, k: i + (n + 1) * (j + (n + 1) * k)  # noqa: E731
+    T = []
+    for k in range(n):
+        for j in range(n):
+            for i in range(n):
+                v = [idx(i + a, j + b, k + c) for c in (0, 1) for b in (0, 1) for a in (0, 1)]
+                for t in ((0, 1, 3, 7), (0, 1, 5, 7), (0, 2, 3, 7), (0, 2, 6, 7), (0, 4, 5, 7), (0, 4, 6, 7)):
+                    T.append([v[q] for q in t])
+    T = np.array(T)
+    D = np.stack([P[T[:, a]] - P[T[:, 0]] for a in (1, 2, 3)], axis=-1)
+    neg = np.linalg.det(D) < 0
+    T[neg] = T[neg][:, [0, 2, 1, 3]]
+    return P, T
+
+
+def write_msh(path, points, tets, binary=False):
+    import meshio
+    meshio.write(path, meshio.Mesh(np.asarray(points, float), [("tetra", np.asarray(tets))]), file_format="gmsh22",
+                 binary=binary)
+
+
+SCENE = """# a good scene: the cube clamped on the left, pulled on the right
+-mesh good.msh
+-material neohookean
+-fix left
+-traction 1e4,0,0
+-traction_face right
+-final_time 0.02
+-dt 0.01
+"""
+
+
+def hyperelastic_cmd(args, nprocs=1):
+    exe = os.path.join(BIN, "hyperelastic")
+    cmd = [exe] + [str(a) for a in args]
+    if nprocs > 1:
+        mpiexec = shutil.which("mpiexec", path=BIN) or shutil.which("mpiexec")
+        cmd = [mpiexec, "-n", str(nprocs)] + cmd
+    return cmd
+
+
+def make_world(d):
+    """The inputs every case starts from (copied into its directory)."""
+    os.makedirs(d, exist_ok=True)
+    P, T = cube()
+    write_msh(os.path.join(d, "good.msh"), P, T)
+    with open(os.path.join(d, "scene.opts"), "w") as fh:
+        fh.write(SCENE)
+    with open(os.path.join(d, "solver.opts"), "w") as fh:
+        fh.write("-ksp_type cg\n-pc_type jacobi\n")
+    p = subprocess.run(hyperelastic_cmd(["run", "scene.opts", "-checkpoint_every", "1", "-output", "prev.h5",
+                                         "-quiet"]), cwd=d, capture_output=True, text=True, timeout=120)
+    if p.returncode != 0:
+        raise RuntimeError(f"the previous result could not be made: {p.stderr}")
+    return d
+
+
+# ---------------------------------------------------------------------------------------- cases
+BEND = ["run", "scene.opts", "-quiet", "-output", "prev.h5"]
+
+
+def typo(rng, word):
+    """A misspelling of word: two neighbours swapped, a letter dropped or doubled."""
+    for _ in range(20):
+        i = rng.randrange(len(word) - 1)
+        kind = rng.choice("sdr")
+        if kind == "s":
+            w = word[:i] + word[i + 1] + word[i] + word[i + 2:]
+        elif kind == "d":
+            w = word[:i] + word[i + 1:]
+        else:
+            w = word[:i] + word[i] + word[i:]
+        if w != word and "_" not in (w[0], w[-1]) and "__" not in w:
+            return w
+    return word + "x"
+
+
+def option_value_cases(rng):
+    out = []
+    real_bad = ["nan", "inf", "-inf", "1e308", "", "abc", "1,2"]
+    kinds = {
+        "positive": (["E", "rho", "dt", "frames_per_second", "dt_min"], real_bad + ["0", "-1", "1e-320"]),
+        "final_time": (["final_time"], real_bad + ["-1"]),
+        "nu": (["nu"], real_bad + ["0.5", "-1", "2"]),
+        "nonnegative": (["damping", "rayleigh_alpha", "rayleigh_beta"], real_bad + ["-1"]),
+        "real": (["traction_twist", "prescribe_amount", "pressure"], real_bad),
+        "level": (["level"], ["0", "-1", "1.5", "abc", "", "99", "1e308"]),
+        "int": (["checkpoint_every", "dt_grow_after", "mesh_frame"], ["1.5", "abc", "", "-5"]),
+        "vector": (["gravity", "traction", "initial_scale", "initial_spin", "initial_rotation"],
+                   ["1,2", "1,2,3,4", "a,b,c", "nan,0,0", "inf,0,0", "1e308,0,0", "", ",,", "1e-320,0,0"]),
+        "choice": (["material", "preset", "jacobian", "assembly", "integrator", "mass", "prescribe_motion"],
+                   ["bogus", "", "STVK", "1"]),
+        "flag": (["quasistatic", "step_control", "objective", "hessian_projection", "inversion_guard"],
+                 ["maybe", "2", "-1", "yes please"]),
+        "faces": (["fix", "traction_face", "pressure_faces", "prescribe_faces"],
+                  ["", "nonexistent", "left:w", ":x", "left:xx", "7"]),
+        "names": (["regions", "loads", "effects"], ["", "nonexistent", "a b", "x,x"]),
+    }
+    context = {"pressure_faces": ["-pressure", "1e3"], "prescribe_faces": ["-prescribe_motion", "stretch_x"],
+               "prescribe_motion": ["-prescribe_faces", "right"], "pressure": ["-pressure_faces", "right"],
+               "prescribe_amount": ["-prescribe_faces", "right", "-prescribe_motion", "stretch_x"],
+               "mesh_frame": ["-mesh", "prev.h5"], "regions": [], "loads": []}
+    skip = {("mesh_frame", "-5"), ("initial_spin", "1e-320,0,0"), ("initial_rotation", "1e-320,0,0"),
+            ("gravity", "1e-320,0,0"), ("traction", "1e-320,0,0")}   # valid values (a tiny vector is a vector)
+    for kind, (names, values) in kinds.items():
+        for name in names:
+            for v in values:
+                if (name, v) in skip:
+                    continue
+                if kind == "vector" and name == "initial_scale" and v == "1e-320,0,0":
+                    v = "0,1,1"
+                out.append(Case(f"value:{name}={v!r}", "option values", BEND + [f"-{name}", v] + context.get(name, [])))
+    petsc_real = ["snes_rtol", "snes_atol", "snes_stol", "ksp_rtol", "ksp_atol", "ts_rtol", "ts_atol", "mat_mffd_err"]
+    for name in petsc_real:
+        for v in ("-1", "nan", "inf", "abc", ""):
+            out.append(Case(f"petsc:{name}={v!r}", "PETSc values", BEND + [f"-{name}", v]))
+    for name, bad in (("snes_max_it", "-3"), ("ksp_max_it", "-3"), ("snes_max_funcs", "-5"),
+                      ("ksp_gmres_restart", "0"), ("ts_max_snes_failures", "-5"), ("snes_lag_jacobian", "-7")):
+        for v in (bad, "1.5", "abc", ""):
+            out.append(Case(f"petsc:{name}={v!r}", "PETSc values", BEND + [f"-{name}", v]))
+    for v in ("2", "-1"):
+        out.append(Case(f"petsc:ts_alpha_radius={v}", "PETSc values",
+                        BEND + ["-integrator", "ts", "-ts_alpha_radius", v]))
+    types = [("ksp_type", []), ("pc_type", []), ("snes_type", []), ("snes_linesearch_type", []),
+             ("ts_type", ["-integrator", "ts"]), ("ts_adapt_type", ["-integrator", "ts"]),
+             ("mat_mffd_type", ["-snes_mf"]), ("pc_factor_mat_solver_type", ["-pc_type", "lu"])]
+    for name, ctx in types:
+        for v in ("nonsense", "mumps" if name == "pc_factor_mat_solver_type" else "NONE!"):
+            out.append(Case(f"petsc:{name}={v}", "PETSc values", BEND + ctx + [f"-{name}", v]))
+    return out
+
+
+def unknown_option_cases(rng):
+    from hyperelastic.catalog import COMMON_PETSC, option_names
+    out = []
+    for name in option_names():
+        if len(name) < 4:
+            continue
+        w = typo(rng, name)
+        out.append(Case(f"typo:{name}->{w}", "unknown options", BEND + [f"-{w}", "1"], words=(f"-{w}",)))
+    for name in [n for n in COMMON_PETSC if n.startswith(("snes_", "ksp_", "pc_", "ts_"))][:30]:
+        w = typo(rng, name)
+        if w.split("_", 1)[0] not in ("snes", "ksp", "pc", "ts"):
+            w = name + "x"
+        out.append(Case(f"typo:{name}->{w}", "unknown options", BEND + [f"-{w}", "1"], words=(f"-{w}",)))
+    for args in (["-materail", "neohookean"], ["-foo"], ["-Material", "snh"], ["-x", "1"], ["-E_", "1e6"],
+                 ["-soft_E", "1e6"], ["-pull_faces", "right"], ["-ts_type", "alpha2"], ["-ts_adapt_type", "basic"],
+                 ["-ksp_gmres_restart", "10", "-ksp_type", "cg", "-snes_mf_operator"]):
+        out.append(Case(f"unknown:{' '.join(args)}", "unknown options", BEND + args))
+    return out
+
+
+def conflict_cases(rng):
+    C = [
+        (["-quasistatic", "-initial_spin", "0,0,1"], "-quasistatic"),
+        (["-snes_mf", "-jacobian", "shell"], "-snes_mf"),
+        (["-snes_mf", "-snes_mf_operator"], "-snes_mf"),
+        (["-prescribe_faces", "left", "-prescribe_motion", "stretch_x"], "-fix"),
+        (["-prescribe_faces", "bottom:x", "-prescribe_ux", "0.1*t"], "-fix"),
+        (["-initial_scale", "0,1,1"], "-initial_scale"),
+        (["-dt", "1e308"], "-dt"),
+        (["-final_time", "1e308"], "-final_time"),
+        (["-final_time", "1e7", "-dt", "1e-3"], "steps"),
+        (["-frames_per_second", "1e9"], "frames"),
+        (["-dt_min", "0.5"], "-dt_min"),
+        (["-integrator", "ts", "-quasistatic"], "-integrator"),
+        (["-integrator", "ts", "-ts_type", "euler"], "-ts_type"),
+        (["-traction_time", "t", "-traction_ramp", "1"], "-traction_time"),
+        (["-prescribe_faces", "right", "-prescribe_x", "X", "-prescribe_ux", "0"], "-prescribe_x"),
+        (["-prescribe_faces", "right:y", "-prescribe_x", "X"], "-prescribe_x"),
+        (["-regions", "a,a"], "-regions"),
+        (["-loads", "p,p", "-p_pressure", "1", "-p_faces", "right"], "-loads"),
+        (["-loads", "p", "-p_pressure", "1", "-p_traction", "1,0,0", "-p_faces", "right"], "load 'p'"),
+        (["-loads", "p", "-p_pressure", "1"], "-p_faces"),
+        (["-pressure", "1e3"], "-pressure_faces"),
+        (["-effects", "damping"], "-damping"),
+        (["-effects", "gravity"], "-gravity"),
+        (["-prescribe_x", "X"], "-prescribe_faces"),
+        (["-prescribe_faces", "right", "-prescribe_x", "1/(t-0.01)"], "t="),
+        (["-prescribe_faces", "right", "-prescribe_x", "__import__('os')"], "-prescribe_x"),
+        (["-traction_time", "log(t)"], "t="),
+        (["-prescribe_faces", "right", "-prescribe_x", "X +"], "-prescribe_x"),
+    ]
+    return [Case(f"conflict:{' '.join(a)}", "conflicting combinations", BEND + a, words=(w,)) for a, w in C]
+
+
+def _write(d, name, data):
+    mode = "wb" if isinstance(data, bytes) else "w"
+    with open(os.path.join(d, name), mode) as fh:
+        fh.write(data)
+
+
+def file_cases(rng):
+    out = []
+    scenes = {
+        "empty": b"", "comments": b"# nothing but a comment\n\n", "binary": bytes(rng.randrange(256) for _ in range(400)),
+        "utf16": "-dt 0.01\n".encode("utf-16"), "latin1": "# Gr\xfc\xdfe\n-dt 0.01\n".encode("latin-1"),
+        "nul": b"-dt 0.01\x00\n", "three_tokens": b"-dt 0.01 0.02\n", "no_dash": b"dt 0.01\n",
+        "quote": b"-mesh 'good.msh\n", "unknown": b"-mesh good.msh\n-materail snh\n",
+        "include": b"-mesh good.msh\n-options_file solver.opts\n", "bad_value": b"-mesh good.msh\n-E -3\n",
+        "huge_line": b"-E " + b"9" * 100000 + b"\n", "lone_dash": b"-\n", "crlf_bad": b"-dt 0.01\r\n-E\r\nabc\r\n",
+    }
+    for name, data in scenes.items():
+        out.append(Case(f"scene:{name}", "scene and options files", ["run", f"{name}.opts", "-quiet", "-output",
+                        "prev.h5"], setup=lambda d, n=name, b=data: _write(d, f"{n}.opts", b)))
+    out.append(Case("scene:directory", "scene and options files", ["run", "sub", "-quiet"],
+                    setup=lambda d: os.mkdir(os.path.join(d, "sub"))))
+    out.append(Case("scene:directory.opts", "scene and options files", ["run", "sub.opts", "-quiet"],
+                    setup=lambda d: os.mkdir(os.path.join(d, "sub.opts"))))
+    out.append(Case("scene:fifo", "scene and options files", ["run", "fifo.opts", "-quiet"],
+                    setup=lambda d: os.mkfifo(os.path.join(d, "fifo.opts"))))
+    out.append(Case("scene:missing", "scene and options files", ["run", "missing.opts", "-quiet"]))
+    out.append(Case("scene:none", "scene and options files", ["run", "-quiet"]))
+    out.append(Case("scene:non-utf8-name", "scene and options files", ["run", os.fsdecode(b"sc\xe8ne.opts"), "-quiet"],
+                    setup=lambda d: _write(d, os.fsdecode(b"sc\xe8ne.opts"), b"-dt\n")))
+    opts = {"empty": b"", "binary": bytes(rng.randrange(256) for _ in range(300)), "utf16": "-dt 0.01\n".encode("utf-16"),
+            "latin1": "# \xe9\n-dt 0.01\n".encode("latin-1"), "self": b"-options_file self.opts\n",
+            "mutual": b"-options_file b.opts\n", "unknown": b"-snes_rtoll 1e-3\n", "bad": b"-snes_rtol -1\n"}
+    for name, data in opts.items():
+        def setup(d, n=name, b=data):
+            _write(d, f"{n}.opts", b)
+            _write(d, "b.opts", b"-options_file mutual.opts\n")
+        out.append(Case(f"options_file:{name}", "scene and options files", BEND + ["-options_file", f"{name}.opts"],
+                        setup=setup))
+    for name, setup in (("missing", None), ("directory", lambda d: os.mkdir(os.path.join(d, "o.opts"))),
+                        ("fifo", lambda d: os.mkfifo(os.path.join(d, "o.opts")))):
+        out.append(Case(f"options_file:{name}", "scene and options files", BEND + ["-options_file", "o.opts"],
+                        setup=setup))
+    out.append(Case("options_file:no value", "scene and options files", BEND + ["-options_file"]))
+    return out
+
+
+def mesh_cases(rng):
+    P, T = cube()
+    out = []
+
+    def add(name, pts, tets, words=(), fmt="msh"):
+        def setup(d):
+            path = os.path.join(d, f"m.{fmt}")
+            if fmt == "msh":
+                write_msh(path, pts, tets)
+            else:
+                import meshio
+                meshio.write(path, meshio.Mesh(np.asarray(pts, float), [("tetra", np.asarray(tets))]))
+        out.append(Case(f"mesh:{name}", "meshes", BEND + ["-mesh", f"m.{fmt}"], setup=setup, words=words))
+
+    for v in rng.sample(range(len(P)), 5):
+        for kind, val in (("nan", np.nan), ("inf", np.inf), ("huge", 1e300), ("-inf", -np.inf)):
+            p = P.copy()
+            p[v, rng.randrange(3)] = val
+            add(f"{kind}@{v}", p, T, (f"vertex {v}",))
+    for a in rng.sample(range(len(P)), 5):
+        b = rng.choice([v for v in range(len(P)) if v != a])
+        p = P.copy()
+        p[b] = p[a]
+        add(f"duplicate_vertex@{a},{b}", p, T)
+    for c in rng.sample(range(len(T)), 5):
+        t = np.vstack([T, T[c][[1, 0, 3, 2]]])
+        add(f"duplicate_tet@{c}", P, t, ("tetrahedra",))
+    for c in rng.sample(range(len(T)), 5):   # a tet sharing a face with tet c, its fourth vertex on the same side
+        a, b, cc, dd = P[T[c]]
+        n = np.cross(b - a, cc - a)
+        side = (P - a) @ n
+        cand = [v for v in range(len(P)) if v not in T[c] and side[v] * ((dd - a) @ n) > 1e-9]
+        if not cand:
+            continue
+        t = np.vstack([T, [[T[c][0], T[c][1], T[c][2], rng.choice(cand)]]])
+        D = np.stack([P[t[-1, k]] - P[t[-1, 0]] for k in (1, 2, 3)], axis=-1)
+        if np.linalg.det(D) < 0:
+            t[-1] = t[-1][[0, 2, 1, 3]]
+        add(f"overlapping_tet@{c}", P, t, ("overlap",))
+    for c in rng.sample(range(len(T)), 5):
+        t = T.copy()
+        t[c] = t[c][[0, 2, 1, 3]]
+        add(f"inverted@{c}", P, t, (f"tetrahedron {c}", "inverted"))
+    for c in rng.sample(range(len(T)), 4):
+        p = P.copy()
+        t = T.copy()
+        t[c] = [T[c][0], T[c][1], T[c][2], T[c][0]]
+        add(f"repeated_vertex@{c}", p, t, (f"tetrahedron {c}",))
+    for c in rng.sample(range(len(T)), 4):
+        t = T.copy()
+        t[c, rng.randrange(4)] = rng.choice([len(P), len(P) + 7, 10 ** 6])
+        add(f"index_out_of_range@{c}", P, t, (f"tetrahedron {c}",), fmt="vtu")
+    add("unused_vertex", np.vstack([P, [[5, 5, 5]]]), T, ("not used",))
+    add("flat", np.c_[P[:, :2], np.zeros(len(P))], T, ("zero volume",), fmt="vtu")
+
+    def text_mesh(name, mutate, words=()):
+        def setup(d):
+            path = os.path.join(d, "m.msh")
+            write_msh(path, P, T)
+            with open(path, "rb") as fh:
+                data = fh.read()
+            with open(path, "wb") as fh:
+                fh.write(mutate(data))
+        out.append(Case(f"mesh:{name}", "meshes", BEND + ["-mesh", "m.msh"], setup=setup, words=words))
+
+    write_msh(os.path.join(tempfile.gettempdir(), f"_probe_{os.getpid()}.msh"), P, T)
+    probe = open(os.path.join(tempfile.gettempdir(), f"_probe_{os.getpid()}.msh"), "rb").read()
+    os.remove(os.path.join(tempfile.gettempdir(), f"_probe_{os.getpid()}.msh"))
+    lo, hi = probe.index(b"$Nodes"), probe.index(b"$EndElements")
+    for cut in rng.sample(range(lo + 7, hi), 8):
+        text_mesh(f"truncated@{cut}", lambda b, c=cut: b[:c])
+    for at in rng.sample(range(lo + 7, hi), 6):
+        text_mesh(f"garbage@{at}", lambda b, a=at: b[:a] + b" @#garbage!% " + b[a:])
+    text_mesh("elements_missing", lambda b: b[:b.index(b"$Elements")])
+    text_mesh("wrong_count", lambda b: b.replace(b"$Elements\n", b"$Elements\n9999999\n", 1)[:len(b)])
+
+    def other(name, setup, words=()):
+        out.append(Case(f"mesh:{name}", "meshes", BEND + ["-mesh", "m.x"] if name != "missing" else
+                        BEND + ["-mesh", "nothere.msh"], setup=setup, words=words))
+    out.append(Case("mesh:empty_file", "meshes", BEND + ["-mesh", "e.msh"], setup=lambda d: _write(d, "e.msh", b"")))
+    out.append(Case("mesh:binary_junk", "meshes", BEND + ["-mesh", "j.msh"],
+                    setup=lambda d: _write(d, "j.msh", bytes(rng.randrange(256) for _ in range(2000)))))
+    out.append(Case("mesh:directory", "meshes", BEND + ["-mesh", "dir.msh"],
+                    setup=lambda d: os.mkdir(os.path.join(d, "dir.msh"))))
+    out.append(Case("mesh:fifo", "meshes", BEND + ["-mesh", "fifo.msh"],
+                    setup=lambda d: os.mkfifo(os.path.join(d, "fifo.msh"))))
+    out.append(Case("mesh:missing", "meshes", BEND + ["-mesh", "nothere.msh"]))
+    out.append(Case("mesh:unknown_extension", "meshes", BEND + ["-mesh", "m.xyz"],
+                    setup=lambda d: _write(d, "m.xyz", b"1 2 3\n")))
+    out.append(Case("mesh:text_file", "meshes", BEND + ["-mesh", "scene.opts"]))
+    out.append(Case("mesh:empty_name", "meshes", BEND + ["-mesh", ""]))
+
+    def cells(kind, cells_):
+        def setup(d):
+            import meshio
+            meshio.write(os.path.join(d, "c.vtu"), meshio.Mesh(P, [(kind, np.asarray(cells_))]))
+        out.append(Case(f"mesh:only_{kind}", "meshes", BEND + ["-mesh", "c.vtu"], setup=setup))
+    cells("triangle", [[0, 1, 2], [1, 2, 3]])
+    cells("line", [[0, 1]])
+    cells("hexahedron", [[0, 1, 4, 3, 9, 10, 13, 12]])
+    cells("tetra10", [list(range(10))])
+    out.append(Case("mesh:output_without_frames", "meshes", BEND + ["-mesh", "prev.h5", "-mesh_frame", "99"]))
+    out.append(Case("mesh:h5_not_ours", "meshes", BEND + ["-mesh", "x.h5"], setup=_foreign_h5))
+    return out
+
+
+def _foreign_h5(d):
+    import h5py
+    with h5py.File(os.path.join(d, "x.h5"), "w") as f:
+        f["data"] = np.arange(10.0)
+
+
+def output_cases(rng):
+    base = ["run", "scene.opts", "-quiet"]
+    C = [
+        ("directory", ["-output", "."], None),
+        ("subdirectory", ["-output", "sub"], lambda d: os.mkdir(os.path.join(d, "sub"))),
+        ("dev_null", ["-output", "/dev/null"], None),
+        ("dev_full", ["-output", "/dev/full"], None),
+        ("xdmf", ["-output", "prev.xdmf"], None),
+        ("txt", ["-output", "o.txt"], None),
+        ("empty", ["-output", ""], None),
+        ("too_long", ["-output", "x" * 300 + ".h5"], None),
+        ("too_long_path", ["-output", "/".join(["d" * 200] * 30) + "/o.h5"], None),
+        ("parent_is_file", ["-output", "good.msh/o.h5"], None),
+        ("equals_mesh", ["-mesh", "prev.h5", "-output", "prev.h5"], None),
+        ("equals_mesh_xdmf", ["-mesh", "prev.xdmf", "-output", "prev.h5"], None),
+        ("equals_scene", ["-output", "scene.opts"], None),
+        ("equals_scene_h5", ["-output", "scene.h5"], lambda d: shutil.copy(os.path.join(d, "scene.opts"),
+                                                                           os.path.join(d, "scene.h5"))),
+        ("equals_options_file", ["-options_file", "solver.opts", "-output", "solver.opts"], None),
+        ("xdmf_is_directory", ["-output", "q.h5"], lambda d: os.mkdir(os.path.join(d, "q.xdmf"))),
+        ("partial_is_directory", ["-output", "q.h5"], lambda d: os.mkdir(os.path.join(d, "q.h5.partial"))),
+        ("h5_is_fifo", ["-output", "f.h5"], lambda d: os.mkfifo(os.path.join(d, "f.h5"))),
+        ("non_utf8_dir", ["-output", os.fsdecode(b"\xff\xfe/o.h5")], lambda d: _write(d, os.fsdecode(b"\xff\xfe"), "x")),
+        ("failed_solve", ["-output", "prev.h5", "-pc_type", "lu", "-jacobian", "shell"], None),
+        ("failed_solve_mumps", ["-output", "prev.h5", "-pc_type", "lu", "-pc_factor_mat_solver_type", "mumps"], None),
+    ]
+    out = [Case(f"output:{n}", "output paths", base + a, setup=s) for n, a, s in C]
+    out.append(Case("output:disk_full", "output paths", ["run", "scene.opts", "-quiet", "-output", "full.h5",
+                    "-final_time", "2", "-checkpoint_every", "5"], fsize=120_000, rcs=(2,), after=_frames_kept,
+                    words=("full.h5",)))
+    out.append(Case("output:disk_full_at_start", "output paths", ["run", "scene.opts", "-quiet", "-output", "full.h5"],
+                    fsize=2_000, rcs=(2,), words=("full.h5",)))
+    return out
+
+
+def _frames_kept(d):
+    """After a full disk: full.h5 is a readable output holding the frames flushed before."""
+    import h5py
+    path = os.path.join(d, "full.h5")
+    if not os.path.exists(path):
+        return "full.h5 was not kept"
+    try:
+        with h5py.File(path, "r") as f:
+            n = f["x"].shape[0]
+            t = f["time"][:]
+        if n < 2 or len(t) != n or not np.all(np.diff(t) > 0):
+            return f"full.h5 holds {n} frames"
+    except Exception as e:
+        return f"full.h5 unreadable: {e}"
+    return None
+
+
+def restart_cases(rng):
+    out = []
+    base = lambda f: ["run", "--restart", f, "-quiet"]  # noqa: E731
+    out.append(Case("restart:missing", "restart files", base("none.h5")))
+    out.append(Case("restart:no_file", "restart files", ["run", "--restart"]))
+    out.append(Case("restart:directory", "restart files", base("sub"), setup=lambda d: os.mkdir(os.path.join(d, "sub"))))
+    out.append(Case("restart:fifo", "restart files", base("f.h5"), setup=lambda d: os.mkfifo(os.path.join(d, "f.h5"))))
+    out.append(Case("restart:text", "restart files", base("scene.opts")))
+    out.append(Case("restart:foreign_h5", "restart files", base("x.h5"), setup=_foreign_h5))
+
+    def copy_and(fn):
+        def setup(d):
+            shutil.copy(os.path.join(d, "prev.h5"), os.path.join(d, "r.h5"))
+            fn(os.path.join(d, "r.h5"))
+        return setup
+
+    size = None
+
+    def truncate(frac):
+        def fn(p):
+            n = os.path.getsize(p)
+            with open(p, "r+b") as fh:
+                fh.truncate(int(n * frac))
+        return fn
+    for frac in sorted(x / 100 for x in rng.sample(range(5, 96), 6)):
+        out.append(Case(f"restart:truncated@{frac:.2f}", "restart files", base("r.h5"), setup=copy_and(truncate(frac))))
+
+    def smash(at, n=64):
+        def fn(p):
+            with open(p, "r+b") as fh:
+                fh.seek(at)
+                fh.write(b"\xff" * n)
+        return fn
+    for at in (0, 8, 40, 96, 512):
+        out.append(Case(f"restart:corrupt_metadata@{at}", "restart files", base("r.h5"), setup=copy_and(smash(at))))
+
+    def h5edit(fn):
+        def edit(p):
+            import h5py
+            with h5py.File(p, "r+") as f:
+                fn(f)
+        return copy_and(edit)
+
+    def slot(f):
+        return f[f"checkpoint/{int(f.attrs['checkpoint_slot'])}"]
+
+    def set_attr(key, val):
+        return lambda f: slot(f).attrs.__setitem__(key, val)
+
+    def replace(name, data):
+        def fn(f):
+            g = slot(f)
+            del g[name]
+            g[name] = data
+        return fn
+    edits = {
+        "no_checkpoint": lambda f: f.attrs.__setitem__("checkpoint_slot", -1),
+        "slot_missing": lambda f: f.attrs.__setitem__("checkpoint_slot", 7),
+        "x_missing": lambda f: slot(f).__delitem__("x"),
+        "v_missing": lambda f: slot(f).__delitem__("v"),
+        "x_wrong_shape": replace("x", np.zeros((5, 3))),
+        "x_flat": replace("x", np.zeros(27 * 3)),
+        "x_nan": lambda f: slot(f)["x"].__setitem__((0, 0), np.nan),
+        "v_inf": lambda f: slot(f)["v"].__setitem__((1, 2), np.inf),
+        "x_strings": replace("x", np.array([b"a", b"b"])),
+        "h_nan": set_attr("h_try", np.nan),
+        "h_zero": set_attr("h_try", 0.0),
+        "h_negative": set_attr("h_try", -0.01),
+        "t_nan": set_attr("t", np.nan),
+        "t_beyond_end": set_attr("t", 1e9),
+        "step_negative": set_attr("step", -3),
+        "nframes_too_many": set_attr("nframes", 10 ** 6),
+        "nstats_negative": set_attr("nstats", -1),
+        "attr_missing": lambda f: slot(f).attrs.__delitem__("h_try"),
+        "options_missing": lambda f: f.attrs.__delitem__("options"),
+        "scene_missing": lambda f: f.attrs.__setitem__("scene_file", "gone.opts"),
+        "mesh_missing": lambda f: f.__delitem__("mesh"),
+        "time_missing": lambda f: f.__delitem__("time"),
+        "stats_missing": lambda f: f.__delitem__("stats"),
+        "options_garbage": lambda f: f.attrs.__setitem__("options", "-E -3\n-materail x"),
+    }
+    for name, fn in edits.items():
+        out.append(Case(f"restart:{name}", "restart files", base("r.h5"), setup=h5edit(fn)))
+
+    def other_mesh(d):
+        P, T = cube(3)
+        write_msh(os.path.join(d, "other.msh"), P, T)
+        shutil.copy(os.path.join(d, "prev.h5"), os.path.join(d, "r.h5"))
+    out.append(Case("restart:other_mesh", "restart files", base("r.h5") + ["-mesh", "other.msh"], setup=other_mesh))
+    out.append(Case("restart:other_level", "restart files", base("r.h5") + ["-mesh", "", "-level", "2"],
+                    setup=copy_and(lambda p: None)))
+    out.append(Case("restart:bad_option", "restart files", base("prev.h5") + ["-E", "-1"]))
+    out.append(Case("restart:typo", "restart files", base("prev.h5") + ["-materail", "snh"]))
+    out.append(Case("restart:failing_solve", "restart files", base("prev.h5") + ["-pc_type", "lu", "-jacobian", "shell"]))
+    return out
+
+
+def plot_cases(rng):
+    base = ["plot"]
+    return [
+        Case("plot:missing", "plot", base + ["none.h5"]),
+        Case("plot:foreign_h5", "plot", base + ["x.h5", "-o", "x.png"], setup=_foreign_h5),
+        Case("plot:text", "plot", base + ["scene.opts", "-o", "x.png"]),
+        Case("plot:no_mesh", "plot", base + ["r.h5", "-o", "x.png"], setup=lambda d: _no_mesh(d)),
+        Case("plot:bad_frame", "plot", base + ["prev.h5", "--frame", "99", "-o", "x.png"]),
+        Case("plot:png_is_input", "plot", base + ["prev.h5", "-o", "prev.h5"]),
+        Case("plot:directory", "plot", base + ["prev.h5", "-o", "."]),
+    ]
+
+
+def _no_mesh(d):
+    import h5py
+    shutil.copy(os.path.join(d, "prev.h5"), os.path.join(d, "r.h5"))
+    with h5py.File(os.path.join(d, "r.h5"), "r+") as f:
+        del f["mesh"]
+
+
+MPI_CATEGORIES = ("option values", "unknown options", "conflicting combinations", "scene and options files",
+                  "meshes", "output paths", "restart files")
+
+
+def all_cases(seed=SEED):
+    """The suite: every generator's cases, then about 60 of them again under mpiexec -n 2."""
+    rng = random.Random(seed)
+    cases = []
+    for gen in (option_value_cases, unknown_option_cases, conflict_cases, file_cases, mesh_cases, output_cases,
+                restart_cases, plot_cases):
+        cases += gen(rng)
+    pool = [c for c in cases if c.category in MPI_CATEGORIES and not c.fsize]
+    mpi = []
+    for c in random.Random(seed + 1).sample(pool, 60):
+        mpi.append(Case("mpi2:" + c.name, c.category + " (2 ranks)", c.args, c.setup, 2, c.words, c.rcs))
+    cases += mpi
+    names = [c.name for c in cases]
+    dup = [n for n, k in Counter(names).items() if k > 1]
+    assert not dup, dup
+    return cases
+
+
+# ---------------------------------------------------------------------------------------- checks
+def _snapshot(d):
+    """{relative path: sha256 | 'dir' | 'fifo'} of everything under d."""
+    out = {}
+    for root, dirs, files in os.walk(d):
+        for n in dirs:
+            out[os.path.relpath(os.path.join(root, n), d)] = "dir"
+        for n in files:
+            p = os.path.join(root, n)
+            st = os.lstat(p)
+            if stat.S_ISREG(st.st_mode):
+                with open(p, "rb") as fh:
+                    out[os.path.relpath(p, d)] = hashlib.sha256(fh.read()).hexdigest()
+            else:
+                out[os.path.relpath(p, d)] = "special"
+    return out
+
+
+def run_case(case, world, workdir):
+    """(outcome, detail): outcome 'pass' or what broke the promise."""
+    d = os.path.join(workdir, "".join(ch if ch.isalnum() else "_" for ch in case.name)[:80] + f"_{abs(hash(case.name))}")
+    shutil.copytree(world, d)
+    if case.setup is not None:
+        case.setup(d)
+    before = _snapshot(d)
+
+    def limit():
+        if case.fsize:
+            signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+            resource.setrlimit(resource.RLIMIT_FSIZE, (case.fsize, case.fsize))
+    t0 = time.time()
+    try:
+        p = subprocess.run(hyperelastic_cmd(case.args, case.nprocs), cwd=d, capture_output=True, timeout=TIME_LIMIT,
+                           preexec_fn=limit if case.fsize else None)
+    except subprocess.TimeoutExpired:
+        return "hang", f"no exit within {TIME_LIMIT:g} s"
+    dt = time.time() - t0
+    err = p.stderr.decode(errors="replace")
+    lines = [ln for ln in err.splitlines() if ln.strip()]
+    if p.returncode < 0:
+        return "crash", f"signal {-p.returncode}: {err[-300:]}"
+    if p.returncode == 0:
+        return "accepted", "exit 0"
+    if "Traceback" in err:
+        return "traceback", err[-400:]
+    if p.returncode not in case.rcs:
+        return "exit status", f"exit {p.returncode}: {lines[-1] if lines else ''}"
+    if len(lines) != 1:
+        return "lines", f"{len(lines)} lines: {' | '.join(lines)[:400]}"
+    if not lines[0].startswith("hyperelastic: error:") or "internal error" in lines[0]:
+        return "message", lines[0]
+    missing = [w for w in case.words if w not in lines[0]]
+    if missing:
+        return "message", f"{lines[0]} (expected {missing})"
+    after = _snapshot(d)
+    changed = sorted(k for k, v in before.items() if after.get(k) != v)
+    if changed:
+        return "data touched", f"{changed}: {lines[0]}"
+    new = sorted(k for k, v in after.items() if k not in before and v != "dir")
+    if new and not case.after:
+        return "files left", f"{new}: {lines[0]}"
+    if case.after is not None:
+        why = case.after(d)
+        if why:
+            return "data lost", why
+    shutil.rmtree(d, ignore_errors=True)
+    return "pass", f"{dt:.1f} s: {lines[0]}"
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--seed", type=int, default=SEED)
+    ap.add_argument("--jobs", type=int, default=2)
+    ap.add_argument("--every", type=int, default=1, help="run every K-th case (the quick subset: %d)" % QUICK_EVERY)
+    ap.add_argument("--only", help="a category, or a substring of case names")
+    ap.add_argument("--list", action="store_true")
+    ap.add_argument("-v", "--verbose", action="store_true")
+    a = ap.parse_args(argv)
+    cases = all_cases(a.seed)[::a.every]
+    if a.only:
+        cases = [c for c in cases if a.only == c.category or a.only in c.name]
+    if a.list:
+        for c in cases:
+            print(f"{c.category:28s} {c.name}")
+        print(len(cases), "cases")
+        return 0
+    with tempfile.TemporaryDirectory(prefix="badinput_") as tmp:
+        world = make_world(os.path.join(tmp, "world"))
+        t0 = time.time()
+        with ThreadPoolExecutor(a.jobs) as ex:
+            results = list(ex.map(lambda c: (c, *run_case(c, world, tmp)), cases))
+        wall = time.time() - t0
+    by = Counter((c.category, o) for c, o, _ in results)
+    cats = list(dict.fromkeys(c.category for c in cases))
+    print(f"{len(cases)} cases, seed {a.seed}, {wall:.0f} s wall on {a.jobs} jobs")
+    for cat in cats:
+        counts = {o: n for (c, o), n in by.items() if c == cat}
+        print(f"  {cat:36s} " + ", ".join(f"{o} {n}" for o, n in sorted(counts.items())))
+    outcomes = Counter(o for _, o, _ in results)
+    print("total: " + ", ".join(f"{o} {n}" for o, n in sorted(outcomes.items())))
+    for c, o, why in results:
+        if o != "pass" or a.verbose:
+            print(f"{o:13s} {c.name}: {why}")
+    return 0 if outcomes.get("pass", 0) == len(cases) else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
