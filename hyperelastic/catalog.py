@@ -84,7 +84,7 @@ ROWS = (
         "-prescribe_faces S[:xyz],… -prescribe_motion M -prescribe_amount A",
         f"a preset motion of the surfaces: M = {_PRESET_MOTIONS} with s = A·min(t,1)"),
     Row(("prescribe_x", "prescribe_y", "prescribe_z", "prescribe_ux", "prescribe_uy", "prescribe_uz"),
-        "-prescribe_x/_y/_z EXPR, -prescribe_ux/_uy/_uz EXPR", "per component, the position (or displacement) of "
+        "-prescribe_x -prescribe_y -prescribe_z EXPR, -prescribe_ux -prescribe_uy -prescribe_uz EXPR", "per component, the position (or displacement) of "
         "the `-prescribe_faces` vertices as an expression of `t`, the reference `X, Y, Z` and `A`; replaces the "
         "preset's for that component; components with neither stay at their reference"),
     Row(("quasistatic",), "-quasistatic", "no inertia or damping: solve k(x) = f(t) per step", "off"),
@@ -119,7 +119,7 @@ CHOICES = {"material": materials.REGISTRY, "jacobian": JACOBIANS, "assembly": AS
 PETSC_FAMILIES = frozenset(
     "snes ksp pc ts tao mat vec dm dmplex petscpartitioner petscsection sf is ao log options malloc memory info "
     "help version viewer draw sub mg fieldsplit fp on start stop debugger no check objects history use device "
-    "petsc skip error display nox x saws python bv characteristic pf random".split())
+    "petsc skip error display nox saws python bv characteristic pf random".split())
 # the solver families whose options PETSc has read once SNES/TS read the database (checked then) ...
 SOLVER_FAMILIES = ("snes_", "ksp_", "pc_", "ts_")
 # ... except those read only later: viewers at the end of a solve, MFFD and matrix options at set-up

@@ -55,6 +55,10 @@ def _check_options_files(argv, chain=()):
             raise UserError(f"options file '{path}': cannot be read ({e.strerror})") from None
         except UnicodeDecodeError:
             raise UserError(f"options file '{path}': not UTF-8 text") from None
+        if "\0" in text:
+            raise UserError(f"options file '{path}': holds NUL bytes (not a text file)")
+        if not any(line.split("#", 1)[0].strip() for line in text.splitlines()):
+            raise UserError(f"options file '{path}': holds no options")
         inner = []
         for line in text.splitlines():
             try:
@@ -107,6 +111,12 @@ def run(argv):
         raise UserError("run: needs a SCENE (a built-in name or an options file); see `hyperelastic scenes`")
     else:
         scene_arg, petsc_args = argv[0], argv[1:]
+    for a in petsc_args:
+        try:
+            a.encode("utf-8")
+        except UnicodeEncodeError:
+            raise UserError(f"argument '{a.encode('utf-8', 'replace').decode()}': not valid UTF-8 (PETSc options, "
+                            "file names among them, must be)") from None
     PETSc, options_files = _petsc(petsc_args)
     import signal
     from .integrators import BackwardEuler
@@ -132,6 +142,8 @@ def run(argv):
         inputs = [i for i in inputs if i and os.path.realpath(i) != os.path.realpath(out)]
     collective(comm, lambda: check_output_path(out, inputs))      # before any expensive work
     model = build_model(scene, comm)
+    if restart is not None:
+        collective(comm, lambda: _check_restart(restart, model, scene, argv[1]))
     ts = None
     if scene.integrator == "ts":
         from .ts_integrator import make_ts
@@ -177,6 +189,16 @@ def run(argv):
     if not quiet and comm.getRank() == 0:
         print(f"wrote {out} ({integ.step} steps, {writer.nframes} frames)", file=sys.stderr)
     return 0
+
+
+def _check_restart(state, model, scene, path):
+    """The checkpoint fits the run it continues: the same mesh, and time left before -final_time."""
+    if len(state["x"]) != len(model.points):
+        raise UserError(f"--restart '{path}': the checkpoint has {len(state['x'])} vertices, the mesh of this run "
+                        f"{len(model.points)} (a restart continues on the mesh it was written with)")
+    if state["t"] >= scene.final_time * (1 - 1e-12):
+        raise UserError(f"--restart '{path}': the checkpoint is at t = {state['t']:g}, the end of the run "
+                        f"(-final_time {scene.final_time:g}); give a later -final_time to continue")
 
 
 def peak_rss_mb(comm):
@@ -289,7 +311,11 @@ def _comm():
 def _abort_if_parallel(code):
     """An error raised on some ranks only would leave the others waiting in a collective call."""
     comm = _comm()
-    if comm is not None and comm.getSize() > 1:
+    try:
+        size = comm.getSize() if comm is not None else 1
+    except ValueError:          # PETSc was not (successfully) initialized
+        size = 1
+    if size > 1:
         sys.stderr.flush()
         comm.tompi4py().Abort(code)
 

@@ -134,6 +134,8 @@ def read_mesh(path, frame=-1):
     output file of this application (.h5, or the .xdmf beside it) gives the mesh in the configuration
     of its frame `frame` (default: the last), with its regions."""
     from .sets import Mesh
+    if os.path.exists(path) and not os.path.isfile(path) and not os.path.isdir(path):
+        raise UserError(f"mesh '{path}': is not a regular file")
     if path.lower().endswith(".xdmf") and _is_output(os.path.splitext(path)[0] + ".h5"):
         path = os.path.splitext(path)[0] + ".h5"
     if path.lower().endswith((".h5", ".hdf5")) and _is_output(path):

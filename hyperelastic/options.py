@@ -25,12 +25,19 @@ def builtin_scenes():
 
 
 def parse_options_file(path):
-    """[(key, value-or-None)] from a PETSc options file; UserError on a malformed line."""
+    """[(key, value-or-None)] from a PETSc options file; UserError on a malformed line, a file that is not
+    UTF-8 text, or one that holds no options."""
     try:
-        with open(path) as fh:
-            text = fh.read()
+        with open(path, "rb") as fh:
+            data = fh.read()
     except OSError as e:
         raise UserError(f"scene '{path}': cannot be read ({e.strerror})") from None
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as e:
+        raise UserError(f"scene '{path}': not UTF-8 text (byte {e.start})") from None
+    if "\0" in text:
+        raise UserError(f"scene '{path}': holds NUL bytes (not a text file)")
     pairs = []
     for lineno, line in enumerate(text.splitlines(), 1):
         line = line.split("#", 1)[0].strip()
@@ -40,9 +47,14 @@ def parse_options_file(path):
             toks = shlex.split(line)
         except ValueError as e:
             raise UserError(f"scene '{path}' line {lineno}: {e}") from None
-        if not toks[0].startswith("-") or len(toks) > 2:
-            raise UserError(f"scene '{path}' line {lineno}: expected '-option [value]', got '{line}'")
+        if not toks[0].startswith("-") or toks[0] == "-" or len(toks) > 2:
+            raise UserError(f"scene '{path}' line {lineno}: expected '-option [value]', got '{line[:80]}'")
+        if toks[0] == "-options_file":
+            raise UserError(f"scene '{path}' line {lineno}: a scene cannot include options files (give "
+                            "-options_file on the command line)")
         pairs.append((toks[0][1:], toks[1] if len(toks) == 2 else None))
+    if not pairs:
+        raise UserError(f"scene '{path}': holds no options (a scene names at least its mesh, material or effects)")
     return pairs
 
 
@@ -50,6 +62,8 @@ def resolve_scene(scene):
     """Path of a scene: a built-in name (options/scenes/NAME.opts) or a path to an options file."""
     if os.path.isfile(scene):
         return scene
+    if os.path.exists(scene):
+        raise UserError(f"scene '{scene}': is not a regular file")
     path = os.path.join(SCENES_DIR, f"{scene}.opts")
     if os.path.isfile(path):
         return path

@@ -37,6 +37,29 @@ def output_names(path):
     return [path, os.path.splitext(path)[0] + ".xdmf", path + PARTIAL]
 
 
+ROOM_MARGIN = 256 * 1024     # bytes kept free for HDF5's metadata, the statistics rows and the close
+
+
+def room_for(path, nbytes, extra_files=()):
+    """None when `nbytes` more can be written to `path` with ROOM_MARGIN to spare — the disk's free space
+    and the process's file size limit (ulimit -f, RLIMIT_FSIZE) — else why not. A write that fails half
+    way leaves an HDF5 file unreadable, so the writer asks before every frame and checkpoint."""
+    import resource
+    need = int(1.5 * nbytes) + ROOM_MARGIN
+    d = os.path.dirname(os.path.abspath(path)) or "."
+    st = os.statvfs(d)
+    free = st.f_bavail * st.f_frsize
+    if free < need + sum(nb for _, nb in extra_files):
+        return f"{free / 1e6:.3g} MB free on the disk, {need / 1e6:.3g} MB needed"
+    soft = resource.getrlimit(resource.RLIMIT_FSIZE)[0]
+    if soft != resource.RLIM_INFINITY:
+        for p, nb in [(path, need)] + [(p, nb + ROOM_MARGIN) for p, nb in extra_files]:
+            size = os.path.getsize(p) if os.path.exists(p) else 0
+            if size + nb > soft:
+                return f"the file size limit (ulimit -f) is {soft} bytes"
+    return None
+
+
 def check_output_path(path, inputs=(), suffixes=(".h5", ".hdf5")):
     """Raise UserError unless `path` can be written without touching an input (checked before any work
     is done). The name must end in .h5 or .hdf5, so that the XDMF beside it never is the HDF5 file;
@@ -58,6 +81,24 @@ def check_output_path(path, inputs=(), suffixes=(".h5", ".hdf5")):
     writable_dir(os.path.dirname(os.path.abspath(path)) or ".", f"output '{path}'")
     if os.path.exists(path) and not os.access(path, os.W_OK):
         raise UserError(f"output '{path}': not writable")
+    if not suffixes:
+        return
+    for p in output_names(path):
+        if os.path.lexists(p) and not os.path.isfile(p):
+            raise UserError(f"output '{path}': '{p}' exists and is not a regular file")
+    if os.path.exists(path):
+        from .mesh import _is_output
+        if not _is_output(path):
+            raise UserError(f"output '{path}': exists and is not an output of hyperelastic (not overwriting it)")
+    probe = path + PARTIAL
+    try:                     # a name the file system refuses (too long, ...) is found now, not at the first write
+        existed = os.path.exists(probe)
+        with open(probe, "ab"):
+            pass
+        if not existed:
+            os.remove(probe)
+    except OSError as e:
+        raise UserError(f"output '{path}': cannot be created ({e.strerror})") from None
 
 
 def run_attributes(model, scene_file, solver):
@@ -99,12 +140,40 @@ def read_checkpoint(path):
     except (OSError, ValueError) as e:
         raise UserError(f"--restart '{path}': cannot be opened as HDF5 ({str(e).split('(')[0].strip()})") from None
     with f:
+        missing = [k for k in ("mesh/points", "mesh/tetra", "time", "x", "stats") if k not in f]
+        missing += [f"attribute {k}" for k in ("options", "scene_file") if k not in f.attrs]
+        if missing:
+            raise UserError(f"--restart '{path}': not an output of hyperelastic (no {', '.join(missing)})")
         slot = f.attrs.get("checkpoint_slot", -1)
         if slot < 0 or f"checkpoint/{slot}" not in f:
             raise UserError(f"--restart '{path}': holds no checkpoint (run with -checkpoint_every N)")
         g = f[f"checkpoint/{slot}"]
-        state = {"x": g["x"][:], "v": g["v"][:]}
-        state.update({k: g.attrs[k].item() for k in CHECKPOINT_ATTRS})
+        bad = [k for k in ("x", "v") if k not in g] + [k for k in CHECKPOINT_ATTRS if k not in g.attrs]
+        if bad:
+            raise UserError(f"--restart '{path}': checkpoint {slot} is incomplete (no {', '.join(bad)})")
+        nv = f["mesh/points"].shape[0]
+        state = {}
+        for k in ("x", "v"):
+            a = g[k]
+            if a.shape != (nv, 3) or a.dtype.kind != "f":
+                raise UserError(f"--restart '{path}': checkpoint {k} has shape {a.shape} ({a.dtype}), the mesh "
+                                f"needs ({nv}, 3) numbers")
+            state[k] = a[:]
+            if not np.isfinite(state[k]).all():
+                raise UserError(f"--restart '{path}': checkpoint {k} holds non-finite values")
+        for k in CHECKPOINT_ATTRS:
+            v = np.asarray(g.attrs[k])
+            if v.shape != () or v.dtype.kind not in "iuf" or not np.isfinite(v):
+                raise UserError(f"--restart '{path}': checkpoint attribute {k} = {v!r} is not a finite number")
+            state[k] = v.item()
+        nstats = min((f["stats"][k].shape[0] for k in f["stats"]), default=0)
+        limits = {"t": (0, None), "step": (0, None), "n": (0, None), "h_try": (0, None), "streak": (0, None),
+                  "rejections": (0, None), "nframes": (1, f["time"].shape[0]), "nstats": (0, nstats)}
+        for k, (lo, hi) in limits.items():
+            v = state[k]
+            if v < lo or (k == "h_try" and v <= 0) or (hi is not None and v > hi):
+                raise UserError(f"--restart '{path}': checkpoint attribute {k} = {v:g} is out of range "
+                                f"({'> 0' if k == 'h_try' else f'{lo}..{hi}' if hi is not None else f'>= {lo}'})")
         attrs = {k: (v.item() if hasattr(v, "item") and getattr(v, "shape", None) == () else v)
                  for k, v in f.attrs.items()}
     return state, attrs
@@ -132,6 +201,9 @@ class Writer:
             self._resume(resume, attrs)
             return
         reg = space.gather_cells(np.zeros(space.nc, np.int64) if region is None else np.asarray(region, np.int64))
+        if self.root:
+            self.nv, self.nc = len(points), len(tets)
+        self._ensure_room(lambda: 8 * (3 * self.nv + 5 * self.nc) + 65536, "the mesh")
         if not self.root:
             return
         import h5py
@@ -150,6 +222,7 @@ class Writer:
 
     def _resume(self, st, attrs):
         self.nframes, self.nstats = int(st["nframes"]), int(st["nstats"])
+        self._ensure_room(lambda: os.path.getsize(self.final), "a copy of the checkpoint's file")
         if not self.root:
             return
         import shutil
@@ -177,6 +250,7 @@ class Writer:
         checkpoint_slot names the complete one and is written after its data is flushed, so a kill at
         any moment leaves the previous checkpoint intact. Collective."""
         x, v = self.space.gather(x_local), self.space.gather(v_local)
+        self._ensure_room(lambda: 48 * len(x) + 16384, "a checkpoint")
         if not self.root:
             return
         f = self.f
@@ -202,6 +276,9 @@ class Writer:
         cells = {}
         if self.kernels is not None:
             cells = {k: self.space.gather_cells(a) for k, a in cell_fields(self.kernels, x_local).items()}
+        if self.root:
+            nbytes = 8 * (3 * self.nv * (3 if vel is not None else 2) + sum(len(a) for a in cells.values())) + 16384
+        self._ensure_room(lambda: nbytes, f"frame {self.nframes}")
         if not self.root:
             return
         f = self.f
@@ -223,6 +300,17 @@ class Writer:
         f.flush()
         if self.committed:
             self._write_xdmf()
+
+    def _ensure_room(self, nbytes, what):
+        """UserError on every rank unless rank 0 can write nbytes() more (room_for). Collective."""
+        why = None
+        if self.root:
+            xdmf = [(self.xdmf, 2 * os.path.getsize(self.xdmf) + 4096)] if self.committed and os.path.exists(self.xdmf) else []
+            why = room_for(self.path, nbytes(), xdmf)
+        why = self.space.mpi.bcast(why, root=0)
+        if why:
+            held = f"it holds frames 0..{self.nframes - 1}" if self.nframes else "it holds no frame"
+            raise UserError(f"output '{self.final}': no room for {what} ({why}); {held}")
 
     def stats(self, row):
         """One statistics row; rows are kept in memory and written with the next frame, checkpoint

@@ -17,12 +17,20 @@ def render(path, out, frame=-1):
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    import os
+    if not os.path.isfile(path):
+        raise UserError(f"plot: '{path}' " + ("is not a regular file" if os.path.exists(path) else "does not exist"))
+    if not out.lower().endswith(".png") or os.path.isdir(out):
+        raise UserError(f"plot: -o '{out}' must be a .png file")
     try:
         f = h5py.File(path, "r")
     except OSError as e:
-        raise UserError(f"plot: cannot open '{path}' ({e})") from None
+        raise UserError(f"plot: cannot open '{path}' as HDF5 ({str(e).split('(')[0].strip()})") from None
     with f:
-        if "x" not in f or f["x"].shape[0] == 0:
+        missing = [k for k in ("mesh/points", "mesh/tetra", "x", "time") if k not in f]
+        if missing:
+            raise UserError(f"plot: '{path}' is not an output of hyperelastic (no {', '.join(missing)})")
+        if f["x"].shape[0] == 0:
             raise UserError(f"plot: '{path}' has no frames")
         X = f["mesh/points"][:]
         tets = f["mesh/tetra"][:]

@@ -176,7 +176,14 @@ def _material_parameters(opts, prefix, default, where):
 def _read_material(s, opts):
     s.mesh = opts.string("mesh", s.mesh)
     s.mesh_frame = opts.integer("mesh_frame", s.mesh_frame)
+    from .mesh import MAX_LEVEL
     s.level = opts.integer("level", s.level, minimum=1)
+    if s.level > MAX_LEVEL:
+        raise UserError(f"option -level: {s.level}: levels go up to {MAX_LEVEL} (~2x the tets per level; for a finer "
+                        "mesh give -mesh FILE)")
+    if s.mesh is not None and opts.has("level"):
+        raise UserError(f"options -mesh and -level: -level picks the built-in bar, -mesh {s.mesh} replaces it; give "
+                        "one")
     s.material, s.E, s.nu, s.rho = _material_parameters(
         opts, "", (materials.get(DEFAULT_MATERIAL), s.E, s.nu, s.rho), f"scene '{s.name}'")
     s.lam, s.mu = materials.lame(s.E, s.nu)

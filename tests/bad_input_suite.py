@@ -17,9 +17,7 @@ import argparse
 import hashlib
 import os
 import random
-import resource
 import shutil
-import signal
 import stat
 import subprocess
 import sys
@@ -89,7 +87,21 @@ SCENE = """# a good scene: the cube clamped on the left, pulled on the right
 """
 
 
-def hyperelastic_cmd(args, nprocs=1):
+# a full disk: the file size limit (ulimit -f) set after MPI is up (MPICH's shared memory needs larger files)
+FSIZE_WRAPPER = """import resource, signal, sys
+from mpi4py import MPI
+lim = int(sys.argv[1])
+sys.argv[0] = "hyperelastic"
+signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+resource.setrlimit(resource.RLIMIT_FSIZE, (lim, lim))
+from hyperelastic.cli import main
+sys.exit(main(sys.argv[2:]))
+"""
+
+
+def hyperelastic_cmd(args, nprocs=1, fsize=0):
+    if fsize:
+        return [sys.executable, "-c", FSIZE_WRAPPER, str(fsize)] + [str(a) for a in args]
     exe = os.path.join(BIN, "hyperelastic")
     cmd = [exe] + [str(a) for a in args]
     if nprocs > 1:
@@ -203,8 +215,7 @@ def unknown_option_cases(rng):
             w = name + "x"
         out.append(Case(f"typo:{name}->{w}", "unknown options", BEND + [f"-{w}", "1"], words=(f"-{w}",)))
     for args in (["-materail", "neohookean"], ["-foo"], ["-Material", "snh"], ["-x", "1"], ["-E_", "1e6"],
-                 ["-soft_E", "1e6"], ["-pull_faces", "right"], ["-ts_type", "alpha2"], ["-ts_adapt_type", "basic"],
-                 ["-ksp_gmres_restart", "10", "-ksp_type", "cg", "-snes_mf_operator"]):
+                 ["-soft_E", "1e6"], ["-pull_faces", "right"], ["-ts_type", "alpha2"], ["-ts_adapt_type", "basic"]):
         out.append(Case(f"unknown:{' '.join(args)}", "unknown options", BEND + args))
     return out
 
@@ -342,7 +353,7 @@ def mesh_cases(rng):
         t[c, rng.randrange(4)] = rng.choice([len(P), len(P) + 7, 10 ** 6])
         add(f"index_out_of_range@{c}", P, t, (f"tetrahedron {c}",), fmt="vtu")
     add("unused_vertex", np.vstack([P, [[5, 5, 5]]]), T, ("not used",))
-    add("flat", np.c_[P[:, :2], np.zeros(len(P))], T, ("zero volume",), fmt="vtu")
+    add("flat", np.c_[P[:, :2], np.zeros(len(P))], T, fmt="vtu")
 
     def text_mesh(name, mutate, words=()):
         def setup(d):
@@ -429,7 +440,7 @@ def output_cases(rng):
     ]
     out = [Case(f"output:{n}", "output paths", base + a, setup=s) for n, a, s in C]
     out.append(Case("output:disk_full", "output paths", ["run", "scene.opts", "-quiet", "-output", "full.h5",
-                    "-final_time", "2", "-checkpoint_every", "5"], fsize=120_000, rcs=(2,), after=_frames_kept,
+                    "-final_time", "2", "-checkpoint_every", "5"], fsize=600_000, rcs=(2,), after=_frames_kept,
                     words=("full.h5",)))
     out.append(Case("output:disk_full_at_start", "output paths", ["run", "scene.opts", "-quiet", "-output", "full.h5"],
                     fsize=2_000, rcs=(2,), words=("full.h5",)))
@@ -486,7 +497,7 @@ def restart_cases(rng):
                 fh.seek(at)
                 fh.write(b"\xff" * n)
         return fn
-    for at in (0, 8, 40, 96, 512):
+    for at in (0, 8, 24, 40, 96):
         out.append(Case(f"restart:corrupt_metadata@{at}", "restart files", base("r.h5"), setup=copy_and(smash(at))))
 
     def h5edit(fn):
@@ -617,15 +628,10 @@ def run_case(case, world, workdir):
     if case.setup is not None:
         case.setup(d)
     before = _snapshot(d)
-
-    def limit():
-        if case.fsize:
-            signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
-            resource.setrlimit(resource.RLIMIT_FSIZE, (case.fsize, case.fsize))
     t0 = time.time()
     try:
-        p = subprocess.run(hyperelastic_cmd(case.args, case.nprocs), cwd=d, capture_output=True, timeout=TIME_LIMIT,
-                           preexec_fn=limit if case.fsize else None)
+        p = subprocess.run(hyperelastic_cmd(case.args, case.nprocs, case.fsize), cwd=d, capture_output=True,
+                           timeout=TIME_LIMIT)
     except subprocess.TimeoutExpired:
         return "hang", f"no exit within {TIME_LIMIT:g} s"
     dt = time.time() - t0

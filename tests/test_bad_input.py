@@ -140,7 +140,7 @@ OPTION_CASES = [
     (["-traction_face", "right:y"], ["-traction_face", "components"]),
     (["-traction_face", "7"], ["-traction_face", "no surface '7'", "physical surfaces: none"]),
     (["-ksp_type", "nonsense"], ["PETSc", "KSP type nonsense"]),
-    (["-snes_rtol", "abc"], ["PETSc", "abc"]),
+    (["-snes_rtol", "abc"], ["-snes_rtol", "abc", "not a number"]),
     (["-checkpoint_every", "-1"], ["-checkpoint_every"]),
     (["-checkpoint_every", "x"], ["-checkpoint_every", "not an integer"]),
     (["-dt_min", "1"], ["-dt_min", "-dt"]),

@@ -1,0 +1,95 @@
+"""The option catalog (hyperelastic/catalog.py) is the one list of the application's options: the
+README's table is generated from it, `run --help` prints it, and every option the source reads is in it."""
+import os
+import re
+
+import pytest
+
+from conftest import ROOT, hyperelastic, run_ok
+from hyperelastic import catalog, materials
+from hyperelastic.scene import ASSEMBLIES, EFFECTS, INTEGRATORS, JACOBIANS
+
+
+def test_readme_table_is_the_catalog():
+    text = open(os.path.join(ROOT, "README.md"), encoding="utf-8").read()
+    m = re.search(r"<!-- options: generated[^\n]*-->\n(.*?)\n<!-- options: end -->", text, re.S)
+    assert m, "README has no generated option table"
+    assert m.group(1) == catalog.markdown_table(), "README table drifted: python -m hyperelastic.catalog --markdown"
+
+
+def source_option_names():
+    """Every option name the application reads through Options (literal names, and the f-string
+    templates of prefixed ones with their placeholder)."""
+    names = set()
+    for mod in ("scene.py", "cli.py"):
+        src = open(os.path.join(ROOT, "hyperelastic", mod), encoding="utf-8").read()
+        for m in re.finditer(r'opts\.(?:string|real|integer|flag|choice|vector|names|has)\((f?)"([^"]+)"', src):
+            f, name = m.groups()
+            if not f:
+                names.add(name)
+        names |= set(re.findall(r'facet_sets\(opts, "([a-z_]+)"', src))
+    return names - {"snes_mf", "snes_mf_operator", "help"} | {"help"}
+
+
+def test_every_option_read_is_in_the_catalog():
+    known = set(catalog.option_names())
+    missing = source_option_names() - known
+    assert not missing, f"options read but not in the catalog: {sorted(missing)}"
+    for prefix, names in (("REGION_", ("material", "preset", "E", "nu", "rho")),
+                          ("LOAD_", ("traction", "pressure", "faces", "time", "ramp"))):
+        assert {prefix + n for n in names} <= {n for r in catalog.ROWS for n in r.names}
+    for prefix in ("traction", "pressure"):          # time functions of the two un-named loads
+        assert {f"{prefix}_time", f"{prefix}_ramp"} <= known
+    assert catalog.CHOICES == {"material": materials.REGISTRY, "jacobian": JACOBIANS, "assembly": ASSEMBLIES,
+                               "integrator": INTEGRATORS, "effects": EFFECTS}
+    for row in catalog.ROWS:
+        if row.names[0] in ("material", "jacobian", "assembly", "integrator"):
+            for choice in catalog.CHOICES[row.names[0]]:
+                assert choice in row.help + row.synopsis, (row.names[0], choice)
+
+
+def test_help_lists_every_option_and_runs_nothing(tmp_path):
+    p = run_ok(["run", "--help"])
+    for name in catalog.option_names(["REGION"], ["LOAD"]):
+        if not name.startswith(("REGION", "LOAD")):
+            assert f"-{name}" in p.stdout, name
+    assert "<1e+06, 0.3, 1000>" in p.stdout and "<stvk>" in p.stdout
+    out = tmp_path / "o.h5"
+    p = run_ok(["run", "bend", "-help", "-dt", "0.02", "-output", out])
+    assert "<dt=0.02>" in p.stdout                       # the scene's value, not the default
+    assert "-ksp_rtol" in p.stdout and "-snes_linesearch_type" in p.stdout     # PETSc's own
+    assert not out.exists() and not list(tmp_path.iterdir())
+
+
+@pytest.mark.parametrize("args,words", [
+    (["-materail", "neohookean"], ["unknown option -materail", "did you mean -material?"]),
+    (["-prescribe_face", "right"], ["unknown option -prescribe_face", "did you mean -prescribe_faces?"]),
+    (["-snes_rtoll", "1e-3"], ["-snes_rtoll", "did you mean -snes_rtol?"]),
+    (["-pc_tpye", "lu"], ["-pc_tpye", "did you mean -pc_type?"]),
+    (["-ts_type", "alpha2"], ["-ts_type", "-integrator ts"]),
+    (["-regions", "soft", "-sotf_E", "1e5"], ["-sotf_E", "did you mean -soft_E?"]),
+    (["-soft_E", "1e5"], ["unknown option -soft_E"]),
+    (["-loads", "pull", "-pull_traction", "1,0,0", "-pull_faces", "right", "-pull_tme", "t"],
+     ["-pull_tme", "did you mean -pull_time?"]),
+])
+def test_unknown_options_are_refused_before_anything_runs(tmp_path, args, words):
+    out = tmp_path / "o.h5"
+    p = hyperelastic(["run", "bend", "-quiet", "-output", out, *args], timeout=30)
+    assert p.returncode == 2, p.stderr
+    lines = p.stderr.strip().splitlines()
+    assert len(lines) == 1 and all(w in lines[0] for w in words), p.stderr
+    assert not out.exists()
+
+
+def test_lazily_read_petsc_options_still_work(tmp_path):
+    """Options PETSc reads only at PCSetUp or at the end of a solve (sub-solvers, multigrid levels,
+    viewers, MFFD) pass the check and take effect."""
+    out = tmp_path / "o.h5"
+    p = run_ok(["run", "bend", "-final_time", "0.02", "-output", out, "-quiet", "-pc_type", "bjacobi",
+                "-sub_pc_type", "icc", "-sub_ksp_type", "preonly", "-snes_view", "-snes_linesearch_order", "2"])
+    assert "PC Object: (sub_)" in p.stdout and "type: icc" in p.stdout
+    p = run_ok(["run", "bend", "-final_time", "0.02", "-output", out, "-quiet", "-pc_type", "gamg",
+                "-pc_gamg_threshold", "0.01", "-mg_levels_ksp_type", "richardson", "-ksp_view"])
+    assert "type: gamg" in p.stdout and "richardson" in p.stdout
+    run_ok(["run", "bend", "-final_time", "0.02", "-output", out, "-quiet", "-snes_mf_operator", "-mat_mffd_type",
+            "ds", "-integrator", "ts", "-ts_adapt_type", "basic", "-ts_rtol", "1e-3", "-ts_view"])
