@@ -196,12 +196,27 @@ def suggestion(key, candidates):
     return f" (did you mean -{close[0]}?)" if close else ""
 
 
-def check_application_options(keys, regions=(), loads=()):
+def _prefixed_template(key):
+    """Whether key is NAME_x for a REGION_x or LOAD_x of the catalog (with any NAME)."""
+    for row in ROWS:
+        for n in row.names:
+            if n.startswith(("REGION_", "LOAD_")):
+                suffix = n[n.index("_"):]
+                if key.endswith(suffix) and len(key) > len(suffix):
+                    return True
+    return False
+
+
+def check_application_options(keys, regions=(), loads=(), scene_keys=()):
     """Every option in `keys` (the options database: command line, scene and options files) is the
-    application's or belongs to a PETSc family; else one line naming the closest known option."""
+    application's or belongs to a PETSc family; else one line naming the closest known option. A
+    region's or load's option that the scene file sets (`scene_keys`) passes when the command line's
+    -regions/-loads no longer lists its name (the scene's own region, dropped by an override)."""
     known = set(option_names(regions, loads))
     for key in keys:
         if key in known or key.split("_", 1)[0] in PETSC_FAMILIES:
+            continue
+        if key in scene_keys and _prefixed_template(key):
             continue
         raise UserError(f"unknown option -{key}{suggestion(key, sorted(known) + COMMON_PETSC)}")
 

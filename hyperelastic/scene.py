@@ -127,9 +127,11 @@ def load_scene(scene_arg):
     options become defaults under the command line's, then everything is read and validated."""
     from .catalog import check_application_options, check_petsc_values
     path = resolve_scene(scene_arg)
-    insert_defaults(parse_options_file(path))
+    pairs = parse_options_file(path)
+    insert_defaults(pairs)
     opts = Options()
-    check_application_options(sorted(opts.o.getAll()), _prefixes(opts, "regions"), _prefixes(opts, "loads"))
+    check_application_options(sorted(opts.o.getAll()), _prefixes(opts, "regions"), _prefixes(opts, "loads"),
+                              {k for k, _ in pairs})
     check_petsc_values(opts.o)
     name = os.path.splitext(os.path.basename(path))[0]
     return read_scene(name), path
@@ -138,7 +140,7 @@ def load_scene(scene_arg):
 def _prefixes(opts, option):
     """The names -regions / -loads list (the prefixes of their options), unchecked."""
     s = opts.o.getString(option, "") if opts.has(option) else ""
-    return [w.strip() for w in (s or "").split(",") if w.strip()]
+    return [w.strip() for w in (s or "").split(",") if re.fullmatch(r"[A-Za-z0-9_]+", w.strip())]
 
 
 def read_scene(name, opts=None):

@@ -114,7 +114,7 @@ def test_restart_bad_files(tmp_path):
         for k in ("t", "step", "n", "h_try", "streak", "rejections", "nframes", "nstats"):
             g.attrs[k] = 0
     one_line_error(hyperelastic(["run", "--restart", tmp_path / "foreign.h5"], nprocs=2, timeout=60),
-                   "not a hyperelastic output")
+                   "not an output of hyperelastic")
 
 
 def test_restart_with_a_later_final_time(tmp_path):
