@@ -156,3 +156,10 @@ double he_max_step(int64_t nc, const idx_t *cells, const double *Dminv, const do
   }
   return tmin;
 }
+
+/* dst[pos[i]] += src[i] for i < n, skipping pos[i] < 0: the cell blocks' entries added straight into a
+ * matrix's CSR value array through a map computed once (jacobians.AssembledChunked). */
+void he_scatter_add(int64_t n, const int32_t *pos, const double *src, double *dst) {
+  for (int64_t i = 0; i < n; i++)
+    if (pos[i] >= 0) dst[pos[i]] += src[i];
+}

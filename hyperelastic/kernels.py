@@ -41,6 +41,14 @@ _lib.he_apply_blocks.restype = None
 _lib.he_apply_blocks.argtypes = [_I, _P, _P, _P, _P]
 _lib.he_add_mass_blocks.restype = None
 _lib.he_add_mass_blocks.argtypes = [_I, _P, _D, _P]
+_lib.he_scatter_add.restype = None
+_lib.he_scatter_add.argtypes = [_I, _P, _P, _P]
+
+
+def scatter_add(pos, src, dst):
+    """dst[pos] += src where pos >= 0 (pos int32, src and dst float64, C-contiguous; dst written in place)."""
+    assert pos.dtype == np.int32 and src.dtype == dst.dtype == np.float64 and pos.size == src.size
+    _lib.he_scatter_add(pos.size, pos.ctypes.data, src.ctypes.data, dst.ctypes.data)
 _bound = {}
 
 

@@ -21,7 +21,28 @@ def lib():
                                         ctypes.POINTER(ctypes.c_double)]
         _lib.PetscErrorMessage.argtypes = [ctypes.c_int, ctypes.POINTER(ctypes.c_char_p),
                                            ctypes.POINTER(ctypes.c_char_p)]
+        for fn in ("MatSeqAIJGetArray", "MatSeqAIJRestoreArray"):
+            getattr(_lib, fn).argtypes = [ctypes.c_void_p, ctypes.POINTER(ctypes.c_void_p)]
     return _lib
+
+
+class SeqAIJValues:
+    """The CSR value array of a SeqAIJ matrix as a numpy view, for `with` (MatSeqAIJGetArray /
+    MatSeqAIJRestoreArray: PETSc then knows the values changed)."""
+
+    def __init__(self, mat, nnz):
+        self.mat, self.nnz, self.ptr = mat, nnz, ctypes.c_void_p()
+
+    def __enter__(self):
+        import numpy as np
+        err = lib().MatSeqAIJGetArray(ctypes.c_void_p(self.mat.handle), ctypes.byref(self.ptr))
+        if err or not self.ptr.value:
+            raise RuntimeError(f"MatSeqAIJGetArray failed ({err})")
+        return np.ctypeslib.as_array(ctypes.cast(self.ptr, ctypes.POINTER(ctypes.c_double)), shape=(self.nnz,))
+
+    def __exit__(self, *exc):
+        lib().MatSeqAIJRestoreArray(ctypes.c_void_p(self.mat.handle), ctypes.byref(self.ptr))
+        return False
 
 
 def set_function_domain_error(snes):
