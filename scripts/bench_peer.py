@@ -1,23 +1,23 @@
 #!/usr/bin/env python
-"""Peer benchmark (issue: performance, target 5): the same quasi-static Neo-Hookean problem solved by
-scikit-fem and by hyperelastic, on the same P1 mesh.
+"""Peer benchmark (issue 17): the same quasi-static Neo-Hookean problem solved by DOLFINx (or
+scikit-fem) and by hyperelastic, on the same P1 mesh, timed per Newton step and per phase.
 
-Problem: the 10 x 4 x 4 bar, left end (x = -5) clamped, a dead-load traction t = (0, -T, 0) Pa on the
-right end face (x = 5), compressible Neo-Hookean (Bonet & Wood 1997, sec. 6.4.3:
-P = mu (F - F^-T) + lam ln J F^-T), E = 1e6 Pa, nu = 0.3, one load step, Newton to a relative
-residual of 1e-10.
+Problem: the 10 x 4 x 4 bar, left end (x = -5) clamped, a dead-load traction t = (0, -5000, 0) Pa on
+the right end face (x = 5), compressible Neo-Hookean (Bonet & Wood 1997, sec. 6.4.3:
+P = mu (F - F^-T) + lam ln J F^-T), E = 1e6 Pa, nu = 0.3, one load step, plain Newton (full steps)
+to a relative residual of 1e-10; CG (ksp_rtol 1e-10) + GAMG (agg, one smoothing step, Chebyshev +
+Jacobi levels, the six rigid-body modes as near null space), or LU on one rank.
 
-scikit-fem (`pip install -r requirements-bench.txt`; a benchmark dependency, not a runtime one):
-residual and tangent written as its LinearForm / BilinearForm, vector P1 elements, Dirichlet rows
-by `condense`, linear solves by its default `solve` (SciPy's sparse direct solver), plain Newton.
-hyperelastic: `hyperelastic run bend -quasistatic -material neohookean ...`, exact tangent, CG + GAMG,
-plain Newton (-snes_linesearch_type basic -inversion_guard 0, as scikit-fem; our defaults, backtracking
-and the Neo-Hookean inversion guard, take 8 damped
-steps here instead of 4).
+DOLFINx (--peer dolfinx, default): scripts/peer_dolfinx.py, run with the Python of .venv-dolfinx, which
+this script makes on first use from the dolfinx-solver-real wheel (DOLFINx 0.11 with its own PETSc
+and MPICH; never mixed with ours). Its phases are timed around the calls (assemble_matrix, assemble_
+vector + lifting, PC set-up, KSP solve); ours come from PETSc's -log_view (SNESJacobianEval,
+SNESFunctionEval, PCSetUp, KSPSolve without the set-up, SNESSolve / Newton steps).
+scikit-fem (--peer skfem, `pip install -r requirements-bench.txt`): the earlier comparison (load
+1000 Pa, its LinearForm / BilinearForm, SciPy's direct solver).
 
-Prints displacement agreement and time per Newton step, ours / theirs.
-
-    scripts/bench_peer.py OUT [--full] [--levels 5,8]
+    .venv/bin/python scripts/bench_peer.py OUT [--levels 5,8] [--tets 250000] [--ranks 1,2] [--pcs gamg,lu]
+    .venv/bin/python scripts/bench_peer.py OUT --full        # L5, L8, ~250k tets
 """
 import argparse
 import os
@@ -26,14 +26,16 @@ import time
 
 import numpy as np
 
-sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+sys.path.insert(0, ROOT)
 from hyperelastic.materials import lame  # noqa: E402
 from hyperelastic.mesh import cached_bar, read  # noqa: E402
 from hyperelastic.experiments.runner import last_line, run_hyperelastic  # noqa: E402
 from hyperelastic.study.measure import read_cost  # noqa: E402
 from hyperelastic.study.plan import PCS  # noqa: E402
 
-E, NU, T = 1e6, 0.3, 1000.0
+E, NU, T = 1e6, 0.3, 5000.0
+T_SKFEM = 1000.0          # the scikit-fem comparison's load (earlier figures)
 RTOL = 1e-10
 
 
@@ -69,7 +71,7 @@ def skfem_solve(points, tets):
 
     @LinearForm
     def load(v, w):
-        return dot(np.array([0.0, -T, 0.0])[:, None, None], v)
+        return dot(np.array([0.0, -T_SKFEM, 0.0])[:, None, None], v)
 
     f = asm(load, fbasis)
     u = np.zeros(basis.N)
@@ -93,45 +95,151 @@ def skfem_solve(points, tets):
     return disp, len(hist) - 1, sum(times) / (len(hist) - 1), hist
 
 
-def ours(mesh_path, out):
-    path = os.path.join(out, f"peer_{os.path.basename(mesh_path)[:-4]}.h5")
-    args = ["run", "bend", "-quasistatic", "-material", "neohookean", "-E", E, "-nu", NU, "-traction", f"0,{-T},0",
-            "-mesh", mesh_path, "-dt", 1, "-final_time", 1, "-jacobian", "assembled", "-ksp_type", "cg",
-            "-ksp_rtol", "1e-12", "-snes_linesearch_type", "basic", "-inversion_guard", "0", "-snes_rtol", RTOL, "-snes_atol", "1e-14", "-snes_stol", "0", "-step_control", "0",
-            "-output", path, "-quiet"] + PCS["gamg"]
-    rc, err, wall = run_hyperelastic(args, path)
+LOG_EVENTS = {"SNESSolve": "solve", "SNESJacobianEval": "jacobian", "SNESFunctionEval": "residual",
+              "PCSetUp": "pc_setup", "KSPSolve": "ksp_solve"}
+
+
+def parse_log_view(path):
+    """{event: (count, max time s)} of the events LOG_EVENTS names, from a -log_view file."""
+    out = {}
+    for line in open(path):
+        w = line.split()
+        if len(w) > 4 and w[0] in LOG_EVENTS and w[0] not in out:
+            out[w[0]] = (int(w[1]), float(w[3]))
+    return out
+
+
+def ours(mesh_path, out, ranks=1, pc="gamg", traction=T):
+    """(displacement in input order, Newton steps, {phase: seconds per Newton step})."""
+    tag = f"{os.path.basename(mesh_path)[:-4]}_{pc}_n{ranks}"
+    path, log = os.path.join(out, f"ours_{tag}.h5"), os.path.join(out, f"ours_{tag}.log")
+    solver = (["-ksp_type", "preonly", "-pc_type", "lu"] if pc == "lu" else
+              ["-ksp_type", "cg", "-ksp_rtol", "1e-10"] + PCS["gamg"])
+    args = ["run", "bend", "-quasistatic", "-material", "neohookean", "-E", E, "-nu", NU, "-traction",
+            f"0,{-traction},0", "-mesh", mesh_path, "-dt", 1, "-final_time", 1, "-jacobian", "assembled",
+            "-snes_linesearch_type", "basic", "-objective", "0", "-inversion_guard", "0", "-snes_rtol", RTOL,
+            "-snes_atol", "1e-14", "-snes_stol", "0", "-step_control", "0", "-output", path, "-quiet",
+            "-log_view", f":{log}"] + solver
+    rc, err, wall = run_hyperelastic(args, path, nprocs=ranks, timeout=3600)
     if rc != 0:
         raise RuntimeError(f"hyperelastic failed: {last_line(err, rc)}")
     import h5py
     with h5py.File(path, "r") as f:
         disp = f["x"][-1] - f["mesh/points"][:]
-    c = read_cost(path)
-    return disp, c["newton_its"], c["solve_s"] / c["newton_its"], c
+        its = int(f["stats/newton_its"][-1])
+    ev = parse_log_view(log)
+    per = {LOG_EVENTS[k]: t / its for k, (n, t) in ev.items()}
+    per["step"] = per.pop("solve")
+    per["ksp_solve"] -= per.get("pc_setup", 0.0)          # KSPSolve includes the PC set-up it triggers
+    return disp, its, per
+
+
+DOLFINX_VENV = os.path.join(ROOT, ".venv-dolfinx")
+
+
+def dolfinx_python():
+    """The Python of .venv-dolfinx, made on first use: DOLFINx 0.11 from the dolfinx-solver-real wheel
+    (its own PETSc and MPICH; Python 3.12), a benchmark dependency only."""
+    py = os.path.join(DOLFINX_VENV, "bin", "python")
+    if not os.path.exists(py):
+        import glob
+        import shutil
+        import subprocess
+        base = shutil.which("python3.12") or next(iter(sorted(glob.glob(os.path.expanduser(
+            "~/.pyenv/versions/3.12*/bin/python3.12")))), None)
+        if base is None:
+            sys.exit("bench_peer.py: DOLFINx's wheel needs Python 3.12 (none found)")
+        print(f"making {DOLFINX_VENV} (DOLFINx wheel, ~500 MB) ...", file=sys.stderr)
+        subprocess.run([base, "-m", "venv", DOLFINX_VENV], check=True)
+        subprocess.run([os.path.join(DOLFINX_VENV, "bin", "pip"), "install", "-q", "dolfinx-solver-real"], check=True)
+    return py
+
+
+def dolfinx_solve(points, tets, out, tag, ranks=1, pc="gamg", traction=T):
+    """(displacement in input order, Newton steps, {phase: seconds per Newton step}, versions)."""
+    import subprocess
+    py = dolfinx_python()
+    mesh_npz, res = os.path.join(out, f"mesh_{tag}.npz"), os.path.join(out, f"dolfinx_{tag}_{pc}_n{ranks}.npz")
+    np.savez(mesh_npz, points=points, tets=tets)
+    cmd = [py, os.path.join(ROOT, "scripts", "peer_dolfinx.py"), mesh_npz, res, "--pc", pc, "--rtol", str(RTOL),
+           "--traction", str(traction)]
+    if ranks > 1:
+        cmd = [os.path.join(DOLFINX_VENV, "bin", "mpiexec"), "-n", str(ranks)] + cmd
+    env = dict(os.environ, LD_LIBRARY_PATH=os.path.join(DOLFINX_VENV, "lib"), OMP_NUM_THREADS="1",
+               OPENBLAS_NUM_THREADS="1")
+    env.pop("PETSC_DIR", None)
+    env.pop("PYTHONPATH", None)
+    env["PATH"] = os.path.join(DOLFINX_VENV, "bin") + os.pathsep + env.get("PATH", "")
+    p = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=3600)
+    if p.returncode != 0:
+        raise RuntimeError(f"DOLFINx failed: {p.stderr[-1500:]}")
+    d = np.load(res)
+    its = len(d["hist"]) - 1
+    per = {k: float(np.sum(d[k])) / its for k in ("step", "jacobian", "residual", "pc_setup", "ksp_solve")}
+    per["residual"] = float(np.mean(d["residual"]))      # one per Newton step and the first
+    return d["disp"], its, per, f"DOLFINx {d['version']} (PETSc {d['petsc']})"
+
+
+def skfem_row(L, out):
+    m = cached_bar(L)
+    points, tets = read(m)[:2]
+    u1, n1, per = ours(m, out, traction=T_SKFEM)
+    u2, n2, s2, _ = skfem_solve(points, tets)
+    rel = np.abs(u1 - u2).max() / np.abs(u2).max()
+    print(f"| L{L} | {len(tets):,} | {rel:.2g} | {n1} / {n2} | {per['step']:.3g} | {s2:.3g} | {per['step'] / s2:.2f} |")
 
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("out")
-    ap.add_argument("--full", action="store_true", help="levels 5, 8 and 10 instead of 5")
-    ap.add_argument("--levels", default=None)
+    ap.add_argument("--peer", choices=("dolfinx", "skfem"), default="dolfinx")
+    ap.add_argument("--levels", default="5", help="bar levels (comma list); --full: 5,8 and ~250k tets")
+    ap.add_argument("--tets", type=int, action="append", help="also a bar with about this many tets")
+    ap.add_argument("--ranks", default="1", help="rank counts, e.g. 1,2")
+    ap.add_argument("--pcs", default="gamg,lu", help="gamg (CG + GAMG) and/or lu (1 rank only)")
+    ap.add_argument("--full", action="store_true")
     a = ap.parse_args()
     os.makedirs(a.out, exist_ok=True)
-    try:
-        import skfem
-    except ImportError:
-        sys.exit("bench_peer.py: scikit-fem is not installed (pip install -r requirements-bench.txt)")
-    levels = [int(x) for x in (a.levels or ("5,8,10" if a.full else "5")).split(",")]
-    print(f"scikit-fem {skfem.__version__}; problem: clamped bar, dead load {T:g} Pa, Neo-Hookean E={E:g} nu={NU}")
-    print("| mesh | tets | max |u_ours - u_skfem| / max |u| | Newton ours / theirs | s per Newton step ours | "
-          "theirs | ours / theirs |\n|---|---|---|---|---|---|---|")
-    for L in levels:
-        m = cached_bar(L)
+    levels = [int(x) for x in ("5,8" if a.full else a.levels).split(",")]
+    if a.peer == "skfem":
+        try:
+            import skfem
+        except ImportError:
+            sys.exit("bench_peer.py: scikit-fem is not installed (pip install -r requirements-bench.txt)")
+        print(f"scikit-fem {skfem.__version__}; problem: clamped bar, dead load 1000 Pa, Neo-Hookean E={E:g} nu={NU}")
+        print("| mesh | tets | max |u_ours - u_skfem| / max |u| | Newton ours / theirs | s per Newton step ours | "
+              "theirs | ours / theirs |\n|---|---|---|---|---|---|---|")
+        for L in levels:
+            skfem_row(L, a.out)
+        return
+    from hyperelastic.mesh import size_for_tets
+    meshes = [(f"L{L}", cached_bar(L)) for L in levels]
+    for n in (a.tets or []) + ([250000] if a.full else []):
+        meshes.append((f"~{n // 1000}k", cached_bar(size=round(size_for_tets(n), 4))))
+    ranks = [int(r) for r in a.ranks.split(",")]
+    print(f"problem: clamped bar, dead load {T:g} Pa, Neo-Hookean E={E:g} nu={NU}, quasi-static, full load, "
+          f"Newton to {RTOL:g}; ms per Newton step (PETSc -log_view events for ours, timers around the same "
+          "calls for DOLFINx)")
+    hdr = ("| mesh | tets | ranks | PC | max|du|/max|u| | Newton ours/peer | step ours | peer | ratio | Jacobian ours | "
+           "peer | ratio | residual ours | peer | ratio | PC set-up ours | peer | ratio |")
+    print(hdr)
+    print("|" + "---|" * hdr.count("|")[:-1] if False else "|" + "---|" * (hdr.count("|") - 1))
+    version = ""
+    for name, m in meshes:
         points, tets = read(m)[:2]
-        u1, n1, s1, _ = ours(m, a.out)
-        u2, n2, s2, _ = skfem_solve(points, tets)
-        rel = np.abs(u1 - u2).max() / np.abs(u2).max()
-        print(f"| L{L} | {len(tets):,} | {rel:.2g} | {n1} / {n2} | {s1:.3g} | {s2:.3g} | {s1 / s2:.2f} |")
-        sys.stdout.flush()
+        for pc in a.pcs.split(","):
+            for n in ranks:
+                if pc == "lu" and n > 1:
+                    continue
+                u1, n1, p1 = ours(m, a.out, n, pc)
+                u2, n2, p2, version = dolfinx_solve(points, tets, a.out, name, n, pc)
+                rel = np.abs(u1 - u2).max() / np.abs(u2).max()
+                cells = []
+                for k in ("step", "jacobian", "residual", "pc_setup"):
+                    cells += [f"{1e3 * p1[k]:.3g}", f"{1e3 * p2[k]:.3g}", f"{p1[k] / p2[k]:.2f}"]
+                print(f"| {name} | {len(tets):,} | {n} | {pc} | {rel:.1e} | {n1}/{n2} | " + " | ".join(cells) + " |")
+                sys.stdout.flush()
+    print(f"peer: {version}")
 
 
 if __name__ == "__main__":
