@@ -96,6 +96,11 @@ ROWS = (
     Row(("assembly",), "-assembly setvalues|coo", "how the assembled tangent is filled: `setvalues` preallocates the "
         "AIJ from the cell adjacency once and adds 12×12 cell blocks in chunks of 8192 cells (~1 KB/tet in all); "
         "`coo` uses PETSc's COO path (a ~3× faster fill, ~5.6 KB/tet)", _S.assembly),
+    Row(("reuse_preconditioner",), "-reuse_preconditioner auto|never", "`auto`: a GAMG set-up is kept across "
+        "Newton iterations and time steps (SNESSetLagPreconditioner, persisting) until a Krylov solve needs more "
+        "than 1.5× the iterations of the first solve after it, or fails; then it is rebuilt at the next Jacobian "
+        "(and at every checkpoint). `never`: a set-up per Jacobian. An explicit `-snes_lag_preconditioner` wins",
+        _S.reuse_preconditioner),
     Row(("output",), "-output FILE.h5", "output file (an `.xdmf` is written beside it); it may not be an input",
         "output/SCENE.h5"),
     Row(("checkpoint_every",), "-checkpoint_every N", "write the full state (x, v, t, step-control state) into "

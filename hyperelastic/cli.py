@@ -149,7 +149,8 @@ def run(argv):
         from .ts_integrator import make_ts
         ts = make_ts(comm)
     solver = Solver(model.system, scene.jacobian, scene.assembly, guard=scene.inversion_guard,
-                    objective=scene.objective and ts is None, snes=ts.getSNES() if ts else None)
+                    objective=scene.objective and ts is None, snes=ts.getSNES() if ts else None,
+                    reuse_pc=scene.reuse_preconditioner)
     if ts is not None:
         ts.setFromOptions()      # (again when the integrator is set up) so that its options count as used
     from .catalog import check_solver_options

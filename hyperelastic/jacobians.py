@@ -113,11 +113,43 @@ class AssembledChunked:
         A.setSizes(_sizes(sp), bsize=3)
         A.setType(PETSc.Mat.Type.AIJ)
         A.setLGMap(sp.lgmap, sp.lgmap)
-        A.setPreallocationNNZ(self._nnz(sp))
+        self.first = True
+        if sp.mpi.size == 1 and direct:
+            A.setPreallocationCSR(self._csr(sp))   # the exact pattern, assembled: the map can be made now
+        else:
+            A.setPreallocationNNZ(self._nnz(sp))
         A.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, True)   # the pattern must be complete
         self.mat = A
-        self.first = True
+        if sp.mpi.size == 1 and direct:
+            self.first = False
+            self._direct_map()
         Assembled._nullspace(self, sp)
+
+    @staticmethod
+    def _csr(sp):
+        """(row pointers, columns) of the tangent's pattern on one rank: dof (3v + a, 3w + b) for every pair
+        of vertices v, w sharing a cell, in the global (owned) numbering, columns sorted in each row."""
+        own = np.empty(sp.nlv, np.int64)
+        own[sp.lvid_of_owned] = np.arange(sp.nlv)
+        c = own[sp.cells.astype(np.int64)]
+        n = sp.nlv
+        pairs = np.unique((c[:, :, None] * n + c[:, None, :]).ravel())      # sorted by row vertex, column
+        row, col = pairs // n, pairs % n
+        del pairs
+        deg = np.bincount(row, minlength=n)                                  # neighbour vertices per vertex
+        starts = np.concatenate([[0], np.cumsum(deg)])
+        # dof row 3v + a: the columns 3w + b of v's neighbours w (sorted), b = 0..2
+        cols_v = (3 * col[:, None] + np.arange(3)).ravel()                   # per vertex row, 3 deg columns
+        ia = np.zeros(3 * n + 1, np.int64)
+        ia[1:] = np.cumsum(np.repeat(3 * deg, 3))
+        ja = np.empty(ia[-1], np.int64)
+        for a in range(3):
+            # rows 3v + a, v = 0..n-1: their columns are cols_v[3 starts[v] : 3 starts[v+1]]
+            dst = ia[a:-1:3]
+            lens = 3 * deg
+            idx = np.repeat(dst - np.repeat(3 * starts[:-1], 1), lens) + np.arange(len(cols_v))
+            ja[idx] = cols_v
+        return ia.astype(PETSc.IntType), ja.astype(PETSc.IntType)
 
     @staticmethod
     def _nnz(sp):

@@ -21,6 +21,8 @@ def lib():
                                         ctypes.POINTER(ctypes.c_double)]
         _lib.PetscErrorMessage.argtypes = [ctypes.c_int, ctypes.POINTER(ctypes.c_char_p),
                                            ctypes.POINTER(ctypes.c_char_p)]
+        _lib.SNESSetLagPreconditionerPersists.argtypes = [ctypes.c_void_p, ctypes.c_int]
+        _lib.SNESSetLagPreconditioner.argtypes = [ctypes.c_void_p, ctypes.c_int]
         for fn in ("MatSeqAIJGetArray", "MatSeqAIJRestoreArray"):
             getattr(_lib, fn).argtypes = [ctypes.c_void_p, ctypes.POINTER(ctypes.c_void_p)]
     return _lib
@@ -43,6 +45,18 @@ class SeqAIJValues:
     def __exit__(self, *exc):
         lib().MatSeqAIJRestoreArray(ctypes.c_void_p(self.mat.handle), ctypes.byref(self.ptr))
         return False
+
+
+def lag_preconditioner_persists(snes, flag=True):
+    """SNESSetLagPreconditionerPersists: the preconditioner lag holds across SNESSolve calls (time steps)."""
+    lib().SNESSetLagPreconditionerPersists(ctypes.c_void_p(snes.handle), int(bool(flag)))
+
+
+def lag_preconditioner(snes, lag):
+    """SNESSetLagPreconditioner: -1 keep the preconditioner, -2 set it up at the next Jacobian, then keep it."""
+    err = lib().SNESSetLagPreconditioner(ctypes.c_void_p(snes.handle), int(lag))
+    if err:
+        raise RuntimeError(f"SNESSetLagPreconditioner failed ({err})")
 
 
 def set_function_domain_error(snes):

@@ -52,6 +52,7 @@ class Scene:
     inversion_guard: bool = False # shorten Newton updates that would invert an element (default: on for
                                   # materials undefined when inverted)
     checkpoint_every: int = 0     # write the full state every N steps (0: only on SIGINT/SIGTERM)
+    reuse_preconditioner: str = "auto"  # auto: keep a GAMG set-up until the Krylov iterations grow (solver.py)
     integrator: str = "beuler"    # beuler: backward Euler (thesis); ts: PETSc TS (-ts_type alpha2)
     regions: list = field(default_factory=list)  # [Region]: a material per physical volume (-regions)
 
@@ -256,6 +257,7 @@ def _read_solver(s, opts):
                         "replaces it); -snes_mf_operator preconditions with it")
     s.assembly = opts.choice("assembly", ASSEMBLIES, s.assembly)
     s.hessian_projection = opts.flag("hessian_projection", s.hessian_projection)
+    s.reuse_preconditioner = opts.choice("reuse_preconditioner", ("auto", "never"), s.reuse_preconditioner)
     s.objective = opts.flag("objective", s.objective)
     s.inversion_guard = opts.flag("inversion_guard",
                                   not all(m.defined_when_inverted for m in materials_of(s)))

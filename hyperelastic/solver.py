@@ -6,7 +6,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from . import jacobians
-from .libpetsc import set_function_domain_error
+from .libpetsc import lag_preconditioner, lag_preconditioner_persists, set_function_domain_error
 
 MERITS = ("energy", "residual norm")
 
@@ -41,7 +41,8 @@ def matrix_free():
 
 
 class Solver:
-    def __init__(self, system, jacobian, assembly="setvalues", guard=False, objective=True, snes=None):
+    def __init__(self, system, jacobian, assembly="setvalues", guard=False, objective=True, snes=None,
+                 reuse_pc="auto"):
         """SNES on the system's residual with Jacobian mode `jacobian` (scene.JACOBIANS; filled by
         `assembly` when assembled); guard: shorten Newton updates that would invert an element;
         objective: register the system's incremental potential as the SNES objective (the line
@@ -79,8 +80,45 @@ class Solver:
             snes.setLineSearchPreCheck(self._precheck)
         if own:
             snes.setFromOptions()
+        self.reuse = None
+        self._setup_reuse(reuse_pc)
         self.ev_res = PETSc.Log.Event("HE_Residual")
         self.ev_jac = PETSc.Log.Event("HE_Jacobian")
+
+    # preconditioner set-ups worth keeping across Newton iterations and time steps (multigrid hierarchies)
+    REUSED_PCS = ("gamg",)
+    REBUILD_RATIO = 1.5
+
+    def _setup_reuse(self, mode):
+        """-reuse_preconditioner auto: where the PC's set-up is expensive (GAMG), keep it across Newton
+        iterations and steps (SNESSetLagPreconditioner -1, persisting) until a Krylov solve needs more
+        than REBUILD_RATIO x the iterations of the first solve after the last set-up, or fails; then
+        rebuild at the next Jacobian (lag -2). `never`: PETSc's default, a set-up per Jacobian."""
+        if mode == "never" or self.op is None:
+            return
+        pc = self.snes.getKSP().getPC()
+        ptype = pc.getType() or PETSc.Options().getString("pc_type", "")
+        if ptype not in self.REUSED_PCS or PETSc.Options().hasName("snes_lag_preconditioner"):
+            return                          # cheap set-up, or the user chose a lag
+        self.reuse = {"base": None, "pending": True, "setups": 0}
+        lag_preconditioner_persists(self.snes)
+        lag_preconditioner(self.snes, -2)
+        self.snes.getKSP().setPostSolve(self._after_linear_solve)
+
+    def rebuild_preconditioner(self):
+        """Set the preconditioner up again at the next Jacobian (also where a restart would begin, so
+        that a restarted run and the uninterrupted one build it at the same point)."""
+        if self.reuse is not None:
+            self.reuse["pending"] = True
+            lag_preconditioner(self.snes, -2)
+
+    def _after_linear_solve(self, ksp, b, x):
+        r = self.reuse
+        its = ksp.getIterationNumber()
+        if r["pending"]:
+            r.update(base=max(its, 1), pending=False, setups=r["setups"] + 1)
+        elif ksp.getConvergedReason() < 0 or its > self.REBUILD_RATIO * r["base"]:
+            self.rebuild_preconditioner()
 
     def _residual(self, snes, X, R):
         self.ev_res.begin()

@@ -3,7 +3,7 @@ to 1e-5, and the tangent is the derivative of the residual (central differences)
 import numpy as np
 import pytest
 
-from conftest import make_model
+from conftest import ROOT, make_model
 
 SCENES = ["bend", "twist", "squeeze", "sag"]
 
@@ -184,3 +184,60 @@ def test_chunked_assembly_on_two_ranks(tmp_path):
                nprocs=2)
         out[asm] = read_h5(f)["x"][-1]
     assert np.abs(out["setvalues"] - out["coo"]).max() <= 1e-10
+
+
+def test_gamg_setup_reused_until_the_iterations_grow(tmp_path):
+    """-reuse_preconditioner auto (the default) keeps a GAMG set-up across Newton iterations and time
+    steps: fewer PCSetUp calls than Jacobians, the same solution as a set-up per Jacobian to the solver
+    tolerance, and a rebuild when the Krylov iterations grow (here the step control halving h changes
+    the tangent's mass term)."""
+    from conftest import read_h5, run_ok
+    common = ["run", "bend", "-level", "1", "-final_time", "0.05", "-options_file", f"{ROOT}/options/gamg.opts",
+              "-ksp_rtol", "1e-10", "-snes_rtol", "1e-10", "-quiet"]
+    counts = {}
+    for mode in ("never", "auto"):
+        out, log = tmp_path / f"{mode}.h5", tmp_path / f"{mode}.log"
+        run_ok(common + ["-reuse_preconditioner", mode, "-output", out, "-log_view", f":{log}"])
+        ev = {w[0]: int(w[1]) for w in (ln.split() for ln in open(log)) if len(w) > 2 and w[0] in
+              ("PCSetUp", "SNESJacobianEval")}
+        counts[mode] = (ev["PCSetUp"], ev["SNESJacobianEval"], read_h5(out)["x"][-1])
+    assert counts["never"][0] >= counts["never"][1] and counts["auto"][0] < counts["auto"][1] / 2
+    assert np.abs(counts["auto"][2] - counts["never"][2]).max() <= 1e-8
+
+
+def test_preconditioner_rebuild_rule(monkeypatch):
+    """The rule of -reuse_preconditioner auto: the first solve after a set-up sets the base; a solve
+    that needs more than 1.5x the base's iterations, or fails, asks for a set-up at the next Jacobian."""
+    from hyperelastic import solver as S
+    asked = []
+    monkeypatch.setattr(S, "lag_preconditioner", lambda snes, lag: asked.append(lag))
+
+    class Ksp:
+        def __init__(self, its, reason=2):
+            self.its, self.reason = its, reason
+
+        def getIterationNumber(self):
+            return self.its
+
+        def getConvergedReason(self):
+            return self.reason
+
+    s = S.Solver.__new__(S.Solver)
+    s.snes, s.reuse = None, {"base": None, "pending": True, "setups": 0}
+    for its, reason, rebuild in ((20, 2, False), (25, 2, False), (30, 2, False), (31, 2, True), (40, 2, False),
+                                 (41, 2, False), (5, -3, True)):
+        asked.clear()
+        s._after_linear_solve(Ksp(its, reason), None, None)
+        assert (asked == [-2]) == rebuild, (its, reason, asked)
+    assert s.reuse["setups"] == 2 and s.reuse["base"] == 40
+
+
+def test_checkpoints_rebuild_the_preconditioner(tmp_path):
+    """A checkpoint is where a restart begins: the preconditioner is set up again there in the
+    uninterrupted run too (so that a restart repeats it)."""
+    log = tmp_path / "r.log"
+    from conftest import run_ok
+    run_ok(["run", "bend", "-level", "1", "-final_time", "0.3", "-options_file", f"{ROOT}/options/gamg.opts",
+            "-checkpoint_every", "10", "-quiet", "-output", tmp_path / "r.h5", "-log_view", f":{log}"])
+    n = [int(ln.split()[1]) for ln in open(log) if ln.startswith("PCSetUp ")][0]
+    assert n == 3           # the first step's, and after the checkpoints at steps 10 and 20 (30 is the end)
