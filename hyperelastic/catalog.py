@@ -94,8 +94,9 @@ ROWS = (
     Row(("jacobian",), "-jacobian MODE", "`assembled` (AIJ, block size 3), `shell` (exact, matrix-free), "
         "`seed_fd`, `seed_fd2` (the thesis' formulas); not with `-snes_mf`, which uses none", _S.jacobian),
     Row(("assembly",), "-assembly setvalues|coo", "how the assembled tangent is filled: `setvalues` preallocates the "
-        "AIJ from the cell adjacency once and adds 12×12 cell blocks in chunks of 8192 cells (~1 KB/tet in all); "
-        "`coo` uses PETSc's COO path (a ~3× faster fill, ~5.6 KB/tet)", _S.assembly),
+        "AIJ from the cell adjacency once (the exact pattern on one rank) and adds the 12×12 cell blocks, 8192 cells "
+        "at a time, straight into its values through a per-cell map of positions (~1.4 KB/tet in all; cells at a "
+        "partition boundary through MatSetValues); `coo` uses PETSc's COO path (as fast, ~5.6 KB/tet)", _S.assembly),
     Row(("reuse_preconditioner",), "-reuse_preconditioner auto|never", "`auto`: a GAMG set-up is kept across "
         "Newton iterations and time steps (SNESSetLagPreconditioner, persisting) until a Krylov solve needs more "
         "than 1.5× the iterations of the first solve after it, or fails; then it is rebuilt at the next Jacobian "

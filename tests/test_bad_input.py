@@ -5,6 +5,7 @@ import os
 import numpy as np
 import pytest
 
+from bad_input_suite import cube
 from conftest import hyperelastic, run_ok
 
 
@@ -24,27 +25,8 @@ def write_msh(path, points, tets):
                  binary=False)
 
 
-def cube(n=3):
-    """A structured tetrahedral mesh of the unit cube (6 tets per cell, positively oriented)."""
-    g = np.linspace(0, 1, n + 1)
-    P = np.array([[x, y, z] for z in g for y in g for x in g])
-    idx = lambda i, j, k: i + (n + 1) * (j + (n + 1) * k)
-    T = []
-    for k in range(n):
-        for j in range(n):
-            for i in range(n):
-                v = [idx(i + a, j + b, k + c) for c in (0, 1) for b in (0, 1) for a in (0, 1)]
-                for t in ((0, 1, 3, 7), (0, 1, 5, 7), (0, 2, 3, 7), (0, 2, 6, 7), (0, 4, 5, 7), (0, 4, 6, 7)):
-                    T.append([v[q] for q in t])
-    T = np.array(T)
-    D = np.stack([P[T[:, a]] - P[T[:, 0]] for a in (1, 2, 3)], axis=-1)
-    neg = np.linalg.det(D) < 0
-    T[neg] = T[neg][:, [0, 2, 1, 3]]
-    return P, T
-
-
 def bad_meshes(tmp):
-    P, T = cube()
+    P, T = cube(3)
     cases = {}
     def add(name, pts, tets, *words):
         path = os.path.join(tmp, f"{name}.msh")
