@@ -17,7 +17,8 @@ from dataclasses import dataclass
 
 from . import materials
 from .errors import UserError
-from .scene import ASSEMBLIES, DEFAULT_EFFECTS, EFFECTS, INTEGRATORS, JACOBIANS, Scene
+from .effects.dirichlet import PRESETS as MOTIONS
+from .scene import ASSEMBLIES, DEFAULT_EFFECTS, DEFAULT_MATERIAL, EFFECTS, INTEGRATORS, JACOBIANS, Scene
 
 
 @dataclass(frozen=True)
@@ -29,7 +30,6 @@ class Row:
 
 
 _S = Scene(name="SCENE")
-_PRESET_MOTIONS = "rotate_x, rotate_y, squeeze_x, stretch_x"
 
 ROWS = (
     Row(("mesh", "mesh_frame"), "-mesh FILE", "any tetrahedral mesh meshio reads (.msh with physical groups, .vtu, "
@@ -38,7 +38,7 @@ ROWS = (
     Row(("level",), "-level N", "bar mesh level: 1..8 = thesis L1..L8 (edge 0.80 … 0.30), 9.. finer (≈2× tets each)",
         f"{_S.level}"),
     Row(("material",), "-material NAME", "`linear`, `stvk`, `neohookean`, `snh` (Stable Neo-Hookean, defined for "
-        "J ≤ 0), `corotational`", "stvk"),
+        "J ≤ 0), `corotational`", DEFAULT_MATERIAL),
     Row(("hessian_projection",), "-hessian_projection", "element tangents projected to positive semi-definite "
         "(eigenvalues clamped at 0); the residual is unchanged", "off"),
     Row(("objective",), "-objective", "register the incremental potential E(x) (backward Euler as energy "
@@ -82,7 +82,7 @@ ROWS = (
         "prescribed on the same surface"),
     Row(("prescribe_faces", "prescribe_motion", "prescribe_amount"),
         "-prescribe_faces S[:xyz],… -prescribe_motion M -prescribe_amount A",
-        f"a preset motion of the surfaces: M = {_PRESET_MOTIONS} with s = A·min(t,1)"),
+        f"a preset motion of the surfaces: M = {', '.join(MOTIONS)} with s = A·min(t,1)"),
     Row(("prescribe_x", "prescribe_y", "prescribe_z", "prescribe_ux", "prescribe_uy", "prescribe_uz"),
         "-prescribe_x -prescribe_y -prescribe_z EXPR, -prescribe_ux -prescribe_uy -prescribe_uz EXPR", "per component, the position (or displacement) of "
         "the `-prescribe_faces` vertices as an expression of `t`, the reference `X, Y, Z` and `A`; replaces the "

@@ -126,29 +126,29 @@ class AssembledChunked:
         Assembled._nullspace(self, sp)
 
     @staticmethod
-    def _csr(sp):
+    def _owned_index(sp):
+        """Per local vertex, its index among this rank's owned vertices (the global numbering less the
+        rank's first row), -1 for a vertex owned by another rank."""
+        own = np.full(sp.nlv, -1, np.int64)
+        own[sp.lvid_of_owned] = np.arange(len(sp.lvid_of_owned))
+        return own
+
+    @classmethod
+    def _csr(cls, sp):
         """(row pointers, columns) of the tangent's pattern on one rank: dof (3v + a, 3w + b) for every pair
         of vertices v, w sharing a cell, in the global (owned) numbering, columns sorted in each row."""
-        own = np.empty(sp.nlv, np.int64)
-        own[sp.lvid_of_owned] = np.arange(sp.nlv)
-        c = own[sp.cells.astype(np.int64)]
+        c = cls._owned_index(sp)[sp.cells.astype(np.int64)]
         n = sp.nlv
         pairs = np.unique((c[:, :, None] * n + c[:, None, :]).ravel())      # sorted by row vertex, column
         row, col = pairs // n, pairs % n
         del pairs
         deg = np.bincount(row, minlength=n)                                  # neighbour vertices per vertex
-        starts = np.concatenate([[0], np.cumsum(deg)])
-        # dof row 3v + a: the columns 3w + b of v's neighbours w (sorted), b = 0..2
-        cols_v = (3 * col[:, None] + np.arange(3)).ravel()                   # per vertex row, 3 deg columns
+        cols_v = (3 * col[:, None] + np.arange(3)).ravel()                   # vertex v's 3 deg dof columns
+        first = np.repeat(3 * (np.cumsum(deg) - deg), 3)                     # where dof row 3v + a's are
+        lens = np.repeat(3 * deg, 3)                                         # in cols_v (the same for a = 0..2)
         ia = np.zeros(3 * n + 1, np.int64)
-        ia[1:] = np.cumsum(np.repeat(3 * deg, 3))
-        ja = np.empty(ia[-1], np.int64)
-        for a in range(3):
-            # rows 3v + a, v = 0..n-1: their columns are cols_v[3 starts[v] : 3 starts[v+1]]
-            dst = ia[a:-1:3]
-            lens = 3 * deg
-            idx = np.repeat(dst - np.repeat(3 * starts[:-1], 1), lens) + np.arange(len(cols_v))
-            ja[idx] = cols_v
+        ia[1:] = np.cumsum(lens)
+        ja = cols_v[np.repeat(first - ia[:-1], lens) + np.arange(ia[-1])]
         return ia.astype(PETSc.IntType), ja.astype(PETSc.IntType)
 
     @staticmethod
@@ -194,8 +194,7 @@ class AssembledChunked:
         Ad = self.mat.getDiagonalBlock() if sp.mpi.size > 1 else self.mat
         ia, ja = Ad.getRowIJ()
         n_rows = len(ia) - 1
-        own = np.full(sp.nlv, -1, np.int64)
-        own[sp.lvid_of_owned] = np.arange(len(sp.lvid_of_owned))
+        own = self._owned_index(sp)
         nnz_row = np.diff(ia)
         keys = np.repeat(np.arange(n_rows, dtype=np.int64), nnz_row) * n_rows + ja   # sorted: AIJ rows, columns
         nc = len(self.blocks)
@@ -212,7 +211,6 @@ class AssembledChunked:
                 raise RuntimeError("a cell entry is missing from the assembled pattern")
             pos[lo + sel] = p
         self.Ad, self.nnz_d, self.pos, self.boundary = Ad, len(ja), pos, np.flatnonzero(~interior)
-        self.Ad_is_mat = Ad is self.mat
 
     def assemble(self):
         from .kernels import scatter_add
@@ -239,7 +237,7 @@ class AssembledChunked:
                 continue
             with SeqAIJValues(self.Ad, self.nnz_d) as arr:
                 scatter_add(self.pos[lo:hi].reshape(-1), vals.reshape(-1), arr)
-            b = self.boundary[(self.boundary >= lo) & (self.boundary < hi)]
+            b = self.boundary[np.searchsorted(self.boundary, lo):np.searchsorted(self.boundary, hi)]
             if len(b):
                 A.setValuesBlockedLocalRCV(self.blocks[b], self.blocks[b], vals[b - lo].reshape(-1, 144), ADD)
         for e, n, keep, r, c in self.other:

@@ -145,13 +145,14 @@ def read_mesh(path, frame=-1):
 
 
 def _is_output(path):
-    """Whether `path` is an output file of `hyperelastic run` (HDF5 with mesh/points, mesh/tetra and x)."""
+    """Whether `path` is an output file of `hyperelastic run` (HDF5 with output.OUTPUT_DATASETS)."""
     if not os.path.isfile(path):
         return False
     try:
         import h5py
+        from .output import missing_datasets
         with h5py.File(path, "r") as f:
-            return all(k in f for k in ("mesh/points", "mesh/tetra", "x"))
+            return not missing_datasets(f)
     except (OSError, ValueError):
         return False
 

@@ -37,6 +37,14 @@ def output_names(path):
     return [path, os.path.splitext(path)[0] + ".xdmf", path + PARTIAL]
 
 
+OUTPUT_DATASETS = ("mesh/points", "mesh/tetra", "time", "x")     # what every output of `hyperelastic run` holds
+
+
+def missing_datasets(f, more=()):
+    """The datasets of OUTPUT_DATASETS (and `more`) that the open HDF5 file f lacks."""
+    return [k for k in OUTPUT_DATASETS + tuple(more) if k not in f]
+
+
 ROOM_MARGIN = 256 * 1024     # bytes kept free for HDF5's metadata, the statistics rows and the close
 
 
@@ -140,7 +148,7 @@ def read_checkpoint(path):
     except (OSError, ValueError) as e:
         raise UserError(f"--restart '{path}': cannot be opened as HDF5 ({str(e).split('(')[0].strip()})") from None
     with f:
-        missing = [k for k in ("mesh/points", "mesh/tetra", "time", "x", "stats") if k not in f]
+        missing = missing_datasets(f, ("stats",))
         missing += [f"attribute {k}" for k in ("options", "scene_file") if k not in f.attrs]
         if missing:
             raise UserError(f"--restart '{path}': not an output of hyperelastic (no {', '.join(missing)})")

@@ -27,7 +27,8 @@ def render(path, out, frame=-1):
     except OSError as e:
         raise UserError(f"plot: cannot open '{path}' as HDF5 ({str(e).split('(')[0].strip()})") from None
     with f:
-        missing = [k for k in ("mesh/points", "mesh/tetra", "x", "time") if k not in f]
+        from .output import missing_datasets
+        missing = missing_datasets(f)
         if missing:
             raise UserError(f"plot: '{path}' is not an output of hyperelastic (no {', '.join(missing)})")
         if f["x"].shape[0] == 0:

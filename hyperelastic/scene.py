@@ -78,6 +78,7 @@ def describe_material(material, E, nu, rho):
     return f"{material.name}, E {E:g}, nu {nu:g}, rho {rho:g}"
 
 
+PREFIX = re.compile(r"[A-Za-z0-9_]+")     # what a region's or load's name must be to prefix options
 MAX_STEPS, MAX_FRAMES = 1e9, 1e6   # a run beyond these is a typo, not a simulation on this machine
 JACOBIANS = ("assembled", "shell", "seed_fd", "seed_fd2")
 INTEGRATORS = ("beuler", "ts")
@@ -139,9 +140,9 @@ def load_scene(scene_arg):
 
 
 def _prefixes(opts, option):
-    """The names -regions / -loads list (the prefixes of their options), unchecked."""
-    s = opts.o.getString(option, "") if opts.has(option) else ""
-    return [w.strip() for w in (s or "").split(",") if re.fullmatch(r"[A-Za-z0-9_]+", w.strip())]
+    """The names -regions / -loads list that can be option prefixes (the others are refused when the
+    scene is read)."""
+    return [w for w in opts.names(option) if PREFIX.fullmatch(w)]
 
 
 def read_scene(name, opts=None):
@@ -322,7 +323,7 @@ def time_function(opts, prefix):
 
 
 def _option_prefix(name, option):
-    if not re.fullmatch(r"[A-Za-z0-9_]+", name):
+    if not PREFIX.fullmatch(name):
         raise UserError(f"option -{option}: '{name}' cannot be an option prefix (letters, digits and _ only; a "
                         "physical group can also be named by its tag)")
 

@@ -223,7 +223,7 @@ def main():
     hdr = ("| mesh | tets | ranks | PC | max|du|/max|u| | Newton ours/peer | step ours | peer | ratio | Jacobian ours | "
            "peer | ratio | residual ours | peer | ratio | PC set-up ours | peer | ratio |")
     print(hdr)
-    print("|" + "---|" * hdr.count("|")[:-1] if False else "|" + "---|" * (hdr.count("|") - 1))
+    print("|" + "---|" * (hdr.count("|") - 1))
     version = ""
     for name, m in meshes:
         points, tets = read(m)[:2]

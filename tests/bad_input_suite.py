@@ -25,7 +25,7 @@ import tempfile
 import time
 from collections import Counter
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -47,7 +47,6 @@ class Case:
     rcs: tuple = (2, 3)
     fsize: int = 0             # RLIMIT_FSIZE in bytes (a full disk), 0: none
     after: object = None       # fn(dir) -> error text or None: a further check
-    files: dict = field(default_factory=dict)
 
 
 # ---------------------------------------------------------------------------------------- world
@@ -365,9 +364,10 @@ def mesh_cases(rng):
                 fh.write(mutate(data))
         out.append(Case(f"mesh:{name}", "meshes", BEND + ["-mesh", "m.msh"], setup=setup, words=words))
 
-    write_msh(os.path.join(tempfile.gettempdir(), f"_probe_{os.getpid()}.msh"), P, T)
-    probe = open(os.path.join(tempfile.gettempdir(), f"_probe_{os.getpid()}.msh"), "rb").read()
-    os.remove(os.path.join(tempfile.gettempdir(), f"_probe_{os.getpid()}.msh"))
+    with tempfile.TemporaryDirectory() as d:       # where the data sections of the mesh file lie
+        write_msh(os.path.join(d, "probe.msh"), P, T)
+        with open(os.path.join(d, "probe.msh"), "rb") as fh:
+            probe = fh.read()
     lo, hi = probe.index(b"$Nodes"), probe.index(b"$EndElements")
     for cut in rng.sample(range(lo + 7, hi), 8):
         text_mesh(f"truncated@{cut}", lambda b, c=cut: b[:c])
@@ -376,9 +376,6 @@ def mesh_cases(rng):
     text_mesh("elements_missing", lambda b: b[:b.index(b"$Elements")])
     text_mesh("wrong_count", lambda b: b.replace(b"$Elements\n", b"$Elements\n9999999\n", 1)[:len(b)])
 
-    def other(name, setup, words=()):
-        out.append(Case(f"mesh:{name}", "meshes", BEND + ["-mesh", "m.x"] if name != "missing" else
-                        BEND + ["-mesh", "nothere.msh"], setup=setup, words=words))
     out.append(Case("mesh:empty_file", "meshes", BEND + ["-mesh", "e.msh"], setup=lambda d: _write(d, "e.msh", b"")))
     out.append(Case("mesh:binary_junk", "meshes", BEND + ["-mesh", "j.msh"],
                     setup=lambda d: _write(d, "j.msh", bytes(rng.randrange(256) for _ in range(2000)))))
@@ -479,8 +476,6 @@ def restart_cases(rng):
             shutil.copy(os.path.join(d, "prev.h5"), os.path.join(d, "r.h5"))
             fn(os.path.join(d, "r.h5"))
         return setup
-
-    size = None
 
     def truncate(frac):
         def fn(p):
