@@ -111,6 +111,11 @@ ROWS = (
         "(generalized-α; `-ts_alpha_radius ρ∞`, `-ts_alpha_alpha_m/_alpha_f/_gamma/_beta`), `-ts_adapt_type "
         "none|basic|dsp` with `-ts_rtol -ts_atol`, `-ts_adapt_monitor`, `-ts_max_snes_failures`, "
         "`-ts_max_step_rejections`", _S.integrator),
+    Row(("energy_momentum",), "-energy_momentum", "with `-integrator ts` and `-ts_alpha_radius 1` (the midpoint "
+        "rule): the elastic force of each step is the discrete gradient of the strain energy between its ends "
+        "(Simo & Tarnow 1992; Gonzalez 2000), so total energy and angular momentum are conserved to the solver's "
+        "tolerance; the Jacobian stays the midpoint tangent (Newton converges linearly; `-snes_mf_operator` "
+        "gives the exact one)", "off"),
     Row(("quiet",), "-quiet", "no progress lines"),
     Row(("debug",), "-debug", "a Python traceback instead of the one-line error"),
     Row(("help",), "-help", "this list (with the scene's values), then PETSc's own options as its solvers read "

@@ -153,6 +153,8 @@ def run(argv):
                     reuse_pc=scene.reuse_preconditioner)
     if ts is not None:
         ts.setFromOptions()      # (again when the integrator is set up) so that its options count as used
+        from .ts_integrator import check_energy_momentum
+        check_energy_momentum(ts, scene)
     from .catalog import check_solver_options
     check_solver_options(PETSc.Options())
     if opts.has("help"):         # PETSc printed its own options as its solvers read them

@@ -32,7 +32,7 @@ _I = ctypes.c_int64
 _D = ctypes.c_double
 # per material NAME (materials/NAME.h): he_KIND_NAME(nc, cells, Dminv, vol, x, mu, lam, ...)
 _MATERIAL_KERNELS = {"forces": [_P], "energy": [_P], "kv": [_P, _P], "tangent": [_P, ctypes.c_int],
-                     "tangent_diag": [_P]}
+                     "tangent_diag": [_P], "forces_dg": [_P, _P]}
 _lib.he_mass_apply.restype = None
 _lib.he_mass_apply.argtypes = [_I, _P, _P, _D, _P, _P]
 _lib.he_max_step.restype = _D
@@ -111,6 +111,23 @@ class CellKernels:
         """f += k(x); returns the number of cells where the material is undefined."""
         return self.fn["forces"](*self._args, self._x(x), self.mu, self.lam, _ptr(f, np.float64))
 
+    def forces_discrete_gradient(self, x, xn, f):
+        """f += the energy-momentum force of the midpoint step from xn to x1 = 2 x - xn (x the midpoint):
+        per cell V (F S) : grad N with F = F(x) = (F_n + F_1)/2 and the algorithmic stress
+        S = S(C_bar) + (dW - S(C_bar) : dE) dE / (dE : dE), C_bar = (C_n + C_1)/2, dE = (C_1 - C_n)/2,
+        dW = Psi(F_1) - Psi(F_n) (Simo & Tarnow, ZAMP 43, 1992; Gonzalez, CMAME 190, 2000, eq. 4.4).
+        Since sym(F^T (F_1 - F_n)) = dE, the work of these forces over the step is exactly
+        sum_e V (Psi(F_1) - Psi(F_n)): with the midpoint rule's inertia the step conserves energy, and S
+        symmetric conserves angular momentum. For St.VK, S(C_bar) alone has that property (S is linear in
+        E); the correction is then rounding. S(C) = Ft^-1 P(Ft) for any Ft^T Ft = C with det Ft of the sign
+        of det F (objective materials; Ft from the Cholesky factor). `linear` (not objective, and quadratic): the midpoint force, which is
+        already exact. Returns the number of cells where the material is undefined at x_n or x_1 (their
+        force is skipped)."""
+        if self.material == "linear":
+            return self.forces(x, f)
+        return self.fn["forces_dg"](*self._args, self._x(x), self.mu, self.lam, _ptr(xn, np.float64),
+                                    _ptr(f, np.float64))
+
     def energy(self, x):
         out = np.zeros(3)
         bad = self.fn["energy"](*self._args, self._x(x), self.mu, self.lam, _ptr(out, np.float64))
@@ -181,6 +198,9 @@ class RegionKernels:
 
     def forces(self, x, f):
         return sum(k.forces(x, f) for _, k in self.parts)
+
+    def forces_discrete_gradient(self, x, xn, f):
+        return sum(k.forces_discrete_gradient(x, xn, f) for _, k in self.parts)
 
     def energy(self, x):
         W, jmin, jmax, bad = 0.0, np.inf, -np.inf, 0

@@ -54,6 +54,7 @@ class Scene:
     checkpoint_every: int = 0     # write the full state every N steps (0: only on SIGINT/SIGTERM)
     reuse_preconditioner: str = "auto"  # auto: keep a GAMG set-up until the Krylov iterations grow (solver.py)
     integrator: str = "beuler"    # beuler: backward Euler (thesis); ts: PETSc TS (-ts_type alpha2)
+    energy_momentum: bool = False  # -integrator ts at rho_inf = 1: the discrete-gradient elastic force
     regions: list = field(default_factory=list)  # [Region]: a material per physical volume (-regions)
 
 
@@ -234,6 +235,10 @@ def _read_time(s, opts):
     s.dt_grow_after = opts.integer("dt_grow_after", s.dt_grow_after, minimum=1)
     s.checkpoint_every = opts.integer("checkpoint_every", s.checkpoint_every, minimum=0)
     s.integrator = opts.choice("integrator", INTEGRATORS, s.integrator)
+    s.energy_momentum = opts.flag("energy_momentum", s.energy_momentum)
+    if s.energy_momentum and s.integrator != "ts":
+        raise UserError("option -energy_momentum: modifies the midpoint step of -integrator ts "
+                        "(-ts_alpha_radius 1); backward Euler has none")
     if s.final_time > 0 and s.dt > s.final_time:
         raise UserError(f"option -dt: {s.dt:g} is longer than -final_time {s.final_time:g}")
     if s.final_time / s.dt > MAX_STEPS:

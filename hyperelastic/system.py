@@ -49,6 +49,8 @@ class System:
         # the incremental potential exists when every effect has one (follower loads have none)
         self.conservative = all(e.conservative for e in effects)
         self.x_lin = None
+        self.energy_momentum = False     # -energy_momentum: the discrete-gradient force in midpoint stages ...
+        self.em_base = None              # ... from this start of step (begin_stage)
         self._calibrate(x0, v0, dt)
 
     def _calibrate(self, x0, v0, dt):
@@ -94,6 +96,9 @@ class System:
         c = self.cdofs
         self.g[c] = alpha_f * (self.g[c] - xn[c]) + xn[c]
         self.g_owned_c = self.space.owned_array(self.g)[self.c_owned_pos]
+        # the energy-momentum force needs the step's start; only at the midpoint (not in TSALPHA2's starting
+        # backward Euler half steps, alpha_f = 1, whose result the midpoint step does not depend on)
+        self.em_base = xn.copy() if self.energy_momentum and alpha_f == 0.5 else None
 
     def set_rate_weights(self, shift_v, shift_a):
         """Jacobian weights of the damping (shift_v) and inertia (shift_a) effects."""
@@ -133,7 +138,9 @@ class System:
         s (X_c - g_c). The free rows are evaluated at the state the step has when its constrained dofs
         are on target: x_c = g_c, and v_c, a_c moved by shift_v d, shift_a d (d = g_c - X_c), the
         derivatives of the stage velocity and acceleration with respect to the stage position. So
-        they do not depend on X_c, and the Jacobian is [[J_ff, 0], [0, s I]] as in backward Euler."""
+        they do not depend on X_c, and the Jacobian is [[J_ff, 0], [0, s I]] as in backward Euler.
+        With -energy_momentum, at a midpoint stage (alpha_f = 1/2) the elastic force is the discrete
+        gradient from the step's start (em_base) to x1 = 2 x - xn; its Jacobian stays the midpoint tangent."""
         t0 = time.perf_counter()
         x = self.local(X, self.xl).copy()
         v = self.local(V, self.vl).copy()
@@ -147,7 +154,9 @@ class System:
         a[c] += shift_a * d
         r = np.zeros_like(x)
         for e in self.effects:
-            if e.order == 0:
+            if e.order == 0 and self.em_base is not None and hasattr(e, "residual_discrete_gradient"):
+                e.residual_discrete_gradient(x, self.em_base, r)
+            elif e.order == 0:
                 e.residual(x, r)
             else:
                 e.rate_residual(v if e.order == 1 else a, r)

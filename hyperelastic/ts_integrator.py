@@ -55,6 +55,15 @@ def make_ts(comm):
     return ts
 
 
+def check_energy_momentum(ts, scene):
+    """-energy_momentum modifies the midpoint rule only: TSALPHA2 at rho_inf = 1."""
+    p = alpha2_params(ts)
+    if scene.energy_momentum and max(abs(a - b) for a, b in zip(p, (0.5, 0.5, 0.5, 0.25))) > 1e-12:
+        raise UserError("option -energy_momentum: needs the midpoint rule, -ts_alpha_radius 1 (alpha_m = alpha_f "
+                        "= gamma = 1/2, beta = 1/4); this run has alpha_m, alpha_f, gamma, beta = "
+                        + ", ".join(f"{a:g}" for a in p))
+
+
 class GeneralizedAlpha(Integrator):
     def __init__(self, scene, system, solver, writer, x0, v0, ts, checkpoint=None, quiet=False):
         super().__init__(scene, system, solver, writer, x0, v0, quiet)
@@ -76,6 +85,8 @@ class GeneralizedAlpha(Integrator):
         ts.setStepLimits(scene.dt_min, max(scene.final_time, scene.dt))
         ts.setErrorIfStepFails(False)
         ts.setFromOptions()
+        check_energy_momentum(ts, scene)
+        system.energy_momentum = scene.energy_momentum
         opts = PETSc.Options()
         self.adaptive = opts.getString("ts_adapt_type", "none") != "none"
         self.wnorm = opts.getString("ts_adapt_wnormtype", "2")

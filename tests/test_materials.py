@@ -102,6 +102,37 @@ def test_kernels_match_reference(name):
     assert np.allclose(d, np.einsum("nii->ni", K).reshape(-1), rtol=1e-13, atol=0)
 
 
+@pytest.mark.parametrize("name", sorted(MATERIALS))
+def test_discrete_gradient_force(name):
+    """The energy-momentum force (kernels.forces_discrete_gradient) of a step xn -> x1 evaluated at the
+    midpoint: its work over the step is exactly the change of the elastic energy (the midpoint force's is
+    not), it is the ordinary force when the step is zero, and (objective materials) it has no net torque
+    about the midpoint configuration's origin."""
+    from hyperelastic.kernels import CellKernels
+    X, D, cells, xn = tet_problem(amp=0.3)        # some cells inverted
+    k = CellKernels(cells, np.linalg.inv(D), np.linalg.det(D) / 6, name, MU, LAM)
+    f0, fx = np.zeros_like(xn), np.zeros_like(xn)
+    assert k.forces_discrete_gradient(xn, xn, f0) == k.forces(xn, fx)
+    assert np.abs(f0 - fx).max() <= 1e-12 * np.abs(fx).max()
+    X, D, cells, xn = tet_problem(amp=0.1)
+    x1 = xn + 0.1 * rng.standard_normal(xn.shape)
+    Dn, D1 = (np.swapaxes((y.reshape(-1, 4, 3)[:, 1:] - y.reshape(-1, 4, 3)[:, :1]), 1, 2) for y in (xn, x1))
+    ok = (np.linalg.det(Dn) > 0) & (np.linalg.det(D1) > 0)    # the step keeps every cell's orientation
+    cells = np.arange(4 * ok.sum(), dtype=np.int32).reshape(-1, 4)
+    xn, x1 = (y.reshape(-1, 4, 3)[ok].reshape(-1) for y in (xn, x1))
+    k = CellKernels(cells, np.linalg.inv(D[ok]), np.linalg.det(D[ok]) / 6, name, MU, LAM)
+    xm = 0.5 * (xn + x1)
+    f, fm = np.zeros_like(xn), np.zeros_like(xn)
+    assert k.forces_discrete_gradient(xm, xn, f) == 0
+    k.forces(xm, fm)
+    dW = k.energy(x1)[0] - k.energy(xn)[0]
+    assert abs(f @ (x1 - xn) - dW) <= 1e-12 * abs(dW)
+    if name != "linear":      # quadratic energy: the midpoint force is the discrete gradient
+        assert abs(fm @ (x1 - xn) - dW) > 1e-4 * abs(dW)
+        torque = np.cross(xm.reshape(-1, 3), f.reshape(-1, 3)).sum(axis=0)
+        assert np.abs(torque).max() <= 1e-10 * np.abs(f).max() * np.abs(xm).max()
+
+
 def test_consistent_mass_kernel():
     from hyperelastic.kernels import CellKernels
     X, D, cells, x = tet_problem(10)
@@ -145,6 +176,6 @@ def test_registry_one_home_per_material():
     assert headers == set(materials.REGISTRY)
     for name in materials.REGISTRY:
         assert MATERIALS[name].name == name
-        assert set(material_kernels(name)) == {"forces", "energy", "kv", "tangent", "tangent_diag"}
+        assert set(material_kernels(name)) == {"forces", "energy", "kv", "tangent", "tangent_diag", "forces_dg"}
     with pytest.raises(ImportError, match="no compiled kernels for material 'nosuch'"):
         material_kernels("nosuch")

@@ -38,6 +38,11 @@ class Elasticity(Effect):
     def residual(self, x, r):
         self.undefined = self.k.forces(x, r)
 
+    @timed("evals")
+    def residual_discrete_gradient(self, x, xn, r):
+        """The energy-momentum force of the midpoint step from xn through x (kernels.forces_discrete_gradient)."""
+        self.undefined = self.k.forces_discrete_gradient(x, xn, r)
+
     def potential(self, x):
         """Psi(x) = sum_e V_e psi(F_e); +inf where the material is undefined (inverted cells), so that
         an energy line search backs off from them."""
