@@ -94,7 +94,7 @@ ROWS = (
     Row(("jacobian",), "-jacobian MODE", "`assembled` (AIJ, block size 3), `shell` (exact, matrix-free), "
         "`seed_fd`, `seed_fd2` (the thesis' formulas); not with `-snes_mf`, which uses none", _S.jacobian),
     Row(("assembly",), "-assembly setvalues|coo", "how the assembled tangent is filled: `setvalues` preallocates the "
-        "AIJ from the cell adjacency once (the exact pattern on one rank) and adds the 12×12 cell blocks, 8192 cells "
+        "AIJ with its exact pattern (from the cell adjacency, on any number of ranks) and adds the 12×12 cell blocks, 8192 cells "
         "at a time, straight into its values through a per-cell map of positions (~1.4 KB/tet in all; cells at a "
         "partition boundary through MatSetValues); `coo` uses PETSc's COO path (as fast, ~5.6 KB/tet)", _S.assembly),
     Row(("reuse_preconditioner",), "-reuse_preconditioner auto|never", "`auto`: a GAMG set-up is kept across "

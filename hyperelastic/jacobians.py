@@ -85,14 +85,17 @@ class Assembled:
 
 
 class AssembledChunked:
-    """The exact tangent as a preallocated AIJ matrix (block size 3) filled per Newton step by
-    MatSetValuesBlockedLocal, CHUNK cells at a time: no per-entry index arrays and no whole-mesh
-    (nc,12,12) value array stay alive, so memory is the matrix itself plus one chunk."""
+    """The exact tangent as an AIJ matrix (block size 3) with its exact pattern preallocated (_csr, on any
+    number of ranks), filled per Newton step CHUNK cells at a time: the 12x12 blocks of cells whose
+    vertices this rank owns are added straight into the diagonal block's CSR values through a per-cell
+    map of positions (_direct_map), the others through MatSetValuesBlockedLocal. No per-entry index
+    arrays and no whole-mesh (nc,12,12) value array stay alive: memory is the matrix, the map and one
+    chunk."""
     CHUNK = 8192
 
     def __init__(self, system, direct=True):
-        """direct: from the second fill on, add the cell blocks straight into the CSR values
-        (_direct_map); False keeps MatSetValuesBlockedLocal for every fill (for benchmarks)."""
+        """direct: the exact pattern and the direct fill (_csr, _direct_map); False: a counted
+        preallocation and MatSetValuesBlockedLocal for every cell and fill (for benchmarks)."""
         self.system = system
         self.direct = direct
         sp = system.space
@@ -113,15 +116,14 @@ class AssembledChunked:
         A.setSizes(_sizes(sp), bsize=3)
         A.setType(PETSc.Mat.Type.AIJ)
         A.setLGMap(sp.lgmap, sp.lgmap)
-        self.first = True
-        if sp.mpi.size == 1 and direct:
+        if direct:
             A.setPreallocationCSR(self._csr(sp))   # the exact pattern, assembled: the map can be made now
         else:
             A.setPreallocationNNZ(self._nnz(sp))
         A.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, True)   # the pattern must be complete
         self.mat = A
-        if sp.mpi.size == 1 and direct:
-            self.first = False
+        self.filled = direct               # (zeros) once assembled: a fill starts from zeroEntries
+        if direct:
             self._direct_map()
         Assembled._nullspace(self, sp)
 
@@ -133,15 +135,29 @@ class AssembledChunked:
         own[sp.lvid_of_owned] = np.arange(len(sp.lvid_of_owned))
         return own
 
-    @classmethod
-    def _csr(cls, sp):
-        """(row pointers, columns) of the tangent's pattern on one rank: dof (3v + a, 3w + b) for every pair
-        of vertices v, w sharing a cell, in the global (owned) numbering, columns sorted in each row."""
-        c = cls._owned_index(sp)[sp.cells.astype(np.int64)]
-        n = sp.nlv
-        pairs = np.unique((c[:, :, None] * n + c[:, None, :]).ravel())      # sorted by row vertex, column
-        row, col = pairs // n, pairs % n
-        del pairs
+    @staticmethod
+    def _csr(sp):
+        """(row pointers, global columns) of the tangent's exact pattern in this rank's owned rows: dof
+        (3v + a, 3w + b) for every pair of vertices v, w sharing a cell, columns sorted in each row. On
+        several ranks a vertex at a partition boundary also has pairs from cells another rank holds: each
+        rank sends the pairs of its cells whose row vertex another rank owns to that rank (one alltoall of
+        sorted int64 keys), so every rank's pattern is complete before the first fill."""
+        mpi = sp.mpi
+        g = sp.lgmap.getBlockIndices().astype(np.int64)       # global vertex of each local vertex
+        N = int(sp.nv_total)
+        c = g[sp.cells.astype(np.int64)]
+        keys = np.unique((c[:, :, None] * N + c[:, None, :]).ravel())       # sorted by row vertex, column
+        del c
+        starts = np.zeros(mpi.size + 1, np.int64)
+        starts[1:] = np.cumsum(mpi.allgather(sp.n_owned))
+        if mpi.size > 1:
+            cut = np.searchsorted(keys, starts * N)                          # the rows' owners, in rank order
+            recv = mpi.alltoall([keys[cut[r]:cut[r + 1]] for r in range(mpi.size)])
+            keys = np.unique(np.concatenate(recv))
+            del recv
+        row, col = keys // N - starts[mpi.rank], keys % N
+        del keys
+        n = sp.n_owned
         deg = np.bincount(row, minlength=n)                                  # neighbour vertices per vertex
         cols_v = (3 * col[:, None] + np.arange(3)).ravel()                   # vertex v's 3 deg dof columns
         first = np.repeat(3 * (np.cumsum(deg) - deg), 3)                     # where dof row 3v + a's are
@@ -185,10 +201,10 @@ class AssembledChunked:
     _nullspace = Assembled._nullspace
 
     def _direct_map(self):
-        """After the first assembly has fixed the nonzero pattern: for every cell whose four vertices are
-        owned here (all of them on one rank), the position of each of its 144 entries in the CSR value
-        array of the diagonal block (int32, -1 for the other cells, whose rows are partly another rank's
-        and go through MatSetValues). A Newton step then adds the cell blocks straight into the values
+        """From the exact pattern (_csr): for every cell whose four vertices are owned here (all of them on
+        one rank), the position of each of its 144 entries in the CSR value array of the diagonal block
+        (int32, -1 for the other cells, whose rows or columns are partly another rank's and go through
+        MatSetValues). A Newton step then adds the cell blocks straight into the values
         (kernels.scatter_add) instead of searching each row per block: 576 bytes per tet."""
         sp = self.system.space
         Ad = self.mat.getDiagonalBlock() if sp.mpi.size > 1 else self.mat
@@ -216,8 +232,8 @@ class AssembledChunked:
         from .kernels import scatter_add
         from .libpetsc import SeqAIJValues
         A = self.mat
-        direct = self.direct and not self.first
-        if not self.first:
+        direct = self.direct
+        if self.filled:
             A.zeroEntries()
         ADD = PETSc.InsertMode.ADD_VALUES
         nc = len(self.blocks)
@@ -248,10 +264,7 @@ class AssembledChunked:
             A.setValuesLocalRCV(self.c_local, self.c_local,
                                 np.full((len(self.c_local), 1), self.system.scale), ADD)
         A.assemble()
-        if self.first:
-            self.first = False
-            if self.direct:
-                self._direct_map()
+        self.filled = True
 
     update = assemble
 

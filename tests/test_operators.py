@@ -1,5 +1,7 @@
 """The Jacobian modes apply the same operator: shell and assembled agree to 1e-12, PETSc's MFFD
 to 1e-5, and the tangent is the derivative of the residual (central differences)."""
+import os
+
 import numpy as np
 import pytest
 
@@ -173,6 +175,20 @@ def test_chunked_assembly_equals_coo(petsc, scene_name, options, monkeypatch):
     info = a.mat.getInfo()
     if space.comm.getSize() == 1:
         assert info["nz_unneeded"] == 0 and info["nz_used"] == b.mat.getInfo()["nz_used"]
+
+
+def test_chunked_assembly_pattern_exact_on_two_ranks():
+    """On 2 ranks the chunked direct fill (exact pattern from both ranks' cells, preallocated before the
+    first fill) equals the COO matrix, with no unused preallocated entry (tests/mpi_assembly_check.py)."""
+    import shutil
+    import subprocess
+    import sys
+    from conftest import BIN
+    mpiexec = shutil.which("mpiexec", path=BIN) or shutil.which("mpiexec")
+    p = subprocess.run([mpiexec, "-n", "2", sys.executable, os.path.join(ROOT, "tests", "mpi_assembly_check.py"),
+                        "bend", "twist"], capture_output=True, text=True, timeout=300)
+    assert p.returncode == 0, p.stdout + p.stderr
+    assert [l.split(":")[0] for l in p.stdout.splitlines() if l.startswith("ok")] == ["ok bend", "ok twist"], p.stdout
 
 
 def test_chunked_assembly_on_two_ranks(tmp_path):
