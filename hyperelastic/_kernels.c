@@ -159,7 +159,24 @@ double he_max_step(int64_t nc, const idx_t *cells, const double *Dminv, const do
 
 /* dst[pos[i]] += src[i] for i < n, skipping pos[i] < 0: the cell blocks' entries added straight into a
  * matrix's CSR value array through a map computed once (jacobians.AssembledChunked). */
-void he_scatter_add(int64_t n, const int32_t *pos, const double *src, double *dst) {
-  for (int64_t i = 0; i < n; i++)
-    if (pos[i] >= 0) dst[pos[i]] += src[i];
+/* dst += the 12x12 blocks vals (nc x 144, dof order 3a+i) of the cells with base[16 e] >= 0, into CSR
+ * values: the 3x3 block of vertices (a, b) starts at base[16 e + 4 a + b] and its row i at + i * len[4 e + a]
+ * (the three rows of a vertex have the same columns, the three columns of a vertex are consecutive). */
+void he_scatter_blocks(int64_t nc, const int32_t *base, const int32_t *len, const double *vals, double *dst) {
+  for (int64_t e = 0; e < nc; e++) {
+    const int32_t *p = base + 16 * e, *L = len + 4 * e;
+    if (p[0] < 0) continue;
+    const double *v = vals + 144 * e;
+    for (int a = 0; a < 4; a++)
+      for (int i = 0; i < 3; i++) {
+        const double *row = v + 12 * (3 * a + i);
+        int64_t off = (int64_t)i * L[a];
+        for (int b = 0; b < 4; b++) {
+          double *d = dst + p[4 * a + b] + off;
+          d[0] += row[3 * b];
+          d[1] += row[3 * b + 1];
+          d[2] += row[3 * b + 2];
+        }
+      }
+  }
 }

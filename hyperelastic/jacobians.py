@@ -202,34 +202,50 @@ class AssembledChunked:
 
     def _direct_map(self):
         """From the exact pattern (_csr): for every cell whose four vertices are owned here (all of them on
-        one rank), the position of each of its 144 entries in the CSR value array of the diagonal block
-        (int32, -1 for the other cells, whose rows or columns are partly another rank's and go through
-        MatSetValues). A Newton step then adds the cell blocks straight into the values
-        (kernels.scatter_add) instead of searching each row per block: 576 bytes per tet."""
+        one rank), where each of its 16 vertex-pair 3x3 blocks starts in the CSR value array of the
+        diagonal block (int32 `base`, -1 for the other cells, whose rows or columns are partly another
+        rank's and go through MatSetValues), and the length of each of its vertices' rows (`rowlen`): the
+        three rows of a vertex have the same columns, and a vertex's three columns are consecutive, so
+        entry (3a+i, 3b+j) is at base[4a+b] + i rowlen[a] + j. A Newton step adds the cell blocks straight
+        into the values (kernels.scatter_blocks) instead of searching each row per block: 80 bytes per tet.
+        Every entry's column is checked when the map is made (a missing one is an error, not a drop)."""
         sp = self.system.space
         Ad = self.mat.getDiagonalBlock() if sp.mpi.size > 1 else self.mat
         ia, ja = Ad.getRowIJ()
+        if len(ja) >= 2 ** 31:
+            raise RuntimeError(f"the tangent's diagonal block has {len(ja)} entries on one rank (the direct map "
+                               "holds int32 positions): use more ranks or -assembly coo")
         n_rows = len(ia) - 1
         own = self._owned_index(sp)
-        nnz_row = np.diff(ia)
-        keys = np.repeat(np.arange(n_rows, dtype=np.int64), nnz_row) * n_rows + ja   # sorted: AIJ rows, columns
         nc = len(self.blocks)
-        pos = np.full((nc, 144), -1, np.int32)
+        base = np.full((nc, 16), -1, np.int32)
+        rowlen = np.zeros((nc, 4), np.int32)
         interior = (own[self.blocks] >= 0).all(axis=1)
-        comp = np.arange(3)
+        ia64 = ia.astype(np.int64)
+        keys = np.repeat(np.arange(n_rows, dtype=np.int64), np.diff(ia64)) * n_rows + ja   # transient
+        i3, j3 = np.arange(3)[:, None], np.arange(3)[None, :]
         for lo in range(0, nc, self.CHUNK):
             hi = min(lo + self.CHUNK, nc)
             sel = np.flatnonzero(interior[lo:hi])
-            d = (3 * own[self.blocks[lo:hi][sel]][:, :, None] + comp).reshape(-1, 12)        # owned dofs
-            k = (d[:, :, None] * n_rows + d[:, None, :]).reshape(len(sel), 144)
-            p = np.searchsorted(keys, k)
-            if not np.array_equal(keys[np.minimum(p, len(keys) - 1)], k):
+            r = 3 * own[self.blocks[lo:hi][sel]]                      # first dof row of each vertex (m, 4)
+            L = ia64[r + 1] - ia64[r]
+            # each (a, b): the position of column 3 w_b in row 3 v_a (keys sorted by row, then column)
+            p = np.searchsorted(keys, (r[:, :, None] * n_rows + r[:, None, :]).ravel())
+            p[p >= len(keys)] = 0                                     # (caught by the check below)
+            pos = (p.reshape(-1, 4, 4)[:, :, :, None, None] + i3[None, None, None] * L[:, :, None, None, None]
+                   + j3[None, None, None])                                   # (m, a, b, i, j)
+            cols = 3 * own[self.blocks[lo:hi][sel]][:, None, :, None, None] + j3[None, None, None]
+            if not np.array_equal(ja[pos], np.broadcast_to(cols, pos.shape)):
                 raise RuntimeError("a cell entry is missing from the assembled pattern")
-            pos[lo + sel] = p
-        self.Ad, self.nnz_d, self.pos, self.boundary = Ad, len(ja), pos, np.flatnonzero(~interior)
+            base[lo + sel] = p.reshape(-1, 16)
+            rowlen[lo + sel] = L
+        del keys
+        self.Ad, self.nnz_d, self.base, self.rowlen = Ad, len(ja), base, rowlen
+        self.boundary = np.flatnonzero(~interior)
+
 
     def assemble(self):
-        from .kernels import scatter_add
+        from .kernels import scatter_blocks
         from .libpetsc import SeqAIJValues
         A = self.mat
         direct = self.direct
@@ -252,7 +268,7 @@ class AssembledChunked:
                 A.setValuesBlockedLocalRCV(self.blocks[lo:hi], self.blocks[lo:hi], vals.reshape(-1, 144), ADD)
                 continue
             with SeqAIJValues(self.Ad, self.nnz_d) as arr:
-                scatter_add(self.pos[lo:hi].reshape(-1), vals.reshape(-1), arr)
+                scatter_blocks(self.base[lo:hi], self.rowlen[lo:hi], vals, arr)
             b = self.boundary[np.searchsorted(self.boundary, lo):np.searchsorted(self.boundary, hi)]
             if len(b):
                 A.setValuesBlockedLocalRCV(self.blocks[b], self.blocks[b], vals[b - lo].reshape(-1, 144), ADD)

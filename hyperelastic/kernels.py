@@ -41,14 +41,18 @@ _lib.he_apply_blocks.restype = None
 _lib.he_apply_blocks.argtypes = [_I, _P, _P, _P, _P]
 _lib.he_add_mass_blocks.restype = None
 _lib.he_add_mass_blocks.argtypes = [_I, _P, _D, _P]
-_lib.he_scatter_add.restype = None
-_lib.he_scatter_add.argtypes = [_I, _P, _P, _P]
+_lib.he_scatter_blocks.restype = None
+_lib.he_scatter_blocks.argtypes = [_I, _P, _P, _P, _P]
 
 
-def scatter_add(pos, src, dst):
-    """dst[pos] += src where pos >= 0 (pos int32, src and dst float64, C-contiguous; dst written in place)."""
-    assert pos.dtype == np.int32 and src.dtype == dst.dtype == np.float64 and pos.size == src.size
-    _lib.he_scatter_add(pos.size, pos.ctypes.data, src.ctypes.data, dst.ctypes.data)
+def scatter_blocks(base, rowlen, vals, dst):
+    """dst += the cells' 12x12 blocks vals (nc,12,12) at CSR value positions base[e, 4a+b] + i rowlen[e, a]
+    + j for dof (3a+i, 3b+j); cells with base[e, 0] < 0 are skipped (base (nc,16), rowlen (nc,4) int32)."""
+    nc = len(vals)
+    assert base.shape == (nc, 16) and rowlen.shape == (nc, 4) and vals.shape == (nc, 12, 12)
+    assert base.dtype == rowlen.dtype == np.int32 and vals.dtype == dst.dtype == np.float64
+    assert base.flags.c_contiguous and rowlen.flags.c_contiguous and vals.flags.c_contiguous
+    _lib.he_scatter_blocks(nc, base.ctypes.data, rowlen.ctypes.data, vals.ctypes.data, dst.ctypes.data)
 _bound = {}
 
 
