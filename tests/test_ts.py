@@ -108,12 +108,12 @@ def test_adaptive_steps_reject_retry_and_hit_frames(tmp_path):
     assert (~loose["stats"]["rejected"].astype(bool)).sum() < (~rej).sum()
 
 
-@pytest.mark.parametrize("adapt", ["none", "basic"])
-def test_restart_from_a_checkpoint_is_bitwise(tmp_path, adapt):
+@pytest.mark.parametrize("adapt,extra", [("none", []), ("basic", []), ("none", ["-energy_momentum"])])
+def test_restart_from_a_checkpoint_is_bitwise(tmp_path, adapt, extra):
     """A run continued from its last -checkpoint_every checkpoint to a later time equals the run made
     to that time directly (a checkpoint is a TS restart point in both)."""
     common = ["bend2", "-level", 1, "-checkpoint_every", 5, "-integrator", "ts", "-ts_adapt_type", adapt,
-              "-ts_rtol", "1e-3", "-ts_atol", "1e-3", "-quiet"]
+              "-ts_rtol", "1e-3", "-ts_atol", "1e-3", "-quiet", *extra]
     run_ok(["run", *common, "-final_time", 0.12, "-output", tmp_path / "a.h5"])
     run_ok(["run", "--restart", tmp_path / "a.h5", "-final_time", 0.25])
     run_ok(["run", *common, "-final_time", 0.25, "-output", tmp_path / "b.h5"])
