@@ -111,6 +111,7 @@ class AssembledChunked:
         self.c_local = ((3 * sp.lvid_of_owned[:, None] + np.arange(3)).ravel()[system.c_owned_pos]
                         .astype(PETSc.IntType)[:, None])
         self.vmask = cm.reshape(-1, 3)                         # constrained dofs per local vertex
+        self.constrained_cells = np.flatnonzero(self.vmask[sp.cells].any(axis=(1, 2)))   # (sorted)
         self.blocks = np.ascontiguousarray(sp.cells, dtype=PETSc.IntType)
         A = PETSc.Mat().create(comm=sp.comm)
         A.setSizes(_sizes(sp), bsize=3)
@@ -260,10 +261,14 @@ class AssembledChunked:
             vals.fill(0.0)
             for e in self.cell_effects:
                 e.add_cell_blocks(vals, lo, hi)
-            cm = self.vmask[self.blocks[lo:hi]].reshape(-1, 12)       # constrained rows/columns: 0
-            if cm.any():
-                vals[cm] = 0.0
-                vals.transpose(0, 2, 1)[cm] = 0.0
+            cc = self.constrained_cells
+            cc = cc[np.searchsorted(cc, lo):np.searchsorted(cc, hi)] - lo
+            if len(cc):                                               # constrained rows/columns: 0
+                cm = self.vmask[self.blocks[lo + cc]].reshape(-1, 12)
+                sub = vals[cc]
+                sub[cm] = 0.0
+                sub.transpose(0, 2, 1)[cm] = 0.0
+                vals[cc] = sub
             if not direct:
                 A.setValuesBlockedLocalRCV(self.blocks[lo:hi], self.blocks[lo:hi], vals.reshape(-1, 144), ADD)
                 continue
