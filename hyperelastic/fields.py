@@ -34,16 +34,28 @@ def _per_cell(fn, F, *args):
         return np.array(out)
 
 
+CHUNK = 32768     # cells per vectorized evaluation: the (n,3,3) temporaries stay ~10 MB, not ~500 B/tet
+
+
 def cell_fields(kernels, x):
     """{J, energy_density, von_mises}: (nc,) arrays on the local cells of `kernels` at positions x
-    (with a material per region: each region's cells by its material)."""
+    (with a material per region: each region's cells by its material), CHUNK cells at a time."""
     if hasattr(kernels, "parts"):
-        out = {k: np.full(kernels.nc, np.nan) for k in ("J", "energy_density", "von_mises")}
+        out = {k: np.full(kernels.nc, np.nan) for k in CELL_FIELDS}
         for idx, k in kernels.parts:
             for name, a in cell_fields(k, x).items():
                 out[name][idx] = a
         return out
-    F = deformation_gradients(kernels.cells, kernels.Dminv, x)
+    out = {k: np.empty(kernels.nc) for k in CELL_FIELDS}
+    for lo in range(0, kernels.nc, CHUNK):
+        part = _cell_fields(kernels.cells[lo:lo + CHUNK], kernels.Dminv[lo:lo + CHUNK], kernels, x)
+        for k in CELL_FIELDS:
+            out[k][lo:lo + CHUNK] = part[k]
+    return out
+
+
+def _cell_fields(cells, Dminv, kernels, x):
+    F = deformation_gradients(cells, Dminv, x)
     mat = materials.get(kernels.material)
     with np.errstate(all="ignore"):
         J = np.linalg.det(F)

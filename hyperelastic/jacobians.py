@@ -84,6 +84,21 @@ class Assembled:
     update = assemble     # after System.linearize: the tangent at the new point
 
 
+def _row_search(ia, ja, rows, cols):
+    """Per query, the position in ja of column cols[q] within row rows[q] of a CSR pattern whose rows'
+    columns are sorted (vectorized bisection, no index array of the whole pattern); where a column is
+    absent, the position it would take (callers check ja there)."""
+    lo, hi = ia[rows], ia[rows + 1]
+    while True:
+        open_ = lo < hi
+        if not open_.any():
+            return np.minimum(lo, len(ja) - 1)
+        mid = (lo + hi) // 2
+        right = open_ & (ja[np.minimum(mid, len(ja) - 1)] < cols)
+        lo = np.where(right, mid + 1, lo)
+        hi = np.where(open_ & ~right, mid, hi)
+
+
 class AssembledChunked:
     """The exact tangent as an AIJ matrix (block size 3) with its exact pattern preallocated (_csr, on any
     number of ranks), filled per Newton step CHUNK cells at a time: the 12x12 blocks of cells whose
@@ -210,29 +225,30 @@ class AssembledChunked:
         entry (3a+i, 3b+j) is at base[4a+b] + i rowlen[a] + j. A Newton step adds the cell blocks straight
         into the values (kernels.scatter_blocks) instead of searching each row per block: 80 bytes per tet.
         Every entry's column is checked when the map is made (a missing one is an error, not a drop)."""
+        from .libpetsc import SeqAIJRowIJ
         sp = self.system.space
         Ad = self.mat.getDiagonalBlock() if sp.mpi.size > 1 else self.mat
-        ia, ja = Ad.getRowIJ()
+        with SeqAIJRowIJ(Ad) as (ia, ja):
+            self._make_map(sp, Ad, ia, ja)
+
+    def _make_map(self, sp, Ad, ia, ja):
         if len(ja) >= 2 ** 31:
             raise RuntimeError(f"the tangent's diagonal block has {len(ja)} entries on one rank (the direct map "
                                "holds int32 positions): use more ranks or -assembly coo")
-        n_rows = len(ia) - 1
         own = self._owned_index(sp)
         nc = len(self.blocks)
         base = np.full((nc, 16), -1, np.int32)
         rowlen = np.zeros((nc, 4), np.int32)
         interior = (own[self.blocks] >= 0).all(axis=1)
         ia64 = ia.astype(np.int64)
-        keys = np.repeat(np.arange(n_rows, dtype=np.int64), np.diff(ia64)) * n_rows + ja   # transient
         i3, j3 = np.arange(3)[:, None], np.arange(3)[None, :]
         for lo in range(0, nc, self.CHUNK):
             hi = min(lo + self.CHUNK, nc)
             sel = np.flatnonzero(interior[lo:hi])
             r = 3 * own[self.blocks[lo:hi][sel]]                      # first dof row of each vertex (m, 4)
             L = ia64[r + 1] - ia64[r]
-            # each (a, b): the position of column 3 w_b in row 3 v_a (keys sorted by row, then column)
-            p = np.searchsorted(keys, (r[:, :, None] * n_rows + r[:, None, :]).ravel())
-            p[p >= len(keys)] = 0                                     # (caught by the check below)
+            # each (a, b): the position of column 3 w_b in row 3 v_a
+            p = _row_search(ia64, ja, np.repeat(r, 4, axis=1).ravel(), np.tile(r, (1, 4)).ravel())
             pos = (p.reshape(-1, 4, 4)[:, :, :, None, None] + i3[None, None, None] * L[:, :, None, None, None]
                    + j3[None, None, None])                                   # (m, a, b, i, j)
             cols = 3 * own[self.blocks[lo:hi][sel]][:, None, :, None, None] + j3[None, None, None]
@@ -240,7 +256,6 @@ class AssembledChunked:
                 raise RuntimeError("a cell entry is missing from the assembled pattern")
             base[lo + sel] = p.reshape(-1, 16)
             rowlen[lo + sel] = L
-        del keys
         self.Ad, self.nnz_d, self.base, self.rowlen = Ad, len(ja), base, rowlen
         self.boundary = np.flatnonzero(~interior)
 

@@ -313,8 +313,10 @@ def check_faces(points, tets, path):
     """A conforming mesh of a solid: every triangle is a face of one tetrahedron (the boundary) or of
     two on opposite sides of it. A face of three or more tetrahedra, or two on the same side, means
     duplicate or overlapping tetrahedra."""
-    F = np.sort(tets[:, [[1, 2, 3], [0, 2, 3], [0, 1, 3], [0, 1, 2]]], axis=2).reshape(-1, 3)
-    opposite = tets.reshape(-1)                     # the vertex of the tet not on each face
+    small = len(points) < 2 ** 31
+    F = np.sort(tets.astype(np.int32) if small else tets, axis=1)      # (a tet's faces from its sorted vertices:
+    F = F[:, [[1, 2, 3], [0, 2, 3], [0, 1, 3], [0, 1, 2]]].reshape(-1, 3)  # each face's vertices sorted)
+    opposite = np.sort(tets, axis=1).reshape(-1)     # the vertex of the tet not on each face
     n = np.int64(len(points))
     if float(n) ** 3 < 2.0 ** 62:
         key = (F[:, 0].astype(np.int64) * n + F[:, 1]) * n + F[:, 2]
@@ -329,10 +331,18 @@ def check_faces(points, tets, path):
         raise UserError(f"mesh '{path}': tetrahedra {cells[0]}, {cells[1]} and {cells[2]} share a face "
                         f"{F[order[triple[0]]].tolist()} (duplicate or overlapping tetrahedra)")
     i, j = order[:-1][same], order[1:][same]        # the two sides of each interior face
-    a, b, c = (points[F[i, k]] for k in range(3))
-    side = lambda q: np.einsum("ij,ij->i", np.cross(b - a, c - a), points[q] - a)
-    bad = np.flatnonzero(side(opposite[i]) * side(opposite[j]) >= 0)
+    del order, same
+    bad, chunk = [], 1 << 20
+    for lo in range(0, len(i), chunk):              # in chunks: the per-face (n,3) temporaries stay small
+        ii, jj = i[lo:lo + chunk], j[lo:lo + chunk]
+        a, b, c = (points[F[ii, k]] for k in range(3))
+        nrm = np.cross(b - a, c - a)
+        bad = np.flatnonzero(np.einsum("ij,ij->i", nrm, points[opposite[ii]] - a)
+                             * np.einsum("ij,ij->i", nrm, points[opposite[jj]] - a) >= 0)
+        if len(bad):
+            break
     if len(bad):
+        i, j = i[lo:], j[lo:]
         c1, c2 = sorted((int(i[bad[0]] // 4), int(j[bad[0]] // 4)))
         what = "are the same tetrahedron" if sorted(tets[c1]) == sorted(tets[c2]) else "overlap"
         raise UserError(f"mesh '{path}': tetrahedra {c1} and {c2} {what} (on the same side of their shared face "
