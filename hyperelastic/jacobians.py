@@ -259,7 +259,6 @@ class AssembledChunked:
         self.Ad, self.nnz_d, self.base, self.rowlen = Ad, len(ja), base, rowlen
         self.boundary = np.flatnonzero(~interior)
 
-
     def assemble(self):
         from .kernels import scatter_blocks
         from .libpetsc import SeqAIJValues

@@ -124,9 +124,9 @@ class CellKernels:
         sum_e V (Psi(F_1) - Psi(F_n)): with the midpoint rule's inertia the step conserves energy, and S
         symmetric conserves angular momentum. For St.VK, S(C_bar) alone has that property (S is linear in
         E); the correction is then rounding. S(C) = Ft^-1 P(Ft) for any Ft^T Ft = C with det Ft of the sign
-        of det F (objective materials; Ft from the Cholesky factor). `linear` (not objective, and quadratic): the midpoint force, which is
-        already exact. Returns the number of cells where the material is undefined at x_n or x_1 (their
-        force is skipped)."""
+        of det F (objective materials; Ft from the Cholesky factor). `linear` (not objective, and
+        quadratic): the midpoint force, which is already exact. Returns the number of cells where the
+        material is undefined at x_n or x_1 (their force is skipped)."""
         if self.material == "linear":
             return self.forces(x, f)
         return self.fn["forces_dg"](*self._args, self._x(x), self.mu, self.lam, _ptr(xn, np.float64),

@@ -98,7 +98,7 @@ class System:
         self.g_owned_c = self.space.owned_array(self.g)[self.c_owned_pos]
         # the energy-momentum force needs the step's start; only at the midpoint (not in TSALPHA2's starting
         # backward Euler half steps, alpha_f = 1, whose result the midpoint step does not depend on)
-        self.em_base = xn.copy() if self.energy_momentum and alpha_f == 0.5 else None
+        self.em_base = xn.copy() if self.energy_momentum and abs(alpha_f - 0.5) <= 1e-12 else None
 
     def set_rate_weights(self, shift_v, shift_a):
         """Jacobian weights of the damping (shift_v) and inertia (shift_a) effects."""

@@ -85,8 +85,7 @@ class GeneralizedAlpha(Integrator):
         ts.setStepLimits(scene.dt_min, max(scene.final_time, scene.dt))
         ts.setErrorIfStepFails(False)
         ts.setFromOptions()
-        check_energy_momentum(ts, scene)
-        system.energy_momentum = scene.energy_momentum
+        system.energy_momentum = scene.energy_momentum     # (its parameters checked by cli.run)
         opts = PETSc.Options()
         self.adaptive = opts.getString("ts_adapt_type", "none") != "none"
         self.wnorm = opts.getString("ts_adapt_wnormtype", "2")

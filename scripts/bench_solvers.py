@@ -110,9 +110,10 @@ def parallel(out, full):
     print("| options | ranks | s / Newton | s / step | KSP / Newton | vertex share of the larger rank |\n|---|---|---|---|---|---|")
     for name, args in (("assembled, CG + Jacobi", ["-jacobian", "assembled"]),
                        ("assembled, CG + GAMG", ["-jacobian", "assembled"] + PCS["gamg"]),
-                       ("shell, CG + Jacobi", ["-jacobian", "shell"])):
+                       ("shell, CG + Jacobi", ["-jacobian", "shell"]),
+                       ("MFFD, CG + Jacobi of the assembled tangent", ["-jacobian", "assembled", "-snes_mf_operator"])):
         for n in (1, 2):
-            r = run(out, f"par_{name.split(',')[0]}_{args[-1]}_np{n}", "bend", mesh, args, nprocs=n, steps=2)
+            r = run(out, f"par_{name.split(',')[0]}_{args[-1].lstrip('-')}_np{n}", "bend", mesh, args, nprocs=n, steps=2)
             res[(name, n)] = r
             share = max(r["vertices_per_rank"]) / r["vertices"] if r.get("vertices") else float("nan")
             print(f"| {name} | {n} | {r.get('s_per_newton', float('nan')):.3g} | {r.get('s_per_step', float('nan')):.3g} "
