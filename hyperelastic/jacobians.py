@@ -251,7 +251,7 @@ class AssembledChunked:
             p = _row_search(ia64, ja, np.repeat(r, 4, axis=1).ravel(), np.tile(r, (1, 4)).ravel())
             pos = (p.reshape(-1, 4, 4)[:, :, :, None, None] + i3[None, None, None] * L[:, :, None, None, None]
                    + j3[None, None, None])                                   # (m, a, b, i, j)
-            cols = 3 * own[self.blocks[lo:hi][sel]][:, None, :, None, None] + j3[None, None, None]
+            cols = r[:, None, :, None, None] + j3[None, None, None]     # column 3 w_b + j
             if not np.array_equal(ja[pos], np.broadcast_to(cols, pos.shape)):
                 raise RuntimeError("a cell entry is missing from the assembled pattern")
             base[lo + sel] = p.reshape(-1, 16)

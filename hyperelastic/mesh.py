@@ -140,8 +140,8 @@ def read_mesh(path, frame=-1):
         path = os.path.splitext(path)[0] + ".h5"
     if path.lower().endswith((".h5", ".hdf5")) and _is_output(path):
         return _read_output(path, frame)
-    points, tets, m = _read_meshio(path)
-    return Mesh.from_meshio(path, points, tets, m)
+    points, tets, m, boundary = _read_meshio(path)
+    return Mesh.from_meshio(path, points, tets, boundary, m)
 
 
 def _is_output(path):
@@ -177,8 +177,7 @@ def _read_output(path, frame):
             named = {int(s["tag"]): s["name"] for s in json.loads(f.attrs.get("sets", "[]")) if s["kind"] == "tets"}
         except (ValueError, KeyError, TypeError):
             named = {}
-    check(points, tets, path)
-    mesh = Mesh.from_meshio(path, points, tets)
+    mesh = Mesh.from_meshio(path, points, tets, check(points, tets, path))
     for tag in np.unique(region[region != 0]):
         name = named.get(int(tag), str(int(tag)))
         mesh.groups[name] = NamedSet(name, int(tag), "tets", np.flatnonzero(region == tag))
@@ -212,8 +211,7 @@ def _read_meshio(path):
                 if "triangle" in found else "")
         raise UserError(f"mesh '{path}': contains no tetrahedra (found: {what}){hint}")
     tets = np.concatenate(blocks).astype(np.int64)
-    check(points, tets, path)
-    return points, tets, m
+    return points, tets, m, check(points, tets, path)
 
 
 def _quiet(fn, *args):
@@ -264,6 +262,7 @@ def interpolate(tets, cells, weights, values):
 
 
 def check(points, tets, path):
+    """One line for whatever makes (points, tets) not a mesh of a solid; else its boundary face indices."""
     if points.ndim != 2 or points.shape[1] < 3 or len(points) == 0:
         raise UserError(f"mesh '{path}': has no 3-D vertices")
     points = points[:, :3]
@@ -306,47 +305,33 @@ def check(points, tets, path):
         i = int(np.flatnonzero(V < 0)[0])
         raise UserError(f"mesh '{path}': tetrahedron {i} is inverted (negative volume {V[i]:.3g}, "
                         f"vertices {tets[i].tolist()})")
-    check_faces(points, tets, path)
+    return check_faces(points, tets, path)
 
 
 def check_faces(points, tets, path):
     """A conforming mesh of a solid: every triangle is a face of one tetrahedron (the boundary) or of
     two on opposite sides of it. A face of three or more tetrahedra, or two on the same side, means
-    duplicate or overlapping tetrahedra."""
-    small = len(points) < 2 ** 31
-    F = np.sort(tets.astype(np.int32) if small else tets, axis=1)      # (a tet's faces from its sorted vertices:
-    F = F[:, [[1, 2, 3], [0, 2, 3], [0, 1, 3], [0, 1, 2]]].reshape(-1, 3)  # each face's vertices sorted)
-    opposite = np.sort(tets, axis=1).reshape(-1)     # the vertex of the tet not on each face
-    n = np.int64(len(points))
-    if float(n) ** 3 < 2.0 ** 62:
-        key = (F[:, 0].astype(np.int64) * n + F[:, 1]) * n + F[:, 2]
-        order = np.argsort(key, kind="stable")
-        same = key[order][1:] == key[order][:-1]
-    else:
-        order = np.lexsort(F.T[::-1])
-        same = (F[order][1:] == F[order][:-1]).all(axis=1)
-    triple = np.flatnonzero(same[1:] & same[:-1])
-    if len(triple):
-        cells = sorted(int(c) for c in order[triple[0]:triple[0] + 3] // 4)
-        raise UserError(f"mesh '{path}': tetrahedra {cells[0]}, {cells[1]} and {cells[2]} share a face "
-                        f"{F[order[triple[0]]].tolist()} (duplicate or overlapping tetrahedra)")
-    i, j = order[:-1][same], order[1:][same]        # the two sides of each interior face
-    del order, same
+    duplicate or overlapping tetrahedra. Returns the boundary face indices (sets.face_incidence)."""
+    from .sets import FACE_VERTICES, face_incidence
+    boundary, i, j = face_incidence(tets, path)
+    opposite = tets.reshape(-1)                     # the vertex of the tet not on each face
     bad, chunk = [], 1 << 20
     for lo in range(0, len(i), chunk):              # in chunks: the per-face (n,3) temporaries stay small
         ii, jj = i[lo:lo + chunk], j[lo:lo + chunk]
-        a, b, c = (points[F[ii, k]] for k in range(3))
+        f = tets[ii // 4][np.arange(len(ii))[:, None], FACE_VERTICES[ii % 4]]    # face vertices, i's order
+        a, b, c = (points[f[:, k]] for k in range(3))
         nrm = np.cross(b - a, c - a)
         bad = np.flatnonzero(np.einsum("ij,ij->i", nrm, points[opposite[ii]] - a)
                              * np.einsum("ij,ij->i", nrm, points[opposite[jj]] - a) >= 0)
         if len(bad):
+            i, j, f = ii, jj, f
             break
     if len(bad):
-        i, j = i[lo:], j[lo:]
         c1, c2 = sorted((int(i[bad[0]] // 4), int(j[bad[0]] // 4)))
         what = "are the same tetrahedron" if sorted(tets[c1]) == sorted(tets[c2]) else "overlap"
         raise UserError(f"mesh '{path}': tetrahedra {c1} and {c2} {what} (on the same side of their shared face "
-                        f"{F[i[bad[0]]].tolist()})")
+                        f"{sorted(f[bad[0]].tolist())})")
+    return boundary
 
 
 def morton_order(centroids):

@@ -38,20 +38,27 @@ def _keys(tris):
     return np.ascontiguousarray(t).view([("a", np.int64), ("b", np.int64), ("c", np.int64)]).ravel()
 
 
-def boundary_facets(tets, path="mesh"):
-    """(cell, k) of every boundary facet (face k, opposite vertex k, of exactly one tetrahedron), in
-    cell order. A triangle shared by three or more tetrahedra (overlapping or duplicated cells) is a
-    UserError."""
-    faces = tets[:, FACE_VERTICES].reshape(-1, 3)
-    _, inv, cnt = np.unique(_keys(faces), return_inverse=True, return_counts=True)
-    c = cnt[inv]
-    over = np.flatnonzero(c > 2)
-    if len(over):
-        i = over[0]
-        raise UserError(f"mesh '{path}': triangle {sorted(faces[i].tolist())} is shared by {c[i]} tetrahedra "
-                        f"(overlapping or duplicate tetrahedra, e.g. {i // 4})")
-    idx = np.flatnonzero(c == 1)
-    return idx // 4, idx % 4
+def face_incidence(tets, path="mesh"):
+    """The tetrahedra of every triangle, from one sort of the 4 faces of each tetrahedron (face index
+    4 c + k: face k, opposite vertex k, of tetrahedron c): (boundary, i, j) with `boundary` the sorted face
+    indices of the triangles of exactly one tetrahedron, and i, j the two sides of each triangle of two.
+    A triangle of three or more tetrahedra (duplicate or overlapping cells) is a UserError."""
+    small = tets.size == 0 or int(tets.max()) < 2 ** 31
+    faces = (tets.astype(np.int32) if small else tets)[:, FACE_VERTICES].reshape(-1, 3)
+    key = _keys(faces)
+    order = np.argsort(key, kind="stable")
+    key = key[order]
+    same = key[1:] == key[:-1]
+    del key
+    triple = np.flatnonzero(same[1:] & same[:-1])
+    if len(triple):
+        cells = sorted(int(c) for c in order[triple[0]:triple[0] + 3] // 4)
+        raise UserError(f"mesh '{path}': tetrahedra {cells[0]}, {cells[1]} and {cells[2]} share a face "
+                        f"{sorted(faces[order[triple[0]]].tolist())} (duplicate or overlapping tetrahedra)")
+    paired = np.zeros(len(order), bool)
+    paired[:-1] |= same
+    paired[1:] |= same
+    return np.sort(order[~paired]), order[:-1][same], order[1:][same]
 
 
 @dataclass
@@ -73,9 +80,11 @@ class Mesh:
     groups: dict = field(default_factory=dict)     # name -> NamedSet (physical surfaces and volumes)
 
     @classmethod
-    def from_meshio(cls, path, points, tets, m=None):
+    def from_meshio(cls, path, points, tets, boundary, m=None):
+        """boundary: the boundary face indices 4 cell + k (face k, opposite vertex k, of exactly one
+        tetrahedron) that the mesh check found (mesh.check, face_incidence), in cell order."""
         mesh = cls(path, np.ascontiguousarray(points[:, :3], np.float64), tets)
-        mesh.facet_cell, mesh.facet_k = boundary_facets(tets, path)
+        mesh.facet_cell, mesh.facet_k = boundary // 4, boundary % 4
         if m is not None:
             mesh._read_groups(m)
         return mesh
