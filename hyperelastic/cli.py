@@ -150,7 +150,7 @@ def run(argv):
         ts = make_ts(comm)
     solver = Solver(model.system, scene.jacobian, scene.assembly, guard=scene.inversion_guard,
                     objective=scene.objective and ts is None, snes=ts.getSNES() if ts else None,
-                    reuse_pc=scene.reuse_preconditioner)
+                    reuse_pc=scene.reuse_preconditioner, storage=scene.operator_storage)
     if ts is not None:
         ts.setFromOptions()      # (again when the integrator is set up) so that its options count as used
         from .ts_integrator import check_energy_momentum

@@ -108,9 +108,12 @@ class AssembledChunked:
     chunk."""
     CHUNK = 8192
 
-    def __init__(self, system, direct=True):
+    def __init__(self, system, direct=True, storage="aij"):
         """direct: the exact pattern and the direct fill (_csr, _direct_map); False: a counted
-        preallocation and MatSetValuesBlockedLocal for every cell and fill (for benchmarks)."""
+        preallocation and MatSetValuesBlockedLocal for every cell and fill (for benchmarks).
+        storage: `sbaij` also keeps the tangent's upper triangle as SBAIJ (`operator`, refreshed after
+        every fill): the Krylov method's and the smoothers' MatMults read half the matrix, while the
+        preconditioner is still built from the AIJ (`mat`). The tangent must be symmetric."""
         self.system = system
         self.direct = direct
         sp = system.space
@@ -142,6 +145,14 @@ class AssembledChunked:
         if direct:
             self._direct_map()
         Assembled._nullspace(self, sp)
+        self.operator = A                  # the Mat the Krylov method multiplies by (SNES's Amat)
+        if storage == "sbaij":
+            if not direct:
+                raise ValueError("SBAIJ storage needs the exact pattern (direct=True)")
+            A.setOption(PETSc.Mat.Option.SYMMETRIC, True)          # (MatConvert to SBAIJ requires it)
+            A.setOption(PETSc.Mat.Option.SYMMETRY_ETERNAL, True)
+            self.operator = A.convert(PETSc.Mat.Type.SBAIJ, PETSc.Mat())
+            self.sb_map = self._sbaij_map() if sp.mpi.size == 1 else None
 
     @staticmethod
     def _owned_index(sp):
@@ -231,6 +242,36 @@ class AssembledChunked:
         with SeqAIJRowIJ(Ad) as (ia, ja):
             self._make_map(sp, Ad, ia, ja)
 
+    def _sbaij_map(self):
+        """On one rank: for each value of the SBAIJ copy (its upper block triangle, each 3x3 block
+        column-major), the position of the same entry in the AIJ's CSR values (int32, 9 per block, about
+        half the AIJ's entries), so that a refresh is one gather instead of a MatConvert."""
+        from .libpetsc import SeqAIJRowIJ
+        with SeqAIJRowIJ(self.operator, blocks=True) as (bi, bj):
+            bi = bi.astype(np.int64)
+            I, J = np.repeat(np.arange(len(bi) - 1), np.diff(bi)), bj.astype(np.int64)
+        pos = np.empty((len(J), 3, 3), np.int32)                 # [block, column c, row r]
+        with SeqAIJRowIJ(self.mat) as (ia, ja):
+            ia64 = ia.astype(np.int64)
+            for r in range(3):
+                p = _row_search(ia64, ja, 3 * I + r, 3 * J)           # column 3J in row 3I + r
+                if not (np.array_equal(ja[p], 3 * J) and np.array_equal(ja[np.minimum(p + 2, len(ja) - 1)], 3 * J + 2)):
+                    raise RuntimeError("the SBAIJ copy's pattern is not the AIJ's upper block triangle")
+                pos[:, :, r] = p[:, None] + np.arange(3)
+        return pos.ravel()
+
+    def _refresh_sbaij(self):
+        """The SBAIJ copy from the AIJ just filled: a gather through the map on one rank, MatConvert
+        (MAT_REUSE_MATRIX) on several."""
+        from .libpetsc import SeqAIJValues
+        S = self.operator
+        if self.sb_map is None:
+            self.mat.convert(PETSc.Mat.Type.SBAIJ, S)
+            return
+        with SeqAIJValues(self.mat, self.nnz_d) as a, SeqAIJValues(S, len(self.sb_map), "SBAIJ") as v:
+            np.take(a, self.sb_map, out=v)
+        S.assemble()
+
     def _make_map(self, sp, Ad, ia, ja):
         if len(ja) >= 2 ** 31:
             raise RuntimeError(f"the tangent's diagonal block has {len(ja)} entries on one rank (the direct map "
@@ -300,6 +341,8 @@ class AssembledChunked:
                                 np.full((len(self.c_local), 1), self.system.scale), ADD)
         A.assemble()
         self.filled = True
+        if self.operator is not A:
+            self._refresh_sbaij()
 
     update = assemble
 
@@ -395,9 +438,19 @@ OPERATORS = {"shell": ExactShell, "seed_fd": lambda s: SeedFD(s, 1), "seed_fd2":
 ASSEMBLIES = {"setvalues": AssembledChunked, "coo": Assembled}
 
 
-def make(system, mode, assembly="setvalues"):
+STORAGES = ("aij", "sbaij")
+
+
+def make(system, mode, assembly="setvalues", storage="aij"):
     """The operator of Jacobian mode `mode` (scene.JACOBIANS) on the system: an object with `mat`
-    (the PETSc Mat for SNESSetJacobian) and `update()` (called after System.linearize)."""
+    (the PETSc Mat SNES preconditions with), `operator` (the one it multiplies by: `mat` itself, or
+    with storage `sbaij` its SBAIJ copy) and `update()` (called after System.linearize)."""
     if mode == "assembled":
-        return ASSEMBLIES[assembly](system)
-    return OPERATORS[mode](system)
+        if storage != "aij":
+            return AssembledChunked(system, storage=storage)
+        op = ASSEMBLIES[assembly](system)
+    else:
+        op = OPERATORS[mode](system)
+    if not hasattr(op, "operator"):
+        op.operator = op.mat
+    return op

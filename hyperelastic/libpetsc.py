@@ -28,7 +28,7 @@ def lib():
                                            ctypes.POINTER(ctypes.c_char_p)]
         _lib.SNESSetLagPreconditionerPersists.argtypes = [ctypes.c_void_p, ctypes.c_int]
         _lib.SNESSetLagPreconditioner.argtypes = [ctypes.c_void_p, ctypes.c_int]
-        for fn in ("MatSeqAIJGetArray", "MatSeqAIJRestoreArray"):
+        for fn in ("MatSeqAIJGetArray", "MatSeqAIJRestoreArray", "MatSeqSBAIJGetArray", "MatSeqSBAIJRestoreArray"):
             getattr(_lib, fn).argtypes = [ctypes.c_void_p, ctypes.POINTER(ctypes.c_void_p)]
         for fn in ("MatGetRowIJ", "MatRestoreRowIJ"):
             getattr(_lib, fn).argtypes = [ctypes.c_void_p, ctypes.c_int64, ctypes.c_int, ctypes.c_int,
@@ -40,13 +40,14 @@ def lib():
 class SeqAIJRowIJ:
     """The row pointers and column indices of a SeqAIJ matrix as numpy views, without copies (petsc4py's
     getRowIJ copies them: at 660k tets that copy is ~100 B/tet of the peak), for `with`
-    (MatGetRowIJ / MatRestoreRowIJ)."""
+    (MatGetRowIJ / MatRestoreRowIJ). blocks: of a (S)BAIJ matrix, its block rows and block columns."""
 
-    def __init__(self, mat):
+    def __init__(self, mat, blocks=False):
         self.mat, self.n, self.ia, self.ja, self.done = mat, _INT(), ctypes.c_void_p(), ctypes.c_void_p(), ctypes.c_int()
+        self.blocks = int(blocks)
 
     def _call(self, fn):
-        return getattr(lib(), fn)(ctypes.c_void_p(self.mat.handle), 0, 0, 0, ctypes.byref(self.n),
+        return getattr(lib(), fn)(ctypes.c_void_p(self.mat.handle), 0, 0, self.blocks, ctypes.byref(self.n),
                                   ctypes.byref(self.ia), ctypes.byref(self.ja), ctypes.byref(self.done))
 
     def __enter__(self):
@@ -66,20 +67,21 @@ class SeqAIJRowIJ:
 
 class SeqAIJValues:
     """The CSR value array of a SeqAIJ matrix as a numpy view, for `with` (MatSeqAIJGetArray /
-    MatSeqAIJRestoreArray: PETSc then knows the values changed)."""
+    MatSeqAIJRestoreArray: PETSc then knows the values changed). kind "SBAIJ": of a SeqSBAIJ matrix
+    (its blocks' values, each block column-major)."""
 
-    def __init__(self, mat, nnz):
-        self.mat, self.nnz, self.ptr = mat, nnz, ctypes.c_void_p()
+    def __init__(self, mat, nnz, kind="AIJ"):
+        self.mat, self.nnz, self.ptr, self.kind = mat, nnz, ctypes.c_void_p(), kind
 
     def __enter__(self):
         import numpy as np
-        err = lib().MatSeqAIJGetArray(ctypes.c_void_p(self.mat.handle), ctypes.byref(self.ptr))
+        err = getattr(lib(), f"MatSeq{self.kind}GetArray")(ctypes.c_void_p(self.mat.handle), ctypes.byref(self.ptr))
         if err or not self.ptr.value:
-            raise RuntimeError(f"MatSeqAIJGetArray failed ({err})")
+            raise RuntimeError(f"MatSeq{self.kind}GetArray failed ({err})")
         return np.ctypeslib.as_array(ctypes.cast(self.ptr, ctypes.POINTER(ctypes.c_double)), shape=(self.nnz,))
 
     def __exit__(self, *exc):
-        lib().MatSeqAIJRestoreArray(ctypes.c_void_p(self.mat.handle), ctypes.byref(self.ptr))
+        getattr(lib(), f"MatSeq{self.kind}RestoreArray")(ctypes.c_void_p(self.mat.handle), ctypes.byref(self.ptr))
         return False
 
 

@@ -41,6 +41,7 @@ class Scene:
     fps: float = 30.0
     jacobian: str = "assembled"
     assembly: str = "setvalues"   # how the assembled tangent is filled (jacobians.AssembledChunked / Assembled)
+    operator_storage: str = "aij"  # sbaij: Krylov MatMults on an SBAIJ copy of the symmetric tangent
     hessian_projection: bool = False
     objective: bool = True        # register the incremental potential with SNES (energy line search merit)
     initial_scale: tuple = None   # x(0) = c + diag(s) (X - c), c the centroid (e.g. -1,1,1: mirrored)
@@ -84,6 +85,7 @@ MAX_STEPS, MAX_FRAMES = 1e9, 1e6   # a run beyond these is a typo, not a simulat
 JACOBIANS = ("assembled", "shell", "seed_fd", "seed_fd2")
 INTEGRATORS = ("beuler", "ts")
 ASSEMBLIES = ("setvalues", "coo")
+STORAGES = ("aij", "sbaij")       # the matrix the Krylov method multiplies by (jacobians.AssembledChunked)
 
 
 def facet_sets(opts, name, default=None, components=False):
@@ -262,6 +264,7 @@ def _read_solver(s, opts):
         raise UserError(f"options -snes_mf and -jacobian {s.jacobian}: -snes_mf uses no Jacobian of ours (MFFD "
                         "replaces it); -snes_mf_operator preconditions with it")
     s.assembly = opts.choice("assembly", ASSEMBLIES, s.assembly)
+    s.operator_storage = opts.choice("operator_storage", STORAGES, s.operator_storage)
     s.hessian_projection = opts.flag("hessian_projection", s.hessian_projection)
     s.reuse_preconditioner = opts.choice("reuse_preconditioner", ("auto", "never"), s.reuse_preconditioner)
     s.objective = opts.flag("objective", s.objective)

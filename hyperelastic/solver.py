@@ -30,6 +30,21 @@ def apply_defaults(merit="residual norm", symmetric=True):
         opts.setValue("pc_type", "none" if opts.getBool("snes_mf", False) else "jacobi")
 
 
+def check_storage(storage, system, jacobian, assembly, mf):
+    """-operator_storage sbaij: the tangent's upper triangle is all there is of it, so it must be
+    symmetric, assembled (by setvalues), and the operator SNES multiplies by (not MFFD's)."""
+    from .errors import UserError
+    what = f"option -operator_storage {storage}"
+    if jacobian != "assembled" or mf:
+        raise UserError(f"{what}: stores the assembled tangent; not with -jacobian {jacobian}"
+                        + (f" or -snes_{mf}" if mf else ""))
+    if assembly != "setvalues":
+        raise UserError(f"{what}: needs -assembly setvalues (the exact pattern), not {assembly}")
+    unsym = [e.name for e in system.effects if not e.symmetric]
+    if unsym:
+        raise UserError(f"{what}: the tangent of {', '.join(unsym)} is not symmetric; use -operator_storage aij")
+
+
 def matrix_free():
     """'mf', 'mf_operator' or '' from -snes_mf / -snes_mf_operator."""
     opts = PETSc.Options()
@@ -42,13 +57,15 @@ def matrix_free():
 
 class Solver:
     def __init__(self, system, jacobian, assembly="setvalues", guard=False, objective=True, snes=None,
-                 reuse_pc="auto"):
+                 reuse_pc="auto", storage="aij"):
         """SNES on the system's residual with Jacobian mode `jacobian` (scene.JACOBIANS; filled by
         `assembly` when assembled); guard: shorten Newton updates that would invert an element;
         objective: register the system's incremental potential as the SNES objective (the line
         search merit) when every effect has one (`merit`; `merit_note` says why not otherwise).
         snes: a PETSc TS's SNES (ts_integrator.py), whose function and Jacobian the TS sets and whose
-        options the TS reads; the operator `op` is built here all the same."""
+        options the TS reads; the operator `op` is built here all the same.
+        storage: `sbaij` multiplies by an SBAIJ copy of the assembled tangent (jacobians.AssembledChunked;
+        the PC is built from the AIJ): only for a symmetric tangent, assembled by setvalues."""
         self.system = system
         sp = system.space
         self.merit_note = ""
@@ -69,10 +86,12 @@ class Solver:
             snes.setObjective(self._objective)
             snes.setUpdate(self._newton_iterate)
         self.op = None
+        if storage != "aij":
+            check_storage(storage, system, jacobian, assembly, self.mf)
         if self.mf != "mf":   # under -snes_mf no Jacobian of ours is used: do not build one
-            self.op = jacobians.make(system, jacobian, assembly)
+            self.op = jacobians.make(system, jacobian, assembly, storage)
             if own:
-                snes.setJacobian(self._jacobian, self.op.mat, self.op.mat)
+                snes.setJacobian(self._jacobian, self.op.operator, self.op.mat)
         self.inversion_cuts = 0   # Newton updates shortened so that no element inverts
         self.guard = None
         if guard:
@@ -153,7 +172,7 @@ class Solver:
         self.ev_jac.begin()
         self.system.linearize(X)
         self.op.update()
-        if J.handle != P.handle:
+        if J.handle != self.op.operator.handle:
             J.assemble()   # MFFD operator (-snes_mf_operator): new base point
         self.ev_jac.end()
 

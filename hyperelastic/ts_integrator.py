@@ -78,7 +78,7 @@ class GeneralizedAlpha(Integrator):
         self.h_try = scene.dt
         ts.setI2Function(self._function, sp.global_vec())
         if solver.op is not None:
-            ts.setI2Jacobian(self._jacobian, solver.op.mat, solver.op.mat)
+            ts.setI2Jacobian(self._jacobian, solver.op.operator, solver.op.mat)
         ts.setTimeStep(scene.dt)
         ts.setMaxTime(scene.final_time)
         ts.setExactFinalTime(PETSc.TS.ExactFinalTime.MATCHSTEP)
@@ -131,7 +131,7 @@ class GeneralizedAlpha(Integrator):
         self.system.set_rate_weights(shift_v, shift_a)
         self.system.linearize(U)
         self.solver.op.update()
-        if J.handle != P.handle:
+        if J.handle != self.solver.op.operator.handle:
             J.assemble()   # MFFD operator (-snes_mf_operator): new base point
 
     def _post_stage(self, ts_handle, t, stage, y):

@@ -13,12 +13,14 @@ this script makes on first use from the dolfinx-solver-real wheel (DOLFINx 0.11 
 and MPICH; never mixed with ours). Its phases are timed around the calls (assemble_matrix, assemble_
 vector + lifting, PC set-up, KSP solve); ours come from PETSc's -log_view (SNESJacobianEval,
 SNESFunctionEval, PCSetUp, KSPSolve without the set-up, SNESSolve / Newton steps). The last column is
-one residual evaluation of ours over one MatMult of the assembled tangent (per call, from a CG + Jacobi
-run of the same problem, whose MatMults are all on the fine level).
+one residual evaluation of ours over one MatMult of the assembled AIJ tangent (per call, from a CG + Jacobi
+run of the same problem, whose MatMults are all on the fine level). --storage: ours with
+-operator_storage aij and/or sbaij (the Krylov MatMults on an SBAIJ copy; a row each, one DOLFINx run).
 scikit-fem (--peer skfem, `pip install -r requirements-bench.txt`): the earlier comparison (load
 1000 Pa, its LinearForm / BilinearForm, SciPy's direct solver).
 
     .venv/bin/python scripts/bench_peer.py OUT [--levels 5,8] [--tets 250000] [--ranks 1,2] [--pcs gamg,lu]
+        [--storage aij,sbaij]
     .venv/bin/python scripts/bench_peer.py OUT --full        # L5, L8, ~250k tets
 """
 import argparse
@@ -111,9 +113,10 @@ def parse_log_view(path):
     return out
 
 
-def ours(mesh_path, out, ranks=1, pc="gamg", traction=T):
-    """(displacement in input order, Newton steps, {phase: seconds per Newton step})."""
-    tag = f"{os.path.basename(mesh_path)[:-4]}_{pc}_n{ranks}"
+def ours(mesh_path, out, ranks=1, pc="gamg", traction=T, storage="aij"):
+    """(displacement in input order, Newton steps, {phase: seconds per Newton step}; "ksp_its": Krylov
+    iterations in all)."""
+    tag = f"{os.path.basename(mesh_path)[:-4]}_{pc}_{storage}_n{ranks}"
     path, log = os.path.join(out, f"ours_{tag}.h5"), os.path.join(out, f"ours_{tag}.log")
     solver = (["-ksp_type", "preonly", "-pc_type", "lu"] if pc == "lu" else
               ["-ksp_type", "cg", "-ksp_rtol", "1e-10"] + PCS[pc])
@@ -121,7 +124,7 @@ def ours(mesh_path, out, ranks=1, pc="gamg", traction=T):
             f"0,{-traction},0", "-mesh", mesh_path, "-dt", 1, "-final_time", 1, "-jacobian", "assembled",
             "-snes_linesearch_type", "basic", "-objective", "0", "-inversion_guard", "0", "-snes_rtol", RTOL,
             "-snes_atol", "1e-14", "-snes_stol", "0", "-step_control", "0", "-output", path, "-quiet",
-            "-log_view", f":{log}"] + solver
+            "-log_view", f":{log}", "-operator_storage", storage] + solver
     rc, err, wall = run_hyperelastic(args, path, nprocs=ranks, timeout=3600)
     if rc != 0:
         raise RuntimeError(f"hyperelastic failed: {last_line(err, rc)}")
@@ -129,10 +132,11 @@ def ours(mesh_path, out, ranks=1, pc="gamg", traction=T):
     with h5py.File(path, "r") as f:
         disp = f["x"][-1] - f["mesh/points"][:]
         its = int(f["stats/newton_its"][-1])
+        ksp_its = int(f["stats/ksp_its"][-1])
     ev = parse_log_view(log)
     per = {LOG_EVENTS[k]: t / its for k, (n, t) in ev.items()}
-    per["step"] = per.pop("solve")
-    per["ksp_solve"] -= per.get("pc_setup", 0.0)          # KSPSolve includes the PC set-up it triggers
+    per["step"] = per.pop("solve")                        # (KSPSolve's event excludes the PCSetUp it calls)
+    per["ksp_its"] = ksp_its
     call = {k: t / n for k, (n, t) in ev.items() if n}
     per["residual_per_matmult"] = call["SNESFunctionEval"] / call["MatMult"]   # (jacobi: fine-level MatMults only)
     return disp, its, per
@@ -181,6 +185,7 @@ def dolfinx_solve(points, tets, out, tag, ranks=1, pc="gamg", traction=T):
     its = len(d["hist"]) - 1
     per = {k: float(np.sum(d[k])) / its for k in ("step", "jacobian", "residual", "pc_setup", "ksp_solve")}
     per["residual"] = float(np.mean(d["residual"]))      # one per Newton step and the first
+    per["ksp_its"] = int(np.sum(d["ksp_its"]))
     return d["disp"], its, per, f"DOLFINx {d['version']} (PETSc {d['petsc']})"
 
 
@@ -201,6 +206,7 @@ def main():
     ap.add_argument("--tets", type=int, action="append", help="also a bar with about this many tets")
     ap.add_argument("--ranks", default="1", help="rank counts, e.g. 1,2")
     ap.add_argument("--pcs", default="gamg,lu", help="gamg (CG + GAMG) and/or lu (1 rank only)")
+    ap.add_argument("--storage", default="aij,sbaij", help="ours: -operator_storage aij and/or sbaij (a row each)")
     ap.add_argument("--full", action="store_true")
     a = ap.parse_args()
     os.makedirs(a.out, exist_ok=True)
@@ -224,8 +230,9 @@ def main():
     print(f"problem: clamped bar, dead load {T:g} Pa, Neo-Hookean E={E:g} nu={NU}, quasi-static, full load, "
           f"Newton to {RTOL:g}; ms per Newton step (PETSc -log_view events for ours, timers around the same "
           "calls for DOLFINx)")
-    hdr = ("| mesh | tets | ranks | PC | max|du|/max|u| | Newton ours/peer | step ours | peer | ratio | Jacobian ours | "
-           "peer | ratio | residual ours | peer | ratio | PC set-up ours | peer | ratio | residual / MatMult ours |")
+    hdr = ("| mesh | tets | ranks | PC | storage | max|du|/max|u| | Newton ours/peer | Krylov its ours/peer | step ours | "
+           "peer | ratio | Jacobian ours | peer | ratio | residual ours | peer | ratio | PC set-up ours | peer | ratio | "
+           "Krylov solve ours | peer | ratio | residual / MatMult ours |")
     print(hdr)
     print("|" + "---|" * (hdr.count("|") - 1))
     version = ""
@@ -235,18 +242,21 @@ def main():
             for n in ranks:
                 if pc == "lu" and n > 1:
                     continue
-                u1, n1, p1 = ours(m, a.out, n, pc)
                 u2, n2, p2, version = dolfinx_solve(points, tets, a.out, name, n, pc)
-                rel = np.abs(u1 - u2).max() / np.abs(u2).max()
-                cells = []
-                for k in ("step", "jacobian", "residual", "pc_setup"):
-                    cells += [f"{1e3 * p1[k]:.3g}", f"{1e3 * p2[k]:.3g}", f"{p1[k] / p2[k]:.2f}"]
-                if pc == "gamg":      # GAMG's MatMults include the coarse levels': the ratio from a CG + Jacobi run
-                    cells.append(f"{ours(m, a.out, n, 'jacobi')[2]['residual_per_matmult']:.2f}")
-                else:
-                    cells.append(f"{p1['residual_per_matmult']:.2f}")
-                print(f"| {name} | {len(tets):,} | {n} | {pc} | {rel:.1e} | {n1}/{n2} | " + " | ".join(cells) + " |")
-                sys.stdout.flush()
+                # GAMG's MatMults include the coarse levels': residual / MatMult from a CG + Jacobi run (AIJ)
+                rm = ours(m, a.out, n, "jacobi")[2]["residual_per_matmult"] if pc == "gamg" else None
+                for st in a.storage.split(","):
+                    if pc == "lu" and st != "aij":
+                        continue      # (LU factors the AIJ either way)
+                    u1, n1, p1 = ours(m, a.out, n, pc, storage=st)
+                    rel = np.abs(u1 - u2).max() / np.abs(u2).max()
+                    cells = []
+                    for k in ("step", "jacobian", "residual", "pc_setup", "ksp_solve"):
+                        cells += [f"{1e3 * p1[k]:.3g}", f"{1e3 * p2[k]:.3g}", f"{p1[k] / p2[k]:.2f}"]
+                    cells.append(f"{rm if rm is not None else p1['residual_per_matmult']:.2f}")
+                    print(f"| {name} | {len(tets):,} | {n} | {pc} | {st} | {rel:.1e} | {n1}/{n2} | "
+                          f"{p1['ksp_its']}/{p2['ksp_its']} | " + " | ".join(cells) + " |")
+                    sys.stdout.flush()
     print(f"peer: {version}")
 
 
