@@ -35,9 +35,10 @@ def check_storage(storage, system, jacobian, assembly, mf):
     symmetric, assembled (by setvalues), and the operator SNES multiplies by (not MFFD's)."""
     from .errors import UserError
     what = f"option -operator_storage {storage}"
-    if jacobian != "assembled" or mf:
-        raise UserError(f"{what}: stores the assembled tangent; not with -jacobian {jacobian}"
-                        + (f" or -snes_{mf}" if mf else ""))
+    if mf:
+        raise UserError(f"{what}: the Krylov method multiplies by MFFD under -snes_{mf}; use -operator_storage aij")
+    if jacobian != "assembled":
+        raise UserError(f"{what}: stores the assembled tangent; not with -jacobian {jacobian}")
     if assembly != "setvalues":
         raise UserError(f"{what}: needs -assembly setvalues (the exact pattern), not {assembly}")
     unsym = [e.name for e in system.effects if not e.symmetric]
