@@ -162,6 +162,20 @@ double he_max_step(int64_t nc, const idx_t *cells, const double *Dminv, const do
 /* dst += the 12x12 blocks vals (nc x 144, dof order 3a+i) of the cells with base[16 e] >= 0, into CSR
  * values: the 3x3 block of vertices (a, b) starts at base[16 e + 4 a + b] and its row i at + i * len[4 e + a]
  * (the three rows of a vertex have the same columns, the three columns of a vertex are consecutive). */
+/* dst block k (9 values) = the 3x3 block of a CSR value array src whose row r starts at p0[k] + r L[k]:
+   dst[9k + 3c + r] (column-major, as (S)BAIJ stores blocks) when colmajor, else dst[9k + 3r + c]. */
+void he_gather_blocks(int64_t nb, const int32_t *p0, const int32_t *L, const double *src, double *dst,
+                      int colmajor) {
+  for (int64_t k = 0; k < nb; k++) {
+    const double *s = src + p0[k];
+    double *d = dst + 9 * k;
+    const int64_t l = L[k];
+    for (int r = 0; r < 3; r++)
+      for (int c = 0; c < 3; c++)
+        d[colmajor ? 3 * c + r : 3 * r + c] = s[r * l + c];
+  }
+}
+
 void he_scatter_blocks(int64_t nc, const int32_t *base, const int32_t *len, const double *vals, double *dst) {
   for (int64_t e = 0; e < nc; e++) {
     const int32_t *p = base + 16 * e, *L = len + 4 * e;

@@ -97,11 +97,12 @@ ROWS = (
         "AIJ with its exact pattern (from the cell adjacency, on any number of ranks) and adds the 12×12 cell blocks, 8192 cells "
         "at a time, straight into its values through a per-cell map of positions (~1.4 KB/tet in all; cells at a "
         "partition boundary through MatSetValues); `coo` uses PETSc's COO path (as fast, ~5.6 KB/tet)", _S.assembly),
-    Row(("operator_storage",), "-operator_storage aij|sbaij", "`sbaij`: the Krylov method and the multigrid "
-        "smoothers multiply by an SBAIJ copy of the assembled tangent (its upper triangle, refreshed after every "
-        "fill: about half the bytes per MatMult, ~100 B/tet more memory); the preconditioner is still built from "
-        "the AIJ. Only for a symmetric tangent (`-jacobian assembled`, `-assembly setvalues`, no follower loads)",
-        _S.operator_storage),
+    Row(("operator_storage",), "-operator_storage auto|aij|sbaij", "`sbaij`: the Krylov method and the multigrid "
+        "smoothers multiply by an SBAIJ copy of the assembled tangent (its upper block triangle, gathered from "
+        "the AIJ after every fill: about 60% of the bytes per MatMult, ~120 B/tet more memory); the "
+        "preconditioner is still built from the AIJ. Only for a symmetric tangent (`-jacobian assembled`, "
+        "`-assembly setvalues`, no follower loads, no `-snes_mf_operator`). `auto`: sbaij where it applies, "
+        "else aij (the output's `operator_storage` attribute says which)", _S.operator_storage),
     Row(("reuse_preconditioner",), "-reuse_preconditioner auto|never", "`auto`: a GAMG set-up is kept across "
         "Newton iterations and time steps (SNESSetLagPreconditioner, persisting) until a Krylov solve needs more "
         "than 1.5× the iterations of the first solve after it, or fails; then it is rebuilt at the next Jacobian "

@@ -149,10 +149,7 @@ class AssembledChunked:
         if storage == "sbaij":
             if not direct:
                 raise ValueError("SBAIJ storage needs the exact pattern (direct=True)")
-            A.setOption(PETSc.Mat.Option.SYMMETRIC, True)          # (MatConvert to SBAIJ requires it)
-            A.setOption(PETSc.Mat.Option.SYMMETRY_ETERNAL, True)
-            self.operator = A.convert(PETSc.Mat.Type.SBAIJ, PETSc.Mat())
-            self.sb_map = self._sbaij_map() if sp.mpi.size == 1 else None
+            self._sbaij()
 
     @staticmethod
     def _owned_index(sp):
@@ -242,35 +239,81 @@ class AssembledChunked:
         with SeqAIJRowIJ(Ad) as (ia, ja):
             self._make_map(sp, Ad, ia, ja)
 
-    def _sbaij_map(self):
-        """On one rank: for each value of the SBAIJ copy (its upper block triangle, each 3x3 block
-        column-major), the position of the same entry in the AIJ's CSR values (int32, 9 per block, about
-        half the AIJ's entries), so that a refresh is one gather instead of a MatConvert."""
-        from .libpetsc import SeqAIJRowIJ
-        with SeqAIJRowIJ(self.operator, blocks=True) as (bi, bj):
-            bi = bi.astype(np.int64)
-            I, J = np.repeat(np.arange(len(bi) - 1), np.diff(bi)), bj.astype(np.int64)
-        pos = np.empty((len(J), 3, 3), np.int32)                 # [block, column c, row r]
-        with SeqAIJRowIJ(self.mat) as (ia, ja):
-            ia64 = ia.astype(np.int64)
-            for r in range(3):
-                p = _row_search(ia64, ja, 3 * I + r, 3 * J)           # column 3J in row 3I + r
-                if not (np.array_equal(ja[p], 3 * J) and np.array_equal(ja[np.minimum(p + 2, len(ja) - 1)], 3 * J + 2)):
-                    raise RuntimeError("the SBAIJ copy's pattern is not the AIJ's upper block triangle")
-                pos[:, :, r] = p[:, None] + np.arange(3)
-        return pos.ravel()
+    def _upper_blocks(self, part, global_col, lo, hi):
+        """Of one CSR part of the AIJ (its diagonal block, or on several ranks its off-diagonal block), the
+        3x3 blocks of owned block rows lo..hi-1 in the upper block triangle (global block column >= global
+        block row): (row, global column, p0, L) with p0 the position of the block's first entry in the part's
+        values and L the length of its rows (a vertex's three rows have the same columns)."""
+        ia, ja = part
+        rows = 3 * np.arange(lo, hi)
+        start, L = ia[rows].astype(np.int64), (ia[rows + 1] - ia[rows]).astype(np.int64)
+        pos = np.repeat(start, L) + np.arange(L.sum()) - np.repeat(np.cumsum(L) - L, L)
+        I = np.repeat(np.arange(lo, hi), L)
+        g = global_col(ja[pos].astype(np.int64))
+        keep = (g % 3 == 0) & (g // 3 >= self.row0 + I)
+        I, pos = I[keep], pos[keep]
+        return I, g[keep] // 3, pos.astype(np.int32), L[I - lo].astype(np.int32)
+
+    def _sbaij(self):
+        """The SBAIJ copy (`operator`): the AIJ's upper block triangle, preallocated from the AIJ's own
+        pattern, and per block where its first row starts in the AIJ's values and that row's length (p0, L:
+        8 bytes per block). A refresh gathers the blocks of the SBAIJ's diagonal part straight into its
+        values (kernels.gather_blocks); on several ranks the blocks whose column another rank owns (the
+        SBAIJ's off-diagonal part, which PETSc does not expose) go through MatSetValuesBlocked, all rows
+        owned here (no stash)."""
+        from .libpetsc import SeqAIJRowIJ, mpiaij_off_diagonal
+        sp = self.system.space
+        A, n, several = self.mat, sp.n_owned, sp.mpi.size > 1
+        r0 = A.getOwnershipRange()[0]
+        self.row0 = r0 // 3
+        d, o = [], []
+        with SeqAIJRowIJ(self.Ad) as pd:
+            for lo in range(0, n, self.CHUNK):
+                d.append(self._upper_blocks(pd, lambda c: c + r0, lo, min(lo + self.CHUNK, n)))
+        if several:
+            ao, colmap = mpiaij_off_diagonal(A)
+            with SeqAIJRowIJ(ao) as po:
+                self.nnz_o = int(po[0][-1])
+                for lo in range(0, n, self.CHUNK):
+                    o.append(self._upper_blocks(po, lambda c: colmap[c].astype(np.int64), lo, min(lo + self.CHUNK, n)))
+        d = [np.concatenate(x) for x in zip(*d)]
+        o = [np.concatenate(x) for x in zip(*o)] if several else [np.zeros(0, np.int64)] * 2 + [np.zeros(0, np.int32)] * 2
+        rows = np.concatenate([d[0], o[0]])                     # (diagonal part, then off-diagonal: its columns
+        order = np.argsort(rows, kind="stable")                 #  are all beyond this rank's: sorted per row)
+        bi = np.zeros(n + 1, np.int64)
+        bi[1:] = np.cumsum(np.bincount(rows, minlength=n))
+        bj = np.concatenate([d[1], o[1]])[order]
+        del rows, order
+        S = PETSc.Mat().create(comm=sp.comm)
+        S.setSizes(A.getSizes(), bsize=3)
+        S.setType(PETSc.Mat.Type.SBAIJ)
+        S.setPreallocationCSR((bi.astype(PETSc.IntType), bj.astype(PETSc.IntType)))
+        S.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, True)
+        if several:
+            S.setOption(PETSc.Mat.Option.NO_OFF_PROC_ENTRIES, True)
+        self.operator, self.Sd = S, (S.getDiagonalBlock() if several else S)
+        with SeqAIJRowIJ(self.Sd, blocks=True) as (si, sj):     # the diagonal part as PETSc stores it
+            if not (np.array_equal(si, np.concatenate([[0], np.cumsum(np.bincount(d[0], minlength=n))]))
+                    and np.array_equal(sj, d[1] - self.row0)):
+                raise RuntimeError("the SBAIJ copy's diagonal part is not the AIJ's upper block triangle")
+        self.sb_d = (d[2], d[3])
+        self.sb_o = ((o[0] + self.row0).astype(PETSc.IntType)[:, None], o[1].astype(PETSc.IntType)[:, None],
+                     o[2], o[3]) if several and len(o[0]) else None
 
     def _refresh_sbaij(self):
-        """The SBAIJ copy from the AIJ just filled: a gather through the map on one rank, MatConvert
-        (MAT_REUSE_MATRIX) on several."""
-        from .libpetsc import SeqAIJValues
-        S = self.operator
-        if self.sb_map is None:
-            self.mat.convert(PETSc.Mat.Type.SBAIJ, S)
-            return
-        with SeqAIJValues(self.mat, self.nnz_d) as a, SeqAIJValues(S, len(self.sb_map), "SBAIJ") as v:
-            np.take(a, self.sb_map, out=v)
-        S.assemble()
+        """The SBAIJ copy from the AIJ just filled (_sbaij)."""
+        from .kernels import gather_blocks
+        from .libpetsc import SeqAIJValues, mpiaij_off_diagonal
+        p0, L = self.sb_d
+        with SeqAIJValues(self.Ad, self.nnz_d) as a, SeqAIJValues(self.Sd, 9 * len(p0), "SBAIJ") as v:
+            gather_blocks(p0, L, a, v, colmajor=True)
+        if self.sb_o is not None:
+            rows, cols, p0, L = self.sb_o
+            vals = np.empty((len(p0), 9))
+            with SeqAIJValues(mpiaij_off_diagonal(self.mat)[0], self.nnz_o) as a:
+                gather_blocks(p0, L, a, vals, colmajor=False)
+            self.operator.setValuesBlockedRCV(rows, cols, vals, PETSc.InsertMode.INSERT_VALUES)
+        self.operator.assemble()
 
     def _make_map(self, sp, Ad, ia, ja):
         if len(ja) >= 2 ** 31:
@@ -436,9 +479,6 @@ class PetscMFFD:
 
 OPERATORS = {"shell": ExactShell, "seed_fd": lambda s: SeedFD(s, 1), "seed_fd2": lambda s: SeedFD(s, 2)}
 ASSEMBLIES = {"setvalues": AssembledChunked, "coo": Assembled}
-
-
-STORAGES = ("aij", "sbaij")
 
 
 def make(system, mode, assembly="setvalues", storage="aij"):

@@ -43,6 +43,8 @@ _lib.he_add_mass_blocks.restype = None
 _lib.he_add_mass_blocks.argtypes = [_I, _P, _D, _P]
 _lib.he_scatter_blocks.restype = None
 _lib.he_scatter_blocks.argtypes = [_I, _P, _P, _P, _P]
+_lib.he_gather_blocks.restype = None
+_lib.he_gather_blocks.argtypes = [_I, _P, _P, _P, _P, ctypes.c_int]
 
 
 def scatter_blocks(base, rowlen, vals, dst):
@@ -53,6 +55,17 @@ def scatter_blocks(base, rowlen, vals, dst):
     assert base.dtype == rowlen.dtype == np.int32 and vals.dtype == dst.dtype == np.float64
     assert base.flags.c_contiguous and rowlen.flags.c_contiguous and vals.flags.c_contiguous
     _lib.he_scatter_blocks(nc, base.ctypes.data, rowlen.ctypes.data, vals.ctypes.data, dst.ctypes.data)
+
+
+def gather_blocks(p0, L, src, dst, colmajor):
+    """dst (nb*9) = the 3x3 blocks of the CSR values src whose row r starts at p0[k] + r L[k], each block
+    column-major (as (S)BAIJ stores them) or row-major (p0, L int32)."""
+    nb = len(p0)
+    assert p0.dtype == L.dtype == np.int32 and len(L) == nb and dst.size == 9 * nb
+    assert src.dtype == dst.dtype == np.float64 and dst.flags.c_contiguous
+    _lib.he_gather_blocks(nb, p0.ctypes.data, L.ctypes.data, src.ctypes.data, dst.ctypes.data, int(colmajor))
+
+
 _bound = {}
 
 

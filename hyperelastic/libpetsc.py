@@ -30,6 +30,8 @@ def lib():
         _lib.SNESSetLagPreconditioner.argtypes = [ctypes.c_void_p, ctypes.c_int]
         for fn in ("MatSeqAIJGetArray", "MatSeqAIJRestoreArray", "MatSeqSBAIJGetArray", "MatSeqSBAIJRestoreArray"):
             getattr(_lib, fn).argtypes = [ctypes.c_void_p, ctypes.POINTER(ctypes.c_void_p)]
+        _lib.MatMPIAIJGetSeqAIJ.argtypes = [ctypes.c_void_p] + [ctypes.POINTER(ctypes.c_void_p)] * 3
+        _lib.MatGetSize.argtypes = [ctypes.c_void_p, ctypes.POINTER(_INT), ctypes.POINTER(_INT)]
         for fn in ("MatGetRowIJ", "MatRestoreRowIJ"):
             getattr(_lib, fn).argtypes = [ctypes.c_void_p, ctypes.c_int64, ctypes.c_int, ctypes.c_int,
                                           ctypes.POINTER(_INT), ctypes.POINTER(ctypes.c_void_p),
@@ -47,7 +49,7 @@ class SeqAIJRowIJ:
         self.blocks = int(blocks)
 
     def _call(self, fn):
-        return getattr(lib(), fn)(ctypes.c_void_p(self.mat.handle), 0, 0, self.blocks, ctypes.byref(self.n),
+        return getattr(lib(), fn)(_handle(self.mat), 0, 0, self.blocks, ctypes.byref(self.n),
                                   ctypes.byref(self.ia), ctypes.byref(self.ja), ctypes.byref(self.done))
 
     def __enter__(self):
@@ -75,14 +77,33 @@ class SeqAIJValues:
 
     def __enter__(self):
         import numpy as np
-        err = getattr(lib(), f"MatSeq{self.kind}GetArray")(ctypes.c_void_p(self.mat.handle), ctypes.byref(self.ptr))
+        err = getattr(lib(), f"MatSeq{self.kind}GetArray")(_handle(self.mat), ctypes.byref(self.ptr))
         if err or not self.ptr.value:
             raise RuntimeError(f"MatSeq{self.kind}GetArray failed ({err})")
         return np.ctypeslib.as_array(ctypes.cast(self.ptr, ctypes.POINTER(ctypes.c_double)), shape=(self.nnz,))
 
     def __exit__(self, *exc):
-        getattr(lib(), f"MatSeq{self.kind}RestoreArray")(ctypes.c_void_p(self.mat.handle), ctypes.byref(self.ptr))
+        getattr(lib(), f"MatSeq{self.kind}RestoreArray")(_handle(self.mat), ctypes.byref(self.ptr))
         return False
+
+
+def _handle(mat):
+    """A petsc4py Mat's C handle, or a raw one (an int) as mpiaij_off_diagonal gives."""
+    return ctypes.c_void_p(mat if isinstance(mat, int) else mat.handle)
+
+
+def mpiaij_off_diagonal(mat):
+    """MatMPIAIJGetSeqAIJ: (raw handle of the off-diagonal SeqAIJ part, its columns' global indices) of an
+    MPIAIJ matrix; the part belongs to `mat` (valid while its pattern is)."""
+    import numpy as np
+    ad, ao, colmap = ctypes.c_void_p(), ctypes.c_void_p(), ctypes.c_void_p()
+    if lib().MatMPIAIJGetSeqAIJ(ctypes.c_void_p(mat.handle), ctypes.byref(ad), ctypes.byref(ao), ctypes.byref(colmap)):
+        raise RuntimeError("MatMPIAIJGetSeqAIJ failed")
+    m, n = _INT(), _INT()
+    lib().MatGetSize(ao, ctypes.byref(m), ctypes.byref(n))
+    cols = (np.ctypeslib.as_array(ctypes.cast(colmap, ctypes.POINTER(_INT)), shape=(n.value,)).copy()
+            if n.value else np.zeros(0, np.int32))
+    return ao.value, cols
 
 
 def lag_preconditioner_persists(snes, flag=True):

@@ -123,6 +123,7 @@ def run_attributes(model, scene_file, solver):
             "effects_built": json.dumps(built, sort_keys=True), "hyperelastic_version": __version__,
             "petsc_version": ".".join(map(str, PETSc.Sys.getVersion())), "mpi_ranks": space.comm.getSize(),
             "jacobian": sc.jacobian + (f" ({solver.mf})" if solver.mf else ""), "integrator": sc.integrator,
+            "operator_storage": solver.storage if solver.op is not None else "",
             "line_search_merit": solver.merit + (f" ({solver.merit_note})" if solver.merit_note else ""),
             "material": sc.material.name, "E": sc.E, "nu": sc.nu, "rho": sc.rho,
             "regions": json.dumps([{"name": r.name, "material": r.material.name, "E": r.E, "nu": r.nu, "rho": r.rho}

@@ -41,7 +41,7 @@ class Scene:
     fps: float = 30.0
     jacobian: str = "assembled"
     assembly: str = "setvalues"   # how the assembled tangent is filled (jacobians.AssembledChunked / Assembled)
-    operator_storage: str = "aij"  # sbaij: Krylov MatMults on an SBAIJ copy of the symmetric tangent
+    operator_storage: str = "auto"  # sbaij: Krylov MatMults on an SBAIJ copy of the symmetric tangent
     hessian_projection: bool = False
     objective: bool = True        # register the incremental potential with SNES (energy line search merit)
     initial_scale: tuple = None   # x(0) = c + diag(s) (X - c), c the centroid (e.g. -1,1,1: mirrored)
@@ -85,7 +85,7 @@ MAX_STEPS, MAX_FRAMES = 1e9, 1e6   # a run beyond these is a typo, not a simulat
 JACOBIANS = ("assembled", "shell", "seed_fd", "seed_fd2")
 INTEGRATORS = ("beuler", "ts")
 ASSEMBLIES = ("setvalues", "coo")
-STORAGES = ("aij", "sbaij")       # the matrix the Krylov method multiplies by (jacobians.AssembledChunked)
+STORAGES = ("auto", "aij", "sbaij")   # the matrix the Krylov method multiplies by (solver.resolve_storage)
 
 
 def facet_sets(opts, name, default=None, components=False):

@@ -30,10 +30,18 @@ def apply_defaults(merit="residual norm", symmetric=True):
         opts.setValue("pc_type", "none" if opts.getBool("snes_mf", False) else "jacobi")
 
 
-def check_storage(storage, system, jacobian, assembly, mf):
-    """-operator_storage sbaij: the tangent's upper triangle is all there is of it, so it must be
-    symmetric, assembled (by setvalues), and the operator SNES multiplies by (not MFFD's)."""
+def resolve_storage(storage, system, jacobian, assembly, mf):
+    """-operator_storage: `aij`, or `sbaij` where it applies — the tangent's upper triangle is all the
+    Krylov method sees of it, so it must be symmetric, assembled (by setvalues), and the operator SNES
+    multiplies by (not MFFD's). `auto` (default): sbaij where it applies, else aij; an explicit sbaij
+    where it does not is an error."""
     from .errors import UserError
+    if storage == "aij":
+        return storage
+    if storage == "auto":
+        ok = (jacobian == "assembled" and assembly == "setvalues" and not mf
+              and all(e.symmetric for e in system.effects))
+        return "sbaij" if ok else "aij"
     what = f"option -operator_storage {storage}"
     if mf:
         raise UserError(f"{what}: the Krylov method multiplies by MFFD under -snes_{mf}; use -operator_storage aij")
@@ -44,6 +52,7 @@ def check_storage(storage, system, jacobian, assembly, mf):
     unsym = [e.name for e in system.effects if not e.symmetric]
     if unsym:
         raise UserError(f"{what}: the tangent of {', '.join(unsym)} is not symmetric; use -operator_storage aij")
+    return storage
 
 
 def matrix_free():
@@ -58,7 +67,7 @@ def matrix_free():
 
 class Solver:
     def __init__(self, system, jacobian, assembly="setvalues", guard=False, objective=True, snes=None,
-                 reuse_pc="auto", storage="aij"):
+                 reuse_pc="auto", storage="auto"):
         """SNES on the system's residual with Jacobian mode `jacobian` (scene.JACOBIANS; filled by
         `assembly` when assembled); guard: shorten Newton updates that would invert an element;
         objective: register the system's incremental potential as the SNES objective (the line
@@ -66,7 +75,8 @@ class Solver:
         snes: a PETSc TS's SNES (ts_integrator.py), whose function and Jacobian the TS sets and whose
         options the TS reads; the operator `op` is built here all the same.
         storage: `sbaij` multiplies by an SBAIJ copy of the assembled tangent (jacobians.AssembledChunked;
-        the PC is built from the AIJ): only for a symmetric tangent, assembled by setvalues."""
+        the PC is built from the AIJ): only for a symmetric tangent, assembled by setvalues; `auto`: sbaij
+        where it applies, else aij (`self.storage`: the one chosen)."""
         self.system = system
         sp = system.space
         self.merit_note = ""
@@ -87,10 +97,9 @@ class Solver:
             snes.setObjective(self._objective)
             snes.setUpdate(self._newton_iterate)
         self.op = None
-        if storage != "aij":
-            check_storage(storage, system, jacobian, assembly, self.mf)
+        self.storage = resolve_storage(storage, system, jacobian, assembly, self.mf)
         if self.mf != "mf":   # under -snes_mf no Jacobian of ours is used: do not build one
-            self.op = jacobians.make(system, jacobian, assembly, storage)
+            self.op = jacobians.make(system, jacobian, assembly, self.storage)
             if own:
                 snes.setJacobian(self._jacobian, self.op.operator, self.op.mat)
         self.inversion_cuts = 0   # Newton updates shortened so that no element inverts

@@ -60,8 +60,9 @@ def memory(out, full):
     tets = 660_000 if full else 60_000
     mesh = mesh_for(tets)
     rows = []
-    for name, args in (("assembled (setvalues)", ["-jacobian", "assembled"]),
+    for name, args in (("assembled (setvalues), AIJ operator", ["-jacobian", "assembled", "-operator_storage", "aij"]),
                        ("assembled (coo)", ["-jacobian", "assembled", "-assembly", "coo"]),
+                       ("assembled (setvalues) + SBAIJ operator (default)", ["-jacobian", "assembled"]),
                        ("shell", ["-jacobian", "shell"])):
         r = run(out, f"memory_{name.split()[0]}_{args[-1]}", "bend", mesh, args)
         r["bytes_per_tet"] = r["peak_rss_mb"] * 2 ** 20 / r["tets"]
@@ -108,8 +109,10 @@ def parallel(out, full):
     res = {}
     print(f"\n## 1 vs 2 ranks, bend, 2 steps, {tets:,}-tet target")
     print("| options | ranks | s / Newton | s / step | KSP / Newton | vertex share of the larger rank |\n|---|---|---|---|---|---|")
-    for name, args in (("assembled, CG + Jacobi", ["-jacobian", "assembled"]),
-                       ("assembled, CG + GAMG", ["-jacobian", "assembled"] + PCS["gamg"]),
+    aij = ["-jacobian", "assembled", "-operator_storage", "aij"]
+    sbaij = ["-jacobian", "assembled", "-operator_storage", "sbaij"]
+    for name, args in (("assembled, CG + Jacobi", aij), ("assembled, CG + GAMG", aij + PCS["gamg"]),
+                       ("assembled_sbaij, CG + Jacobi", sbaij), ("assembled_sbaij, CG + GAMG", sbaij + PCS["gamg"]),
                        ("shell, CG + Jacobi", ["-jacobian", "shell"]),
                        ("MFFD, CG + Jacobi of the assembled tangent", ["-jacobian", "assembled", "-snes_mf_operator"])):
         for n in (1, 2):
