@@ -176,6 +176,19 @@ void he_gather_blocks(int64_t nb, const int32_t *p0, const int32_t *L, const dou
   }
 }
 
+/* dst[p0[k] + r L[k] + c] += vals[9k + 3r + c]: 3x3 blocks (row-major) added into CSR values, in order
+   (blocks at the same place accumulate). */
+void he_add_blocks(int64_t nb, const int32_t *p0, const int32_t *L, const double *vals, double *dst) {
+  for (int64_t k = 0; k < nb; k++) {
+    double *d = dst + p0[k];
+    const double *v = vals + 9 * k;
+    const int64_t l = L[k];
+    for (int r = 0; r < 3; r++)
+      for (int c = 0; c < 3; c++)
+        d[r * l + c] += v[3 * r + c];
+  }
+}
+
 void he_scatter_blocks(int64_t nc, const int32_t *base, const int32_t *len, const double *vals, double *dst) {
   for (int64_t e = 0; e < nc; e++) {
     const int32_t *p = base + 16 * e, *L = len + 4 * e;

@@ -342,6 +342,85 @@ class AssembledChunked:
             rowlen[lo + sel] = L
         self.Ad, self.nnz_d, self.base, self.rowlen = Ad, len(ja), base, rowlen
         self.boundary = np.flatnonzero(~interior)
+        self.exchange = None
+        if sp.mpi.size > 1:
+            self._exchange_setup(sp, ia, ja)
+
+    def _block_places(self, ia, ja, ao, vrow, gcol):
+        """For 3x3 blocks (owned row vertex vrow, by index among this rank's; global column vertex gcol):
+        (in_off, p0, L) — in the diagonal or the off-diagonal part of the MPIAIJ, where the block's first
+        entry is in that part's values and its rows' length. Checked entry by entry."""
+        ia_o, ja_o, colmap = ao
+        n = self.system.space.n_owned
+        off = (gcol < self.row0) | (gcol >= self.row0 + n)
+        p0, L = np.empty(len(vrow), np.int64), np.empty(len(vrow), np.int64)
+        for sel, (pi, pj), col in ((~off, (ia, ja), 3 * (gcol - self.row0)),
+                                   (off, (ia_o, ja_o), np.searchsorted(colmap, 3 * gcol))):
+            r, c = 3 * vrow[sel], col[sel]
+            pi = pi.astype(np.int64)
+            p = _row_search(pi, pj, r, c)
+            last = np.minimum(p + 2, len(pj) - 1)
+            want = 3 * gcol[sel] if pj is ja_o else c
+            got = (colmap[pj[p]], colmap[pj[last]]) if pj is ja_o else (pj[p], pj[last])
+            if not (np.array_equal(got[0], want) and np.array_equal(got[1], want + 2)):
+                raise RuntimeError("a partition-boundary block is missing from the assembled pattern")
+            p0[sel], L[sel] = p, pi[r + 1] - pi[r]
+        return off, p0.astype(np.int32), L.astype(np.int32)
+
+    def _exchange_setup(self, sp, ia, ja):
+        """Several ranks: the 16 blocks of each cell with a vertex another rank owns (`boundary`) are not
+        added through MatSetValues and PETSc's stash but directly: blocks in this rank's rows into the
+        diagonal or off-diagonal part's values (positions found once), the others sent to their row's
+        owner in one Alltoallv per fill, in an order agreed once (each rank sends the global (row,
+        column) vertex pairs of what it will send; the owner finds their positions)."""
+        from .libpetsc import SeqAIJRowIJ, mpiaij_off_diagonal
+        mpi, A = sp.mpi, self.mat
+        self.row0 = A.getOwnershipRange()[0] // 3
+        starts = np.zeros(mpi.size + 1, np.int64)
+        starts[1:] = np.cumsum(mpi.allgather(sp.n_owned))
+        g = sp.lgmap.getBlockIndices().astype(np.int64)
+        c = g[self.blocks[self.boundary].astype(np.int64)]                     # (nb, 4) global vertices
+        gr, gc = np.repeat(c, 4, axis=1).ravel(), np.tile(c, (1, 4)).ravel()    # block (cell, a, b)
+        owner = np.searchsorted(starts, gr, side="right") - 1
+        send = np.flatnonzero(owner != mpi.rank)
+        send = send[np.argsort(owner[send], kind="stable")]
+        scount = np.bincount(owner[send], minlength=mpi.size)
+        cut = np.concatenate([[0], np.cumsum(scount)])
+        got = mpi.alltoall([np.stack([gr[send[cut[q]:cut[q + 1]]], gc[send[cut[q]:cut[q + 1]]]])
+                            for q in range(mpi.size)])
+        rcount = np.array([x.shape[1] for x in got])
+        rr, rc = np.concatenate([x[0] for x in got]), np.concatenate([x[1] for x in got])
+        mine = np.flatnonzero(owner == mpi.rank)
+        ao_handle, colmap = mpiaij_off_diagonal(A)
+        with SeqAIJRowIJ(ao_handle) as (ia_o, ja_o):
+            self.nnz_o = len(ja_o)
+            ao = (ia_o, ja_o, colmap.astype(np.int64))
+            own = self._block_places(ia, ja, ao, gr[mine] - self.row0, gc[mine])
+            recv = self._block_places(ia, ja, ao, rr - self.row0, rc)
+        # (which blocks, p0, L) into the diagonal and the off-diagonal part, from this rank's cells and received
+        split = lambda idx, pl: [(idx[k], pl[1][k], pl[2][k]) for k in (~pl[0], pl[0])]
+        self.exchange = {"own": split(mine, own), "recv": split(np.arange(len(rr)), recv), "send": send,
+                         "scount": 9 * scount, "rcount": 9 * rcount}
+        # PETSc's stash is then only for effects with their own entries (face blocks): skip its
+        # communication where no rank has any
+        if not mpi.allreduce(len(self.other)):
+            A.setOption(PETSc.Mat.Option.NO_OFF_PROC_ENTRIES, True)
+
+    def _exchange_add(self, bvals):
+        """Add the partition-boundary cells' blocks bvals (nb, 12, 12) (_exchange_setup)."""
+        from .kernels import add_blocks
+        from .libpetsc import SeqAIJValues, mpiaij_off_diagonal
+        x = self.exchange
+        blocks = np.ascontiguousarray(bvals.reshape(-1, 4, 3, 4, 3).transpose(0, 1, 3, 2, 4)).reshape(-1, 9)
+        sbuf = np.ascontiguousarray(blocks[x["send"]])
+        rbuf = np.empty((x["rcount"].sum() // 9, 9))
+        self.system.space.mpi.Alltoallv([sbuf, x["scount"]], [rbuf, x["rcount"]])
+        ao = mpiaij_off_diagonal(self.mat)[0]
+        with SeqAIJValues(self.Ad, self.nnz_d) as d, SeqAIJValues(ao, self.nnz_o) as o:
+            for src, parts in ((blocks, x["own"]), (rbuf, x["recv"])):
+                for (idx, p0, L), dst in zip(parts, (d, o)):
+                    if len(idx):
+                        add_blocks(p0, L, np.ascontiguousarray(src[idx]), dst)
 
     def assemble(self):
         from .kernels import scatter_blocks
@@ -353,6 +432,7 @@ class AssembledChunked:
         ADD = PETSc.InsertMode.ADD_VALUES
         nc = len(self.blocks)
         buf = np.empty((min(self.CHUNK, nc), 12, 12))
+        bvals = np.empty((len(self.boundary) if direct else 0, 12, 12))      # partition-boundary cells
         for lo in range(0, nc, self.CHUNK):
             hi = min(lo + self.CHUNK, nc)
             vals = buf[:hi - lo]
@@ -372,9 +452,11 @@ class AssembledChunked:
                 continue
             with SeqAIJValues(self.Ad, self.nnz_d) as arr:
                 scatter_blocks(self.base[lo:hi], self.rowlen[lo:hi], vals, arr)
-            b = self.boundary[np.searchsorted(self.boundary, lo):np.searchsorted(self.boundary, hi)]
-            if len(b):
-                A.setValuesBlockedLocalRCV(self.blocks[b], self.blocks[b], vals[b - lo].reshape(-1, 144), ADD)
+            k0, k1 = np.searchsorted(self.boundary, lo), np.searchsorted(self.boundary, hi)
+            if k1 > k0:
+                bvals[k0:k1] = vals[self.boundary[k0:k1] - lo]
+        if direct and self.exchange is not None:
+            self._exchange_add(bvals)
         for e, n, keep, r, c in self.other:
             v = np.empty(n)
             e.coo_values(v)

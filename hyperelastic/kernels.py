@@ -43,6 +43,8 @@ _lib.he_add_mass_blocks.restype = None
 _lib.he_add_mass_blocks.argtypes = [_I, _P, _D, _P]
 _lib.he_scatter_blocks.restype = None
 _lib.he_scatter_blocks.argtypes = [_I, _P, _P, _P, _P]
+_lib.he_add_blocks.restype = None
+_lib.he_add_blocks.argtypes = [_I, _P, _P, _P, _P]
 _lib.he_gather_blocks.restype = None
 _lib.he_gather_blocks.argtypes = [_I, _P, _P, _P, _P, ctypes.c_int]
 
@@ -64,6 +66,14 @@ def gather_blocks(p0, L, src, dst, colmajor):
     assert p0.dtype == L.dtype == np.int32 and len(L) == nb and dst.size == 9 * nb
     assert src.dtype == dst.dtype == np.float64 and dst.flags.c_contiguous
     _lib.he_gather_blocks(nb, p0.ctypes.data, L.ctypes.data, src.ctypes.data, dst.ctypes.data, int(colmajor))
+
+
+def add_blocks(p0, L, vals, dst):
+    """dst[p0[k] + r L[k] + c] += vals[k, 3r + c] for the 3x3 blocks vals (nb, 9) (p0, L int32), in order."""
+    nb = len(p0)
+    assert p0.dtype == L.dtype == np.int32 and len(L) == nb and vals.shape == (nb, 9)
+    assert vals.dtype == dst.dtype == np.float64 and vals.flags.c_contiguous
+    _lib.he_add_blocks(nb, p0.ctypes.data, L.ctypes.data, vals.ctypes.data, dst.ctypes.data)
 
 
 _bound = {}
