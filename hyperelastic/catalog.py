@@ -95,8 +95,9 @@ ROWS = (
         "`seed_fd`, `seed_fd2` (the thesis' formulas); not with `-snes_mf`, which uses none", _S.jacobian),
     Row(("assembly",), "-assembly setvalues|coo", "how the assembled tangent is filled: `setvalues` preallocates the "
         "AIJ with its exact pattern (from the cell adjacency, on any number of ranks) and adds the 12×12 cell blocks, 8192 cells "
-        "at a time, straight into its values through a per-cell map of positions (~1.4 KB/tet in all; cells at a "
-        "partition boundary through MatSetValues); `coo` uses PETSc's COO path (as fast, ~5.6 KB/tet)", _S.assembly),
+        "at a time, straight into its values through a per-cell map of positions (~1.0 KB/tet in all at 660k tets; "
+        "cells at a partition boundary at positions found once, the rows another rank owns sent to it in one "
+        "Alltoallv); `coo` uses PETSc's COO path (as fast, ~5.7 KB/tet)", _S.assembly),
     Row(("operator_storage",), "-operator_storage auto|aij|sbaij", "`sbaij`: the Krylov method and the multigrid "
         "smoothers multiply by an SBAIJ copy of the assembled tangent (its upper block triangle, gathered from "
         "the AIJ after every fill: about 60% of the bytes per MatMult, ~120 B/tet more memory); the "

@@ -1,8 +1,10 @@
 """Jacobian operators, selected with -jacobian:
 
   assembled  exact tangent as AIJ (block size 3). -assembly setvalues (default): preallocated once
-             from the cell adjacency, values added per Newton step in chunks of cells
-             (MatSetValuesBlockedLocal), ~1 KB per tet in all. -assembly coo: COO pattern set once
+             from the cell adjacency, values added per Newton step in chunks of cells straight into
+             the CSR values (a per-cell map of positions), ~1 KB per tet in all; with
+             -operator_storage sbaij (the default where the tangent is symmetric) the Krylov method
+             multiplies by an SBAIJ copy of it (~120 B/tet more). -assembly coo: COO pattern set once
              (setPreallocationCOOLocal), values set per Newton step (setValuesCOO): a ~3x faster
              fill, but PETSc's COO maps and the (nc,12,12) value array cost ~5 KB per tet
   shell      exact tangent as a MatShell applying J v cell by cell, with getDiagonal for Jacobi
@@ -103,9 +105,9 @@ class AssembledChunked:
     """The exact tangent as an AIJ matrix (block size 3) with its exact pattern preallocated (_csr, on any
     number of ranks), filled per Newton step CHUNK cells at a time: the 12x12 blocks of cells whose
     vertices this rank owns are added straight into the diagonal block's CSR values through a per-cell
-    map of positions (_direct_map), the others through MatSetValuesBlockedLocal. No per-entry index
-    arrays and no whole-mesh (nc,12,12) value array stay alive: memory is the matrix, the map and one
-    chunk."""
+    map of positions (_direct_map), the others (at a partition boundary) at positions found once, through
+    one Alltoallv for the rows another rank owns (_exchange_setup). No per-entry index arrays and no
+    whole-mesh (nc,12,12) value array stay alive: memory is the matrix, the maps and one chunk."""
     CHUNK = 8192
 
     def __init__(self, system, direct=True, storage="aij"):
@@ -228,7 +230,7 @@ class AssembledChunked:
         """From the exact pattern (_csr): for every cell whose four vertices are owned here (all of them on
         one rank), where each of its 16 vertex-pair 3x3 blocks starts in the CSR value array of the
         diagonal block (int32 `base`, -1 for the other cells, whose rows or columns are partly another
-        rank's and go through MatSetValues), and the length of each of its vertices' rows (`rowlen`): the
+        rank's: _exchange_setup), and the length of each of its vertices' rows (`rowlen`): the
         three rows of a vertex have the same columns, and a vertex's three columns are consecutive, so
         entry (3a+i, 3b+j) is at base[4a+b] + i rowlen[a] + j. A Newton step adds the cell blocks straight
         into the values (kernels.scatter_blocks) instead of searching each row per block: 80 bytes per tet.
