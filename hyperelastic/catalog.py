@@ -130,8 +130,8 @@ ROWS = (
 )
 
 # the choices a row's values come from, checked against the scene reader's own lists by the tests
-CHOICES = {"material": materials.REGISTRY, "jacobian": JACOBIANS, "assembly": ASSEMBLIES, "operator_storage": STORAGES,
-           "integrator": INTEGRATORS, "effects": EFFECTS}
+CHOICES = {"material": materials.REGISTRY, "jacobian": JACOBIANS, "assembly": ASSEMBLIES,
+           "operator_storage": STORAGES, "integrator": INTEGRATORS, "effects": EFFECTS}
 
 # The PETSc families an option may belong to (its first word): passed on to PETSc.
 PETSC_FAMILIES = frozenset(

@@ -277,9 +277,13 @@ class AssembledChunked:
             with SeqAIJRowIJ(ao) as po:
                 self.nnz_o = int(po[0][-1])
                 for lo in range(0, n, self.CHUNK):
-                    o.append(self._upper_blocks(po, lambda c: colmap[c].astype(np.int64), lo, min(lo + self.CHUNK, n)))
+                    o.append(self._upper_blocks(po, lambda c: colmap[c].astype(np.int64), lo,
+                                                min(lo + self.CHUNK, n)))
         d = [np.concatenate(x) for x in zip(*d)]
-        o = [np.concatenate(x) for x in zip(*o)] if several else [np.zeros(0, np.int64)] * 2 + [np.zeros(0, np.int32)] * 2
+        if several:
+            o = [np.concatenate(x) for x in zip(*o)]
+        else:
+            o = [np.zeros(0, np.int64)] * 2 + [np.zeros(0, np.int32)] * 2
         rows = np.concatenate([d[0], o[0]])                     # (diagonal part, then off-diagonal: its columns
         order = np.argsort(rows, kind="stable")                 #  are all beyond this rank's: sorted per row)
         bi = np.zeros(n + 1, np.int64)
