@@ -41,6 +41,7 @@ from hyperelastic.study.plan import PCS  # noqa: E402
 E, NU, T = 1e6, 0.3, 5000.0
 T_SKFEM = 1000.0          # the scikit-fem comparison's load (earlier figures)
 RTOL = 1e-10
+AGREE = 1e-10             # max |u_ours - u_peer| / max |u_peer| the rows must meet (else exit 1)
 
 
 def skfem_solve(points, tets):
@@ -237,6 +238,7 @@ def main():
     print(hdr)
     print("|" + "---|" * (hdr.count("|") - 1))
     version = ""
+    disagree = []
     for name, m in meshes:
         points, tets = read(m)[:2]
         for pc in a.pcs.split(","):
@@ -255,6 +257,8 @@ def main():
                     u1, n1 = runs[0][:2]
                     p1 = {k: min(r[2][k] for r in runs) for k in runs[0][2]}
                     rel = np.abs(u1 - u2).max() / np.abs(u2).max()
+                    if not rel <= AGREE:
+                        disagree.append(f"{name} {n} rank(s) {pc} {st}: {rel:.2g}")
                     cells = []
                     for k in ("step", "jacobian", "residual", "pc_setup", "ksp_solve"):
                         cells += [f"{1e3 * p1[k]:.3g}", f"{1e3 * p2[k]:.3g}", f"{p1[k] / p2[k]:.2f}"]
@@ -263,6 +267,8 @@ def main():
                           f"{p1['ksp_its']}/{p2['ksp_its']} | " + " | ".join(cells) + " |")
                     sys.stdout.flush()
     print(f"peer: {version}")
+    if disagree:
+        sys.exit(f"bench_peer.py: the displacements differ by more than {AGREE:g} (relative): " + "; ".join(disagree))
 
 
 if __name__ == "__main__":
