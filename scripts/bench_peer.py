@@ -139,7 +139,8 @@ def ours(mesh_path, out, ranks=1, pc="gamg", traction=T, storage="aij"):
     per["step"] = per.pop("solve")                        # (KSPSolve's event excludes the PCSetUp it calls)
     per["ksp_its"] = ksp_its
     call = {k: t / n for k, (n, t) in ev.items() if n}
-    per["residual_per_matmult"] = call["SNESFunctionEval"] / call["MatMult"]   # (jacobi: fine-level MatMults only)
+    # (jacobi: fine-level MatMults only; LU (preonly) has none)
+    per["residual_per_matmult"] = call["SNESFunctionEval"] / call["MatMult"] if "MatMult" in call else float("nan")
     return disp, its, per
 
 
