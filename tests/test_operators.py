@@ -204,6 +204,19 @@ def test_sbaij_operator_is_the_assembled_tangent(petsc, scene_name):
     assert J.getType() == "seqsbaij" and P.getType() == "seqaij"
 
 
+def test_operator_storage_auto(petsc):
+    """-operator_storage auto (the default): sbaij for a symmetric tangent assembled by setvalues; aij
+    for a follower load (twist), the COO fill, the shell and under -snes_mf_operator."""
+    from hyperelastic.solver import resolve_storage
+    sym, unsym = state(petsc, "bend")[2], state(petsc, "twist")[2]
+    assert resolve_storage("auto", sym, "assembled", "setvalues", "") == "sbaij"
+    assert resolve_storage("auto", unsym, "assembled", "setvalues", "") == "aij"
+    assert resolve_storage("auto", sym, "assembled", "coo", "") == "aij"
+    assert resolve_storage("auto", sym, "shell", "setvalues", "") == "aij"
+    assert resolve_storage("auto", sym, "assembled", "setvalues", "mf_operator") == "aij"
+    assert resolve_storage("aij", sym, "assembled", "setvalues", "") == "aij"
+
+
 def test_sbaij_storage_run_equals_aij(tmp_path):
     """A dynamic run with CG + GAMG (and the set-up reuse) gives the same trajectory and Krylov
     iterations with -operator_storage sbaij as with aij, on 1 and 2 ranks."""
@@ -215,6 +228,7 @@ def test_sbaij_storage_run_equals_aij(tmp_path):
         f = tmp_path / f"{st}{n}.h5"
         run_ok(common + ["-operator_storage", st, "-output", f], nprocs=n)
         h = read_h5(f)
+        assert h["attrs"]["operator_storage"] == st
         res[st, n] = (h["x"][-1], h["stats"]["ksp_its"])
     ref, its = res["aij", 1]
     for key in (("sbaij", 1), ("sbaij", 2)):
