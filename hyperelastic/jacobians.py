@@ -142,6 +142,7 @@ class AssembledChunked:
         else:
             A.setPreallocationNNZ(self._nnz(sp))
         A.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, True)   # the pattern must be complete
+        self.row0 = A.getOwnershipRange()[0] // 3          # this rank's first vertex (block row), global
         self.mat = A
         self.filled = direct               # (zeros) once assembled: a fill starts from zeroEntries
         if direct:
@@ -266,16 +267,14 @@ class AssembledChunked:
         from .libpetsc import SeqAIJRowIJ, mpiaij_off_diagonal
         sp = self.system.space
         A, n, several = self.mat, sp.n_owned, sp.mpi.size > 1
-        r0 = A.getOwnershipRange()[0]
-        self.row0 = r0 // 3
+        r0 = 3 * self.row0
         d, o = [], []
         with SeqAIJRowIJ(self.Ad) as pd:
             for lo in range(0, n, self.CHUNK):
                 d.append(self._upper_blocks(pd, lambda c: c + r0, lo, min(lo + self.CHUNK, n)))
         if several:
             ao, colmap = mpiaij_off_diagonal(A)
-            with SeqAIJRowIJ(ao) as po:
-                self.nnz_o = int(po[0][-1])
+            with SeqAIJRowIJ(ao) as po:                         # (nnz_o: _exchange_setup)
                 for lo in range(0, n, self.CHUNK):
                     o.append(self._upper_blocks(po, lambda c: colmap[c].astype(np.int64), lo,
                                                 min(lo + self.CHUNK, n)))
@@ -316,7 +315,7 @@ class AssembledChunked:
         if self.sb_o is not None:
             rows, cols, p0, L = self.sb_o
             vals = np.empty((len(p0), 9))
-            with SeqAIJValues(mpiaij_off_diagonal(self.mat)[0], self.nnz_o) as a:
+            with SeqAIJValues(mpiaij_off_diagonal(self.mat, columns=False), self.nnz_o) as a:
                 gather_blocks(p0, L, a, vals, colmajor=False)
             self.operator.setValuesBlockedRCV(rows, cols, vals, PETSc.InsertMode.INSERT_VALUES)
         self.operator.assemble()
@@ -381,9 +380,7 @@ class AssembledChunked:
         column) vertex pairs of what it will send; the owner finds their positions)."""
         from .libpetsc import SeqAIJRowIJ, mpiaij_off_diagonal
         mpi, A = sp.mpi, self.mat
-        self.row0 = A.getOwnershipRange()[0] // 3
-        starts = np.zeros(mpi.size + 1, np.int64)
-        starts[1:] = np.cumsum(mpi.allgather(sp.n_owned))
+        starts = np.asarray(A.getOwnershipRanges(), np.int64) // 3              # each rank's first vertex
         g = sp.lgmap.getBlockIndices().astype(np.int64)
         c = g[self.blocks[self.boundary].astype(np.int64)]                     # (nb, 4) global vertices
         gr, gc = np.repeat(c, 4, axis=1).ravel(), np.tile(c, (1, 4)).ravel()    # block (cell, a, b)
@@ -421,7 +418,7 @@ class AssembledChunked:
         sbuf = np.ascontiguousarray(blocks[x["send"]])
         rbuf = np.empty((x["rcount"].sum() // 9, 9))
         self.system.space.mpi.Alltoallv([sbuf, x["scount"]], [rbuf, x["rcount"]])
-        ao = mpiaij_off_diagonal(self.mat)[0]
+        ao = mpiaij_off_diagonal(self.mat, columns=False)
         with SeqAIJValues(self.Ad, self.nnz_d) as d, SeqAIJValues(ao, self.nnz_o) as o:
             for src, parts in ((blocks, x["own"]), (rbuf, x["recv"])):
                 for (idx, p0, L), dst in zip(parts, (d, o)):

@@ -92,13 +92,16 @@ def _handle(mat):
     return ctypes.c_void_p(mat if isinstance(mat, int) else mat.handle)
 
 
-def mpiaij_off_diagonal(mat):
-    """MatMPIAIJGetSeqAIJ: (raw handle of the off-diagonal SeqAIJ part, its columns' global indices) of an
-    MPIAIJ matrix; the part belongs to `mat` (valid while its pattern is)."""
+def mpiaij_off_diagonal(mat, columns=True):
+    """MatMPIAIJGetSeqAIJ: the raw handle of an MPIAIJ matrix's off-diagonal SeqAIJ part, which belongs to
+    `mat` (valid while its pattern is), and with `columns` a copy of its columns' global indices:
+    (handle, columns) or the handle alone."""
     import numpy as np
     ad, ao, colmap = ctypes.c_void_p(), ctypes.c_void_p(), ctypes.c_void_p()
     if lib().MatMPIAIJGetSeqAIJ(ctypes.c_void_p(mat.handle), ctypes.byref(ad), ctypes.byref(ao), ctypes.byref(colmap)):
         raise RuntimeError("MatMPIAIJGetSeqAIJ failed")
+    if not columns:
+        return ao.value
     m, n = _INT(), _INT()
     lib().MatGetSize(ao, ctypes.byref(m), ctypes.byref(n))
     cols = (np.ctypeslib.as_array(ctypes.cast(colmap, ctypes.POINTER(_INT)), shape=(n.value,)).copy()
