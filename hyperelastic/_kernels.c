@@ -58,6 +58,48 @@ static inline void gradN(const double *Dminv, double G[4][3]) {
   }
 }
 
+/* Cells in blocks of HE_BLOCK: the force and energy loops take J = det F of a whole block first, then
+ * 1/J and ln J of the block at once (he_jscalars), for materials whose stress needs them (NAME_BATCH_J).
+ * Cell by cell, the division and the logarithm wait on J and on each other: ~30% of a Neo-Hookean
+ * force; over a block they are vector operations. The logarithm is glibc's vector one (libmvec, named
+ * by the x86-64 vector function ABI: _ZGVeN8v_log for 8 lanes of AVX-512, _ZGVdN4v_log for 4 of AVX2)
+ * where setup.py found libmvec (HE_MVEC), else log(). Each lane's result is that lane's alone, so a
+ * cell's ln J does not depend on its place in a block (or on the partition). */
+#define HE_BLOCK 32
+typedef struct {
+  double J[HE_BLOCK], rJ[HE_BLOCK], lnJ[HE_BLOCK];
+} he_jblock;
+
+#if defined(HE_MVEC) && (defined(__AVX512F__) || defined(__AVX2__))
+#include <immintrin.h>
+#if defined(__AVX512F__)
+__m512d _ZGVeN8v_log(__m512d);
+static inline void he_log_block(const double *s, double *out) {
+  for (int q = 0; q < HE_BLOCK; q += 8) _mm512_storeu_pd(out + q, _ZGVeN8v_log(_mm512_loadu_pd(s + q)));
+}
+#else
+__m256d _ZGVdN4v_log(__m256d);
+static inline void he_log_block(const double *s, double *out) {
+  for (int q = 0; q < HE_BLOCK; q += 4) _mm256_storeu_pd(out + q, _ZGVdN4v_log(_mm256_loadu_pd(s + q)));
+}
+#endif
+#else
+static inline void he_log_block(const double *s, double *out) {
+  for (int q = 0; q < HE_BLOCK; q++) out[q] = log(s[q]);
+}
+#endif
+
+/* b->rJ, b->lnJ = 1/J, ln J of the first n cells' b->J where J > 0, NaN elsewhere (no division by zero
+ * nor log of a non-positive number is evaluated: runs under -fp_trap stay clean). */
+static inline void he_jscalars(he_jblock *b, int n) {
+  double s[HE_BLOCK];
+  for (int q = 0; q < HE_BLOCK; q++) s[q] = (q < n && b->J[q] > 0) ? b->J[q] : 1.0;
+  for (int q = 0; q < HE_BLOCK; q++) b->rJ[q] = 1.0 / s[q];
+  he_log_block(s, b->lnJ);
+  for (int q = 0; q < n; q++)
+    if (!(b->J[q] > 0)) b->rJ[q] = b->lnJ[q] = NAN;
+}
+
 #include "he_materials.h"
 
 /* y += coef * M_e v over cells, with the consistent P1 matrix int N_a N_b dV = V (1 + delta_ab) / 20
@@ -157,11 +199,6 @@ double he_max_step(int64_t nc, const idx_t *cells, const double *Dminv, const do
   return tmin;
 }
 
-/* dst[pos[i]] += src[i] for i < n, skipping pos[i] < 0: the cell blocks' entries added straight into a
- * matrix's CSR value array through a map computed once (jacobians.AssembledChunked). */
-/* dst += the 12x12 blocks vals (nc x 144, dof order 3a+i) of the cells with base[16 e] >= 0, into CSR
- * values: the 3x3 block of vertices (a, b) starts at base[16 e + 4 a + b] and its row i at + i * len[4 e + a]
- * (the three rows of a vertex have the same columns, the three columns of a vertex are consecutive). */
 /* dst block k (9 values) = the 3x3 block of a CSR value array src whose row r starts at p0[k] + r L[k]:
    dst[9k + 3c + r] (column-major, as (S)BAIJ stores blocks) when colmajor, else dst[9k + 3r + c]. */
 void he_gather_blocks(int64_t nb, const int32_t *p0, const int32_t *L, const double *src, double *dst,
@@ -189,6 +226,10 @@ void he_add_blocks(int64_t nb, const int32_t *p0, const int32_t *L, const double
   }
 }
 
+/* dst += the 12x12 blocks vals (nc x 144, dof order 3a+i) of the cells with base[16 e] >= 0, into CSR
+ * values: the 3x3 block of vertices (a, b) starts at base[16 e + 4 a + b] and its row i at + i * len[4 e + a]
+ * (the three rows of a vertex have the same columns, the three columns of a vertex are consecutive); the
+ * map is computed once (jacobians.AssembledChunked). */
 void he_scatter_blocks(int64_t nc, const int32_t *base, const int32_t *len, const double *vals, double *dst) {
   for (int64_t e = 0; e < nc; e++) {
     const int32_t *p = base + 16 * e, *L = len + 4 * e;

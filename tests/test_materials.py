@@ -152,6 +152,40 @@ def test_consistent_mass_kernel():
     assert np.isclose(y[0::3].sum(), vol.sum())
 
 
+@pytest.mark.parametrize("name", sorted(MATERIALS))
+def test_kernels_cell_independent_of_block(name):
+    """Neo-Hookean's force and energy loops go by blocks of 32 cells, taking the block's 1/J and ln J at
+    once (glibc's vector log where there is one: _kernels.c, he_jscalars); the others go cell by cell.
+    Either way a cell's force does not depend on where it sits in a block: all cells at once equal two
+    parts split anywhere, bitwise, with the same count of undefined (inverted) cells, and an inverted
+    cell in a block leaves the others' forces and energies as the numpy reference has them."""
+    from hyperelastic.kernels import CellKernels
+    m = MATERIALS[name]
+    X, D, cells, x = tet_problem(300, amp=0.35)             # 2-3 hundred cells, some inverted
+    Dminv, vol = np.linalg.inv(D), np.linalg.det(D) / 6
+    k = CellKernels(cells, Dminv, vol, m.name, MU, LAM)
+    f_all = np.zeros_like(x)
+    bad_all = k.forces(x, f_all)
+    for lo in (1, 13, 37, 64):
+        f = np.zeros_like(x)
+        bad = k.part(0, lo).forces(x, f) + k.part(lo, k.nc).forces(x, f)
+        assert bad == bad_all and np.array_equal(f, f_all)
+    xs = x.reshape(-1, 4, 3)
+    F = np.stack([xs[:, 1] - xs[:, 0], xs[:, 2] - xs[:, 0], xs[:, 3] - xs[:, 0]], axis=-1) @ Dminv
+    J = np.linalg.det(F)
+    ok = J > 0 if name == "neohookean" else np.ones(len(J), bool)
+    if name == "neohookean":
+        assert bad_all == (~ok).sum() > 0 and k.nc % 32
+    G = np.concatenate([-Dminv.sum(axis=1, keepdims=True), Dminv], axis=1)
+    ref = np.einsum("n,nij,naj->nai", vol[ok], m.P(F[ok], MU, LAM), G[ok])
+    got = f_all.reshape(-1, 4, 3)[ok]
+    assert np.abs(got - ref).max() <= 1e-12 * np.abs(ref).max()
+    assert np.abs(f_all.reshape(-1, 4, 3)[~ok]).max(initial=0.0) == 0.0
+    W, jmin, jmax, bad = k.energy(x)
+    assert bad == bad_all and np.isclose(W, (vol[ok] * m.psi(F[ok], MU, LAM)).sum(), rtol=1e-12)
+    assert np.allclose([jmin, jmax], [J.min(), J.max()], rtol=1e-13)
+
+
 def test_neohookean_undefined_when_inverted():
     from hyperelastic.kernels import CellKernels
     X, D, cells, x = tet_problem(5, amp=0.0)

@@ -11,18 +11,26 @@ static inline double inv_t(const double *F, double *FinvT) {
   return J;
 }
 
-static inline int neohookean_stress(double mu, double lam, const double *F, double *P, double *psi) {
+/* The stress and energy density from F and the scalars of J = det F > 0: rJ = 1/J, lnJ = ln J (given:
+ * the cell loops compute them for a block of cells at once, NAME_BATCH_J in _material_loops.h). */
+#define neohookean_BATCH_J 1
+static inline void neohookean_stress_j(double mu, double lam, const double *F, double rJ, double lnJ,
+                                       double *P, double *psi) {
   double FiT[9];
+  cof_mixed(F, F, FiT);
+  double c = lam * lnJ - mu, I1 = 0;
+  for (int k = 0; k < 9; k++) { P[k] = mu * F[k] + c * (FiT[k] * rJ); I1 += F[k] * F[k]; }
+  if (psi) *psi = 0.5 * mu * (I1 - 3) - mu * lnJ + 0.5 * lam * lnJ * lnJ;
+}
+
+static inline int neohookean_stress(double mu, double lam, const double *F, double *P, double *psi) {
   double J = det3(F);
   if (!(J > 0)) {
     for (int k = 0; k < 9; k++) P[k] = NAN;
     if (psi) *psi = NAN;
     return 1;
   }
-  inv_t(F, FiT);
-  double lnJ = log(J), c = lam * lnJ - mu, I1 = 0;
-  for (int k = 0; k < 9; k++) { P[k] = mu * F[k] + c * FiT[k]; I1 += F[k] * F[k]; }
-  if (psi) *psi = 0.5 * mu * (I1 - 3) - mu * lnJ + 0.5 * lam * lnJ * lnJ;
+  neohookean_stress_j(mu, lam, F, 1.0 / J, log(J), P, psi);
   return 0;
 }
 
