@@ -62,6 +62,9 @@ class Space:
         allids = self.mpi.gather(ids, root=0)
         self._gorder = np.concatenate(allids) if self.mpi.rank == 0 else None
         self.lvid_of_owned = np.flatnonzero(self.owned)
+        # one rank: the local vector is the global one, in the same order (System.residual uses it)
+        g = self.lgmap.getIndices()
+        self.local_is_global = bool(comm.getSize() == 1 and len(g) == 3 * nlv and (g == np.arange(3 * nlv)).all())
 
     def _distribute(self, points, tets, labels):
         """The serial DMPlex of the spatially ordered mesh (rank 0) with its labels, distributed with

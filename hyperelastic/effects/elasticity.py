@@ -33,10 +33,16 @@ class Elasticity(Effect):
         self.defined_when_inverted = all(materials.get(n).defined_when_inverted for n in names)
         self.x = None
         self.undefined = 0   # cells where the material was undefined at the last evaluation
+        from petsc4py import PETSc
+        # the element force loop alone, in -log_view: the rest of SNESFunctionEval is the residual's
+        # fixed cost (local vectors, Dirichlet rows, other effects; scripts/bench_peer.py reports it)
+        self.ev_forces = PETSc.Log.Event("HE_ElasticForces")
 
     @timed("evals")
     def residual(self, x, r):
+        self.ev_forces.begin()
         self.undefined = self.k.forces(x, r)
+        self.ev_forces.end()
 
     @timed("evals")
     def residual_discrete_gradient(self, x, xn, r):
