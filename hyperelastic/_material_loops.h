@@ -4,7 +4,8 @@
  *   #include "_material_loops.h"
  * which defines he_forces_NAME, he_energy_NAME, he_kv_NAME, he_tangent_NAME, he_tangent_diag_NAME
  * (bound by name in kernels.py) from NAME_stress, NAME_prepare, NAME_dstress and NAME_cache; where the
- * header defines NAME_BATCH_J 1, the force and energy loops use NAME_stress_j (P from F, 1/J, ln J).
+ * header defines NAME_BATCH_J 1, the force, energy and K v loops use NAME_stress_j and NAME_prepare_j
+ * (from F, 1/J, ln J).
  * No include guard: it is meant to be included once per material. */
 #define HE_CAT_(a, b) a##b
 #define HE_CAT(a, b) HE_CAT_(a, b)
@@ -109,6 +110,31 @@ int64_t HE_FN(energy)(int64_t nc, const idx_t *cells, const double *Dminv, const
 }
 #endif
 
+#if HE_MAT(BATCH_J)
+/* y += K(x) v without assembling, by blocks of cells (NAME_prepare_j from the block's 1/J, ln J). */
+int64_t HE_FN(kv)(int64_t nc, const idx_t *cells, const double *Dminv, const double *vol, const double *x,
+                  double mu, double lam, const double *v, double *y) {
+  int64_t bad = 0;
+  double Fb[HE_BLOCK][9];
+  he_jblock jb;
+  for (int64_t e0 = 0; e0 < nc; e0 += HE_BLOCK) {
+    int n = nc - e0 < HE_BLOCK ? (int)(nc - e0) : HE_BLOCK;
+    HE_FN(gather_block)(e0, n, cells, Dminv, x, Fb, &jb);
+    for (int q = 0; q < n; q++) {
+      int64_t e = e0 + q;
+      const idx_t *c = cells + 4 * e;
+      double dF[9], dP[9];
+      HE_MAT(cache) d;
+      if (!(jb.J[q] > 0)) { bad++; continue; }
+      HE_MAT(prepare_j)(mu, lam, Fb[q], jb.rJ[q], jb.lnJ[q], &d);
+      gather_F(c, Dminv + 9 * e, v, dF);
+      HE_MAT(dstress)(mu, lam, &d, dF, dP);
+      scatter_force(c, Dminv + 9 * e, vol[e], dP, y);
+    }
+  }
+  return bad;
+}
+#else
 /* y += K(x) v, cell by cell, without assembling. */
 int64_t HE_FN(kv)(int64_t nc, const idx_t *cells, const double *Dminv, const double *vol, const double *x,
                   double mu, double lam, const double *v, double *y) {
@@ -125,6 +151,7 @@ int64_t HE_FN(kv)(int64_t nc, const idx_t *cells, const double *Dminv, const dou
   }
   return bad;
 }
+#endif
 
 /* Column (b,k) of the cell tangent: K[(a,i),(b,k)] = V sum_j dP(e_k (x) G_b)_ij G_a,j */
 static inline void HE_FN(tangent_column)(double mu, double lam, const HE_MAT(cache) *d, double G[4][3], double V,

@@ -154,10 +154,10 @@ def test_consistent_mass_kernel():
 
 @pytest.mark.parametrize("name", sorted(MATERIALS))
 def test_kernels_cell_independent_of_block(name):
-    """Neo-Hookean's force and energy loops go by blocks of 32 cells, taking the block's 1/J and ln J at
+    """Neo-Hookean's force, energy and K v loops go by blocks of 32 cells, taking the block's 1/J and ln J at
     once (glibc's vector log where there is one: _kernels.c, he_jscalars); the others go cell by cell.
-    Either way a cell's force does not depend on where it sits in a block: all cells at once equal two
-    parts split anywhere, bitwise, with the same count of undefined (inverted) cells, and an inverted
+    Either way a cell's force (and K v) does not depend on where it sits in a block: all cells at once
+    equal two parts split anywhere, bitwise, with the same count of undefined (inverted) cells, and an inverted
     cell in a block leaves the others' forces and energies as the numpy reference has them."""
     from hyperelastic.kernels import CellKernels
     m = MATERIALS[name]
@@ -166,10 +166,14 @@ def test_kernels_cell_independent_of_block(name):
     k = CellKernels(cells, Dminv, vol, m.name, MU, LAM)
     f_all = np.zeros_like(x)
     bad_all = k.forces(x, f_all)
+    w = rng.standard_normal(x.shape)
+    y_all = np.zeros_like(x)
+    assert k.kv(x, w, y_all) == bad_all
     for lo in (1, 13, 37, 64):
-        f = np.zeros_like(x)
+        f, y = np.zeros_like(x), np.zeros_like(x)
         bad = k.part(0, lo).forces(x, f) + k.part(lo, k.nc).forces(x, f)
         assert bad == bad_all and np.array_equal(f, f_all)
+        assert k.part(0, lo).kv(x, w, y) + k.part(lo, k.nc).kv(x, w, y) == bad_all and np.array_equal(y, y_all)
     xs = x.reshape(-1, 4, 3)
     F = np.stack([xs[:, 1] - xs[:, 0], xs[:, 2] - xs[:, 0], xs[:, 3] - xs[:, 0]], axis=-1) @ Dminv
     J = np.linalg.det(F)

@@ -34,12 +34,18 @@ static inline int neohookean_stress(double mu, double lam, const double *F, doub
   return 0;
 }
 
+static inline void neohookean_prepare_j(double mu, double lam, const double *F, double rJ, double lnJ,
+                                        neohookean_cache *d) {
+  cof_mixed(F, F, d->FiT);
+  for (int k = 0; k < 9; k++) d->FiT[k] *= rJ;
+  d->c1 = mu - lam * lnJ; /* coefficient of F^-T dF^T F^-T */
+  d->c2 = lam;            /* coefficient of tr(F^-1 dF) F^-T */
+}
+
 static inline int neohookean_prepare(double mu, double lam, const double *F, neohookean_cache *d) {
   double J = det3(F);
   if (!(J > 0)) return 1;
-  inv_t(F, d->FiT);
-  d->c1 = mu - lam * log(J); /* coefficient of F^-T dF^T F^-T */
-  d->c2 = lam;               /* coefficient of tr(F^-1 dF) F^-T */
+  neohookean_prepare_j(mu, lam, F, 1.0 / J, log(J), d);
   return 0;
 }
 
