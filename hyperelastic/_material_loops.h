@@ -5,7 +5,8 @@
  * which defines he_forces_NAME, he_energy_NAME, he_kv_NAME, he_tangent_NAME, he_tangent_diag_NAME
  * (bound by name in kernels.py) from NAME_stress, NAME_prepare, NAME_dstress and NAME_cache; where the
  * header defines NAME_BATCH_J 1, the force, energy and K v loops use NAME_stress_j and NAME_prepare_j
- * (from F, 1/J, ln J).
+ * (from F, 1/J, ln J); where it defines NAME_CELL_TANGENT 1, the tangent loops take the cell's 12x12
+ * block and its diagonal from NAME_cell_tangent and NAME_cell_tangent_diag instead of twelve NAME_dstress.
  * No include guard: it is meant to be included once per material. */
 #define HE_CAT_(a, b) a##b
 #define HE_CAT(a, b) HE_CAT_(a, b)
@@ -182,6 +183,10 @@ int64_t HE_FN(tangent)(int64_t nc, const idx_t *cells, const double *Dminv, cons
       continue;
     }
     gradN(Dminv + 9 * e, G);
+#if HE_MAT(CELL_TANGENT)
+    (void)col;
+    HE_MAT(cell_tangent)(mu, lam, &d, G, vol[e], K, accumulate);
+#else
     for (int b = 0; b < 4; b++)
       for (int k = 0; k < 3; k++) {
         HE_FN(tangent_column)(mu, lam, &d, G, vol[e], b, k, col);
@@ -190,6 +195,7 @@ int64_t HE_FN(tangent)(int64_t nc, const idx_t *cells, const double *Dminv, cons
         else
           for (int r = 0; r < 12; r++) K[12 * r + 3 * b + k] = col[r];
       }
+#endif
   }
   return bad;
 }
@@ -205,11 +211,17 @@ int64_t HE_FN(tangent_diag)(int64_t nc, const idx_t *cells, const double *Dminv,
     gather_F(c, Dminv + 9 * e, x, F);
     if (HE_MAT(prepare)(mu, lam, F, &d)) { bad++; continue; }
     gradN(Dminv + 9 * e, G);
+#if HE_MAT(CELL_TANGENT)
+    HE_MAT(cell_tangent_diag)(mu, lam, &d, G, vol[e], col);
+    for (int b = 0; b < 4; b++)
+      for (int k = 0; k < 3; k++) diag[3 * (int64_t)c[b] + k] += col[3 * b + k];
+#else
     for (int b = 0; b < 4; b++)
       for (int k = 0; k < 3; k++) {
         HE_FN(tangent_column)(mu, lam, &d, G, vol[e], b, k, col);
         diag[3 * (int64_t)c[b] + k] += col[3 * b + k];
       }
+#endif
   }
   return bad;
 }

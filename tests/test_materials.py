@@ -162,6 +162,8 @@ def test_kernels_cell_independent_of_block(name):
     from hyperelastic.kernels import CellKernels
     m = MATERIALS[name]
     X, D, cells, x = tet_problem(300, amp=0.35)             # 2-3 hundred cells, some inverted
+    n = len(D) - (len(D) % 32 == 0)                         # and a partial last block
+    D, cells, x = D[:n], cells[:n], x[:12 * n]
     Dminv, vol = np.linalg.inv(D), np.linalg.det(D) / 6
     k = CellKernels(cells, Dminv, vol, m.name, MU, LAM)
     f_all = np.zeros_like(x)
@@ -179,7 +181,7 @@ def test_kernels_cell_independent_of_block(name):
     J = np.linalg.det(F)
     ok = J > 0 if name == "neohookean" else np.ones(len(J), bool)
     if name == "neohookean":
-        assert bad_all == (~ok).sum() > 0 and k.nc % 32
+        assert bad_all == (~ok).sum() > 0
     G = np.concatenate([-Dminv.sum(axis=1, keepdims=True), Dminv], axis=1)
     ref = np.einsum("n,nij,naj->nai", vol[ok], m.P(F[ok], MU, LAM), G[ok])
     got = f_all.reshape(-1, 4, 3)[ok]

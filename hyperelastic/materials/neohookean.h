@@ -61,3 +61,47 @@ static inline void neohookean_dstress(double mu, double lam, const neohookean_ca
   for (int k = 0; k < 9; k++) tr += Q[k] * dF[k];
   for (int k = 0; k < 9; k++) dP[k] = mu * dF[k] + d->c1 * U[k] + d->c2 * tr * Q[k];
 }
+
+/* The 12x12 cell tangent in closed form. Column (b,k) differentiates along dF = e_k (x) G_b, which is rank
+ * one, so with Q = F^-T and h_a = Q G_a: F^-T dF^T F^-T = h_b (x) Q_k. (Q_k the k-th row of Q),
+ * tr(F^-1 dF) = h_b,k, and K[(a,i),(b,k)] = V sum_j dP_ij G_a,j is
+ *   V (mu delta_ik G_a.G_b + c1 h_b,i h_a,k + c2 h_b,k h_a,i)
+ * (~0.4 kflop per cell against ~1.6 for twelve dP evaluations; the columns' result to rounding).
+ * Its diagonal: V (mu |G_a|^2 + (c1 + c2) h_a,i^2). */
+#define neohookean_CELL_TANGENT 1
+static inline void neohookean_cell_h(const neohookean_cache *d, double G[4][3], double h[4][3]) {
+  const double *Q = d->FiT;
+  for (int a = 0; a < 4; a++)
+    for (int i = 0; i < 3; i++) h[a][i] = Q[3 * i] * G[a][0] + Q[3 * i + 1] * G[a][1] + Q[3 * i + 2] * G[a][2];
+}
+
+static inline void neohookean_cell_tangent(double mu, double lam, const neohookean_cache *d, double G[4][3],
+                                           double V, double *K, int accumulate) {
+  (void)lam;
+  double h[4][3], gg[4][4];
+  neohookean_cell_h(d, G, h);
+  for (int a = 0; a < 4; a++)
+    for (int b = 0; b < 4; b++) gg[a][b] = V * mu * (G[a][0] * G[b][0] + G[a][1] * G[b][1] + G[a][2] * G[b][2]);
+  const double c1 = V * d->c1, c2 = V * d->c2;
+  for (int a = 0; a < 4; a++)
+    for (int i = 0; i < 3; i++) {
+      double *row = K + 12 * (3 * a + i);
+      for (int b = 0; b < 4; b++)
+        for (int k = 0; k < 3; k++) {
+          double v = c1 * h[b][i] * h[a][k] + c2 * h[b][k] * h[a][i] + (i == k ? gg[a][b] : 0.0);
+          if (accumulate) row[3 * b + k] += v;
+          else row[3 * b + k] = v;
+        }
+    }
+}
+
+static inline void neohookean_cell_tangent_diag(double mu, double lam, const neohookean_cache *d, double G[4][3],
+                                                double V, double diag[12]) {
+  (void)lam;
+  double h[4][3];
+  neohookean_cell_h(d, G, h);
+  for (int a = 0; a < 4; a++) {
+    double g2 = V * mu * (G[a][0] * G[a][0] + G[a][1] * G[a][1] + G[a][2] * G[a][2]);
+    for (int i = 0; i < 3; i++) diag[3 * a + i] = g2 + V * (d->c1 + d->c2) * h[a][i] * h[a][i];
+  }
+}
