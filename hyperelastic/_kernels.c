@@ -58,8 +58,9 @@ static inline void gradN(const double *Dminv, double G[4][3]) {
   }
 }
 
-/* Cells in blocks of HE_BLOCK: the force and energy loops take J = det F of a whole block first, then
- * 1/J and ln J of the block at once (he_jscalars), for materials whose stress needs them (NAME_BATCH_J).
+/* Cells in blocks of HE_BLOCK: the force, energy and K v loops take J = det F of a whole block first,
+ * then 1/J and ln J of the block at once (he_jscalars), for materials whose stress needs them
+ * (NAME_BATCH_J).
  * Cell by cell, the division and the logarithm wait on J and on each other: ~30% of a Neo-Hookean
  * force; over a block they are vector operations. The logarithm is glibc's vector one (libmvec, named
  * by the x86-64 vector function ABI: _ZGVeN8v_log for 8 lanes of AVX-512, _ZGVdN4v_log for 4 of AVX2)
