@@ -68,7 +68,7 @@ static inline void gradN(const double *Dminv, double G[4][3]) {
  * cell's ln J does not depend on its place in a block (or on the partition). */
 #define HE_BLOCK 32
 typedef struct {
-  double J[HE_BLOCK], rJ[HE_BLOCK], lnJ[HE_BLOCK];
+  double F[HE_BLOCK][9], J[HE_BLOCK], rJ[HE_BLOCK], lnJ[HE_BLOCK];
 } he_jblock;
 
 #if defined(HE_MVEC) && (defined(__AVX512F__) || defined(__AVX2__))

@@ -14,32 +14,33 @@
 #define HE_MAT(fn) HE_CAT(MATERIAL, HE_CAT(_, fn))
 
 #if HE_MAT(BATCH_J)
-/* A material whose stress takes 1/J and ln J (NAME_BATCH_J; undefined for J <= 0): the force and energy
- * loops go by blocks of HE_BLOCK cells, the block's F and J first, then its 1/J and ln J at once
- * (he_jscalars, _kernels.c), then each cell's stress NAME_stress_j. */
-static inline void HE_FN(gather_block)(int64_t e0, int n, const idx_t *cells, const double *Dminv,
-                                       const double *x, double Fb[HE_BLOCK][9], he_jblock *jb) {
+/* A material whose stress takes 1/J and ln J (NAME_BATCH_J; undefined for J <= 0): the force, energy and
+ * K v loops go by blocks of HE_BLOCK cells, the block's F and J first (gather_block: the cells from e0,
+ * returns how many), then its 1/J and ln J at once (he_jscalars, _kernels.c), then each cell's stress
+ * NAME_stress_j or NAME_prepare_j. */
+static inline int HE_FN(gather_block)(int64_t e0, int64_t nc, const idx_t *cells, const double *Dminv,
+                                      const double *x, he_jblock *b) {
+  int n = nc - e0 < HE_BLOCK ? (int)(nc - e0) : HE_BLOCK;
   for (int q = 0; q < n; q++) {
-    gather_F(cells + 4 * (e0 + q), Dminv + 9 * (e0 + q), x, Fb[q]);
-    jb->J[q] = det3(Fb[q]);
+    gather_F(cells + 4 * (e0 + q), Dminv + 9 * (e0 + q), x, b->F[q]);
+    b->J[q] = det3(b->F[q]);
   }
-  he_jscalars(jb, n);
+  he_jscalars(b, n);
+  return n;
 }
 
 /* f += k(x). Returns the number of cells where the material is undefined (their force is skipped). */
 int64_t HE_FN(forces)(int64_t nc, const idx_t *cells, const double *Dminv, const double *vol, const double *x,
                       double mu, double lam, double *f) {
   int64_t bad = 0;
-  double Fb[HE_BLOCK][9];
   he_jblock jb;
   for (int64_t e0 = 0; e0 < nc; e0 += HE_BLOCK) {
-    int n = nc - e0 < HE_BLOCK ? (int)(nc - e0) : HE_BLOCK;
-    HE_FN(gather_block)(e0, n, cells, Dminv, x, Fb, &jb);
+    int n = HE_FN(gather_block)(e0, nc, cells, Dminv, x, &jb);
     for (int q = 0; q < n; q++) {
       double P[9];
       int64_t e = e0 + q;
       if (!(jb.J[q] > 0)) { bad++; continue; }
-      HE_MAT(stress_j)(mu, lam, Fb[q], jb.rJ[q], jb.lnJ[q], P, NULL);
+      HE_MAT(stress_j)(mu, lam, jb.F[q], jb.rJ[q], jb.lnJ[q], P, NULL);
       scatter_force(cells + 4 * e, Dminv + 9 * e, vol[e], P, f);
     }
   }
@@ -53,17 +54,15 @@ int64_t HE_FN(energy)(int64_t nc, const idx_t *cells, const double *Dminv, const
                       double mu, double lam, double *out /* [energy, Jmin, Jmax] */) {
   int64_t bad = 0;
   double W = 0, comp = 0, jmin = INFINITY, jmax = -INFINITY;
-  double Fb[HE_BLOCK][9];
   he_jblock jb;
   for (int64_t e0 = 0; e0 < nc; e0 += HE_BLOCK) {
-    int n = nc - e0 < HE_BLOCK ? (int)(nc - e0) : HE_BLOCK;
-    HE_FN(gather_block)(e0, n, cells, Dminv, x, Fb, &jb);
+    int n = HE_FN(gather_block)(e0, nc, cells, Dminv, x, &jb);
     for (int q = 0; q < n; q++) {
       double P[9], psi, J = jb.J[q];
       jmin = J < jmin ? J : jmin;
       jmax = J > jmax ? J : jmax;
       if (!(J > 0)) { bad++; continue; }
-      HE_MAT(stress_j)(mu, lam, Fb[q], jb.rJ[q], jb.lnJ[q], P, &psi);
+      HE_MAT(stress_j)(mu, lam, jb.F[q], jb.rJ[q], jb.lnJ[q], P, &psi);
       double term = vol[e0 + q] * psi - comp, sum = W + term;
       comp = (sum - W) - term;
       W = sum;
@@ -116,18 +115,16 @@ int64_t HE_FN(energy)(int64_t nc, const idx_t *cells, const double *Dminv, const
 int64_t HE_FN(kv)(int64_t nc, const idx_t *cells, const double *Dminv, const double *vol, const double *x,
                   double mu, double lam, const double *v, double *y) {
   int64_t bad = 0;
-  double Fb[HE_BLOCK][9];
   he_jblock jb;
   for (int64_t e0 = 0; e0 < nc; e0 += HE_BLOCK) {
-    int n = nc - e0 < HE_BLOCK ? (int)(nc - e0) : HE_BLOCK;
-    HE_FN(gather_block)(e0, n, cells, Dminv, x, Fb, &jb);
+    int n = HE_FN(gather_block)(e0, nc, cells, Dminv, x, &jb);
     for (int q = 0; q < n; q++) {
       int64_t e = e0 + q;
       const idx_t *c = cells + 4 * e;
       double dF[9], dP[9];
       HE_MAT(cache) d;
       if (!(jb.J[q] > 0)) { bad++; continue; }
-      HE_MAT(prepare_j)(mu, lam, Fb[q], jb.rJ[q], jb.lnJ[q], &d);
+      HE_MAT(prepare_j)(mu, lam, jb.F[q], jb.rJ[q], jb.lnJ[q], &d);
       gather_F(c, Dminv + 9 * e, v, dF);
       HE_MAT(dstress)(mu, lam, &d, dF, dP);
       scatter_force(c, Dminv + 9 * e, vol[e], dP, y);
