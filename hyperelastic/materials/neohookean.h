@@ -3,14 +3,6 @@
  * Numpy reference: neohookean.py. */
 typedef struct { double FiT[9], c1, c2; } neohookean_cache;
 
-/* inverse-transpose of F and J = det F; returns J */
-static inline double inv_t(const double *F, double *FinvT) {
-  double J = det3(F), r = 1.0 / J;
-  cof_mixed(F, F, FinvT);
-  for (int k = 0; k < 9; k++) FinvT[k] *= r;
-  return J;
-}
-
 /* The stress and energy density from F and the scalars of J = det F > 0: rJ = 1/J, lnJ = ln J (given:
  * the cell loops compute them for a block of cells at once, NAME_BATCH_J in _material_loops.h). */
 #define neohookean_BATCH_J 1
@@ -63,7 +55,7 @@ static inline void neohookean_dstress(double mu, double lam, const neohookean_ca
 }
 
 /* The 12x12 cell tangent in closed form. Column (b,k) differentiates along dF = e_k (x) G_b, which is rank
- * one, so with Q = F^-T and h_a = Q G_a: F^-T dF^T F^-T = h_b (x) Q_k. (Q_k the k-th row of Q),
+ * one, so with Q = F^-T and h_a = Q G_a: F^-T dF^T F^-T = h_b (x) Q_k (Q_k the k-th row of Q),
  * tr(F^-1 dF) = h_b,k, and K[(a,i),(b,k)] = V sum_j dP_ij G_a,j is
  *   V (mu delta_ik G_a.G_b + c1 h_b,i h_a,k + c2 h_b,k h_a,i)
  * (~0.4 kflop per cell against ~1.6 for twelve dP evaluations; the columns' result to rounding).
