@@ -144,7 +144,7 @@ class System:
         for e in self.effects:
             e.residual(x, r)
         if self.space.local_is_global:
-            r[self.c_owned_pos] = self.scale * (Xa[self.c_owned_pos] - self.g_owned_c)
+            self._dirichlet_rows(Xa, r)
         else:
             self.finish(r, X, R, in_vl=True)
         self.residual_evals += 1
@@ -190,8 +190,11 @@ class System:
         else:
             self._add(r, R)
         if len(self.c_owned_pos):
-            R.getArray()[self.c_owned_pos] = self.scale * (X.getArray(readonly=True)[self.c_owned_pos]
-                                                           - self.g_owned_c)
+            self._dirichlet_rows(X.getArray(readonly=True), R.getArray())
+
+    def _dirichlet_rows(self, Xa, Ra):
+        """The constrained rows of the residual, Ra[c] = s (Xa[c] - g_c) (owned rows; global arrays)."""
+        Ra[self.c_owned_pos] = self.scale * (Xa[self.c_owned_pos] - self.g_owned_c)
 
     def _add(self, r, R):
         self.vl.getArray()[:] = r
