@@ -110,6 +110,9 @@ class Solver:
         if own:
             snes.setFromOptions()
         self.reuse = None
+        self.linear_solves, self.linear_its = 0, 0
+        if self.op is not None:
+            self.snes.getKSP().setPostSolve(self._after_linear_solve)
         self._setup_reuse(reuse_pc)
         self.ev_res = PETSc.Log.Event("HE_Residual")
         self.ev_jac = PETSc.Log.Event("HE_Jacobian")
@@ -132,7 +135,6 @@ class Solver:
         self.reuse = {"base": None, "pending": True, "setups": 0}
         lag_preconditioner_persists(self.snes)
         lag_preconditioner(self.snes, -2)
-        self.snes.getKSP().setPostSolve(self._after_linear_solve)
 
     def rebuild_preconditioner(self):
         """Set the preconditioner up again at the next Jacobian (also where a restart would begin, so
@@ -142,12 +144,35 @@ class Solver:
             lag_preconditioner(self.snes, -2)
 
     def _after_linear_solve(self, ksp, b, x):
-        r = self.reuse
         its = ksp.getIterationNumber()
+        self.linear_solves += 1
+        self.linear_its += its
+        r = self.reuse
+        if r is None:
+            return
         if r["pending"]:
             r.update(base=max(its, 1), pending=False, setups=r["setups"] + 1)
         elif ksp.getConvergedReason() < 0 or its > self.REBUILD_RATIO * r["base"]:
             self.rebuild_preconditioner()
+
+    # CG + Jacobi iterations per Newton step above which CG + GAMG, its set-up kept across steps, was
+    # faster end to end (bend, 60k-550k tets, three regimes: BENCHMARKS.md, bench_solvers.py --only crossover)
+    GAMG_PAYS_ABOVE = 100
+
+    def advice(self):
+        """A line for the user when the run's own Krylov iterations say another preconditioner of the
+        assembled tangent would have been faster ("" otherwise)."""
+        if self.op is None or self.mf or not self.linear_solves or not isinstance(self.op.mat, PETSc.Mat):
+            return ""
+        pc = self.snes.getKSP().getPC()
+        if pc.getType() != "jacobi" or self.op.mat.getType() not in ("seqaij", "mpiaij"):
+            return ""
+        its = self.linear_its / self.linear_solves
+        if its <= self.GAMG_PAYS_ABOVE:
+            return ""
+        return (f"{self.snes.getKSP().getType()} + Jacobi took {its:.0f} Krylov iterations per Newton step; above ~{self.GAMG_PAYS_ABOVE} "
+                "CG + GAMG with its set-up kept (-options_file options/gamg.opts) was faster end to end "
+                "(BENCHMARKS.md)")
 
     def _residual(self, snes, X, R):
         self.ev_res.begin()

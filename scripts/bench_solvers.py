@@ -7,8 +7,11 @@
                GAMG (rigid-body near-nullspace), Jacobi and bjacobi+ICC, over four gmsh refinements
   parallel     time per Newton step on 1 and 2 ranks (same options), and each rank's share of vertices
   scaling      time per step vs tets from L1 up, for each Jacobian mode; log-log PNG, fitted exponent
+  crossover    GAMG (set-up kept across steps, -reuse_preconditioner auto) against Jacobi end to end on
+               bend over refinement in four regimes: dynamic h = 1e-2 (the mass term dominates),
+               2e-2, 5e-2, quasi-static (the stiffness alone); 4 steps each, 1 rank
 
-    scripts/bench_solvers.py OUT [--full] [--only memory,scalability,parallel,scaling] [--repeat N]
+    scripts/bench_solvers.py OUT [--full] [--only memory,scalability,parallel,scaling,crossover] [--repeat N]
 
 Quick (default, < 1 min): small meshes. --full: up to ~660k tets (tens of minutes). Prints the
 tables and writes OUT/bench_solvers.json and OUT/scaling.png.
@@ -41,7 +44,7 @@ def mesh_for(tets):
 def run(out, tag, scene, mesh, args, nprocs=1, steps=1, dt=1e-2):
     path = os.path.join(out, "runs", tag + ".h5")
     os.makedirs(os.path.dirname(path), exist_ok=True)
-    rc, err, wall = run_hyperelastic(["run", scene, "-mesh", mesh, "-dt", dt, "-final_time", steps * dt,
+    rc, err, wall = run_hyperelastic(["run", scene, "-mesh", mesh, "-dt", dt, "-final_time", round(steps * dt, 12),
                                       "-output", path, "-quiet", "-step_control", "0"] + list(args), path, nprocs)
     r = {"tag": tag, "rc": rc, "wall_s": wall, "message": last_line(err, rc) if rc else ""}
     r.update(read_cost(path))
@@ -129,6 +132,42 @@ def parallel(out, full, repeat=1):
     return {f"{k[0]}/np{k[1]}": v for k, v in res.items()}
 
 
+# (name, options, step size): the Jacobi-preconditioned tangent's condition number grows with
+# dt^2 E / (rho h_mesh^2) (stiffness over mass), so Jacobi's iterations grow with dt / h_mesh; GAMG's stay flat
+REGIMES = (("dynamic, h = 1e-2", [], 1e-2), ("dynamic, h = 2e-2", [], 2e-2), ("dynamic, h = 5e-2", [], 5e-2),
+           ("quasi-static", ["-quasistatic"], 0.25))
+
+
+def crossover(out, full, steps=4):
+    """End to end (the steps' wall time, set-up included) GAMG against Jacobi, bend, 1 rank."""
+    sizes = (60_000, 125_000, 250_000, 550_000) if full else (2_000, 8_000)
+    res = {}
+    print(f"\n## GAMG against Jacobi end to end (bend, assembled tangent, CG, {steps} steps, 1 rank)")
+    print("| regime | tets | KSP / Newton Jacobi | KSP / Newton GAMG | Jacobi s | GAMG s | GAMG / Jacobi |")
+    print("|---|---|---|---|---|---|---|")
+    won, lost = [], []
+    for regime, extra, dt in REGIMES:
+        for n in sizes:
+            mesh = mesh_for(n)
+            rs = {}
+            for pc in ("jacobi", "gamg"):
+                tag = f"cross_{regime.split(',')[0].replace('-', '')}_{dt:g}_{n}_{pc}"
+                rs[pc] = run(out, tag, "bend", mesh, ["-jacobian", "assembled", "-ksp_type", "cg", "-ksp_max_it", "20000"]
+                             + extra + PCS[pc], steps=steps, dt=dt)
+                res[(regime, n, pc)] = rs[pc]
+            j, g = rs["jacobi"], rs["gamg"]
+            ratio = g.get("solve_s", float("nan")) / j.get("solve_s", float("nan"))
+            if ratio == ratio:
+                (won if ratio < 1 else lost).append(j["ksp_per_newton"])
+            print(f"| {regime} | {j.get('tets', 0):,} | {j.get('ksp_per_newton', float('nan')):.1f} "
+                  f"| {g.get('ksp_per_newton', float('nan')):.1f} | {j.get('solve_s', float('nan')):.3g} "
+                  f"| {g.get('solve_s', float('nan')):.3g} | {'**' if ratio < 1 else ''}{ratio:.2f}{'**' if ratio < 1 else ''} |")
+    if won or lost:
+        print(f"\nGAMG won where Jacobi needed >= {min(won) if won else float('nan'):.0f} CG iterations per Newton step; "
+              f"lost where it needed <= {max(lost) if lost else float('nan'):.0f}.")
+    return {f"{k[0]}/{k[1]}/{k[2]}": v for k, v in res.items()}
+
+
 def scaling(out, full):
     import matplotlib
     matplotlib.use("Agg")
@@ -174,7 +213,8 @@ def main():
     print(f"machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores; python {platform.python_version()}")
     results = {}
     for part in a.only.split(","):
-        fn = {"memory": memory, "scalability": scalability, "parallel": parallel, "scaling": scaling}.get(part)
+        fn = {"memory": memory, "scalability": scalability, "parallel": parallel, "scaling": scaling,
+              "crossover": crossover}.get(part)
         if fn is None:
             sys.exit(f"bench_solvers.py: unknown part '{part}'")
         results[part] = fn(a.out, a.full, a.repeat) if part == "parallel" else fn(a.out, a.full)

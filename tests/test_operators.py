@@ -1,6 +1,7 @@
 """The Jacobian modes apply the same operator: shell and assembled agree to 1e-12, PETSc's MFFD
 to 1e-5, and the tangent is the derivative of the residual (central differences)."""
 import os
+import re
 
 import numpy as np
 import pytest
@@ -301,12 +302,29 @@ def test_preconditioner_rebuild_rule(monkeypatch):
 
     s = S.Solver.__new__(S.Solver)
     s.snes, s.reuse = None, {"base": None, "pending": True, "setups": 0}
+    s.linear_solves = s.linear_its = 0
     for its, reason, rebuild in ((20, 2, False), (25, 2, False), (30, 2, False), (31, 2, True), (40, 2, False),
                                  (41, 2, False), (5, -3, True)):
         asked.clear()
         s._after_linear_solve(Ksp(its, reason), None, None)
         assert (asked == [-2]) == rebuild, (its, reason, asked)
     assert s.reuse["setups"] == 2 and s.reuse["base"] == 40
+    assert s.linear_solves == 7 and s.linear_its == 20 + 25 + 30 + 31 + 40 + 41 + 5
+
+
+def test_advice_on_the_preconditioner(tmp_path):
+    """The run's own Krylov iterations decide the closing note: a quasi-static run with CG + Jacobi
+    (hundreds of iterations per Newton step) is pointed to GAMG; a dynamic one (tens), a GAMG run and
+    a quiet run get no note."""
+    from conftest import run_ok
+    common = ["run", "bend", "-level", "1", "-output", tmp_path / "a.h5"]
+    stiff = run_ok(common + ["-quasistatic", "-dt", "0.25", "-final_time", "0.5"]).stderr
+    m = re.search(r"note: cg \+ Jacobi took (\d+) Krylov iterations per Newton step; above ~(\d+) ", stiff)
+    assert m and int(m.group(1)) > int(m.group(2)), stiff
+    for extra in (["-final_time", "0.02"], ["-quasistatic", "-dt", "0.25", "-final_time", "0.5", "-options_file",
+                                           f"{ROOT}/options/gamg.opts"],
+                  ["-quasistatic", "-dt", "0.25", "-final_time", "0.5", "-quiet"]):
+        assert "note:" not in run_ok(common + extra).stderr, extra
 
 
 def test_checkpoints_rebuild_the_preconditioner(tmp_path):
