@@ -152,19 +152,21 @@ def crossover(out, full, steps=4):
             rs = {}
             for pc in ("jacobi", "gamg"):
                 tag = f"cross_{regime.split(',')[0].replace('-', '')}_{dt:g}_{n}_{pc}"
-                rs[pc] = run(out, tag, "bend", mesh, ["-jacobian", "assembled", "-ksp_type", "cg", "-ksp_max_it", "20000"]
-                             + extra + PCS[pc], steps=steps, dt=dt)
+                args = ["-jacobian", "assembled", "-ksp_type", "cg", "-ksp_max_it", "20000"] + extra + PCS[pc]
+                rs[pc] = run(out, tag, "bend", mesh, args, steps=steps, dt=dt)
                 res[(regime, n, pc)] = rs[pc]
             j, g = rs["jacobi"], rs["gamg"]
-            ratio = g.get("solve_s", float("nan")) / j.get("solve_s", float("nan"))
+            nan = float("nan")
+            ratio = g.get("solve_s", nan) / j.get("solve_s", nan)
             if ratio == ratio:
                 (won if ratio < 1 else lost).append(j["ksp_per_newton"])
-            print(f"| {regime} | {j.get('tets', 0):,} | {j.get('ksp_per_newton', float('nan')):.1f} "
-                  f"| {g.get('ksp_per_newton', float('nan')):.1f} | {j.get('solve_s', float('nan')):.3g} "
-                  f"| {g.get('solve_s', float('nan')):.3g} | {'**' if ratio < 1 else ''}{ratio:.2f}{'**' if ratio < 1 else ''} |")
+            bold = "**" if ratio < 1 else ""
+            print(f"| {regime} | {j.get('tets', 0):,} | {j.get('ksp_per_newton', nan):.1f} "
+                  f"| {g.get('ksp_per_newton', nan):.1f} | {j.get('solve_s', nan):.3g} "
+                  f"| {g.get('solve_s', nan):.3g} | {bold}{ratio:.2f}{bold} |")
     if won or lost:
-        print(f"\nGAMG won where Jacobi needed >= {min(won) if won else float('nan'):.0f} CG iterations per Newton step; "
-              f"lost where it needed <= {max(lost) if lost else float('nan'):.0f}.")
+        print(f"\nGAMG won where Jacobi needed >= {min(won) if won else float('nan'):.0f} CG iterations per "
+              f"Newton step; lost where it needed <= {max(lost) if lost else float('nan'):.0f}.")
     return {f"{k[0]}/{k[1]}/{k[2]}": v for k, v in res.items()}
 
 
