@@ -128,3 +128,68 @@ static inline void corotational_dstress(double mu, double lam, const corotationa
   double trA = A[0] + A[4] + A[8];
   for (int k = 0; k < 9; k++) dP[k] = 2 * mu * (dF[k] - dR[k]) + lam * trA * R[k] + lam * d->c1 * dR[k];
 }
+
+/* The 12x12 cell tangent in closed form. dP = 2 mu dF + lam (R:dF) R + (lam tr(S-I) - 2 mu) dR. Along
+ * dF = e_k (x) G_b: R:dF = (R G_b)_k; axial(R^T dF - dF^T R) = G_b x r_k (r_k the k-th row of R), so
+ * w = Q (G_b x r_k) with Q = V diag(inv_den) V^T, and dR G_a = R (w x G_a) = (R w) x (R G_a) (det R = 1).
+ * With rho_a = R G_a and p_bk = R Q (G_b x r_k):
+ *   K[(a,i),(b,k)] = V (2 mu delta_ik G_a.G_b + lam rho_a,i rho_b,k + (lam tr(S-I) - 2 mu) (p_bk x rho_a)_i). */
+#define corotational_CELL_TANGENT 1
+static inline void corotational_cell_prep(const corotational_cache *d, double G[4][3], double rho[4][3],
+                                          double p[4][3][3]) {
+  const double *R = d->R, *V = d->V;
+  double Q[9];
+  for (int r = 0; r < 3; r++)
+    for (int c = 0; c < 3; c++)
+      Q[3 * r + c] = V[3 * r] * d->inv_den[0] * V[3 * c] + V[3 * r + 1] * d->inv_den[1] * V[3 * c + 1] +
+                     V[3 * r + 2] * d->inv_den[2] * V[3 * c + 2];
+  for (int b = 0; b < 4; b++) {
+    for (int i = 0; i < 3; i++) rho[b][i] = R[3 * i] * G[b][0] + R[3 * i + 1] * G[b][1] + R[3 * i + 2] * G[b][2];
+    for (int k = 0; k < 3; k++) {
+      const double *rk = R + 3 * k;
+      double c[3], q[3];
+      c[0] = G[b][1] * rk[2] - G[b][2] * rk[1];
+      c[1] = G[b][2] * rk[0] - G[b][0] * rk[2];
+      c[2] = G[b][0] * rk[1] - G[b][1] * rk[0];
+      for (int m = 0; m < 3; m++) q[m] = Q[3 * m] * c[0] + Q[3 * m + 1] * c[1] + Q[3 * m + 2] * c[2];
+      for (int m = 0; m < 3; m++) p[b][k][m] = R[3 * m] * q[0] + R[3 * m + 1] * q[1] + R[3 * m + 2] * q[2];
+    }
+  }
+}
+
+static inline void corotational_cell_tangent(double mu, double lam, const corotational_cache *d, double G[4][3],
+                                             double V, double *K, int accumulate) {
+  double rho[4][3], p[4][3][3];
+  corotational_cell_prep(d, G, rho, p);
+  const double vm = 2 * V * mu, vl = V * lam, vr = V * (lam * d->c1 - 2 * mu);
+  for (int a = 0; a < 4; a++)
+    for (int b = 0; b < 4; b++) {
+      const double gg = vm * (G[a][0] * G[b][0] + G[a][1] * G[b][1] + G[a][2] * G[b][2]);
+      for (int k = 0; k < 3; k++) {
+        const double *pk = p[b][k], *ra = rho[a];
+        const double x[3] = {pk[1] * ra[2] - pk[2] * ra[1], pk[2] * ra[0] - pk[0] * ra[2], pk[0] * ra[1] - pk[1] * ra[0]};
+        for (int i = 0; i < 3; i++) {
+          double v = vl * ra[i] * rho[b][k] + vr * x[i] + (i == k ? gg : 0.0);
+          double *e = K + 12 * (3 * a + i) + 3 * b + k;
+          if (accumulate) *e += v;
+          else *e = v;
+        }
+      }
+    }
+}
+
+static inline void corotational_cell_tangent_diag(double mu, double lam, const corotational_cache *d, double G[4][3],
+                                                  double V, double diag[12]) {
+  double rho[4][3], p[4][3][3];
+  corotational_cell_prep(d, G, rho, p);
+  const double vr = V * (lam * d->c1 - 2 * mu);
+  for (int a = 0; a < 4; a++) {
+    const double g2 = G[a][0] * G[a][0] + G[a][1] * G[a][1] + G[a][2] * G[a][2], *ra = rho[a];
+    for (int i = 0; i < 3; i++) {
+      const double *pi = p[a][i];
+      const double x = i == 0 ? pi[1] * ra[2] - pi[2] * ra[1] : i == 1 ? pi[2] * ra[0] - pi[0] * ra[2]
+                                                                       : pi[0] * ra[1] - pi[1] * ra[0];
+      diag[3 * a + i] = 2 * V * mu * g2 + V * lam * ra[i] * ra[i] + vr * x;
+    }
+  }
+}

@@ -48,3 +48,56 @@ static inline void snh_dstress(double mu, double lam, const snh_cache *d, const 
   for (int k = 0; k < 9; k++)
     dP[k] = d->c1 * dF[k] + d->c2 * fd * d->F[k] + d->ls * cd * cof[k] + d->c3 * (A[k] + B[k]);
 }
+
+/* The 12x12 cell tangent in closed form: along dF = e_k (x) G_b, with u_a = F G_a and h_a = cof G_a,
+ * F:dF = u_b,k, cof:dF = h_b,k, and (dcof[dF] G_a)_i = eps_imk w_m with w = F (G_b x G_a) (from
+ * cof_ij = 1/2 eps_imn eps_jpq F_mp F_nq), so
+ *   K[(a,i),(b,k)] = V (c1 delta_ik G_a.G_b + c2 u_a,i u_b,k + ls h_a,i h_b,k + c3 eps_imk w_m). */
+#define snh_CELL_TANGENT 1
+static inline void snh_cell_uh(const snh_cache *d, double G[4][3], double u[4][3], double h[4][3]) {
+  const double *F = d->F, *C = d->cof;
+  for (int a = 0; a < 4; a++)
+    for (int i = 0; i < 3; i++) {
+      u[a][i] = F[3 * i] * G[a][0] + F[3 * i + 1] * G[a][1] + F[3 * i + 2] * G[a][2];
+      h[a][i] = C[3 * i] * G[a][0] + C[3 * i + 1] * G[a][1] + C[3 * i + 2] * G[a][2];
+    }
+}
+
+static inline void snh_cell_tangent(double mu, double lam, const snh_cache *d, double G[4][3], double V,
+                                    double *K, int accumulate) {
+  (void)mu; (void)lam;
+  const double *F = d->F;
+  double u[4][3], h[4][3];
+  snh_cell_uh(d, G, u, h);
+  const double v1 = V * d->c1, v2 = V * d->c2, vl = V * d->ls, v3 = V * d->c3;
+  for (int a = 0; a < 4; a++)
+    for (int b = 0; b < 4; b++) {
+      const double gg = v1 * (G[a][0] * G[b][0] + G[a][1] * G[b][1] + G[a][2] * G[b][2]);
+      double c[3], w[3];   /* c = G_b x G_a, w = V c3 F c */
+      c[0] = G[b][1] * G[a][2] - G[b][2] * G[a][1];
+      c[1] = G[b][2] * G[a][0] - G[b][0] * G[a][2];
+      c[2] = G[b][0] * G[a][1] - G[b][1] * G[a][0];
+      for (int m = 0; m < 3; m++) w[m] = v3 * (F[3 * m] * c[0] + F[3 * m + 1] * c[1] + F[3 * m + 2] * c[2]);
+      const double T[9] = {0, -w[2], w[1], w[2], 0, -w[0], -w[1], w[0], 0};   /* T_ik = eps_imk w_m */
+      for (int i = 0; i < 3; i++) {
+        double *row = K + 12 * (3 * a + i) + 3 * b;
+        for (int k = 0; k < 3; k++) {
+          double v = v2 * u[a][i] * u[b][k] + vl * h[a][i] * h[b][k] + T[3 * i + k] + (i == k ? gg : 0.0);
+          if (accumulate) row[k] += v;
+          else row[k] = v;
+        }
+      }
+    }
+}
+
+static inline void snh_cell_tangent_diag(double mu, double lam, const snh_cache *d, double G[4][3], double V,
+                                         double diag[12]) {
+  (void)mu; (void)lam;
+  double u[4][3], h[4][3];
+  snh_cell_uh(d, G, u, h);
+  for (int a = 0; a < 4; a++) {
+    const double g2 = G[a][0] * G[a][0] + G[a][1] * G[a][1] + G[a][2] * G[a][2];
+    for (int i = 0; i < 3; i++)
+      diag[3 * a + i] = V * (d->c1 * g2 + d->c2 * u[a][i] * u[a][i] + d->ls * h[a][i] * h[a][i]);
+  }
+}
