@@ -336,3 +336,26 @@ def test_checkpoints_rebuild_the_preconditioner(tmp_path):
             "-checkpoint_every", "10", "-quiet", "-output", tmp_path / "r.h5", "-log_view", f":{log}"])
     n = [int(ln.split()[1]) for ln in open(log) if ln.startswith("PCSetUp ")][0]
     assert n == 3           # the first step's, and after the checkpoints at steps 10 and 20 (30 is the end)
+
+
+def test_constant_loads_summed_once_per_step(petsc):
+    """Dead loads (gravity, a traction) do not depend on x: System.residual sums them once after each
+    begin_step and copies them in. The residual still equals the sum of every effect's own residual,
+    after the load factor changes too, and each of those effects counts an evaluation per residual."""
+    m = make_model(petsc, "bend", [("gravity", "0,-9.81,0"), ("traction", "0,-500,0"), ("traction_time", "2*t")])
+    sysm = m.system
+    assert sorted(e.name for e in sysm.constant) == ["gravity", "traction"]
+    rng = np.random.default_rng(3)
+    X = sysm.global_state(m.x0 + 1e-3 * rng.standard_normal(m.x0.shape))
+    out = []
+    for t in (0.1, 0.3):
+        sysm.begin_step(t, 0.01, m.x0, m.v0)
+        evals = [e.evals for e in sysm.constant]
+        R, ref = sysm.space.global_vec(), sysm.space.global_vec()
+        sysm.residual(X, R)
+        assert [e.evals for e in sysm.constant] == [n + 1 for n in evals]
+        x = sysm.impose(sysm.local(X, sysm.xl).copy())
+        sysm.finish(sysm.residual_local(x), X, ref)
+        assert np.abs(R.getArray() - ref.getArray()).max() <= 1e-12 * np.abs(ref.getArray()).max()
+        out.append(R.getArray().copy())
+    assert np.abs(out[1] - out[0]).max() > 1e-6 * np.abs(out[0]).max()     # the traction grew

@@ -26,6 +26,7 @@ class Effect:
     cell_blocks = False    # contributes 12x12 blocks on the cell pattern
     symmetric = True
     order = 0              # 0: acts on positions; 1: on velocities (damping); 2: on accelerations (inertia)
+    constant = False       # residual independent of x, changed only by begin_step (dead loads): add_constant
 
     def __init__(self):
         self.evals = 0       # residual evaluations
@@ -38,6 +39,11 @@ class Effect:
 
     def residual(self, x, r):
         """r += this effect's residual at local positions x."""
+
+    def add_constant(self, r):
+        """r += this effect's residual, for an effect whose residual does not depend on x (`constant`):
+        System.residual sums these once per step (after begin_step) instead of at every evaluation."""
+        raise NotImplementedError(f"{self.name} is not constant")
 
     def rate_residual(self, u, r):
         """r += this effect's operator applied to u (v for order 1, a for order 2; TS form)."""

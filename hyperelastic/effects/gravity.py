@@ -6,6 +6,7 @@ from .base import Effect, timed
 class Gravity(Effect):
     """Body force rho g: f_a = int rho g N_a dV = rho g V/4 per cell vertex (constant)."""
     name = "gravity"
+    constant = True
 
     def __init__(self, kernels, rho, g, nlv):
         super().__init__()
@@ -16,6 +17,9 @@ class Gravity(Effect):
 
     @timed("evals")
     def residual(self, x, r):
+        self.add_constant(r)
+
+    def add_constant(self, r):
         r -= self.f
 
     def potential(self, x):

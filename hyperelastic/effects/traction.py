@@ -18,6 +18,7 @@ class Traction(Effect):
     """Dead-load surface traction t [Pa] per unit reference area on a face, scaled by
     its time function (base.load_factor: a ramp A min(t,1) or -NAME_time): f_a = int t N_a dA = t A/3 per triangle vertex."""
     name = "traction"
+    constant = True
 
     def __init__(self, X, tris, traction, scale=None, nlv=0):
         super().__init__()
@@ -34,6 +35,9 @@ class Traction(Effect):
 
     @timed("evals")
     def residual(self, x, r):
+        self.add_constant(r)
+
+    def add_constant(self, r):
         r[self.loaded] -= self.s * self.f0_loaded
 
     def potential(self, x):
