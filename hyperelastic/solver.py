@@ -156,7 +156,7 @@ class Solver:
             self.rebuild_preconditioner()
 
     # CG + Jacobi iterations per Newton step above which CG + GAMG, its set-up kept across steps, was
-    # faster end to end (bend, 60k-550k tets, three regimes: BENCHMARKS.md, bench_solvers.py --only crossover)
+    # faster end to end (bend, 60k-521k tets, four regimes: BENCHMARKS.md, bench_solvers.py --only crossover)
     GAMG_PAYS_ABOVE = 100
 
     def advice(self):

@@ -140,3 +140,24 @@ def test_rank_count_independent_preconditioners(tmp_path, pc):
     assert np.array_equal(a["points"], b["points"]) and np.array_equal(a["tetra"], b["tetra"])
     assert np.abs(a["x"] - b["x"]).max() <= 1e-8 * np.abs(a["x"]).max()
 
+
+
+def test_one_blas_thread_per_rank():
+    """Importing the package (before numpy) sets one BLAS thread per process unless the environment says
+    otherwise, and numpy's own OpenBLAS then runs one thread (its spinning threads halved the 2-rank
+    residual's speed: docs/design.md)."""
+    import sys
+    probe = ("import glob, os, ctypes, hyperelastic, numpy\n"
+             "print(os.environ['OPENBLAS_NUM_THREADS'])\n"
+             "libs = glob.glob(os.path.join(os.path.dirname(numpy.__file__) + '.libs', '*openblas*.so*'))\n"
+             "fn = [getattr(ctypes.CDLL(p), n, None) for p in libs for n in ('scipy_openblas_get_num_threads64_',\n"
+             "      'openblas_get_num_threads64_', 'openblas_get_num_threads')]\n"
+             "fn = [f for f in fn if f is not None]\n"
+             "print(fn[0]() if fn else 'no-openblas')\n")
+    env = {k: v for k, v in os.environ.items() if k not in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS")}
+    out = subprocess.run([sys.executable, "-c", probe], env=env, capture_output=True, text=True, check=True)
+    var, threads = out.stdout.split()
+    assert var == "1" and threads in ("1", "no-openblas"), out.stdout
+    env["OPENBLAS_NUM_THREADS"] = "2"
+    out = subprocess.run([sys.executable, "-c", probe], env=env, capture_output=True, text=True, check=True)
+    assert out.stdout.split()[0] == "2"
