@@ -141,7 +141,6 @@ def test_rank_count_independent_preconditioners(tmp_path, pc):
     assert np.abs(a["x"] - b["x"]).max() <= 1e-8 * np.abs(a["x"]).max()
 
 
-
 def test_one_blas_thread_per_rank():
     """Importing the package (before numpy) sets one BLAS thread per process unless the environment says
     otherwise, and numpy's own OpenBLAS then runs one thread (its spinning threads halved the 2-rank
