@@ -24,6 +24,13 @@ static inline void mtm(const double *A, const double *B, double *C) {
       C[3 * i + j] = A[i] * B[j] + A[3 + i] * B[3 + j] + A[6 + i] * B[6 + j];
 }
 
+/* out[a] = M G[a] for the four shape-function gradients of a cell (the closed-form cell tangents'
+ * u_a = F G_a, h_a = cof G_a, rho_a = R G_a, ...) */
+static inline void m_grads(const double *M, double G[4][3], double out[4][3]) {
+  for (int a = 0; a < 4; a++)
+    for (int i = 0; i < 3; i++) out[a][i] = M[3 * i] * G[a][0] + M[3 * i + 1] * G[a][1] + M[3 * i + 2] * G[a][2];
+}
+
 /* C = "mixed cofactor" of (A, B): cof_mixed(F, F) is the cofactor matrix dJ/dF of F (row-major), and
  * the directional derivative of cof at F along dF is cof_mixed(F, dF) + cof_mixed(dF, F). */
 static inline void cof_mixed(const double *A, const double *B, double *C) {

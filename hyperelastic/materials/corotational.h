@@ -143,8 +143,8 @@ static inline void corotational_cell_prep(const corotational_cache *d, double G[
     for (int c = 0; c < 3; c++)
       Q[3 * r + c] = V[3 * r] * d->inv_den[0] * V[3 * c] + V[3 * r + 1] * d->inv_den[1] * V[3 * c + 1] +
                      V[3 * r + 2] * d->inv_den[2] * V[3 * c + 2];
+  m_grads(R, G, rho);
   for (int b = 0; b < 4; b++) {
-    for (int i = 0; i < 3; i++) rho[b][i] = R[3 * i] * G[b][0] + R[3 * i + 1] * G[b][1] + R[3 * i + 2] * G[b][2];
     for (int k = 0; k < 3; k++) {
       const double *rk = R + 3 * k;
       double c[3], q[3];

@@ -61,17 +61,11 @@ static inline void neohookean_dstress(double mu, double lam, const neohookean_ca
  * (~0.4 kflop per cell against ~1.6 for twelve dP evaluations; the columns' result to rounding).
  * Its diagonal: V (mu |G_a|^2 + (c1 + c2) h_a,i^2). */
 #define neohookean_CELL_TANGENT 1
-static inline void neohookean_cell_h(const neohookean_cache *d, double G[4][3], double h[4][3]) {
-  const double *Q = d->FiT;
-  for (int a = 0; a < 4; a++)
-    for (int i = 0; i < 3; i++) h[a][i] = Q[3 * i] * G[a][0] + Q[3 * i + 1] * G[a][1] + Q[3 * i + 2] * G[a][2];
-}
-
 static inline void neohookean_cell_tangent(double mu, double lam, const neohookean_cache *d, double G[4][3],
                                            double V, double *K, int accumulate) {
   (void)lam;
   double h[4][3], gg[4][4];
-  neohookean_cell_h(d, G, h);
+  m_grads(d->FiT, G, h);
   for (int a = 0; a < 4; a++)
     for (int b = 0; b < 4; b++) gg[a][b] = V * mu * (G[a][0] * G[b][0] + G[a][1] * G[b][1] + G[a][2] * G[b][2]);
   const double c1 = V * d->c1, c2 = V * d->c2;
@@ -91,7 +85,7 @@ static inline void neohookean_cell_tangent_diag(double mu, double lam, const neo
                                                 double V, double diag[12]) {
   (void)lam;
   double h[4][3];
-  neohookean_cell_h(d, G, h);
+  m_grads(d->FiT, G, h);
   for (int a = 0; a < 4; a++) {
     double g2 = V * mu * (G[a][0] * G[a][0] + G[a][1] * G[a][1] + G[a][2] * G[a][2]);
     for (int i = 0; i < 3; i++) diag[3 * a + i] = g2 + V * (d->c1 + d->c2) * h[a][i] * h[a][i];

@@ -54,21 +54,13 @@ static inline void snh_dstress(double mu, double lam, const snh_cache *d, const 
  * cof_ij = 1/2 eps_imn eps_jpq F_mp F_nq), so
  *   K[(a,i),(b,k)] = V (c1 delta_ik G_a.G_b + c2 u_a,i u_b,k + ls h_a,i h_b,k + c3 eps_imk w_m). */
 #define snh_CELL_TANGENT 1
-static inline void snh_cell_uh(const snh_cache *d, double G[4][3], double u[4][3], double h[4][3]) {
-  const double *F = d->F, *C = d->cof;
-  for (int a = 0; a < 4; a++)
-    for (int i = 0; i < 3; i++) {
-      u[a][i] = F[3 * i] * G[a][0] + F[3 * i + 1] * G[a][1] + F[3 * i + 2] * G[a][2];
-      h[a][i] = C[3 * i] * G[a][0] + C[3 * i + 1] * G[a][1] + C[3 * i + 2] * G[a][2];
-    }
-}
-
 static inline void snh_cell_tangent(double mu, double lam, const snh_cache *d, double G[4][3], double V,
                                     double *K, int accumulate) {
   (void)mu; (void)lam;
   const double *F = d->F;
   double u[4][3], h[4][3];
-  snh_cell_uh(d, G, u, h);
+  m_grads(d->F, G, u);
+  m_grads(d->cof, G, h);
   const double v1 = V * d->c1, v2 = V * d->c2, vl = V * d->ls, v3 = V * d->c3;
   for (int a = 0; a < 4; a++)
     for (int b = 0; b < 4; b++) {
@@ -94,7 +86,8 @@ static inline void snh_cell_tangent_diag(double mu, double lam, const snh_cache 
                                          double diag[12]) {
   (void)mu; (void)lam;
   double u[4][3], h[4][3];
-  snh_cell_uh(d, G, u, h);
+  m_grads(d->F, G, u);
+  m_grads(d->cof, G, h);
   for (int a = 0; a < 4; a++) {
     const double g2 = G[a][0] * G[a][0] + G[a][1] * G[a][1] + G[a][2] * G[a][2];
     for (int i = 0; i < 3; i++)

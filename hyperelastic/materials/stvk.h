@@ -44,21 +44,14 @@ static inline void stvk_dstress(double mu, double lam, const stvk_cache *d, cons
  * mu (B_ik G_a.G_b + u_b,i u_a,k), so
  *   K[(a,i),(b,k)] = V (delta_ik G_a.S.G_b + lam u_a,i u_b,k + mu B_ik G_a.G_b + mu u_a,k u_b,i). */
 #define stvk_CELL_TANGENT 1
-static inline void stvk_cell_u(const stvk_cache *d, double G[4][3], double u[4][3]) {
-  const double *F = d->F;
-  for (int a = 0; a < 4; a++)
-    for (int i = 0; i < 3; i++) u[a][i] = F[3 * i] * G[a][0] + F[3 * i + 1] * G[a][1] + F[3 * i + 2] * G[a][2];
-}
-
 static inline void stvk_cell_tangent(double mu, double lam, const stvk_cache *d, double G[4][3], double V,
                                      double *K, int accumulate) {
   const double *F = d->F, *S = d->S;
   double u[4][3], SG[4][3], gsg[4][4], gg[4][4], B[9];
-  stvk_cell_u(d, G, u);
+  m_grads(F, G, u);
   for (int i = 0; i < 3; i++)
     for (int k = 0; k < 3; k++) B[3 * i + k] = F[3 * i] * F[3 * k] + F[3 * i + 1] * F[3 * k + 1] + F[3 * i + 2] * F[3 * k + 2];
-  for (int b = 0; b < 4; b++)
-    for (int i = 0; i < 3; i++) SG[b][i] = S[3 * i] * G[b][0] + S[3 * i + 1] * G[b][1] + S[3 * i + 2] * G[b][2];
+  m_grads(S, G, SG);
   for (int a = 0; a < 4; a++)
     for (int b = 0; b < 4; b++) {
       gsg[a][b] = V * (G[a][0] * SG[b][0] + G[a][1] * SG[b][1] + G[a][2] * SG[b][2]);
@@ -82,7 +75,7 @@ static inline void stvk_cell_tangent_diag(double mu, double lam, const stvk_cach
                                           double diag[12]) {
   const double *F = d->F, *S = d->S;
   double u[4][3];
-  stvk_cell_u(d, G, u);
+  m_grads(F, G, u);
   for (int a = 0; a < 4; a++) {
     double gsg = 0, g2 = 0;
     for (int m = 0; m < 3; m++) {
