@@ -191,8 +191,9 @@ def run(argv):
         writer.close(keep=ended)
     if not quiet and comm.getRank() == 0:
         print(f"wrote {out} ({integ.step} steps, {writer.nframes} frames)", file=sys.stderr)
-        if solver.advice():
-            print(f"note: {solver.advice()}", file=sys.stderr)
+        advice = solver.advice()
+        if advice:
+            print(f"note: {advice}", file=sys.stderr)
     return 0
 
 

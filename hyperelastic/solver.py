@@ -162,7 +162,7 @@ class Solver:
     def advice(self):
         """A line for the user when the run's own Krylov iterations say another preconditioner of the
         assembled tangent would have been faster ("" otherwise)."""
-        if self.op is None or self.mf or not self.linear_solves or not isinstance(self.op.mat, PETSc.Mat):
+        if self.op is None or self.mf or not self.linear_solves:
             return ""
         pc = self.snes.getKSP().getPC()
         if pc.getType() != "jacobi" or self.op.mat.getType() not in ("seqaij", "mpiaij"):

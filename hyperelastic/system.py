@@ -95,8 +95,7 @@ class System:
         """The second-order (PETSc TS, generalized-alpha) form at the stage time t_stage of a step of size h
         from (xn, vn) to t1: the loads at t_stage, and the constrained dofs' targets at the stage,
         x_a = xn + alpha_f (g(t1) - xn) (what TSALPHA2 computes from X1 when X1_c = g(t1))."""
-        self.begin_step(t1, h, xn, vn)
-        self.r_const = None
+        self.begin_step(t1, h, xn, vn)       # (drops r_const; the next residual sums it at t_stage)
         for e in self.effects:
             if e.order == 0:
                 e.begin_step(t_stage, h, xn, vn)
