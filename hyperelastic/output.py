@@ -260,8 +260,17 @@ class Writer:
         any moment leaves the previous checkpoint intact. Collective."""
         x, v = self.space.gather(x_local), self.space.gather(v_local)
         self._ensure_room(lambda: 48 * len(x) + 16384, "a checkpoint")
-        if not self.root:
-            return
+        if self.root:
+            self._write_checkpoint(x, v, state)
+        self._leave_together()
+
+    def _leave_together(self):
+        """The end of a collective write: the other ranks wait here for rank 0's HDF5 writes, so that the
+        wait is the output's and not charged to their next collective call (the next step's first
+        residual in -log_view and the step timers)."""
+        self.space.mpi.Barrier()
+
+    def _write_checkpoint(self, x, v, state):
         f = self.f
         self._flush_stats()
         slot = 1 - int(f.attrs.get("checkpoint_slot", 1))
@@ -288,8 +297,11 @@ class Writer:
         if self.root:
             nbytes = 8 * (3 * self.nv * (3 if vel is not None else 2) + sum(len(a) for a in cells.values())) + 16384
         self._ensure_room(lambda: nbytes, f"frame {self.nframes}")
-        if not self.root:
-            return
+        if self.root:
+            self._write_frame(t, full, vel, cells)
+        self._leave_together()
+
+    def _write_frame(self, t, full, vel, cells):
         f = self.f
         i = self.nframes
         f["time"].resize((i + 1,))

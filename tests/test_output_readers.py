@@ -135,6 +135,18 @@ def test_fields_same_on_two_ranks(bend_out, tmp_path):
         assert np.array_equal(a["mesh/region"][:], b["mesh/region"][:])
 
 
+def test_writes_end_together_on_two_ranks(tmp_path):
+    """A frame or checkpoint write returns on every rank after rank 0's HDF5 writes (slowed down here), so
+    that the wait is the output's and not the next residual's in -log_view (tests/mpi_output_check.py)."""
+    import shutil
+    from conftest import BIN
+    mpiexec = shutil.which("mpiexec", path=BIN) or shutil.which("mpiexec")
+    here = os.path.dirname(os.path.abspath(__file__))
+    p = subprocess.run([mpiexec, "-n", "2", sys.executable, os.path.join(here, "mpi_output_check.py"),
+                        str(tmp_path / "o.h5")], capture_output=True, text=True, timeout=300)
+    assert p.returncode == 0 and p.stdout.split() == ["ok"], p.stdout + p.stderr
+
+
 def test_readme_your_own_part_runs_as_written(tmp_path):
     """The commands of the README's "Your own part", as written, in a fresh directory holding the
     project's examples/ and scripts/ and its .venv."""

@@ -1,0 +1,49 @@
+"""Run under `mpiexec -n 2` by test_output_readers.py: writing a frame or a checkpoint is collective to its
+end, so rank 0's HDF5 writes (made slow here) are waited for inside the write on every rank and not in the
+next step's first collective call, where -log_view would charge them to the residual. Prints 'ok' on rank 0."""
+import sys
+import time
+
+from hyperelastic import cli, output
+
+SLOW = 0.3
+
+
+def slow(fn):
+    def wrapper(self, *a, **k):
+        time.sleep(SLOW)
+        return fn(self, *a, **k)
+    return wrapper
+
+
+def timed(fn, spent):
+    def wrapper(self, *a, **k):
+        t0 = time.perf_counter()
+        try:
+            return fn(self, *a, **k)
+        finally:
+            spent.append((fn.__name__, time.perf_counter() - t0))
+    return wrapper
+
+
+def main(path):
+    spent = []
+    output.Writer._flush_stats = slow(output.Writer._flush_stats)   # (rank 0, in each frame and checkpoint)
+    output.Writer.frame = timed(output.Writer.frame, spent)
+    output.Writer.checkpoint = timed(output.Writer.checkpoint, spent)
+    rc = cli.main(["run", "bend", "-level", "1", "-dt", "0.01", "-final_time", "0.03", "-checkpoint_every", "1",
+                   "-output", path, "-quiet"])
+    assert rc == 0, rc
+    from mpi4py import MPI
+    comm = MPI.COMM_WORLD
+    every = comm.gather(spent, root=0)
+    if comm.rank == 0:
+        names = [n for n, _ in every[0]]
+        assert names.count("frame") >= 2 and names.count("checkpoint") >= 1, every
+        assert all([n for n, _ in s] == names for s in every), every
+        assert all(t >= 0.8 * SLOW for s in every for _, t in s), every
+        print("ok")
+
+
+if __name__ == "__main__":
+    main(sys.argv[1])
