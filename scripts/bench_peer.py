@@ -15,7 +15,9 @@ vector + lifting, PC set-up, KSP solve); ours come from PETSc's -log_view (SNESJ
 SNESFunctionEval, PCSetUp, KSPSolve without the set-up, SNESSolve / Newton steps). The last two columns:
 one residual evaluation of ours over one MatMult of the assembled AIJ tangent, and the residual's fixed
 cost (SNESFunctionEval less the element force loop, HE_ElasticForces), per call, from CG + Jacobi runs of
-the same problem, whose MatMults are all on the fine level (the smallest of --repeat runs). --storage: ours with
+the same problem, whose MatMults are all on the fine level (the smallest of --repeat runs). The runs are
+interleaved (DOLFINx, ours, DOLFINx, ours, ...); each phase is the minimum of --repeat runs, and the step ratio
+is also given per pair of consecutive runs (median and range: the machine's noise). --storage: ours with
 -operator_storage aij and/or sbaij (the Krylov MatMults on an SBAIJ copy; a row each, one DOLFINx run).
 scikit-fem (--peer skfem, `pip install -r requirements-bench.txt`): the earlier comparison (load
 1000 Pa, its LinearForm / BilinearForm, SciPy's direct solver).
@@ -237,7 +239,8 @@ def main():
           f"Newton to {RTOL:g}; ms per Newton step (PETSc -log_view events for ours, timers around the same "
           "calls for DOLFINx)")
     hdr = ("| mesh | tets | ranks | PC | storage | max|du|/max|u| | Newton ours/peer | Krylov its ours/peer | step ours | "
-           "peer | ratio | Jacobian ours | peer | ratio | residual ours | peer | ratio | PC set-up ours | peer | ratio | "
+           "peer | ratio | step ratio of paired runs: median (range) | Jacobian ours | peer | ratio | residual ours | "
+           "peer | ratio | PC set-up ours | peer | ratio | "
            "Krylov solve ours | peer | ratio | residual / MatMult ours | residual fixed cost ours (ms) |")
     print(hdr)
     print("|" + "---|" * (hdr.count("|") - 1))
@@ -249,26 +252,36 @@ def main():
             for n in ranks:
                 if pc == "lu" and n > 1:
                     continue
-                runs = [dolfinx_solve(points, tets, a.out, name, n, pc) for _ in range(a.repeat)]
-                u2, n2, version = runs[0][0], runs[0][1], runs[0][3]
-                p2 = {k: min(r[2][k] for r in runs) for k in runs[0][2]}
-                # GAMG's MatMults include the coarse levels': residual / MatMult from CG + Jacobi runs (AIJ),
+                storages = [st for st in a.storage.split(",") if pc != "lu" or st == "aij"]   # (LU factors the AIJ)
+                # the runs interleaved (DOLFINx, ours CG + Jacobi, ours per storage, and again), so that a slow
+                # spell of the machine falls on both codes; GAMG's MatMults include the coarse levels': residual /
+                # MatMult from CG + Jacobi runs (AIJ)
+                peer, jr, mine = [], [], {st: [] for st in storages}
+                for _ in range(a.repeat):
+                    peer.append(dolfinx_solve(points, tets, a.out, name, n, pc))
+                    if pc == "gamg":
+                        jr.append(ours(m, a.out, n, "jacobi")[2])
+                    for st in storages:
+                        mine[st].append(ours(m, a.out, n, pc, storage=st))
+                u2, n2, version = peer[0][0], peer[0][1], peer[0][3]
+                p2 = {k: min(r[2][k] for r in peer) for k in peer[0][2]}
                 # the smallest ratio and fixed cost of --repeat runs
-                jr = [ours(m, a.out, n, "jacobi")[2] for _ in range(a.repeat)] if pc == "gamg" else None
                 rm = min(r["residual_per_matmult"] for r in jr) if jr else None
                 ro = min(r["residual_overhead"] for r in jr) if jr else None
-                for st in a.storage.split(","):
-                    if pc == "lu" and st != "aij":
-                        continue      # (LU factors the AIJ either way)
-                    runs = [ours(m, a.out, n, pc, storage=st) for _ in range(a.repeat)]
+                for st in storages:
+                    runs = mine[st]
                     u1, n1 = runs[0][:2]
                     p1 = {k: min(r[2][k] for r in runs) for k in runs[0][2]}
                     rel = np.abs(u1 - u2).max() / np.abs(u2).max()
                     if not rel <= AGREE:
                         disagree.append(f"{name} {n} rank(s) {pc} {st}: {rel:.2g}")
+                    # each run's step over the DOLFINx run just before it: their spread is the machine's noise
+                    paired = sorted(r[2]["step"] / q[2]["step"] for r, q in zip(runs, peer))
                     cells = []
                     for k in ("step", "jacobian", "residual", "pc_setup", "ksp_solve"):
                         cells += [f"{1e3 * p1[k]:.3g}", f"{1e3 * p2[k]:.3g}", f"{p1[k] / p2[k]:.2f}"]
+                        if k == "step":
+                            cells.append(f"{np.median(paired):.2f} ({paired[0]:.2f}-{paired[-1]:.2f})")
                     cells.append(f"{rm if rm is not None else p1['residual_per_matmult']:.2f}")
                     cells.append(f"{1e3 * (ro if ro is not None else p1['residual_overhead']):.3f}")
                     print(f"| {name} | {len(tets):,} | {n} | {pc} | {st} | {rel:.1e} | {n1}/{n2} | "
