@@ -24,11 +24,22 @@ static inline void mtm(const double *A, const double *B, double *C) {
       C[3 * i + j] = A[i] * B[j] + A[3 + i] * B[3 + j] + A[6 + i] * B[6 + j];
 }
 
+/* y = M v (M row-major 3x3) */
+static inline void mv3(const double *M, const double *v, double *y) {
+  for (int i = 0; i < 3; i++) y[i] = M[3 * i] * v[0] + M[3 * i + 1] * v[1] + M[3 * i + 2] * v[2];
+}
+
+/* c = a x b */
+static inline void cross3(const double *a, const double *b, double *c) {
+  c[0] = a[1] * b[2] - a[2] * b[1];
+  c[1] = a[2] * b[0] - a[0] * b[2];
+  c[2] = a[0] * b[1] - a[1] * b[0];
+}
+
 /* out[a] = M G[a] for the four shape-function gradients of a cell (the closed-form cell tangents'
  * u_a = F G_a, h_a = cof G_a, rho_a = R G_a, ...) */
 static inline void m_grads(const double *M, double G[4][3], double out[4][3]) {
-  for (int a = 0; a < 4; a++)
-    for (int i = 0; i < 3; i++) out[a][i] = M[3 * i] * G[a][0] + M[3 * i + 1] * G[a][1] + M[3 * i + 2] * G[a][2];
+  for (int a = 0; a < 4; a++) mv3(M, G[a], out[a]);
 }
 
 /* C = "mixed cofactor" of (A, B): cof_mixed(F, F) is the cofactor matrix dJ/dF of F (row-major), and

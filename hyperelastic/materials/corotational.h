@@ -146,13 +146,10 @@ static inline void corotational_cell_prep(const corotational_cache *d, double G[
   m_grads(R, G, rho);
   for (int b = 0; b < 4; b++) {
     for (int k = 0; k < 3; k++) {
-      const double *rk = R + 3 * k;
       double c[3], q[3];
-      c[0] = G[b][1] * rk[2] - G[b][2] * rk[1];
-      c[1] = G[b][2] * rk[0] - G[b][0] * rk[2];
-      c[2] = G[b][0] * rk[1] - G[b][1] * rk[0];
-      for (int m = 0; m < 3; m++) q[m] = Q[3 * m] * c[0] + Q[3 * m + 1] * c[1] + Q[3 * m + 2] * c[2];
-      for (int m = 0; m < 3; m++) p[b][k][m] = R[3 * m] * q[0] + R[3 * m + 1] * q[1] + R[3 * m + 2] * q[2];
+      cross3(G[b], R + 3 * k, c);
+      mv3(Q, c, q);
+      mv3(R, q, p[b][k]);
     }
   }
 }
@@ -166,8 +163,9 @@ static inline void corotational_cell_tangent(double mu, double lam, const corota
     for (int b = 0; b < 4; b++) {
       const double gg = vm * (G[a][0] * G[b][0] + G[a][1] * G[b][1] + G[a][2] * G[b][2]);
       for (int k = 0; k < 3; k++) {
-        const double *pk = p[b][k], *ra = rho[a];
-        const double x[3] = {pk[1] * ra[2] - pk[2] * ra[1], pk[2] * ra[0] - pk[0] * ra[2], pk[0] * ra[1] - pk[1] * ra[0]};
+        const double *ra = rho[a];
+        double x[3];
+        cross3(p[b][k], ra, x);
         for (int i = 0; i < 3; i++) {
           double v = vl * ra[i] * rho[b][k] + vr * x[i] + (i == k ? gg : 0.0);
           double *e = K + 12 * (3 * a + i) + 3 * b + k;
@@ -186,10 +184,9 @@ static inline void corotational_cell_tangent_diag(double mu, double lam, const c
   for (int a = 0; a < 4; a++) {
     const double g2 = G[a][0] * G[a][0] + G[a][1] * G[a][1] + G[a][2] * G[a][2], *ra = rho[a];
     for (int i = 0; i < 3; i++) {
-      const double *pi = p[a][i];
-      const double x = i == 0 ? pi[1] * ra[2] - pi[2] * ra[1] : i == 1 ? pi[2] * ra[0] - pi[0] * ra[2]
-                                                                       : pi[0] * ra[1] - pi[1] * ra[0];
-      diag[3 * a + i] = 2 * V * mu * g2 + V * lam * ra[i] * ra[i] + vr * x;
+      double x[3];
+      cross3(p[a][i], ra, x);
+      diag[3 * a + i] = 2 * V * mu * g2 + V * lam * ra[i] * ra[i] + vr * x[i];
     }
   }
 }

@@ -66,10 +66,9 @@ static inline void snh_cell_tangent(double mu, double lam, const snh_cache *d, d
     for (int b = 0; b < 4; b++) {
       const double gg = v1 * (G[a][0] * G[b][0] + G[a][1] * G[b][1] + G[a][2] * G[b][2]);
       double c[3], w[3];   /* c = G_b x G_a, w = V c3 F c */
-      c[0] = G[b][1] * G[a][2] - G[b][2] * G[a][1];
-      c[1] = G[b][2] * G[a][0] - G[b][0] * G[a][2];
-      c[2] = G[b][0] * G[a][1] - G[b][1] * G[a][0];
-      for (int m = 0; m < 3; m++) w[m] = v3 * (F[3 * m] * c[0] + F[3 * m + 1] * c[1] + F[3 * m + 2] * c[2]);
+      cross3(G[b], G[a], c);
+      mv3(F, c, w);
+      for (int m = 0; m < 3; m++) w[m] *= v3;
       const double T[9] = {0, -w[2], w[1], w[2], 0, -w[0], -w[1], w[0], 0};   /* T_ik = eps_imk w_m */
       for (int i = 0; i < 3; i++) {
         double *row = K + 12 * (3 * a + i) + 3 * b;
