@@ -77,9 +77,7 @@ static void polar(const double *F, double *R, double *V, double *sig) {
     double nn = sqrt(u[1][0] * u[1][0] + u[1][1] * u[1][1] + u[1][2] * u[1][2]);
     for (int r = 0; r < 3; r++) u[1][r] /= nn;
   }
-  u[2][0] = u[0][1] * u[1][2] - u[0][2] * u[1][1];
-  u[2][1] = u[0][2] * u[1][0] - u[0][0] * u[1][2];
-  u[2][2] = u[0][0] * u[1][1] - u[0][1] * u[1][0];
+  cross3(u[0], u[1], u[2]);
   for (int i = 0; i < 3; i++) sig[i] = u[i][0] * fv[i][0] + u[i][1] * fv[i][1] + u[i][2] * fv[i][2];
   for (int r = 0; r < 3; r++)
     for (int c = 0; c < 3; c++) R[3 * r + c] = u[0][r] * V[3 * c] + u[1][r] * V[3 * c + 1] + u[2][r] * V[3 * c + 2];
