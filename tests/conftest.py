@@ -9,14 +9,24 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 BIN = os.path.dirname(sys.executable)
 
 
+def mpiexec():
+    """The venv's mpiexec (the mpich wheel's), else the one on PATH."""
+    return shutil.which("mpiexec", path=BIN) or shutil.which("mpiexec")
+
+
 def hyperelastic(args, nprocs=1, timeout=600, cwd=None):
     """Run the `hyperelastic` console script (under mpiexec when nprocs > 1)."""
     exe = os.path.join(BIN, "hyperelastic")
     cmd = [exe] + [str(a) for a in args]
     if nprocs > 1:
-        mpiexec = shutil.which("mpiexec", path=BIN) or shutil.which("mpiexec")
-        cmd = [mpiexec, "-n", str(nprocs)] + cmd
+        cmd = [mpiexec(), "-n", str(nprocs)] + cmd
     return subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, cwd=cwd)
+
+
+def run_mpi_script(name, args, nprocs=2, timeout=300):
+    """Run tests/NAME (a driver that prints 'ok' lines on rank 0) under mpiexec with this Python."""
+    return subprocess.run([mpiexec(), "-n", str(nprocs), sys.executable, os.path.join(ROOT, "tests", name)]
+                          + [str(a) for a in args], capture_output=True, text=True, timeout=timeout)
 
 
 def run_ok(args, nprocs=1, **kw):

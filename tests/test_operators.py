@@ -241,13 +241,8 @@ def test_chunked_assembly_pattern_exact_on_two_ranks():
     """On 2 ranks the chunked direct fill (exact pattern from both ranks' cells, preallocated before the
     first fill) equals the COO matrix, with no unused preallocated entry, and its SBAIJ copy multiplies
     like it where the tangent is symmetric (tests/mpi_assembly_check.py)."""
-    import shutil
-    import subprocess
-    import sys
-    from conftest import BIN
-    mpiexec = shutil.which("mpiexec", path=BIN) or shutil.which("mpiexec")
-    p = subprocess.run([mpiexec, "-n", "2", sys.executable, os.path.join(ROOT, "tests", "mpi_assembly_check.py"),
-                        "bend", "twist", "squeeze"], capture_output=True, text=True, timeout=300)
+    from conftest import run_mpi_script
+    p = run_mpi_script("mpi_assembly_check.py", ["bend", "twist", "squeeze"])
     assert p.returncode == 0, p.stdout + p.stderr
     assert ([l.split(":")[0] for l in p.stdout.splitlines() if l.startswith("ok")]
             == ["ok bend", "ok twist", "ok squeeze"]), p.stdout

@@ -138,12 +138,8 @@ def test_fields_same_on_two_ranks(bend_out, tmp_path):
 def test_writes_end_together_on_two_ranks(tmp_path):
     """A frame or checkpoint write returns on every rank after rank 0's HDF5 writes (slowed down here), so
     that the wait is the output's and not the next residual's in -log_view (tests/mpi_output_check.py)."""
-    import shutil
-    from conftest import BIN
-    mpiexec = shutil.which("mpiexec", path=BIN) or shutil.which("mpiexec")
-    here = os.path.dirname(os.path.abspath(__file__))
-    p = subprocess.run([mpiexec, "-n", "2", sys.executable, os.path.join(here, "mpi_output_check.py"),
-                        str(tmp_path / "o.h5")], capture_output=True, text=True, timeout=300)
+    from conftest import run_mpi_script
+    p = run_mpi_script("mpi_output_check.py", [tmp_path / "o.h5"])
     assert p.returncode == 0 and p.stdout.split() == ["ok"], p.stdout + p.stderr
 
 
