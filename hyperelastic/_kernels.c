@@ -101,6 +101,13 @@ static inline void he_jscalars(he_jblock *b, int n) {
     if (!(b->J[q] > 0)) b->rJ[q] = b->lnJ[q] = NAN;
 }
 
+/* A material's parameter block: at most HE_NPARAM constants (kernels.py pads it with zeros), copied
+ * into a local array at the start of every loop (_material_loops.h). */
+#define HE_NPARAM 8
+#define HE_PARAMS(p)   \
+  double p[HE_NPARAM]; \
+  memcpy(p, prm, sizeof p)
+
 #include "he_materials.h"
 
 /* y += coef * M_e v over cells, with the consistent P1 matrix int N_a N_b dV = V (1 + delta_ab) / 20

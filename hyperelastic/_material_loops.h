@@ -7,6 +7,9 @@
  * header defines NAME_BATCH_J 1, the force, energy and K v loops use NAME_stress_j and NAME_prepare_j
  * (from F, 1/J, ln J); where it defines NAME_CELL_TANGENT 1, the tangent loops take the cell's 12x12
  * block and its diagonal from NAME_cell_tangent and NAME_cell_tangent_diag instead of twelve NAME_dstress.
+ * Every loop takes the material's parameter block `prm` (HE_NPARAM doubles: the constants in the order
+ * the header reads them, materials/NAME.py's `constants`, zero-padded) and copies it to a local array,
+ * which the compiler keeps in registers (the output arrays could alias `prm`).
  * No include guard: it is meant to be included once per material. */
 #define HE_CAT_(a, b) a##b
 #define HE_CAT(a, b) HE_CAT_(a, b)
@@ -31,7 +34,8 @@ static inline int HE_FN(gather_block)(int64_t e0, int64_t nc, const idx_t *cells
 
 /* f += k(x). Returns the number of cells where the material is undefined (their force is skipped). */
 int64_t HE_FN(forces)(int64_t nc, const idx_t *cells, const double *Dminv, const double *vol, const double *x,
-                      double mu, double lam, double *f) {
+                      const double *prm, double *f) {
+  HE_PARAMS(p);
   int64_t bad = 0;
   he_jblock jb;
   for (int64_t e0 = 0; e0 < nc; e0 += HE_BLOCK) {
@@ -40,7 +44,7 @@ int64_t HE_FN(forces)(int64_t nc, const idx_t *cells, const double *Dminv, const
       double P[9];
       int64_t e = e0 + q;
       if (!(jb.J[q] > 0)) { bad++; continue; }
-      HE_MAT(stress_j)(mu, lam, jb.F[q], jb.rJ[q], jb.lnJ[q], P, NULL);
+      HE_MAT(stress_j)(p, jb.F[q], jb.rJ[q], jb.lnJ[q], P, NULL);
       scatter_force(cells + 4 * e, Dminv + 9 * e, vol[e], P, f);
     }
   }
@@ -51,7 +55,8 @@ int64_t HE_FN(forces)(int64_t nc, const idx_t *cells, const double *Dminv, const
  * The sum is compensated (Kahan): the energy line search compares energies that differ by far less
  * than the energy itself near convergence, so its rounding error must stay at one ulp, not nc ulps. */
 int64_t HE_FN(energy)(int64_t nc, const idx_t *cells, const double *Dminv, const double *vol, const double *x,
-                      double mu, double lam, double *out /* [energy, Jmin, Jmax] */) {
+                      const double *prm, double *out /* [energy, Jmin, Jmax] */) {
+  HE_PARAMS(p);
   int64_t bad = 0;
   double W = 0, comp = 0, jmin = INFINITY, jmax = -INFINITY;
   he_jblock jb;
@@ -62,7 +67,7 @@ int64_t HE_FN(energy)(int64_t nc, const idx_t *cells, const double *Dminv, const
       jmin = J < jmin ? J : jmin;
       jmax = J > jmax ? J : jmax;
       if (!(J > 0)) { bad++; continue; }
-      HE_MAT(stress_j)(mu, lam, jb.F[q], jb.rJ[q], jb.lnJ[q], P, &psi);
+      HE_MAT(stress_j)(p, jb.F[q], jb.rJ[q], jb.lnJ[q], P, &psi);
       double term = vol[e0 + q] * psi - comp, sum = W + term;
       comp = (sum - W) - term;
       W = sum;
@@ -75,13 +80,14 @@ int64_t HE_FN(energy)(int64_t nc, const idx_t *cells, const double *Dminv, const
 /* Cell by cell (by blocks, St.VK's loop is ~10% slower: it has no division or logarithm to batch). */
 /* f += k(x). Returns the number of cells where the material is undefined (their force is skipped). */
 int64_t HE_FN(forces)(int64_t nc, const idx_t *cells, const double *Dminv, const double *vol, const double *x,
-                      double mu, double lam, double *f) {
+                      const double *prm, double *f) {
+  HE_PARAMS(p);
   int64_t bad = 0;
   for (int64_t e = 0; e < nc; e++) {
     const idx_t *c = cells + 4 * e;
     double F[9], P[9];
     gather_F(c, Dminv + 9 * e, x, F);
-    if (HE_MAT(stress)(mu, lam, F, P, NULL)) { bad++; continue; }
+    if (HE_MAT(stress)(p, F, P, NULL)) { bad++; continue; }
     scatter_force(c, Dminv + 9 * e, vol[e], P, f);
   }
   return bad;
@@ -91,7 +97,8 @@ int64_t HE_FN(forces)(int64_t nc, const idx_t *cells, const double *Dminv, const
  * The sum is compensated (Kahan): the energy line search compares energies that differ by far less
  * than the energy itself near convergence, so its rounding error must stay at one ulp, not nc ulps. */
 int64_t HE_FN(energy)(int64_t nc, const idx_t *cells, const double *Dminv, const double *vol, const double *x,
-                      double mu, double lam, double *out /* [energy, Jmin, Jmax] */) {
+                      const double *prm, double *out /* [energy, Jmin, Jmax] */) {
+  HE_PARAMS(p);
   int64_t bad = 0;
   double W = 0, comp = 0, jmin = INFINITY, jmax = -INFINITY;
   for (int64_t e = 0; e < nc; e++) {
@@ -100,7 +107,7 @@ int64_t HE_FN(energy)(int64_t nc, const idx_t *cells, const double *Dminv, const
     double J = det3(F);
     jmin = J < jmin ? J : jmin;
     jmax = J > jmax ? J : jmax;
-    if (HE_MAT(stress)(mu, lam, F, P, &psi)) { bad++; continue; }
+    if (HE_MAT(stress)(p, F, P, &psi)) { bad++; continue; }
     double term = vol[e] * psi - comp, sum = W + term;
     comp = (sum - W) - term;
     W = sum;
@@ -113,7 +120,8 @@ int64_t HE_FN(energy)(int64_t nc, const idx_t *cells, const double *Dminv, const
 #if HE_MAT(BATCH_J)
 /* y += K(x) v without assembling, by blocks of cells (NAME_prepare_j from the block's 1/J, ln J). */
 int64_t HE_FN(kv)(int64_t nc, const idx_t *cells, const double *Dminv, const double *vol, const double *x,
-                  double mu, double lam, const double *v, double *y) {
+                  const double *prm, const double *v, double *y) {
+  HE_PARAMS(p);
   int64_t bad = 0;
   he_jblock jb;
   for (int64_t e0 = 0; e0 < nc; e0 += HE_BLOCK) {
@@ -124,9 +132,9 @@ int64_t HE_FN(kv)(int64_t nc, const idx_t *cells, const double *Dminv, const dou
       double dF[9], dP[9];
       HE_MAT(cache) d;
       if (!(jb.J[q] > 0)) { bad++; continue; }
-      HE_MAT(prepare_j)(mu, lam, jb.F[q], jb.rJ[q], jb.lnJ[q], &d);
+      HE_MAT(prepare_j)(p, jb.F[q], jb.rJ[q], jb.lnJ[q], &d);
       gather_F(c, Dminv + 9 * e, v, dF);
-      HE_MAT(dstress)(mu, lam, &d, dF, dP);
+      HE_MAT(dstress)(p, &d, dF, dP);
       scatter_force(c, Dminv + 9 * e, vol[e], dP, y);
     }
   }
@@ -135,16 +143,17 @@ int64_t HE_FN(kv)(int64_t nc, const idx_t *cells, const double *Dminv, const dou
 #else
 /* y += K(x) v, cell by cell, without assembling. */
 int64_t HE_FN(kv)(int64_t nc, const idx_t *cells, const double *Dminv, const double *vol, const double *x,
-                  double mu, double lam, const double *v, double *y) {
+                  const double *prm, const double *v, double *y) {
+  HE_PARAMS(p);
   int64_t bad = 0;
   for (int64_t e = 0; e < nc; e++) {
     const idx_t *c = cells + 4 * e;
     double F[9], dF[9], dP[9];
     HE_MAT(cache) d;
     gather_F(c, Dminv + 9 * e, x, F);
-    if (HE_MAT(prepare)(mu, lam, F, &d)) { bad++; continue; }
+    if (HE_MAT(prepare)(p, F, &d)) { bad++; continue; }
     gather_F(c, Dminv + 9 * e, v, dF);
-    HE_MAT(dstress)(mu, lam, &d, dF, dP);
+    HE_MAT(dstress)(p, &d, dF, dP);
     scatter_force(c, Dminv + 9 * e, vol[e], dP, y);
   }
   return bad;
@@ -152,13 +161,13 @@ int64_t HE_FN(kv)(int64_t nc, const idx_t *cells, const double *Dminv, const dou
 #endif
 
 /* Column (b,k) of the cell tangent: K[(a,i),(b,k)] = V sum_j dP(e_k (x) G_b)_ij G_a,j */
-static inline void HE_FN(tangent_column)(double mu, double lam, const HE_MAT(cache) *d, double G[4][3], double V,
+static inline void HE_FN(tangent_column)(const double *p, const HE_MAT(cache) *d, double G[4][3], double V,
                                          int b, int k, double col[12]) {
   double dF[9] = {0}, dP[9];
   dF[3 * k + 0] = G[b][0];
   dF[3 * k + 1] = G[b][1];
   dF[3 * k + 2] = G[b][2];
-  HE_MAT(dstress)(mu, lam, d, dF, dP);
+  HE_MAT(dstress)(p, d, dF, dP);
   for (int a = 0; a < 4; a++)
     for (int i = 0; i < 3; i++)
       col[3 * a + i] = V * (dP[3 * i] * G[a][0] + dP[3 * i + 1] * G[a][1] + dP[3 * i + 2] * G[a][2]);
@@ -167,14 +176,15 @@ static inline void HE_FN(tangent_column)(double mu, double lam, const HE_MAT(cac
 /* Cell tangents, 144 values per cell, row-major over local dofs (3a+i, 3b+k); written, or added to
  * vals when accumulate != 0. */
 int64_t HE_FN(tangent)(int64_t nc, const idx_t *cells, const double *Dminv, const double *vol, const double *x,
-                       double mu, double lam, double *vals, int accumulate) {
+                       const double *prm, double *vals, int accumulate) {
+  HE_PARAMS(p);
   int64_t bad = 0;
   for (int64_t e = 0; e < nc; e++) {
     double F[9], G[4][3], col[12];
     HE_MAT(cache) d;
     double *K = vals + 144 * e;
     gather_F(cells + 4 * e, Dminv + 9 * e, x, F);
-    if (HE_MAT(prepare)(mu, lam, F, &d)) {
+    if (HE_MAT(prepare)(p, F, &d)) {
       for (int k = 0; k < 144; k++) K[k] = NAN;
       bad++;
       continue;
@@ -182,11 +192,11 @@ int64_t HE_FN(tangent)(int64_t nc, const idx_t *cells, const double *Dminv, cons
     gradN(Dminv + 9 * e, G);
 #if HE_MAT(CELL_TANGENT)
     (void)col;
-    HE_MAT(cell_tangent)(mu, lam, &d, G, vol[e], K, accumulate);
+    HE_MAT(cell_tangent)(p, &d, G, vol[e], K, accumulate);
 #else
     for (int b = 0; b < 4; b++)
       for (int k = 0; k < 3; k++) {
-        HE_FN(tangent_column)(mu, lam, &d, G, vol[e], b, k, col);
+        HE_FN(tangent_column)(p, &d, G, vol[e], b, k, col);
         if (accumulate)
           for (int r = 0; r < 12; r++) K[12 * r + 3 * b + k] += col[r];
         else
@@ -199,23 +209,24 @@ int64_t HE_FN(tangent)(int64_t nc, const idx_t *cells, const double *Dminv, cons
 
 /* diag += diagonal of K(x) */
 int64_t HE_FN(tangent_diag)(int64_t nc, const idx_t *cells, const double *Dminv, const double *vol,
-                            const double *x, double mu, double lam, double *diag) {
+                            const double *x, const double *prm, double *diag) {
+  HE_PARAMS(p);
   int64_t bad = 0;
   for (int64_t e = 0; e < nc; e++) {
     const idx_t *c = cells + 4 * e;
     double F[9], G[4][3], col[12];
     HE_MAT(cache) d;
     gather_F(c, Dminv + 9 * e, x, F);
-    if (HE_MAT(prepare)(mu, lam, F, &d)) { bad++; continue; }
+    if (HE_MAT(prepare)(p, F, &d)) { bad++; continue; }
     gradN(Dminv + 9 * e, G);
 #if HE_MAT(CELL_TANGENT)
-    HE_MAT(cell_tangent_diag)(mu, lam, &d, G, vol[e], col);
+    HE_MAT(cell_tangent_diag)(p, &d, G, vol[e], col);
     for (int b = 0; b < 4; b++)
       for (int k = 0; k < 3; k++) diag[3 * (int64_t)c[b] + k] += col[3 * b + k];
 #else
     for (int b = 0; b < 4; b++)
       for (int k = 0; k < 3; k++) {
-        HE_FN(tangent_column)(mu, lam, &d, G, vol[e], b, k, col);
+        HE_FN(tangent_column)(p, &d, G, vol[e], b, k, col);
         diag[3 * (int64_t)c[b] + k] += col[3 * b + k];
       }
 #endif
@@ -230,7 +241,8 @@ int64_t HE_FN(tangent_diag)(int64_t nc, const idx_t *cells, const double *Dminv,
  * factor C_bar = L L^T, Ft = L^T, its last row negated where det F < 0.
  * Returns the number of cells where the material is undefined at xn or x1 (their force is skipped). */
 int64_t HE_FN(forces_dg)(int64_t nc, const idx_t *cells, const double *Dminv, const double *vol, const double *x,
-                         double mu, double lam, const double *xn, double *f) {
+                         const double *prm, const double *xn, double *f) {
+  HE_PARAMS(p);
   int64_t bad = 0;
   for (int64_t e = 0; e < nc; e++) {
     const idx_t *c = cells + 4 * e;
@@ -238,7 +250,7 @@ int64_t HE_FN(forces_dg)(int64_t nc, const idx_t *cells, const double *Dminv, co
     gather_F(c, Dminv + 9 * e, x, F);
     gather_F(c, Dminv + 9 * e, xn, Fn);
     for (int k = 0; k < 9; k++) F1[k] = 2 * F[k] - Fn[k];
-    if (HE_MAT(stress)(mu, lam, Fn, P, &psin) || HE_MAT(stress)(mu, lam, F1, P, &psi1)) { bad++; continue; }
+    if (HE_MAT(stress)(p, Fn, P, &psin) || HE_MAT(stress)(p, F1, P, &psi1)) { bad++; continue; }
     mtm(Fn, Fn, Cn);
     mtm(F1, F1, C1);
     for (int k = 0; k < 9; k++) { Cb[k] = 0.5 * (Cn[k] + C1[k]); dE[k] = 0.5 * (C1[k] - Cn[k]); }
@@ -255,7 +267,7 @@ int64_t HE_FN(forces_dg)(int64_t nc, const idx_t *cells, const double *Dminv, co
      * inverted depend on the sign of J, which C does not carry) */
     double l22 = det3(F) < 0 ? -sqrt(d22) : sqrt(d22);
     double Ft[9] = {l00, l10, l20, 0, l11, l21, 0, 0, l22}, Pt[9], cof[9], S[9];
-    if (HE_MAT(stress)(mu, lam, Ft, Pt, NULL)) { bad++; continue; }
+    if (HE_MAT(stress)(p, Ft, Pt, NULL)) { bad++; continue; }
     cof_mixed(Ft, Ft, cof);                      /* Ft^-1 = cof^T / det */
     double idet = 1.0 / (l00 * l11 * l22);
     mtm(cof, Pt, S);

@@ -10,42 +10,41 @@ PETSc family (snes_, ksp_, pc_, ts_, mat_, dm_, log_ ...); once SNES (and TS) ha
 database, an option of the solver families (snes_, ksp_, pc_, ts_) that PETSc did not use is an
 error too, except the families PETSc reads only later (sub-solvers, multigrid levels, viewers)."""
 import difflib
+import math
+import os
 import re
 import sys
 import textwrap
-from dataclasses import dataclass
 
-from . import materials
+from . import effects, materials
 from .errors import UserError
-from .effects.dirichlet import PRESETS as MOTIONS
-from .scene import ASSEMBLIES, DEFAULT_EFFECTS, DEFAULT_MATERIAL, EFFECTS, INTEGRATORS, JACOBIANS, STORAGES, Scene
-
-
-@dataclass(frozen=True)
-class Row:
-    names: tuple      # the options of the row, without the dash
-    synopsis: str     # how the row shows them (README's first column)
-    help: str         # what they do (backticks: code)
-    default: str = ""
-
+from .options import PREFIX, Options, Row, insert_defaults, parse_options_file, resolve_scene
+from .scene import (ASSEMBLIES, DEFAULT_EFFECTS, DEFAULT_MATERIAL, EFFECTS, EFFECTS_RULE, INTEGRATORS, JACOBIANS,
+                    STORAGES, Scene, read_scene)
 
 _S = Scene(name="SCENE")
+_OWN = tuple(materials.own_parameters())       # the materials' own constants (-C10, -kappa, ...)
 
-ROWS = (
+
+def _material_list():
+    return ", ".join(f"`{m.name}`" + (f" ({m.summary})" if m.summary else "") for m in materials.MATERIALS.values())
+
+
+HEAD = (
     Row(("mesh", "mesh_frame"), "-mesh FILE", "any tetrahedral mesh meshio reads (.msh with physical groups, .vtu, "
         ".mesh …), or an output of this application (.h5 or its .xdmf: the configuration of frame `-mesh_frame N`, "
         "default the last, becomes the reference; regions kept)", "cached bar at `-level`"),
     Row(("level",), "-level N", "bar mesh level: 1..8 = thesis L1..L8 (edge 0.80 … 0.30), 9.. finer (≈2× tets each)",
         f"{_S.level}"),
-    Row(("material",), "-material NAME", "`linear`, `stvk`, `neohookean`, `snh` (Stable Neo-Hookean, defined for "
-        "J ≤ 0), `corotational`", DEFAULT_MATERIAL),
+    Row(("material",), "-material NAME", _material_list(), DEFAULT_MATERIAL),
     Row(("hessian_projection",), "-hessian_projection", "element tangents projected to positive semi-definite "
         "(eigenvalues clamped at 0); the residual is unchanged", "off"),
     Row(("objective",), "-objective", "register the incremental potential E(x) (backward Euler as energy "
         "minimization) with SNES, so the line search uses the energy as merit; a scene with an effect that has none "
         "(follower traction) falls back to the residual norm and says so. `-objective 0`: residual-norm merit", "on"),
     Row(("inversion_guard",), "-inversion_guard", "shorten any Newton update that would invert an element (a "
-        "line-search pre-check)", "on for neohookean"),
+        "line-search pre-check)", "on for " + ", ".join(m.name for m in materials.MATERIALS.values()
+                                                 if not m.defined_when_inverted)),
     Row(("step_control", "dt_grow_after"), "-step_control", "reject a step whose solve fails (or gives NaN/Inf), "
         "retry with h/2; regrow ×2 after `-dt_grow_after N` accepted steps", f"on, N = {_S.dt_grow_after}"),
     Row(("dt_min",), "-dt_min", "below this step size the run stops with one line naming step, time and reason",
@@ -55,38 +54,21 @@ ROWS = (
         "initial state about the centroid c: x = c + diag(s)(X − c), then rotated by the rotation vector r; "
         "v = w × (x − c) (no scale may be 0; no spin with `-quasistatic`)", "rest"),
     Row(("E", "nu", "rho"), "-E -nu -rho", "Young's modulus [Pa], Poisson's ratio, density [kg/m³]",
-        f"{_S.E:g}, {_S.nu:g}, {_S.rho:g}"),
-    Row(("regions", "REGION_material", "REGION_preset", "REGION_E", "REGION_nu", "REGION_rho"), "-regions R1,R2,…",
+        f"{_S.solid.values['E']:g}, {_S.solid.values['nu']:g}, {_S.solid.rho:g}"),
+) + tuple(materials.rows()) + (
+    Row(("regions", "REGION_material", "REGION_preset", "REGION_E", "REGION_nu", "REGION_rho")
+        + tuple(f"REGION_{n}" for n in _OWN), "-regions R1,R2,…",
         "a material per physical volume (name or tag): `-R1_material`, `-R1_preset`, `-R1_E`, `-R1_nu`, `-R1_rho` "
-        "(PETSc-style prefixes; defaults: the un-prefixed ones, which also hold for cells in no listed region); each "
-        "region's parameters checked like the scene's", "one material"),
+        "and its material's constants (PETSc-style prefixes; defaults: the un-prefixed ones, which also hold for "
+        "cells in no listed region); each region's parameters checked like the scene's", "one material"),
     Row(("preset",), "-preset NAME", ", ".join(materials.PRESETS)),
     Row(("mass",), "-mass", "`consistent` or `lumped` (also used for damping matrices)",
         "lumped" if _S.lumped else "consistent"),
-    Row(("effects",), "-effects LIST", f"effects the scene names: {', '.join(EFFECTS)}", ",".join(DEFAULT_EFFECTS)),
-    Row(("damping",), "-damping c", "viscous damping C = c∫NᵀN (0 removes the effect)"),
-    Row(("rayleigh_alpha", "rayleigh_beta"), "-rayleigh_alpha a -rayleigh_beta b", "Rayleigh damping (αM + βK(xⁿ))"),
-    Row(("gravity",), "-gravity gx,gy,gz", "body force ρg"),
-    Row(("traction", "traction_twist", "traction_face", "traction_ramp", "traction_time"),
-        "-traction tx,ty,tz / -traction_twist k", "dead-load traction [Pa per reference area] / follower twist on the "
-        "surfaces `-traction_face S1,S2,…`, scaled by `-traction_ramp A` (A·min(t,1)) or by a time function "
-        "`-traction_time EXPR`", "right"),
-    Row(("pressure", "pressure_faces", "pressure_ramp", "pressure_time"), "-pressure p -pressure_faces S1,S2,…",
-        "follower pressure [Pa] normal to the current surface (positive pushes in), exact tangent; `-pressure_ramp A` "
-        "or `-pressure_time EXPR`"),
-    Row(("loads", "LOAD_traction", "LOAD_pressure", "LOAD_faces", "LOAD_time", "LOAD_ramp"), "-loads L1,L2,…",
-        "any number of loads, each with its own surfaces and time function: `-L1_traction tx,ty,tz` (dead) or "
-        "`-L1_pressure p` (follower), `-L1_faces S1,…`, `-L1_time EXPR` or `-L1_ramp A`"),
-    Row(("fix",), "-fix S[:xyz],…", "hold surfaces at their reference positions, all components or those named: "
-        "`-fix base` (clamp), `-fix symmetry:x` (roller / symmetry plane); a component may not be both fixed and "
-        "prescribed on the same surface"),
-    Row(("prescribe_faces", "prescribe_motion", "prescribe_amount"),
-        "-prescribe_faces S[:xyz],… -prescribe_motion M -prescribe_amount A",
-        f"a preset motion of the surfaces: M = {', '.join(MOTIONS)} with s = A·min(t,1)"),
-    Row(("prescribe_x", "prescribe_y", "prescribe_z", "prescribe_ux", "prescribe_uy", "prescribe_uz"),
-        "-prescribe_x -prescribe_y -prescribe_z EXPR, -prescribe_ux -prescribe_uy -prescribe_uz EXPR", "per component, the position (or displacement) of "
-        "the `-prescribe_faces` vertices as an expression of `t`, the reference `X, Y, Z` and `A`; replaces the "
-        "preset's for that component; components with neither stay at their reference"),
+    Row(("effects",), "-effects LIST", f"effects: {', '.join(EFFECTS)}. Rule: {EFFECTS_RULE}",
+        ",".join(DEFAULT_EFFECTS)),
+)
+
+TAIL = (
     Row(("quasistatic",), "-quasistatic", "no inertia or damping: solve k(x) = f(t) per step", "off"),
     Row(("dt", "final_time", "frames_per_second"), "-dt -final_time -frames_per_second",
         "time step, end time, output frames per second (at most 1e9 steps and 1e6 frames)",
@@ -128,6 +110,8 @@ ROWS = (
     Row(("help",), "-help", "this list (with the scene's values), then PETSc's own options as its solvers read "
         "them; nothing is run or written"),
 )
+
+ROWS = HEAD + tuple(row for spec in effects.REGISTRY for row in spec.rows) + TAIL
 
 # the choices a row's values come from, checked against the scene reader's own lists by the tests
 CHOICES = {"material": materials.REGISTRY, "jacobian": JACOBIANS, "assembly": ASSEMBLIES,
@@ -175,7 +159,6 @@ PETSC_WORDS = ("default", "petsc_default", "decide", "petsc_decide", "determine"
 
 def check_petsc_values(opts):
     """Values of PETSC_VALUES' options: numbers in range (PETSc's symbolic DEFAULT/DECIDE/... pass)."""
-    import math
     for key, (integer, lo, hi) in PETSC_VALUES.items():
         if not opts.hasName(key):
             continue
@@ -282,6 +265,33 @@ def markdown_table():
     for row in ROWS:
         out.append(f"| `{cell(row.synopsis)}` | {cell(row.help)} | {cell(row.default)} |")
     return "\n".join(out)
+
+
+def load_scene(scene_arg):
+    """(Scene, path of its options file) for a built-in scene name or an options file: the file's
+    options become defaults under the command line's, every option is checked to be the application's or
+    PETSc's, then the scene is read and validated (scene.read_scene)."""
+    path = resolve_scene(scene_arg)
+    pairs = parse_options_file(path)
+    opts = Options()
+    from_scene = {k for k, _ in pairs if not opts.has(k)}
+    insert_defaults(pairs)
+    check_application_options(sorted(opts.o.getAll()), _prefixes(opts, "regions"), _prefixes(opts, "loads"),
+                              {k for k, _ in pairs})
+    check_petsc_values(opts.o)
+    name = os.path.splitext(os.path.basename(path))[0]
+    return read_scene(name, opts, from_scene), path
+
+
+def _prefixes(opts, option):
+    """The names -regions / -loads list that can be option prefixes (the others are refused when the
+    scene is read)."""
+    return [w for w in opts.names(option) if PREFIX.fullmatch(w)]
+
+
+def scene_option_names(scene):
+    """Every option name of the application for this scene (its regions' and loads' prefixes expanded)."""
+    return option_names(*scene.prefixes())
 
 
 if __name__ == "__main__":

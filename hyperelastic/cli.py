@@ -10,9 +10,12 @@
                                                  what accuracy costs in time: CSV, PNGs, markdown
 """
 import os
+import shlex
 import sys
+import traceback
 
 from .errors import ArgParser, Interrupted, SolveError, UserError
+from .files import read_checkpoint
 
 EXIT_USER, EXIT_SOLVE, EXIT_INTERNAL = 2, 3, 1
 
@@ -32,7 +35,6 @@ def _check_options_files(argv, chain=()):
     error and leave no communicator (missing file), wait forever (a FIFO), or recurse until SIGSEGV
     (a file that includes itself, or two that include each other). Returns their paths (the inputs an
     output must not overwrite)."""
-    import shlex
     files = []
     for i, a in enumerate(argv):
         if a != "-options_file":
@@ -79,7 +81,6 @@ def _restart_args(argv):
     res = err = None
     if MPI.COMM_WORLD.rank == 0:
         try:
-            from .output import read_checkpoint
             state, attrs = read_checkpoint(path)
             args = []
             for line in str(attrs.get("options", "")).splitlines():
@@ -98,12 +99,11 @@ def _restart_args(argv):
     return scene, args, state
 
 
-def run(argv):
-    """`hyperelastic run`: Scene -> Model (mesh, space, effects, system) -> Solver -> Writer -> integrator."""
+def run_cmd(argv):
+    """`hyperelastic run SCENE [options]` or `run --restart FILE.h5 [options]` (run.py does the work)."""
     restart = None
     if argv and argv[0] in ("--help", "-help", "-h"):
-        from .catalog import help_text
-        print(help_text())
+        print(catalog_help())
         return 0
     if argv and argv[0] == "--restart":
         scene_arg, petsc_args, restart = _restart_args(argv)
@@ -117,102 +117,17 @@ def run(argv):
         except UnicodeEncodeError:
             raise UserError(f"argument '{a.encode('utf-8', 'replace').decode()}': not valid UTF-8 (PETSc options, "
                             "file names among them, must be)") from None
-    PETSc, options_files = _petsc(petsc_args)
-    import signal
-    from .integrators import BackwardEuler
-    from .model import build_model, collective
-    from .options import Options
-    from .output import Writer, check_output_path, run_attributes
-    from .scene import load_scene
-    from .solver import Solver
-
-    comm = PETSc.COMM_WORLD
-    stage = PETSc.Log.Stage("Setup")
-    stage.push()
-    scene, scene_file = load_scene(scene_arg)
-    opts = Options()
-    if opts.has("help") and comm.getRank() == 0:
-        from .catalog import help_text, option_names
-        names = option_names([r.name for r in scene.regions], [ld["name"] for ld in scene.params.get("loads", [])])
-        print(help_text({n: opts.o.getString(n, "") for n in names if opts.has(n)}), flush=True)
-    out = opts.string("output", os.path.join("output", f"{scene.name}.h5"))
-    quiet = opts.flag("quiet")
-    inputs = [scene_file, scene.mesh] + options_files
-    if restart is not None:
-        inputs = [i for i in inputs if i and os.path.realpath(i) != os.path.realpath(out)]
-    collective(comm, lambda: check_output_path(out, inputs))      # before any expensive work
-    model = build_model(scene, comm)
-    if restart is not None:
-        collective(comm, lambda: _check_restart(restart, model, scene, argv[1]))
-    ts = None
-    if scene.integrator == "ts":
-        from .ts_integrator import make_ts
-        ts = make_ts(comm)
-    solver = Solver(model.system, scene.jacobian, scene.assembly, guard=scene.inversion_guard,
-                    objective=scene.objective and ts is None, snes=ts.getSNES() if ts else None,
-                    reuse_pc=scene.reuse_preconditioner, storage=scene.operator_storage)
-    if ts is not None:
-        ts.setFromOptions()      # (again when the integrator is set up) so that its options count as used
-        from .ts_integrator import check_energy_momentum
-        check_energy_momentum(ts, scene)
-    from .catalog import check_solver_options
-    check_solver_options(PETSc.Options())
-    if opts.has("help"):         # PETSc printed its own options as its solvers read them
-        return 0
-    if not quiet and comm.getRank() == 0:
-        for line in model.set_lines():
-            print(f"set {line}", file=sys.stderr)
-        if solver.merit_note:
-            print(f"note: {solver.merit_note}", file=sys.stderr)
-    attrs = run_attributes(model, scene_file, solver)
-    stage.pop()
-    from .sets import REGION_LABEL
-    writer = Writer(out, model.space, model.points, model.tets, attrs, resume=restart, kernels=model.kernels,
-                    region=model.space.cell_values(REGION_LABEL))
-    if ts is not None:
-        from .ts_integrator import GeneralizedAlpha
-        integ = GeneralizedAlpha(scene, model.system, solver, writer, model.x0, model.v0, ts, checkpoint=restart,
-                                 quiet=quiet)
-    else:
-        integ = BackwardEuler(scene, model.system, solver, writer, model.x0, model.v0, checkpoint=restart,
-                              quiet=quiet)
-    for sig in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(sig, lambda signum, frame: integ.request_stop(signum))
-    ended = False
-    try:
-        integ.run()
-        ended = True
-    except Interrupted:
-        ended = True          # stopped on request with a checkpoint: keep it, even before a first step
-        raise
-    finally:
-        writer.set_attr("steps_completed", integ.step)
-        writer.set_attr("peak_rss_mb", peak_rss_mb(comm))
-        writer.close(keep=ended)
-    if not quiet and comm.getRank() == 0:
-        print(f"wrote {out} ({integ.step} steps, {writer.nframes} frames)", file=sys.stderr)
-        advice = solver.advice()
-        if advice:
-            print(f"note: {advice}", file=sys.stderr)
-    return 0
+    _, options_files = _petsc(petsc_args)
+    # deferred on purpose: petsc4py reads the command line when PETSc is first imported, so every module
+    # that imports it comes after _petsc
+    from .run import run_scene
+    return run_scene(scene_arg, options_files, restart, argv[1] if restart is not None else None)
 
 
-def _check_restart(state, model, scene, path):
-    """The checkpoint fits the run it continues: the same mesh, and time left before -final_time."""
-    if len(state["x"]) != len(model.points):
-        raise UserError(f"--restart '{path}': the checkpoint has {len(state['x'])} vertices, the mesh of this run "
-                        f"{len(model.points)} (a restart continues on the mesh it was written with)")
-    if state["t"] >= scene.final_time * (1 - 1e-12):
-        raise UserError(f"--restart '{path}': the checkpoint is at t = {state['t']:g}, the end of the run "
-                        f"(-final_time {scene.final_time:g}); give a later -final_time to continue")
-
-
-def peak_rss_mb(comm):
-    """Peak resident memory [MB] of the most loaded rank so far (getrusage: KiB on Linux)."""
-    import resource
-    kib = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
-    from mpi4py import MPI
-    return comm.tompi4py().allreduce(kib, op=MPI.MAX) / 1024.0
+def catalog_help():
+    """`run --help`: every option with its default (needs PETSc for the options module; nothing is read)."""
+    from .catalog import help_text     # deferred: imports petsc4py (see run_cmd)
+    return help_text()
 
 
 def mesh_cmd(argv):
@@ -263,7 +178,7 @@ def study_cmd(argv):
     return study_main(argv)
 
 
-COMMANDS = {"run": run, "mesh": mesh_cmd, "plot": plot_cmd, "scenes": scenes_cmd, "study": study_cmd}
+COMMANDS = {"run": run_cmd, "mesh": mesh_cmd, "plot": plot_cmd, "scenes": scenes_cmd, "study": study_cmd}
 
 
 def main(argv=None):
@@ -298,7 +213,6 @@ def main(argv=None):
             _error(f"PETSc: {error_message(e.ierr)}")
             return EXIT_USER
         if debug:
-            import traceback
             traceback.print_exc()
         else:
             msg = " ".join(str(e).split())[:300] or type(e).__name__

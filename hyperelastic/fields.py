@@ -7,7 +7,6 @@ the material is undefined (J <= 0 for Neo-Hookean) the energy density and stress
 """
 import numpy as np
 
-from . import materials
 
 POINT_FIELDS = ("displacement", "velocity")
 CELL_FIELDS = ("J", "energy_density", "von_mises")
@@ -40,27 +39,23 @@ CHUNK = 32768     # cells per vectorized evaluation: the (n,3,3) temporaries sta
 def cell_fields(kernels, x):
     """{J, energy_density, von_mises}: (nc,) arrays on the local cells of `kernels` at positions x
     (with a material per region: each region's cells by its material), CHUNK cells at a time."""
-    if hasattr(kernels, "parts"):
-        out = {k: np.full(kernels.nc, np.nan) for k in CELL_FIELDS}
-        for idx, k in kernels.parts:
-            for name, a in cell_fields(k, x).items():
-                out[name][idx] = a
-        return out
-    out = {k: np.empty(kernels.nc) for k in CELL_FIELDS}
-    for lo in range(0, kernels.nc, CHUNK):
-        part = _cell_fields(kernels.cells[lo:lo + CHUNK], kernels.Dminv[lo:lo + CHUNK], kernels, x)
-        for k in CELL_FIELDS:
-            out[k][lo:lo + CHUNK] = part[k]
+    out = {k: np.full(kernels.nc, np.nan) for k in CELL_FIELDS}
+    for idx, k in kernels.parts:             # one material (CellKernels), or one per region
+        cells = np.arange(kernels.nc)[idx]   # the local cells of this material
+        for lo in range(0, k.nc, CHUNK):
+            part = _cell_fields(k.cells[lo:lo + CHUNK], k.Dminv[lo:lo + CHUNK], k, x)
+            for name in CELL_FIELDS:
+                out[name][cells[lo:lo + CHUNK]] = part[name]
     return out
 
 
 def _cell_fields(cells, Dminv, kernels, x):
     F = deformation_gradients(cells, Dminv, x)
-    mat = materials.get(kernels.material)
+    mat, c = kernels.model, kernels.constants
     with np.errstate(all="ignore"):
         J = np.linalg.det(F)
-        psi = _per_cell(mat.psi, F, kernels.mu, kernels.lam)
-        P = _per_cell(mat.P, F, kernels.mu, kernels.lam)
+        psi = _per_cell(mat.psi, F, c)
+        P = _per_cell(mat.P, F, c)
         sigma = P @ np.swapaxes(F, -1, -2) / J[:, None, None]
         s = sigma - np.trace(sigma, axis1=-2, axis2=-1)[:, None, None] / 3.0 * np.eye(3)
         vm = np.sqrt(1.5 * np.einsum("cij,cij->c", s, s))

@@ -10,7 +10,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from .errors import Interrupted, SolveError
-from .stats import effect_column
+from .stats import effect_column, energy_sum
 
 
 def step_count(final_time, dt):
@@ -36,7 +36,7 @@ class Integrator:
         self.n0 = 0            # nominal steps already done (a restart starts later)
         self.stages = {k: PETSc.Log.Stage(k) for k in ("Step", "Output")}
         system.begin_step(0.0, scene.dt, x0, v0)
-        self.energy0 = total_energy(system.energies(x0, v0))   # for energy_dissipated
+        self.energy0 = energy_sum(system.energies(x0, v0))   # for energy_dissipated
 
     def request_stop(self, signum):
         """Stop at the next frame with a checkpoint (honoured on every rank)."""
@@ -56,17 +56,14 @@ class Integrator:
     def _energy_stats(self, x1, v1, stats):
         """The energies of the state (x1, v1) into the stats row; False if they or x1 are not finite."""
         en = self.system.energies(x1, v1)
-        vals = [en.get("kinetic", 0.0), en["elastic"]] + [en[k] for k in ("gravity_potential", "traction_work")
-                                                        if k in en]
-        finite = self.sp.mpi.allreduce(bool(np.isfinite(x1).all()), op=MPI.LAND) and all(map(math.isfinite, vals))
+        en.setdefault("kinetic", 0.0)
+        finite = self.sp.mpi.allreduce(bool(np.isfinite(x1).all()), op=MPI.LAND) and all(
+            math.isfinite(val) for k, val in en.items() if k not in ("J_min", "J_max"))
         if not finite:
             return False
-        tot = total_energy(en)
-        stats.update({"kinetic": en.get("kinetic", 0.0), "elastic": en["elastic"], "J_min": en["J_min"],
-                      "J_max": en["J_max"], "energy_total": tot, "energy_dissipated": self.energy0 - tot})
-        for k in ("gravity_potential", "traction_work"):
-            if k in en:
-                stats[k] = en[k]
+        tot = energy_sum(en)
+        stats.update(en)
+        stats.update({"energy_total": tot, "energy_dissipated": self.energy0 - tot})
         return True
 
     def _output(self, n_done, framed, last, x_frame=None):
@@ -127,7 +124,7 @@ class Integrator:
                                rejections=self.rejections, nframes=self.writer.nframes, nstats=self.writer.nstats)
 
     def _resume(self, state):
-        """Continue from a checkpoint (output.read_checkpoint): the same state, step control included."""
+        """Continue from a checkpoint (files.read_checkpoint): the same state, step control included."""
         sp = self.sp
         self.x, self.v = sp.scatter(state["x"]), sp.scatter(state["v"])
         self.t, self.step, self.n0 = float(state["t"]), int(state["step"]), int(state["n"])
@@ -139,17 +136,10 @@ class Integrator:
         raise SolveError(f"{where}: {why}")
 
 
-def total_energy(en):
-    """kinetic + elastic + gravity potential - traction work of an energies() dict: the energy a
-    conservative scene keeps (with a ramped traction, the load's potential moves with the ramp)."""
-    return (en.get("kinetic", 0.0) + en["elastic"] + en.get("gravity_potential", 0.0)
-            - en.get("traction_work", 0.0))
-
-
 class BackwardEuler(Integrator):
     def __init__(self, scene, system, solver, writer, x0, v0, checkpoint=None, quiet=False):
         """Steps the system from the initial state (x0, v0: local arrays at t = 0), or from a
-        checkpoint's state (output.read_checkpoint) when given, writing frames and statistics to
+        checkpoint's state (files.read_checkpoint) when given, writing frames and statistics to
         `writer` (None: nothing is written). The scene gives the time settings."""
         super().__init__(scene, system, solver, writer, x0, v0, quiet)
         self.X = self.sp.global_vec()

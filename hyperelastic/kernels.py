@@ -1,9 +1,14 @@
-"""ctypes bindings to the compiled element kernels (_kernels.c, built by setup.py)."""
+"""ctypes bindings to the compiled element kernels (_kernels.c, built by setup.py): `Cells` (the local
+cells' geometry and the kernels that need nothing else: mass matrix, inversion step bound, stored blocks),
+`CellKernels` (a material on cells: force, energy, K v, tangent blocks and diagonal) and `RegionKernels`
+(a material per region, the same interface)."""
 import ctypes
 import glob
 import os
 
 import numpy as np
+
+from . import materials
 
 _here = os.path.dirname(os.path.abspath(__file__))
 IDX = np.int32  # vertex index type used by the kernels
@@ -30,9 +35,11 @@ _lib = _load()
 _P = ctypes.c_void_p
 _I = ctypes.c_int64
 _D = ctypes.c_double
-# per material NAME (materials/NAME.h): he_KIND_NAME(nc, cells, Dminv, vol, x, mu, lam, ...)
+# per material NAME (materials/NAME.h): he_KIND_NAME(nc, cells, Dminv, vol, x, prm, ...), prm the material's
+# parameter block (NPARAM doubles: its constants, zero-padded; see _kernels.c, HE_NPARAM)
 _MATERIAL_KERNELS = {"forces": [_P], "energy": [_P], "kv": [_P, _P], "tangent": [_P, ctypes.c_int],
                      "tangent_diag": [_P], "forces_dg": [_P, _P]}
+NPARAM = 8
 _lib.he_mass_apply.restype = None
 _lib.he_mass_apply.argtypes = [_I, _P, _P, _D, _P, _P]
 _lib.he_max_step.restype = _D
@@ -90,7 +97,7 @@ def material_kernels(name):
                 raise ImportError(f"hyperelastic: no compiled kernels for material '{name}' (is there a "
                                   f"materials/{name}.h? run `make` to rebuild)") from None
             fn.restype = _I
-            fn.argtypes = [_I, _P, _P, _P, _P, _D, _D] + extra
+            fn.argtypes = [_I, _P, _P, _P, _P, _P] + extra
             fns[kind] = fn
         _bound[name] = fns
     return _bound[name]
@@ -101,86 +108,49 @@ def _ptr(a, dtype):
     return a.ctypes.data
 
 
-class CellKernels:
-    """Binds a cell set (local vertex indices, Dm^-1, volumes) and a material (its name, e.g. 'stvk',
-    and Lame constants) to the C kernels."""
+def parameter_block(constants):
+    """The C kernels' parameter block of a material's constants (NPARAM doubles, zero-padded)."""
+    c = np.asarray(constants, np.float64).ravel()
+    if len(c) > NPARAM:
+        raise ValueError(f"a material has at most {NPARAM} constants (HE_NPARAM in _kernels.c), not {len(c)}")
+    out = np.zeros(NPARAM)
+    out[:len(c)] = c
+    return out
 
-    def __init__(self, cells, Dminv, vol, material, mu, lam):
+
+class Cells:
+    """Local cells (vertex indices into a local vector, 3 dofs per vertex), their Dm^-1 and volumes, and
+    the kernels that need nothing else: the consistent mass matrix, the inversion guard's step bound and
+    stored 12x12 blocks."""
+
+    def __init__(self, cells, Dminv, vol):
         self.cells = np.ascontiguousarray(cells, dtype=IDX)
         self.Dminv = np.ascontiguousarray(Dminv, dtype=np.float64).reshape(-1, 9)
         self.vol = np.ascontiguousarray(vol, dtype=np.float64)
         self.nc = len(self.vol)
-        self.set_material(material, mu, lam)
         self._args = (self.nc, _ptr(self.cells, IDX), _ptr(self.Dminv, np.float64), _ptr(self.vol, np.float64))
-
-    def set_material(self, material, mu, lam):
-        """Switch to material `material` (a name) with Lame constants (mu, lam)."""
-        self.material = material
-        self.fn = material_kernels(material)
-        self.mu = float(mu)
-        self.lam = float(lam)
+        self._parts = {}
 
     def part(self, lo, hi):
-        """The same kernels on cells lo..hi-1 (views, no copies; cached)."""
-        cache = self.__dict__.setdefault("_parts", {})
-        if (lo, hi) not in cache:
-            k = CellKernels.__new__(CellKernels)
-            k.cells, k.Dminv, k.vol = self.cells[lo:hi], self.Dminv[lo:hi], self.vol[lo:hi]
-            k.nc, k.material, k.fn, k.mu, k.lam = hi - lo, self.material, self.fn, self.mu, self.lam
-            k._args = (k.nc, _ptr(k.cells, IDX), _ptr(k.Dminv, np.float64), _ptr(k.vol, np.float64))
-            cache[(lo, hi)] = k
-        return cache[(lo, hi)]
+        """The same cells lo..hi-1 (views, no copies; cached)."""
+        if (lo, hi) not in self._parts:
+            self._parts[(lo, hi)] = Cells(self.cells[lo:hi], self.Dminv[lo:hi], self.vol[lo:hi])
+        return self._parts[(lo, hi)]
 
-    def _x(self, x):
-        return _ptr(x, np.float64)
+    def weighted(self, w):
+        """The same cells with volumes w V (a coefficient per cell, e.g. each region's density)."""
+        return Cells(self.cells, self.Dminv, np.asarray(w, np.float64) * self.vol)
 
-    def forces(self, x, f):
-        """f += k(x); returns the number of cells where the material is undefined."""
-        return self.fn["forces"](*self._args, self._x(x), self.mu, self.lam, _ptr(f, np.float64))
-
-    def forces_discrete_gradient(self, x, xn, f):
-        """f += the energy-momentum force of the midpoint step from xn to x1 = 2 x - xn (x the midpoint):
-        per cell V (F S) : grad N with F = F(x) = (F_n + F_1)/2 and the algorithmic stress
-        S = S(C_bar) + (dW - S(C_bar) : dE) dE / (dE : dE), C_bar = (C_n + C_1)/2, dE = (C_1 - C_n)/2,
-        dW = Psi(F_1) - Psi(F_n) (Simo & Tarnow, ZAMP 43, 1992; Gonzalez, CMAME 190, 2000, eq. 4.4).
-        Since sym(F^T (F_1 - F_n)) = dE, the work of these forces over the step is exactly
-        sum_e V (Psi(F_1) - Psi(F_n)): with the midpoint rule's inertia the step conserves energy, and S
-        symmetric conserves angular momentum. For St.VK, S(C_bar) alone has that property (S is linear in
-        E); the correction is then rounding. S(C) = Ft^-1 P(Ft) for any Ft^T Ft = C with det Ft of the sign
-        of det F (objective materials; Ft from the Cholesky factor). `linear` (not objective, and
-        quadratic): the midpoint force, which is already exact. Returns the number of cells where the
-        material is undefined at x_n or x_1 (their force is skipped)."""
-        if self.material == "linear":
-            return self.forces(x, f)
-        return self.fn["forces_dg"](*self._args, self._x(x), self.mu, self.lam, _ptr(xn, np.float64),
-                                    _ptr(f, np.float64))
-
-    def energy(self, x):
-        out = np.zeros(3)
-        bad = self.fn["energy"](*self._args, self._x(x), self.mu, self.lam, _ptr(out, np.float64))
-        return out[0], out[1], out[2], bad
-
-    def kv(self, x, v, y):
-        """y += K(x) v."""
-        return self.fn["kv"](*self._args, self._x(x), self.mu, self.lam, _ptr(v, np.float64),
-                          _ptr(y, np.float64))
-
-    def tangent(self, x, vals=None, accumulate=False):
-        """12x12 cell tangents, shape (nc, 12, 12), dof order 3a+i; added to vals if accumulate."""
-        if vals is None:
-            vals = np.zeros((self.nc, 12, 12))
-        assert vals.shape == (self.nc, 12, 12)
-        bad = self.fn["tangent"](*self._args, self._x(x), self.mu, self.lam, _ptr(vals, np.float64),
-                              int(accumulate))
-        return vals, bad
-
-    def tangent_diag(self, x, diag):
-        return self.fn["tangent_diag"](*self._args, self._x(x), self.mu, self.lam, _ptr(diag, np.float64))
+    def vertex_shares(self, nlv):
+        """(nlv,) the sum over each local vertex's cells of V/4: int N_a dV of P1."""
+        share = np.zeros(nlv)
+        np.add.at(share, self.cells.ravel(), np.repeat(self.vol / 4.0, 4))
+        return share
 
     def max_step(self, x, d, frac=0.9):
         """Largest t <= 1 keeping every (not already inverted) cell's det F > 0 on x + [0, t] d, times
         frac when a cell would invert within the unit step."""
-        return _lib.he_max_step(*self._args[:3], self._x(x), _ptr(d, np.float64), float(frac))
+        return _lib.he_max_step(*self._args[:3], _ptr(x, np.float64), _ptr(d, np.float64), float(frac))
 
     def apply_blocks(self, blocks, v, y):
         """y += sum over cells of blocks[e] v_e (blocks: (nc,12,12), e.g. projected tangents)."""
@@ -199,29 +169,110 @@ class CellKernels:
                            _ptr(v, np.float64), _ptr(y, np.float64))
 
 
+class CellKernels:
+    """A material (its name, e.g. 'stvk', and its constants, materials/NAME.py `constants`) on cells (a
+    Cells, or its arrays: local vertex indices, Dm^-1, volumes), bound to the C kernels. `materials` and
+    `parts` are declared as RegionKernels declares them, so callers need not know which they hold."""
+
+    def __init__(self, cells, Dminv=None, vol=None, material=None, constants=()):
+        self.geometry = cells if isinstance(cells, Cells) else Cells(cells, Dminv, vol)
+        g = self.geometry
+        self.cells, self.Dminv, self.vol, self.nc = g.cells, g.Dminv, g.vol, g.nc
+        self._args = g._args
+        self.set_material(material, constants)
+        self._parts = {}
+
+    def set_material(self, material, constants):
+        """Switch to material `material` (a name) with its constants."""
+        self.material = material
+        self.model = materials.get(material)
+        self.materials = (material,)
+        self.fn = material_kernels(material)
+        self.constants = tuple(float(c) for c in constants)
+        self.prm = parameter_block(self.constants)
+        self._prm = _ptr(self.prm, np.float64)
+        self.parts = [(slice(None), self)]
+
+    def part(self, lo, hi):
+        """The same kernels on cells lo..hi-1 (views, no copies; cached)."""
+        if (lo, hi) not in self._parts:
+            self._parts[(lo, hi)] = CellKernels(self.geometry.part(lo, hi), material=self.material,
+                                                constants=self.constants)
+        return self._parts[(lo, hi)]
+
+    def _x(self, x):
+        return _ptr(x, np.float64)
+
+    def forces(self, x, f):
+        """f += k(x); returns the number of cells where the material is undefined."""
+        return self.fn["forces"](*self._args, self._x(x), self._prm, _ptr(f, np.float64))
+
+    def forces_discrete_gradient(self, x, xn, f):
+        """f += the energy-momentum force of the midpoint step from xn to x1 = 2 x - xn (x the midpoint):
+        per cell V (F S) : grad N with F = F(x) = (F_n + F_1)/2 and the algorithmic stress
+        S = S(C_bar) + (dW - S(C_bar) : dE) dE / (dE : dE), C_bar = (C_n + C_1)/2, dE = (C_1 - C_n)/2,
+        dW = Psi(F_1) - Psi(F_n) (Simo & Tarnow, ZAMP 43, 1992; Gonzalez, CMAME 190, 2000, eq. 4.4).
+        Since sym(F^T (F_1 - F_n)) = dE, the work of these forces over the step is exactly
+        sum_e V (Psi(F_1) - Psi(F_n)): with the midpoint rule's inertia the step conserves energy, and S
+        symmetric conserves angular momentum. For St.VK, S(C_bar) alone has that property (S is linear in
+        E); the correction is then rounding. S(C) = Ft^-1 P(Ft) for any Ft^T Ft = C with det Ft of the sign
+        of det F (objective materials; Ft from the Cholesky factor). A material whose energy is quadratic
+        in F (`quadratic`: `linear`, which is not objective): the midpoint force, which is already exact.
+        Returns the number of cells where the material is undefined at x_n or x_1 (their force is
+        skipped)."""
+        if self.model.quadratic:
+            return self.forces(x, f)
+        return self.fn["forces_dg"](*self._args, self._x(x), self._prm, _ptr(xn, np.float64), _ptr(f, np.float64))
+
+    def energy(self, x):
+        out = np.zeros(3)
+        bad = self.fn["energy"](*self._args, self._x(x), self._prm, _ptr(out, np.float64))
+        return out[0], out[1], out[2], bad
+
+    def kv(self, x, v, y):
+        """y += K(x) v."""
+        return self.fn["kv"](*self._args, self._x(x), self._prm, _ptr(v, np.float64), _ptr(y, np.float64))
+
+    def tangent(self, x, vals=None, accumulate=False):
+        """12x12 cell tangents, shape (nc, 12, 12), dof order 3a+i; added to vals if accumulate."""
+        if vals is None:
+            vals = np.zeros((self.nc, 12, 12))
+        assert vals.shape == (self.nc, 12, 12)
+        bad = self.fn["tangent"](*self._args, self._x(x), self._prm, _ptr(vals, np.float64), int(accumulate))
+        return vals, bad
+
+    def tangent_diag(self, x, diag):
+        return self.fn["tangent_diag"](*self._args, self._x(x), self._prm, _ptr(diag, np.float64))
+
+    def max_step(self, x, d, frac=0.9):
+        return self.geometry.max_step(x, d, frac)
+
+    def apply_blocks(self, blocks, v, y):
+        self.geometry.apply_blocks(blocks, v, y)
+
+
 class RegionKernels:
     """Cell kernels of several materials, each on a subset of the local cells (a material per region,
     -regions), with CellKernels' interface: sums over all cells, per-cell arrays in the local cell
-    order. Geometric kernels (mass, max_step, apply_blocks) do not depend on the material and run on
-    all cells at once."""
+    order. `materials`: every material of the scene, also those without cells on this rank (what
+    depends on them must be the same on every rank)."""
 
-    def __init__(self, cells, Dminv, vol, parts):
-        """parts: [(local cell indices, material name, mu, lam)]; each cell in exactly one."""
-        first = parts[0]
-        self.all = CellKernels(cells, Dminv, vol, first[1], first[2], first[3])
-        self.cells, self.Dminv, self.vol, self.nc = self.all.cells, self.all.Dminv, self.all.vol, self.all.nc
-        self.spec = [(np.asarray(idx, np.int64), m, mu, lam) for idx, m, mu, lam in parts]
-        self.parts = [(idx, CellKernels(self.cells[idx], self.Dminv[idx], self.vol[idx], m, mu, lam))
-                      for idx, m, mu, lam in self.spec if len(idx)]
-        self.material = None      # several: see self.parts
+    def __init__(self, cells, parts):
+        """cells: a Cells; parts: [(local cell indices, material name, constants)]; each cell in exactly one."""
+        self.geometry = cells
+        self.cells, self.Dminv, self.vol, self.nc = cells.cells, cells.Dminv, cells.vol, cells.nc
+        self.spec = [(np.asarray(idx, np.int64), m, tuple(c)) for idx, m, c in parts]
+        self.materials = tuple(m for _, m, _ in self.spec)
+        self.parts = [(idx, CellKernels(Cells(self.cells[idx], self.Dminv[idx], self.vol[idx]), material=m,
+                                        constants=c)) for idx, m, c in self.spec if len(idx)]
+        self._parts = {}
 
     def part(self, lo, hi):
         """The same kernels on cells lo..hi-1 (cached)."""
-        cache = self.__dict__.setdefault("_parts", {})
-        if (lo, hi) not in cache:
-            sub = [(idx[(idx >= lo) & (idx < hi)] - lo, m, mu, lam) for idx, m, mu, lam in self.spec]
-            cache[(lo, hi)] = RegionKernels(self.cells[lo:hi], self.Dminv[lo:hi], self.vol[lo:hi], sub)
-        return cache[(lo, hi)]
+        if (lo, hi) not in self._parts:
+            sub = [(idx[(idx >= lo) & (idx < hi)] - lo, m, c) for idx, m, c in self.spec]
+            self._parts[(lo, hi)] = RegionKernels(self.geometry.part(lo, hi), sub)
+        return self._parts[(lo, hi)]
 
     def forces(self, x, f):
         return sum(k.forces(x, f) for _, k in self.parts)
@@ -257,13 +308,7 @@ class RegionKernels:
         return sum(k.tangent_diag(x, diag) for _, k in self.parts)
 
     def max_step(self, x, d, frac=0.9):
-        return self.all.max_step(x, d, frac)
+        return self.geometry.max_step(x, d, frac)
 
     def apply_blocks(self, blocks, v, y):
-        self.all.apply_blocks(blocks, v, y)
-
-    def add_mass_blocks(self, coef, vals):
-        self.all.add_mass_blocks(coef, vals)
-
-    def mass_apply(self, coef, v, y):
-        self.all.mass_apply(coef, v, y)
+        self.geometry.apply_blocks(blocks, v, y)

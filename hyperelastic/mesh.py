@@ -6,6 +6,8 @@ import sys
 import numpy as np
 
 from .errors import UserError
+from .files import check_output_path, is_output
+from .sets import FACE_VERTICES, Mesh, NamedSet, face_incidence, signed_volumes
 
 _root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 GEO_DIR = os.path.join(_root, "meshes")
@@ -62,7 +64,6 @@ def generate(name, level, out, size=None, refine=0):
     elif not size > 0:
         raise UserError(f"mesh size {size} must be > 0")
     outs = [out] + [f"{os.path.splitext(out)[0]}_r{i}.msh" for i in range(1, refine + 1)]
-    from .output import check_output_path
     for o in outs:
         check_output_path(o, suffixes=None)
     import gmsh
@@ -133,28 +134,14 @@ def read_mesh(path, frame=-1):
     """The checked tetrahedral mesh of `path` with its boundary facets and named sets (sets.Mesh). An
     output file of this application (.h5, or the .xdmf beside it) gives the mesh in the configuration
     of its frame `frame` (default: the last), with its regions."""
-    from .sets import Mesh
     if os.path.exists(path) and not os.path.isfile(path) and not os.path.isdir(path):
         raise UserError(f"mesh '{path}': is not a regular file")
-    if path.lower().endswith(".xdmf") and _is_output(os.path.splitext(path)[0] + ".h5"):
+    if path.lower().endswith(".xdmf") and is_output(os.path.splitext(path)[0] + ".h5"):
         path = os.path.splitext(path)[0] + ".h5"
-    if path.lower().endswith((".h5", ".hdf5")) and _is_output(path):
+    if path.lower().endswith((".h5", ".hdf5")) and is_output(path):
         return _read_output(path, frame)
     points, tets, m, boundary = _read_meshio(path)
     return Mesh.from_meshio(path, points, tets, boundary, m)
-
-
-def _is_output(path):
-    """Whether `path` is an output file of `hyperelastic run` (HDF5 with output.OUTPUT_DATASETS)."""
-    if not os.path.isfile(path):
-        return False
-    try:
-        import h5py
-        from .output import missing_datasets
-        with h5py.File(path, "r") as f:
-            return not missing_datasets(f)
-    except (OSError, ValueError):
-        return False
 
 
 def _read_output(path, frame):
@@ -162,7 +149,6 @@ def _read_output(path, frame):
     (mesh/region, named as the run's attribute `sets` names them) are kept."""
     import json
     import h5py
-    from .sets import Mesh, NamedSet
     with h5py.File(path, "r") as f:
         nf = f["x"].shape[0]
         if nf == 0:
@@ -229,12 +215,6 @@ def _quiet(fn, *args):
             os.dup2(saved[1], 2)
             os.close(saved[0])
             os.close(saved[1])
-
-
-def signed_volumes(points, tets):
-    X0 = points[tets[:, 0]]
-    D = np.stack([points[tets[:, 1]] - X0, points[tets[:, 2]] - X0, points[tets[:, 3]] - X0], axis=-1)
-    return np.linalg.det(D) / 6.0
 
 
 def locate(points, tets, P):
@@ -312,7 +292,6 @@ def check_faces(points, tets, path):
     """A conforming mesh of a solid: every triangle is a face of one tetrahedron (the boundary) or of
     two on opposite sides of it. A face of three or more tetrahedra, or two on the same side, means
     duplicate or overlapping tetrahedra. Returns the boundary face indices (sets.face_incidence)."""
-    from .sets import FACE_VERTICES, face_incidence
     boundary, i, j = face_incidence(tets, path)
     opposite = tets.reshape(-1)                     # the vertex of the tet not on each face
     bad, chunk = [], 1 << 20

@@ -9,9 +9,9 @@ from mpi4py import MPI
 
 from . import effects as effects_pkg
 from .errors import UserError
-from .kernels import CellKernels, RegionKernels
+from .kernels import Cells, CellKernels, RegionKernels
 from .mesh import cached_bar, read_mesh
-from .scene import describe_material, facet_set_uses
+from .sets import MATERIAL_LABEL, REGION_LABEL, VERTEX_VALUE, cell_label, facet_label
 from .space import Space
 from .system import System
 
@@ -85,19 +85,21 @@ class Model:
 
 
 def load_mesh(scene):
-    """(sets.Mesh, DMPlex labels, set report) of the scene's mesh, on rank 0: the facet sets its options
-    name (an unknown name is a UserError listing the mesh's) and its regions."""
-    from .sets import REGION_LABEL, VERTEX_VALUE, facet_label
+    """(sets.Mesh, DMPlex labels, set report) of the scene's mesh, on rank 0: the facet and cell sets its
+    effects name (an unknown name is a UserError listing the mesh's) and its regions."""
     mesh = read_mesh(scene.mesh, scene.mesh_frame) if scene.mesh else read_mesh(cached_bar(scene.level))
     labels, report = {}, []
-    for option, name in facet_set_uses(scene):
-        if facet_label(name) in labels:
+    for option, name, kind in scene.set_uses():
+        label = facet_label(name) if kind == "facets" else cell_label(name)
+        if label in labels:
             continue
-        s = mesh.find(name, "facets", option)
-        labels[facet_label(name)] = {v: ("vertices" if v == VERTEX_VALUE else "cells", idx)
-                                     for v, idx in mesh.label_strata(s).items()}
-        report.append({"name": name, "kind": "facets", "tag": None if s.tag is None else int(s.tag), "count": len(s.items),
-                       "measure": mesh.area(s.items), "line": mesh.describe(s)})
+        s = mesh.find(name, kind, option)
+        if kind == "facets":
+            labels[label] = {v: ("vertices" if v == VERTEX_VALUE else "cells", idx)
+                             for v, idx in mesh.label_strata(s).items()}
+            report.append(_set_line(mesh, s, "facets", mesh.area(s.items)))
+        else:
+            labels[label] = {1: ("cells", s.items)}
     regions = [g for g in mesh.groups.values() if g.kind == "tets"]
     if regions:
         labels[REGION_LABEL] = {}
@@ -112,10 +114,14 @@ def load_mesh(scene):
     return mesh, labels, report
 
 
+def _set_line(mesh, s, kind, measure):
+    return {"name": s.name, "kind": kind, "tag": None if s.tag is None else int(s.tag), "count": len(s.items),
+            "measure": measure, "line": mesh.describe(s)}
+
+
 def material_regions(scene, mesh, labels, report):
     """The MATERIAL_LABEL of -regions (value i+1 on the cells of the i-th region; a cell in two of them
     is an error) and a report line per region with its material, and for the cells in none."""
-    from .sets import MATERIAL_LABEL
     if not scene.regions:
         return
     owner = np.zeros(len(mesh.tets), np.int64)
@@ -134,7 +140,7 @@ def material_regions(scene, mesh, labels, report):
                        "line": f"{mesh.describe(g)}; {r.describe()}"})
     rest = np.flatnonzero(owner == 0)
     if len(rest):
-        own = describe_material(scene.material, scene.E, scene.nu, scene.rho)
+        own = scene.solid.describe()
         report.append({"name": "(other cells)", "kind": "tets", "tag": None, "count": len(rest),
                        "measure": mesh.volume(rest), "material": own,
                        "line": f"(other cells): {len(rest)} tets, volume {mesh.volume(rest):.6g}; the scene's {own}"})
@@ -142,17 +148,16 @@ def material_regions(scene, mesh, labels, report):
 
 def cell_kernels(scene, space):
     """(elastic cell kernels, density: a scalar, or per local cell with -regions) of the scene's
-    material(s) on the space's cells."""
-    sc = scene
+    material(s) on the space's cells (a kernels.Cells)."""
+    sc, cells = scene, Cells(space.cells, space.Dminv, space.vol)
     if not sc.regions:
-        return CellKernels(space.cells, space.Dminv, space.vol, sc.material.name, sc.mu, sc.lam), sc.rho
-    from .sets import MATERIAL_LABEL
+        return CellKernels(cells, material=sc.solid.name, constants=sc.solid.constants), sc.solid.rho
     which = space.cell_values(MATERIAL_LABEL)
-    mats = [(sc.material.name, sc.mu, sc.lam, sc.rho)] + [(r.material.name, r.mu, r.lam, r.rho) for r in sc.regions]
+    solids = [sc.solid] + [r.solid for r in sc.regions]
     unused = space.mpi.allreduce(int((which == 0).sum())) == 0     # every cell is in a listed region
-    parts = [(np.flatnonzero(which == i), m[0], m[1], m[2]) for i, m in enumerate(mats) if i or not unused]
-    density = np.array([m[3] for m in mats])[which]
-    return RegionKernels(space.cells, space.Dminv, space.vol, parts), density
+    parts = [(np.flatnonzero(which == i), m.name, m.constants) for i, m in enumerate(solids) if i or not unused]
+    density = np.array([m.rho for m in solids])[which]
+    return RegionKernels(cells, parts), density
 
 
 def build_model(scene, comm):
@@ -164,7 +169,8 @@ def build_model(scene, comm):
     space = Space(comm, points, tets, labels)
     report = space.mpi.bcast(report, root=0)
     k, density = cell_kernels(scene, space)
-    effects, constraints = effects_pkg.build(scene, space, k, density)
+    ctx = effects_pkg.Context(space, k, k.geometry, density, scene.lumped, scene.hessian_projection)
+    effects, constraints = effects_pkg.build(scene, ctx)
     x0, v0 = initial_state(scene, space)
     system = System(space, effects, constraints, x0, v0, scene.dt)
     return Model(scene, points, tets, space, k, system, x0, v0, report)

@@ -5,16 +5,29 @@ values are defaults: an option given on the command line wins.
 """
 import math
 import os
+import re
 import shlex
 import sys
+from dataclasses import dataclass
 
 from petsc4py import PETSc
 
 from .errors import UserError
+from .expressions import TimeFunction
 
 _root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 OPTIONS_DIR = os.path.join(_root, "options")
 SCENES_DIR = os.path.join(OPTIONS_DIR, "scenes")
+
+
+@dataclass(frozen=True)
+class Row:
+    """Options as `-help` and the README's table list them: one row of related options. The catalog
+    (catalog.py) gathers the rows of the application, of every material and of every effect."""
+    names: tuple      # the options of the row, without the dash (REGION_x / LOAD_x: per region / load)
+    synopsis: str     # how the row shows them (README's first column)
+    help: str         # what they do (backticks: code)
+    default: str = ""
 
 
 MAX_MAGNITUDE = 1e30    # bound on any real an option gives (the products the kernels form stay finite)
@@ -167,3 +180,69 @@ def all_options():
     """The whole options database as a sorted list of (key, value)."""
     d = PETSc.Options().getAll()
     return sorted((k, "" if v is None else str(v)) for k, v in d.items())
+
+
+PREFIX = re.compile(r"[A-Za-z0-9_]+")     # what a region's or load's name must be to prefix options
+
+
+def option_prefix(name, option):
+    """UserError unless `name` (listed in -`option`) can prefix options."""
+    if not PREFIX.fullmatch(name):
+        raise UserError(f"option -{option}: '{name}' cannot be an option prefix (letters, digits and _ only; a "
+                        "physical group can also be named by its tag)")
+
+
+def prefixed_names(opts, option):
+    """The names -`option` lists, each checked as an option prefix and listed once."""
+    out = []
+    for name in opts.names(option):
+        option_prefix(name, option)
+        if name in out:
+            raise UserError(f"option -{option}: '{name}' is listed twice")
+        out.append(name)
+    return out
+
+
+def facet_sets(opts, name, default=None, components=False):
+    """The facet sets an option names: a comma list of physical surface names or tags, or bounding-box
+    faces (left, right, front, back, bottom, top); resolved against the mesh when it is read. With
+    `components`, each may end in :x, :yz, ... (the components it holds; default all three). Returns
+    [(name, components)]."""
+    items = opts.names(name, default or "")
+    if not items:
+        raise UserError(f"option -{name}: needs a list of surfaces (physical names or tags, or left, right, "
+                        "front, back, bottom, top)")
+    out = []
+    for it in items:
+        set_name, sep, comps = it.partition(":")
+        if not set_name:
+            raise UserError(f"option -{name}: '{it}' names no surface")
+        if sep and not components:
+            raise UserError(f"option -{name}: '{it}': components (:{comps}) are not taken here")
+        if sep and (not comps or set(comps) - set("xyz") or len(set(comps)) != len(comps)):
+            raise UserError(f"option -{name}: '{it}': components must be some of x, y, z once each (e.g. "
+                            f"{set_name}:x or {set_name}:xz)")
+        out.append((set_name, comps if sep else "xyz"))
+    return out
+
+
+def volume_sets(opts, name):
+    """The physical volumes (names or tags) an option lists; [] when it is not given (the whole body)."""
+    if opts.has(name) and not opts.names(name):
+        raise UserError(f"option -{name}: needs a list of physical volumes (names or tags)")
+    return opts.names(name)
+
+
+def time_function(opts, prefix):
+    """A load's time function: -PREFIX_time EXPR (an expression of t), or -PREFIX_ramp A (A min(t,1));
+    None (factor 1) without either."""
+    if opts.has(f"{prefix}_time") and opts.has(f"{prefix}_ramp"):
+        raise UserError(f"options -{prefix}_time and -{prefix}_ramp: give one time function, not both")
+    if opts.has(f"{prefix}_time"):
+        return TimeFunction(opts.string(f"{prefix}_time"), f"option -{prefix}_time")
+    return opts.real(f"{prefix}_ramp", None)
+
+
+def needs(where, effect, what):
+    """The UserError of an effect switched on without the options it cannot do without."""
+    return UserError(f"{where}: effect '{effect}' needs {what}")

@@ -15,34 +15,8 @@ import os
 import numpy as np
 
 from .errors import UserError
+from .files import CHECKPOINT_ATTRS, PARTIAL
 from .stats import column_type
-
-
-def writable_dir(d, who):
-    """Create directory d if needed; UserError naming `who` unless it can be written to."""
-    if not os.path.isdir(d):
-        try:
-            os.makedirs(d, exist_ok=True)
-        except OSError as e:
-            raise UserError(f"{who}: cannot create directory '{d}' ({e.strerror})") from None
-    if not os.access(d, os.W_OK):
-        raise UserError(f"{who}: directory '{d}' is not writable")
-
-
-PARTIAL = ".partial"      # a run writes FILE.h5.partial until it has completed a step (Writer._commit)
-
-
-def output_names(path):
-    """The files an output path stands for: the HDF5 file, the XDMF beside it and the partial file."""
-    return [path, os.path.splitext(path)[0] + ".xdmf", path + PARTIAL]
-
-
-OUTPUT_DATASETS = ("mesh/points", "mesh/tetra", "time", "x")     # what every output of `hyperelastic run` holds
-
-
-def missing_datasets(f, more=()):
-    """The datasets of OUTPUT_DATASETS (and `more`) that the open HDF5 file f lacks."""
-    return [k for k in OUTPUT_DATASETS + tuple(more) if k not in f]
 
 
 ROOM_MARGIN = 256 * 1024     # bytes kept free for HDF5's metadata, the statistics rows and the close
@@ -68,47 +42,6 @@ def room_for(path, nbytes, extra_files=()):
     return None
 
 
-def check_output_path(path, inputs=(), suffixes=(".h5", ".hdf5")):
-    """Raise UserError unless `path` can be written without touching an input (checked before any work
-    is done). The name must end in .h5 or .hdf5, so that the XDMF beside it never is the HDF5 file;
-    neither may be (or be the data of) an input file: the mesh, the scene or an options file."""
-    if os.path.isdir(path):
-        raise UserError(f"output '{path}' is a directory")
-    if suffixes and not path.lower().endswith(suffixes):
-        raise UserError(f"option -output: '{path}' must end in .h5 or .hdf5 (the .xdmf is written beside it)")
-    taken = {}
-    for name in inputs:
-        if not name:
-            continue
-        stem, ext = os.path.splitext(name)
-        for p in [name] + ([stem + ".h5", stem + ".hdf5", stem + ".xdmf"] if ext.lower() in (".h5", ".hdf5", ".xdmf") else []):
-            taken[os.path.realpath(p)] = name
-    for p in (output_names(path) if suffixes else [path]):
-        if os.path.realpath(p) in taken:
-            raise UserError(f"option -output: '{path}' would overwrite the input '{taken[os.path.realpath(p)]}'")
-    writable_dir(os.path.dirname(os.path.abspath(path)) or ".", f"output '{path}'")
-    if os.path.exists(path) and not os.access(path, os.W_OK):
-        raise UserError(f"output '{path}': not writable")
-    if not suffixes:
-        return
-    for p in output_names(path):
-        if os.path.lexists(p) and not os.path.isfile(p):
-            raise UserError(f"output '{path}': '{p}' exists and is not a regular file")
-    if os.path.exists(path):
-        from .mesh import _is_output
-        if not _is_output(path):
-            raise UserError(f"output '{path}': exists and is not an output of hyperelastic (not overwriting it)")
-    probe = path + PARTIAL
-    try:                     # a name the file system refuses (too long, ...) is found now, not at the first write
-        existed = os.path.exists(probe)
-        with open(probe, "ab"):
-            pass
-        if not existed:
-            os.remove(probe)
-    except OSError as e:
-        raise UserError(f"output '{path}': cannot be created ({e.strerror})") from None
-
-
 def run_attributes(model, scene_file, solver):
     """The output file's root attributes: the full options database, the scene and what was built
     for it (effects_built: JSON {effect: instances}), versions, the rank count and the partition."""
@@ -125,67 +58,14 @@ def run_attributes(model, scene_file, solver):
             "jacobian": sc.jacobian + (f" ({solver.mf})" if solver.mf else ""), "integrator": sc.integrator,
             "operator_storage": solver.storage if solver.op is not None else "",
             "line_search_merit": solver.merit + (f" ({solver.merit_note})" if solver.merit_note else ""),
-            "material": sc.material.name, "E": sc.E, "nu": sc.nu, "rho": sc.rho,
-            "regions": json.dumps([{"name": r.name, "material": r.material.name, "E": r.E, "nu": r.nu, "rho": r.rho}
-                                   for r in sc.regions]),
+            "material": sc.solid.name, "E": sc.solid.values["E"], "nu": sc.solid.values["nu"], "rho": sc.solid.rho,
+            "material_parameters": json.dumps(sc.solid.record()),
+            "regions": json.dumps([{"name": r.name, **r.solid.record()} for r in sc.regions]),
             "mesh": os.path.abspath(sc.mesh) if sc.mesh else f"bar level {sc.level}",
             "vertices_per_rank": np.array(space.mpi.allgather(space.nlv)),
             "cells_per_rank": np.array(space.mpi.allgather(space.nc)),
             "mass_matrix_builds": built.get("inertia", 0),
             "sets": json.dumps([{k: v for k, v in s.items() if k != "line"} for s in model.sets])}
-
-
-CHECKPOINT_ATTRS = ("t", "step", "n", "h_try", "streak", "rejections", "nframes", "nstats")
-
-
-def read_checkpoint(path):
-    """(state dict with x, v and CHECKPOINT_ATTRS, root attributes) of the last complete checkpoint
-    in an output file; UserError when there is none."""
-    import h5py
-    if not os.path.isfile(path):
-        raise UserError(f"--restart '{path}': no such file")
-    try:
-        f = h5py.File(path, "r")
-    except (OSError, ValueError) as e:
-        raise UserError(f"--restart '{path}': cannot be opened as HDF5 ({str(e).split('(')[0].strip()})") from None
-    with f:
-        missing = missing_datasets(f, ("stats",))
-        missing += [f"attribute {k}" for k in ("options", "scene_file") if k not in f.attrs]
-        if missing:
-            raise UserError(f"--restart '{path}': not an output of hyperelastic (no {', '.join(missing)})")
-        slot = f.attrs.get("checkpoint_slot", -1)
-        if slot < 0 or f"checkpoint/{slot}" not in f:
-            raise UserError(f"--restart '{path}': holds no checkpoint (run with -checkpoint_every N)")
-        g = f[f"checkpoint/{slot}"]
-        bad = [k for k in ("x", "v") if k not in g] + [k for k in CHECKPOINT_ATTRS if k not in g.attrs]
-        if bad:
-            raise UserError(f"--restart '{path}': checkpoint {slot} is incomplete (no {', '.join(bad)})")
-        nv = f["mesh/points"].shape[0]
-        state = {}
-        for k in ("x", "v"):
-            a = g[k]
-            if a.shape != (nv, 3) or a.dtype.kind != "f":
-                raise UserError(f"--restart '{path}': checkpoint {k} has shape {a.shape} ({a.dtype}), the mesh "
-                                f"needs ({nv}, 3) numbers")
-            state[k] = a[:]
-            if not np.isfinite(state[k]).all():
-                raise UserError(f"--restart '{path}': checkpoint {k} holds non-finite values")
-        for k in CHECKPOINT_ATTRS:
-            v = np.asarray(g.attrs[k])
-            if v.shape != () or v.dtype.kind not in "iuf" or not np.isfinite(v):
-                raise UserError(f"--restart '{path}': checkpoint attribute {k} = {v!r} is not a finite number")
-            state[k] = v.item()
-        nstats = min((f["stats"][k].shape[0] for k in f["stats"]), default=0)
-        limits = {"t": (0, None), "step": (0, None), "n": (0, None), "h_try": (0, None), "streak": (0, None),
-                  "rejections": (0, None), "nframes": (1, f["time"].shape[0]), "nstats": (0, nstats)}
-        for k, (lo, hi) in limits.items():
-            v = state[k]
-            if v < lo or (k == "h_try" and v <= 0) or (hi is not None and v > hi):
-                raise UserError(f"--restart '{path}': checkpoint attribute {k} = {v:g} is out of range "
-                                f"({'> 0' if k == 'h_try' else f'{lo}..{hi}' if hi is not None else f'>= {lo}'})")
-        attrs = {k: (v.item() if hasattr(v, "item") and getattr(v, "shape", None) == () else v)
-                 for k, v in f.attrs.items()}
-    return state, attrs
 
 
 class Writer:

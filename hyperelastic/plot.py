@@ -27,7 +27,7 @@ def render(path, out, frame=-1):
     except OSError as e:
         raise UserError(f"plot: cannot open '{path}' as HDF5 ({str(e).split('(')[0].strip()})") from None
     with f:
-        from .output import missing_datasets
+        from .files import missing_datasets
         missing = missing_datasets(f)
         if missing:
             raise UserError(f"plot: '{path}' is not an output of hyperelastic (no {', '.join(missing)})")

@@ -1,22 +1,24 @@
-"""What a scene calls for: mesh, material, effects with their parameters, time settings.
-Everything is read and validated here, before any mesh is loaded or file written."""
-import os
-import re
+"""What a scene calls for: mesh, material(s), effects with their parameters, time settings.
+Everything is read and validated here, from the declarations of the materials (materials/) and the effects
+(effects.REGISTRY), before any mesh is loaded or file written. Which options exist at all is the catalog's
+(catalog.py, which reads these declarations and calls read_scene)."""
 from dataclasses import dataclass, field
 
+from . import effects as effects_pkg
 from . import materials
 from .errors import UserError
-from .options import Options, insert_defaults, parse_options_file, resolve_scene
+from .mesh import MAX_LEVEL
+from .options import Options, prefixed_names
 
 DEFAULT_MATERIAL = "stvk"
-DEFAULT_EFFECTS = ("elasticity", "inertia")
-EFFECTS = ("elasticity", "inertia", "damping", "rayleigh", "gravity", "traction", "follower_traction",
-           "pressure", "loads", "fixed", "prescribed")
-# an effect is implied by the option that carries its parameter (e.g. -gravity adds gravity)
-IMPLIED_BY = {"damping": "damping", "rayleigh": ("rayleigh_alpha", "rayleigh_beta"), "gravity": "gravity",
-              "traction": "traction", "follower_traction": "traction_twist", "pressure": "pressure", "loads": "loads",
-              "fixed": "fix", "prescribed": ("prescribe_motion", "prescribe_x", "prescribe_y", "prescribe_z",
-                                             "prescribe_ux", "prescribe_uy", "prescribe_uz")}
+DEFAULT_EFFECTS = effects_pkg.DEFAULT
+EFFECTS = effects_pkg.NAMES
+# How effects switch on (stated in -help and the README, catalog.py):
+EFFECTS_RULE = ("without `-effects`, an effect's main option switches it on (`-gravity` adds gravity); a "
+                "`-effects` list names exactly the effects built (elasticity always): on the command line it "
+                "overrides the scene file, whose options for effects it does not list are ignored (named in a "
+                "note), and an option on the command line for an effect it does not list is an error; a scene "
+                "file's own list must agree with its options, and command-line options add their effects to it")
 
 
 @dataclass
@@ -26,16 +28,11 @@ class Scene:
     mesh: str = None            # path, or None for the cached bar at `level`
     mesh_frame: int = -1        # the frame of an output file given as -mesh (default: the last)
     level: int = 1
-    material: object = None     # a materials class (default: DEFAULT_MATERIAL)
-    E: float = 1e6
-    nu: float = 0.3
-    rho: float = 1000.0
-    mu: float = 0.0
-    lam: float = 0.0
+    solid: materials.Solid = field(default_factory=lambda: materials.default_solid(DEFAULT_MATERIAL))
     lumped: bool = False
     quasistatic: bool = False
-    effects: list = field(default_factory=list)
-    params: dict = field(default_factory=dict)
+    effects: dict = field(default_factory=dict)   # {effect name: its parameters (None: it has none)}, in order
+    notes: list = field(default_factory=list)     # what the user should know (options ignored), one line each
     dt: float = 1e-2
     final_time: float = 1.0
     fps: float = 30.0
@@ -58,29 +55,32 @@ class Scene:
     energy_momentum: bool = False  # -integrator ts at rho_inf = 1: the discrete-gradient elastic force
     regions: list = field(default_factory=list)  # [Region]: a material per physical volume (-regions)
 
+    def materials(self):
+        """The material classes the scene uses (its own and its regions')."""
+        return [self.solid.material] + [r.solid.material for r in self.regions]
+
+    def set_uses(self):
+        """(option, set name, "facets" | "tets") of every set the scene's effects use, in order."""
+        return [u for name, params in self.effects.items() for u in effects_pkg.SPECS[name].set_uses(params)]
+
+    def prefixes(self):
+        """The names that prefix options: (regions, loads)."""
+        ld = self.effects.get("loads")
+        return [r.name for r in self.regions], (ld.names if ld is not None else [])
+
 
 @dataclass
 class Region:
     """A physical volume with its own material, read from options with the region's name as prefix
-    (-NAME_material, -NAME_preset, -NAME_E, -NAME_nu, -NAME_rho; defaults: the scene's own)."""
+    (-NAME_material, -NAME_preset, -NAME_E, -NAME_nu, -NAME_rho and the material's own constants;
+    defaults: the scene's own)."""
     name: str
-    material: object
-    E: float
-    nu: float
-    rho: float
-    lam: float
-    mu: float
+    solid: materials.Solid
 
     def describe(self):
-        return describe_material(self.material, self.E, self.nu, self.rho)
+        return self.solid.describe()
 
 
-def describe_material(material, E, nu, rho):
-    """One line of a material and its parameters, as the set report prints it."""
-    return f"{material.name}, E {E:g}, nu {nu:g}, rho {rho:g}"
-
-
-PREFIX = re.compile(r"[A-Za-z0-9_]+")     # what a region's or load's name must be to prefix options
 MAX_STEPS, MAX_FRAMES = 1e9, 1e6   # a run beyond these is a typo, not a simulation on this machine
 JACOBIANS = ("assembled", "shell", "seed_fd", "seed_fd2")
 INTEGRATORS = ("beuler", "ts")
@@ -88,102 +88,24 @@ ASSEMBLIES = ("setvalues", "coo")
 STORAGES = ("auto", "aij", "sbaij")   # the matrix the Krylov method multiplies by (solver.resolve_storage)
 
 
-def facet_sets(opts, name, default=None, components=False):
-    """The facet sets an option names: a comma list of physical surface names or tags, or bounding-box
-    faces (left, right, front, back, bottom, top); resolved against the mesh when it is read. With
-    `components`, each may end in :x, :yz, ... (the components it holds; default all three). Returns
-    [(name, components)]."""
-    items = opts.names(name, default or "")
-    if not items:
-        raise UserError(f"option -{name}: needs a list of surfaces (physical names or tags, or left, right, "
-                        "front, back, bottom, top)")
-    out = []
-    for it in items:
-        set_name, sep, comps = it.partition(":")
-        if not set_name:
-            raise UserError(f"option -{name}: '{it}' names no surface")
-        if sep and not components:
-            raise UserError(f"option -{name}: '{it}': components (:{comps}) are not taken here")
-        if sep and (not comps or set(comps) - set("xyz") or len(set(comps)) != len(comps)):
-            raise UserError(f"option -{name}: '{it}': components must be some of x, y, z once each (e.g. "
-                            f"{set_name}:x or {set_name}:xz)")
-        out.append((set_name, comps if sep else "xyz"))
-    return out
-
-
-def facet_set_uses(s):
-    """(option, set name) of every facet set the scene's effects use, in order."""
-    p, out = s.params, []
-    if "fixed" in s.effects:
-        out += [("fix", n) for n, _ in p["fix"]]
-    if "traction" in s.effects or "follower_traction" in s.effects:
-        out += [("traction_face", n) for n, _ in p["traction_face"]]
-    if "pressure" in s.effects:
-        out += [("pressure_faces", n) for n, _ in p["pressure_faces"]]
-    if "prescribed" in s.effects:
-        out += [("prescribe_faces", n) for n, _ in p["prescribe_faces"]]
-    if "loads" in s.effects:
-        out += [(f"{load['name']}_faces", n) for load in p["loads"] for n, _ in load["faces"]]
-    return out
-
-
-def load_scene(scene_arg):
-    """(Scene, path of its options file) for a built-in scene name or an options file: the file's
-    options become defaults under the command line's, then everything is read and validated."""
-    from .catalog import check_application_options, check_petsc_values
-    path = resolve_scene(scene_arg)
-    pairs = parse_options_file(path)
-    insert_defaults(pairs)
-    opts = Options()
-    check_application_options(sorted(opts.o.getAll()), _prefixes(opts, "regions"), _prefixes(opts, "loads"),
-                              {k for k, _ in pairs})
-    check_petsc_values(opts.o)
-    name = os.path.splitext(os.path.basename(path))[0]
-    return read_scene(name), path
-
-
-def _prefixes(opts, option):
-    """The names -regions / -loads list that can be option prefixes (the others are refused when the
-    scene is read)."""
-    return [w for w in opts.names(option) if PREFIX.fullmatch(w)]
-
-
-def read_scene(name, opts=None):
-    """The Scene from the options database: every value validated, defaults from the dataclass."""
+def read_scene(name, opts=None, from_scene=()):
+    """The Scene from the options database: every value validated, defaults from the dataclass.
+    from_scene: the options whose values came from the scene file (not the command line), for the rule
+    by which effects switch on (EFFECTS_RULE)."""
     opts = opts or Options()
     s = Scene(name=name)
     _read_material(s, opts)
     s.regions = _read_regions(s, opts)
+    _check_material_options(s, opts)
     _read_time(s, opts)
     _read_solver(s, opts)
-    s.effects = _read_effects(s, opts)
+    s.effects = read_effects(s, opts, set(from_scene))
     return s
-
-
-def _material_parameters(opts, prefix, default, where):
-    """(material class, E, nu, rho) from -PREFIXmaterial, -PREFIXpreset, -PREFIXE, -PREFIXnu, -PREFIXrho,
-    over `default` (material, E, nu, rho); validated."""
-    mat = opts.string(f"{prefix}material", None)
-    try:
-        mat = default[0] if mat is None else materials.get(mat)
-    except UserError as e:
-        raise UserError(f"option -{prefix}material: {e}") from None
-    preset = opts.string(f"{prefix}preset", None)
-    E, nu, rho = default[1:]
-    if preset is not None:
-        if preset not in materials.PRESETS:
-            raise UserError(f"option -{prefix}preset: unknown preset '{preset}' (choose from "
-                            f"{', '.join(sorted(materials.PRESETS))})")
-        E, nu, rho = materials.PRESETS[preset]
-    E, nu, rho = opts.real(f"{prefix}E", E), opts.real(f"{prefix}nu", nu), opts.real(f"{prefix}rho", rho)
-    materials.check_parameters(E, nu, rho, where=where)
-    return mat, E, nu, rho
 
 
 def _read_material(s, opts):
     s.mesh = opts.string("mesh", s.mesh)
     s.mesh_frame = opts.integer("mesh_frame", s.mesh_frame)
-    from .mesh import MAX_LEVEL
     s.level = opts.integer("level", s.level, minimum=1)
     if s.level > MAX_LEVEL:
         raise UserError(f"option -level: {s.level}: levels go up to {MAX_LEVEL} (~2x the tets per level; for a finer "
@@ -191,9 +113,7 @@ def _read_material(s, opts):
     if s.mesh is not None and opts.has("level"):
         raise UserError(f"options -mesh and -level: -level picks the built-in bar, -mesh {s.mesh} replaces it; give "
                         "one")
-    s.material, s.E, s.nu, s.rho = _material_parameters(
-        opts, "", (materials.get(DEFAULT_MATERIAL), s.E, s.nu, s.rho), f"scene '{s.name}'")
-    s.lam, s.mu = materials.lame(s.E, s.nu)
+    s.solid = materials.read_solid(opts, "", s.solid, f"scene '{s.name}'")
     s.lumped = opts.choice("mass", ("consistent", "lumped"), "lumped" if s.lumped else "consistent") == "lumped"
     s.initial_scale = opts.vector("initial_scale")
     if s.initial_scale is not None and 0.0 in s.initial_scale:
@@ -206,23 +126,29 @@ def _read_material(s, opts):
 def _read_regions(s, opts):
     """-regions A,B,...: physical volumes (names or tags) each with its own material, read with the
     region's name as option prefix; cells in none of them keep the scene's material."""
-    out = []
-    for name in opts.names("regions"):
-        _option_prefix(name, "regions")
-        if any(r.name == name for r in out):
-            raise UserError(f"option -regions: '{name}' is listed twice")
-        mat, E, nu, rho = _material_parameters(opts, f"{name}_", (s.material, s.E, s.nu, s.rho),
-                                               f"region '{name}'")
-        lam, mu = materials.lame(E, nu)
-        out.append(Region(name, mat, E, nu, rho, lam, mu))
+    out = [Region(name, materials.read_solid(opts, f"{name}_", s.solid, f"region '{name}'"))
+           for name in prefixed_names(opts, "regions")]
     if opts.has("regions") and not out:
         raise UserError("option -regions: needs a list of physical volumes (names or tags)")
     return out
 
 
-def materials_of(s):
-    """The material classes a scene uses (its own and its regions')."""
-    return [s.material] + [r.material for r in s.regions]
+def _check_material_options(s, opts):
+    """A material constant given for a material that does not have it is a mistake, not a default."""
+    solids = [("", s.solid)] + [(f"{r.name}_", r.solid) for r in s.regions]
+    used = {p.name for _, sol in solids for p in sol.material.parameters}
+    for name, param in materials.own_parameters().items():
+        if opts.has(name) and name not in used:
+            mats = ", ".join(dict.fromkeys(m.name for m in s.materials()))
+            raise UserError(f"option -{name}: a constant of {_declaring(name)}, not of this scene's {mats}")
+        for prefix, sol in solids[1:]:
+            if opts.has(prefix + name) and param not in sol.material.parameters:
+                raise UserError(f"option -{prefix}{name}: a constant of {_declaring(name)}, not of region "
+                                f"'{prefix[:-1]}''s {sol.material.name}")
+
+
+def _declaring(name):
+    return " and ".join(m.name for m in materials.MATERIALS.values() if any(p.name == name for p in m.parameters))
 
 
 def _read_time(s, opts):
@@ -269,166 +195,72 @@ def _read_solver(s, opts):
     s.reuse_preconditioner = opts.choice("reuse_preconditioner", ("auto", "never"), s.reuse_preconditioner)
     s.objective = opts.flag("objective", s.objective)
     s.inversion_guard = opts.flag("inversion_guard",
-                                  not all(m.defined_when_inverted for m in materials_of(s)))
+                                  not all(m.defined_when_inverted for m in s.materials()))
 
 
-def _read_effects(s, opts):
-    """The effects the scene names (-effects), plus those implied by an option carrying their
-    parameter; each effect's parameters into s.params."""
-    named = opts.names("effects", ",".join(DEFAULT_EFFECTS))
-    for e in named:
+def read_effects(s, opts, from_scene=frozenset()):
+    """{name: parameters} of the effects the scene calls for, by EFFECTS_RULE: those -effects lists (or
+    the defaults), and those an option switches on; each effect's parameters read by its spec. Options of
+    effects not switched on are an error where they contradict the list, ignored with a note where a
+    command-line -effects overrides the scene file."""
+    where = f"scene '{s.name}'"
+    listed = opts.names("effects", ",".join(DEFAULT_EFFECTS))
+    for e in listed:
         if e not in EFFECTS:
-            raise UserError(f"scene '{s.name}': unknown effect '{e}' (known: {', '.join(EFFECTS)})")
-    effects = list(dict.fromkeys(named))
-    for e, keys in IMPLIED_BY.items():
-        keys = (keys,) if isinstance(keys, str) else keys
-        if e not in effects and any(opts.has(k) for k in keys):
-            effects.append(e)
-    if "elasticity" not in effects:
-        effects.insert(0, "elasticity")
-    for e in list(effects):
-        if e in PARAMETERS and not PARAMETERS[e](s, opts, s.params):
-            effects.remove(e)          # a parameter that switches the effect off (e.g. -damping 0)
-    if s.quasistatic:
-        effects = [e for e in effects if e not in ("inertia", "damping", "rayleigh")]
-    return effects
+            raise UserError(f"{where}: unknown effect '{e}' (known: {', '.join(EFFECTS)})")
+    names = list(dict.fromkeys(listed))
+    explicit, list_in_scene = opts.has("effects"), "effects" in from_scene
+    for spec in effects_pkg.REGISTRY:
+        given = [k for k in spec.implied_by if opts.has(k)]
+        if spec.name in names or not given:
+            continue
+        own_line = [k for k in given if k not in from_scene]
+        if not explicit or (list_in_scene and own_line):
+            names.append(spec.name)
+        elif not list_in_scene and own_line:
+            raise UserError(f"option -{own_line[0]}: switches on effect '{spec.name}', which -effects "
+                            f"{opts.string('effects')} does not list (add it to the list, or drop the option)")
+        elif list_in_scene:
+            raise UserError(f"{where}: option -{given[0]} switches on effect '{spec.name}', which the scene's "
+                            f"-effects {opts.string('effects')} does not list")
+    if "elasticity" not in names:
+        names.insert(0, "elasticity")
+    out = {}
+    for name in names:
+        spec = effects_pkg.SPECS[name]
+        if s.quasistatic and spec.dynamic:
+            continue
+        params = spec.parameters(opts, where)
+        if spec.is_active(params):     # a parameter may switch the effect off (e.g. -damping 0)
+            out[name] = params
+    _unused_effect_options(s, opts, names, from_scene)
+    return out
 
 
-def _needs(s, effect, what):
-    raise UserError(f"scene '{s.name}': effect '{effect}' needs {what}")
+def _unused_effect_options(s, opts, names, from_scene):
+    """Options of effects the scene does not call for: under a command-line -effects, the scene file's are
+    ignored (a note names them); any other is an error."""
+    ignored = []
+    for spec in effects_pkg.REGISTRY:
+        if spec.name in names:
+            continue
+        for row in spec.rows:
+            for key in row.names:
+                if "_" in key and key.split("_", 1)[0] in ("LOAD", "REGION") or not opts.has(key):
+                    continue
+                if any(key in r.names for sp in effects_pkg.REGISTRY if sp.name in names for r in sp.rows) \
+                        or key in _shared_with(names):
+                    continue
+                if key in from_scene and opts.has("effects") and "effects" not in from_scene:
+                    ignored.append(f"-{key}")
+                    continue
+                raise UserError(f"option -{key}: an option of effect '{spec.name}', which scene '{s.name}' does "
+                                f"not switch on (-effects {opts.string('effects', ','.join(DEFAULT_EFFECTS))})")
+    if ignored:
+        s.notes.append(f"-effects {opts.string('effects')} (command line) overrides the scene file: ignored its "
+                       + " ".join(ignored))
 
 
-def _damping(s, opts, p):
-    c = opts.real("damping", None, minimum=0, exclusive=False)
-    if c is None:
-        _needs(s, "damping", "-damping c")
-    p["damping"] = c
-    return c != 0
-
-
-def _rayleigh(s, opts, p):
-    p["rayleigh_alpha"] = opts.real("rayleigh_alpha", 0.0, minimum=0, exclusive=False)
-    p["rayleigh_beta"] = opts.real("rayleigh_beta", 0.0, minimum=0, exclusive=False)
-    return p["rayleigh_alpha"] != 0 or p["rayleigh_beta"] != 0
-
-
-def _gravity(s, opts, p):
-    p["gravity"] = opts.vector("gravity")
-    if p["gravity"] is None:
-        _needs(s, "gravity", "-gravity gx,gy,gz")
-    return True
-
-
-def time_function(opts, prefix):
-    """A load's time function: -PREFIX_time EXPR (an expression of t), or -PREFIX_ramp A (A min(t,1));
-    None (factor 1) without either."""
-    from .expressions import TimeFunction
-    if opts.has(f"{prefix}_time") and opts.has(f"{prefix}_ramp"):
-        raise UserError(f"options -{prefix}_time and -{prefix}_ramp: give one time function, not both")
-    if opts.has(f"{prefix}_time"):
-        return TimeFunction(opts.string(f"{prefix}_time"), f"option -{prefix}_time")
-    return opts.real(f"{prefix}_ramp", None)
-
-
-def _option_prefix(name, option):
-    if not PREFIX.fullmatch(name):
-        raise UserError(f"option -{option}: '{name}' cannot be an option prefix (letters, digits and _ only; a "
-                        "physical group can also be named by its tag)")
-
-
-def _traction_face(opts, p):
-    p["traction_face"] = facet_sets(opts, "traction_face", "right")
-    p["traction_ramp"] = time_function(opts, "traction")
-
-
-def _traction(s, opts, p):
-    _traction_face(opts, p)
-    p["traction"] = opts.vector("traction")
-    if p["traction"] is None:
-        _needs(s, "traction", "-traction tx,ty,tz")
-    return True
-
-
-def _follower_traction(s, opts, p):
-    _traction_face(opts, p)
-    p["traction_twist"] = opts.real("traction_twist", None)
-    if p["traction_twist"] is None:
-        _needs(s, "follower_traction", "-traction_twist k")
-    return True
-
-
-def _pressure(s, opts, p):
-    p["pressure"] = opts.real("pressure", None)
-    if p["pressure"] is None or not opts.has("pressure_faces"):
-        _needs(s, "pressure", "-pressure p and -pressure_faces surfaces")
-    p["pressure_faces"] = facet_sets(opts, "pressure_faces")
-    p["pressure_ramp"] = time_function(opts, "pressure")
-    return True
-
-
-def _loads(s, opts, p):
-    """-loads A,B,...: loads each with its own surfaces and time function, read with the load's name as
-    prefix: -A_traction tx,ty,tz (dead, per reference area) or -A_pressure p (follower), -A_faces S1,...,
-    -A_time EXPR or -A_ramp R."""
-    out = []
-    for name in opts.names("loads"):
-        _option_prefix(name, "loads")
-        if any(d["name"] == name for d in out):
-            raise UserError(f"option -loads: '{name}' is listed twice")
-        tr, pr = opts.has(f"{name}_traction"), opts.has(f"{name}_pressure")
-        if tr == pr:
-            raise UserError(f"load '{name}': give one of -{name}_traction tx,ty,tz or -{name}_pressure p")
-        if not opts.has(f"{name}_faces"):
-            raise UserError(f"load '{name}': needs -{name}_faces (physical surface names or tags, or box faces)")
-        out.append({"name": name, "kind": "traction" if tr else "pressure",
-                    "value": opts.vector(f"{name}_traction") if tr else opts.real(f"{name}_pressure"),
-                    "faces": facet_sets(opts, f"{name}_faces"), "scale": time_function(opts, name)})
-    if not out:
-        _needs(s, "loads", "-loads NAME,... with -NAME_traction or -NAME_pressure and -NAME_faces")
-    p["loads"] = out
-    return True
-
-
-def _fixed(s, opts, p):
-    if not opts.has("fix"):
-        _needs(s, "fixed", "-fix faces (e.g. left)")
-    p["fix"] = facet_sets(opts, "fix", components=True)
-    return True
-
-
-def _prescribed(s, opts, p):
-    """-prescribe_faces S[:xyz],... moved by a preset (-prescribe_motion M, amount -prescribe_amount A)
-    and/or per component by expressions of t, X, Y, Z, A: positions -prescribe_x/_y/_z or displacements
-    -prescribe_ux/_uy/_uz (an expression replaces the preset's for its component); components
-    with neither stay at their reference positions."""
-    from .effects.dirichlet import PRESETS
-    from .expressions import Expression
-    given = [k for k in ("x", "y", "z") if opts.has(f"prescribe_{k}") or opts.has(f"prescribe_u{k}")]
-    if not opts.has("prescribe_faces") or not (opts.has("prescribe_motion") or given):
-        _needs(s, "prescribed", "-prescribe_faces and -prescribe_motion or expressions -prescribe_x/_ux ...")
-    p["prescribe_faces"] = facet_sets(opts, "prescribe_faces", components=True)
-    p["prescribe_amount"] = opts.real("prescribe_amount", 1.0)
-    motion = opts.choice("prescribe_motion", tuple(PRESETS), None) if opts.has("prescribe_motion") else None
-    p["prescribe_motion"] = motion
-    where = f"preset {motion}"
-    exprs = {k: (text, kind, where) for k, (text, kind) in PRESETS[motion].items()} if motion else {}
-    held = set("".join(c for _, c in p["prescribe_faces"]))
-    for k in "xyz":
-        if opts.has(f"prescribe_{k}") and opts.has(f"prescribe_u{k}"):
-            raise UserError(f"options -prescribe_{k} and -prescribe_u{k}: give the position or the displacement "
-                            f"of component {k}, not both")
-        for kind, key in (("position", f"prescribe_{k}"), ("displacement", f"prescribe_u{k}")):
-            if opts.has(key):
-                if k not in held:
-                    raise UserError(f"option -{key}: component {k} is not held on any of -prescribe_faces "
-                                    f"({','.join(n + ':' + c for n, c in p['prescribe_faces'])})")
-                exprs[k] = (opts.string(key), kind, f"option -{key}")
-    p["prescribe"] = {k: (Expression(text, ("t", "X", "Y", "Z", "A"), where), kind)
-                      for k, (text, kind, where) in exprs.items()}
-    return True
-
-
-# effect -> reader of its parameters (returns False when they switch the effect off)
-PARAMETERS = {"damping": _damping, "rayleigh": _rayleigh, "gravity": _gravity, "traction": _traction,
-              "follower_traction": _follower_traction, "pressure": _pressure, "loads": _loads, "fixed": _fixed,
-              "prescribed": _prescribed}
+def _shared_with(names):
+    """Options an active effect reads from another effect's rows (the follower twist's surfaces)."""
+    return {k for n in names for k in effects_pkg.SPECS[n].shares}

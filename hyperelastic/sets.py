@@ -25,9 +25,21 @@ MATERIAL_LABEL = "material"   # value i+1 on the cells of the i-th region of -re
 REGION_LABEL = "Cell Sets"     # the DMPlex label of the regions (value: physical tag), as PETSc's gmsh reader
 
 
+def signed_volumes(points, tets):
+    """Volume of each tetrahedron, positive when (X1-X0, X2-X0, X3-X0) is right-handed."""
+    X0 = points[tets[:, 0]]
+    D = np.stack([points[tets[:, 1]] - X0, points[tets[:, 2]] - X0, points[tets[:, 3]] - X0], axis=-1)
+    return np.linalg.det(D) / 6.0
+
+
 def facet_label(name):
     """The DMPlex label of facet set `name`."""
     return f"facets:{name}"
+
+
+def cell_label(name):
+    """The DMPlex label of the cells of volume set `name` (value 1) that an effect acts on."""
+    return f"cells:{name}"
 
 
 def _keys(tris):
@@ -105,7 +117,6 @@ class Mesh:
         return float(0.5 * np.linalg.norm(np.cross(P[t[:, 1]] - P[t[:, 0]], P[t[:, 2]] - P[t[:, 0]]), axis=1).sum())
 
     def volume(self, cells):
-        from .mesh import signed_volumes
         return float(np.abs(signed_volumes(self.points, self.tets[cells])).sum())
 
     # --- named sets --------------------------------------------------------------------------

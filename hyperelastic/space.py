@@ -9,8 +9,11 @@ once here.
 import numpy as np
 from petsc4py import PETSc
 
+from mpi4py import MPI
+
 from .kernels import IDX
 from .mesh import spatial_order
+from .sets import FACE_VERTICES, VERTEX_VALUE, cell_label, facet_label, orient_outward
 
 
 def reference_geometry(X, cells):
@@ -155,7 +158,6 @@ class Space:
 
     def _bounding_box(self):
         """Global min/max of the reference coordinates, for face selection."""
-        from mpi4py import MPI
         X = self.X
         lo = X.min(axis=0) if self.nlv else np.full(3, np.inf)
         hi = X.max(axis=0) if self.nlv else np.full(3, -np.inf)
@@ -235,14 +237,16 @@ class Space:
 
     def set_vertices(self, name):
         """Local vertices (owned and ghost) of the facet set labelled `name`."""
-        from .sets import VERTEX_VALUE, facet_label
         pts = self.label_strata(facet_label(name)).get(VERTEX_VALUE, np.zeros(0, np.int64))
         return np.sort(self._lvid[pts - self._vStart])
+
+    def set_cells(self, name):
+        """Local cells of the volume set labelled `name` (sets.cell_label)."""
+        return np.flatnonzero(self.cell_values(cell_label(name)) == 1)
 
     def set_triangles(self, names):
         """(ntri, 3) local vertex ids of the boundary facets of the named sets (a facet in several of
         them once) held by this rank's cells, ordered so that (b - a) x (c - a) points outward."""
-        from .sets import FACE_VERTICES, VERTEX_VALUE, facet_label, orient_outward
         mask = np.zeros(len(self.cells), np.int64)
         for name in names:
             for v, pts in self.label_strata(facet_label(name)).items():

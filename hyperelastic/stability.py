@@ -21,7 +21,7 @@ from .experiments import table
 from .experiments.recipes import MODES as JACOBIAN_MODES
 from .experiments.runner import last_line, parallel_map, run_hyperelastic
 from .materials import REGISTRY
-from .mesh import signed_volumes
+from .sets import signed_volumes
 
 USAGE = """The hard-case matrix (issue 5): run every cell as `python -m hyperelastic run`, then write
 OUT/stability.csv, OUT/stability.md (table, properties, locking) and OUT/stability.png (outcome heatmap).
@@ -157,7 +157,7 @@ def analyse(cell, path, rc, stderr, wall):
         row["J_min"] = float(st["J_min"][acc].min())
         row["J_min_final"] = float(st["J_min"][acc][-1])
         row["J_max_final"] = float(st["J_max"][acc][-1])
-        tot = stats.total_energy(st, with_traction=False)
+        tot = stats.total_energy(st, with_work=False)
         V0 = float(signed_volumes(X, tets).sum())
         parts = np.abs(st["kinetic"][acc]) + np.abs(st["elastic"][acc]) + np.abs(st.get("gravity_potential",
                                                                                         np.zeros(n))[acc])

@@ -1,8 +1,12 @@
 """The statistics a run writes: FILE.h5:stats/<column>, one entry per step attempt (rejected attempts
 included). Declared here once: the integrator writes these columns (output.Writer refuses others),
-and the studies, the hard-case matrix, the reproduction scripts and the tests read them from here.
+and the studies, the hard-case matrix, the reproduction scripts and the tests read them from here. The
+energies are the effects' own (effects.energies(): each effect declares the columns it reports and their
+part in energy_total).
 """
 import numpy as np
+
+from .effects import energies
 
 # column: (type, meaning)
 COLUMNS = {
@@ -19,19 +23,16 @@ COLUMNS = {
     "inversion_cuts": (int, "Newton updates the inversion guard shortened"),
     "rejected": (int, "1: step control refused the attempt (the state did not move); 0: accepted"),
     "wall_s": (float, "wall time of the attempt [s]"),
-    "kinetic": (float, "kinetic energy 1/2 v^T M v after the step [J] (accepted attempts)"),
-    "elastic": (float, "elastic energy after the step [J] (accepted attempts)"),
-    "J_min": (float, "smallest volume ratio det F over the cells after the step"),
-    "J_max": (float, "largest volume ratio det F over the cells after the step"),
-    "gravity_potential": (float, "potential of gravity -f.x [J] (scenes with gravity)"),
-    "traction_work": (float, "work potential f.x of the dead-load traction [J] (scenes with traction)"),
-    "energy_total": (float, "kinetic + elastic + gravity potential - traction work after the step [J]"),
+    "energy_total": (float, "the sum of the energies below with their signs (kinetic + elastic + potentials "
+                            "- work of the loads) after the step [J]"),
     "energy_dissipated": (float, "total energy at t = 0 minus energy_total [J]: physical damping plus the "
                                  "integrator's numerical dissipation (and the work of prescribed motions)"),
     "error_estimate": (float, "-integrator ts with an adaptor: the step's weighted local error estimate "
                               "(TSEvaluateWLTE, accepted when <= 1)"),
     "dt_next": (float, "-integrator ts: the step size chosen for the next step [s]"),
 }
+COLUMNS.update({e.column: (float, e.meaning) for e in energies().values()})
+ENERGY_TERMS = tuple((e.column, e.sign, e.work) for e in energies().values() if e.sign)   # energy_total's parts
 # effect_<name>_<kind>, for every effect the run built
 EFFECT_COLUMNS = {
     "evals": (int, "residual evaluations of the effect"),
@@ -66,12 +67,17 @@ def accepted(st):
     return ~st.get("rejected", np.zeros(n, np.int64)).astype(bool)
 
 
-def total_energy(st, with_traction=True):
-    """kinetic + elastic + gravity potential (- traction work) of the accepted attempts."""
-    acc = accepted(st)
-    tot = st["kinetic"][acc] + st["elastic"][acc]
-    if "gravity_potential" in st:
-        tot = tot + st["gravity_potential"][acc]
-    if with_traction and "traction_work" in st:
-        tot = tot - st["traction_work"][acc]
+def energy_sum(values, with_work=True):
+    """energy_total from {column: value (a number or an array)}: the effects' energies with their signs
+    (kinetic + elastic + potentials - work of the loads); with_work=False: the body's energy alone."""
+    tot = 0.0
+    for col, sign, work in ENERGY_TERMS:
+        if col in values and (with_work or not work):
+            tot = tot + values[col] if sign > 0 else tot - values[col]
     return tot
+
+
+def total_energy(st, with_work=True):
+    """energy_total of the accepted attempts of a run's statistics (read())."""
+    acc = accepted(st)
+    return energy_sum({k: st[k][acc] for k, _, _ in ENERGY_TERMS if k in st}, with_work)

@@ -16,6 +16,9 @@ from mpi4py import MPI
 from . import effects as effects_pkg
 from .errors import UserError
 
+COMBINE = {"sum": sum, "min": min, "max": max}
+REDUCE = {"min": MPI.MIN, "max": MPI.MAX}
+
 
 class System:
     def __init__(self, space, effects, constraints, x0, v0, dt):
@@ -38,8 +41,8 @@ class System:
         self.al = None                   # accelerations (second-order form only)
         self.scale = 1.0
         # materials undefined for J <= 0: every residual counts the cells where they were evaluated there
-        self.check_domain = any(not getattr(e, "defined_when_inverted", True) for e in effects)
-        self.domain_effects = [e for e in effects if hasattr(e, "undefined")]
+        self.domain_effects = [e for e in effects if e.domain]
+        self.check_domain = bool(self.domain_effects)
         self.g_owned_c = np.zeros(len(self.c_owned_pos))
         # effects whose residual does not depend on x (dead loads): summed once per step into r_const
         self.varying = [e for e in effects if not e.constant]
@@ -190,7 +193,7 @@ class System:
         a[c] += shift_a * d
         r = np.zeros_like(x)
         for e in self.effects:
-            if e.order == 0 and self.em_base is not None and hasattr(e, "residual_discrete_gradient"):
+            if e.order == 0 and self.em_base is not None and e.discrete_gradient:
                 e.residual_discrete_gradient(x, self.em_base, r)
             elif e.order == 0:
                 e.residual(x, r)
@@ -296,7 +299,7 @@ class System:
     def defined_at(self, X):
         """Whether the material is defined in every cell at X (constrained dofs imposed), on all ranks."""
         x = self.impose(self.local(X, self.xl).copy())
-        bad = sum(e.k.energy(x)[3] for e in self.effects if getattr(e, "material", None) is not None)
+        bad = sum(e.kernels.energy(x)[3] for e in self.effects if e.kernels is not None)
         return self.space.mpi.allreduce(bad, op=MPI.SUM) == 0
 
     def undefined_cells(self):
@@ -308,7 +311,7 @@ class System:
         return 0
 
     def elastic_kernels(self):
-        return next(e.k for e in self.effects if getattr(e, "material", None) is not None)
+        return next(e.kernels for e in self.effects if e.kernels is not None)
 
     # --- tangent -------------------------------------------------------------------------------
     def linearize(self, X):
@@ -361,13 +364,15 @@ class System:
 
     # --- statistics ----------------------------------------------------------------------------
     def energies(self, x, v):
+        """{column: value} of the effects' energies (effects.energies(): how instances and ranks combine)."""
+        how = effects_pkg.energies()
         out = {}
         for e in self.effects:
-            for k, val in e.energy(x, v).items():     # several instances (e.g. loads): summed
-                out[k] = val if k not in out else (min if k == "J_min" else max if k == "J_max" else sum)((out[k], val))
+            for k, val in e.energy(x, v).items():     # several instances (e.g. loads): combined
+                out[k] = val if k not in out else COMBINE[how[k].combine]((out[k], val))
         mpi = self.space.mpi
-        res = {k: mpi.allreduce(out.pop(k), op=op) for k, op in (("J_min", MPI.MIN), ("J_max", MPI.MAX))
-               if k in out}
+        res = {k: mpi.allreduce(out.pop(k), op=REDUCE[how[k].combine]) for k in list(out)
+               if how[k].combine != "sum"}
         keys = sorted(out)                       # everything else is additive over ranks: one reduction
         sums = np.array([out[k] for k in keys], dtype=float)
         tot = np.empty_like(sums)

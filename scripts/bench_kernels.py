@@ -37,7 +37,7 @@ def numpy_residual(prob, x):
     Ds = np.stack([xs[:, 1] - xs[:, 0], xs[:, 2] - xs[:, 0], xs[:, 3] - xs[:, 0]], axis=-1)
     Dminv = k.Dminv.reshape(-1, 3, 3)
     F = Ds @ Dminv
-    P = sc.material.P(F, sc.mu, sc.lam)
+    P = sc.solid.material.P(F, sc.solid.constants)
     H = np.einsum("n,nij,naj->nia", k.vol, P, Dminv)                        # columns: forces on 1..3
     fe = np.concatenate([-H.sum(axis=2, keepdims=True), H], axis=2).transpose(0, 2, 1)
     f = np.zeros((len(x) // 3, 3))
@@ -50,7 +50,7 @@ def bench(mesh_arg, material, reps):
     from petsc4py import PETSc
     from hyperelastic import jacobians
     from hyperelastic.model import build_model
-    from hyperelastic.scene import load_scene
+    from hyperelastic.catalog import load_scene
     o = PETSc.Options()
     for k in list(o.getAll()):
         o.delValue(k)

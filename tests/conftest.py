@@ -61,7 +61,7 @@ def petsc():
 def make_model(petsc, scene_name="bend", options=()):
     """In-process set-up of a scene on COMM_WORLD, as `hyperelastic run` builds it: a model.Model."""
     from hyperelastic.model import build_model
-    from hyperelastic.scene import load_scene
+    from hyperelastic.catalog import load_scene
     o = petsc.Options()
     for k in list(o.getAll()):
         o.delValue(k)

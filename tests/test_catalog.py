@@ -21,13 +21,16 @@ def source_option_names():
     """Every option name the application reads through Options (literal names, and the f-string
     templates of prefixed ones with their placeholder)."""
     names = set()
-    for mod in ("scene.py", "cli.py"):
+    mods = ["scene.py", "cli.py", "run.py", "materials/__init__.py"] + [
+        "effects/" + f for f in os.listdir(os.path.join(ROOT, "hyperelastic", "effects")) if f.endswith(".py")]
+    for mod in mods:
         src = open(os.path.join(ROOT, "hyperelastic", mod), encoding="utf-8").read()
         for m in re.finditer(r'opts\.(?:string|real|integer|flag|choice|vector|names|has)\((f?)"([^"]+)"', src):
             f, name = m.groups()
             if not f:
                 names.add(name)
-        names |= set(re.findall(r'facet_sets\(opts, "([a-z_]+)"', src))
+        names |= set(re.findall(r'(?:facet|volume)_sets\(opts, "([a-z_]+)"', src))
+        names |= {f"{p}_{k}" for p in re.findall(r'time_function\(opts, "([a-z_]+)"\)', src) for k in ("time", "ramp")}
     return names - {"snes_mf", "snes_mf_operator"}           # PETSc's, read to refuse combinations
 
 
@@ -35,10 +38,10 @@ def test_every_option_read_is_in_the_catalog():
     known = set(catalog.option_names())
     missing = source_option_names() - known
     assert not missing, f"options read but not in the catalog: {sorted(missing)}"
-    for prefix, names in (("REGION_", ("material", "preset", "E", "nu", "rho")),
-                          ("LOAD_", ("traction", "pressure", "faces", "time", "ramp"))):
+    for prefix, names in (("REGION_", ("material", "preset", "E", "nu", "rho", "C10", "C01", "kappa", "mu")),
+                          ("LOAD_", ("traction", "pressure", "force", "spring", "faces", "time", "ramp"))):
         assert {prefix + n for n in names} <= {n for r in catalog.ROWS for n in r.names}
-    for prefix in ("traction", "pressure"):          # time functions of the two un-named loads
+    for prefix in ("traction", "pressure", "force", "body_force"):   # time functions of the un-named loads
         assert {f"{prefix}_time", f"{prefix}_ramp"} <= known
     assert catalog.CHOICES == {"material": materials.REGISTRY, "jacobian": JACOBIANS, "assembly": ASSEMBLIES,
                                "operator_storage": STORAGES, "integrator": INTEGRATORS, "effects": EFFECTS}
@@ -54,6 +57,8 @@ def test_help_lists_every_option_and_runs_nothing(tmp_path):
         if not name.startswith(("REGION", "LOAD")):
             assert f"-{name}" in p.stdout, name
     assert "<1e+06, 0.3, 1000>" in p.stdout and "<stvk>" in p.stdout
+    from hyperelastic.scene import EFFECTS_RULE
+    assert "an effect's main option switches it on" in EFFECTS_RULE and EFFECTS_RULE.replace("`", "")[:40] in " ".join(p.stdout.split())
     out = tmp_path / "o.h5"
     p = run_ok(["run", "bend", "-help", "-dt", "0.02", "-output", out])
     assert "<dt=0.02>" in p.stdout                       # the scene's value, not the default

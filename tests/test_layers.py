@@ -29,7 +29,7 @@ def test_stats_columns_are_declared():
           "traction_work": np.array([1.0, 9.0, 1.0])}
     assert stats.accepted(st).tolist() == [True, False, True]
     assert stats.total_energy(st).tolist() == [3.0, 5.0]
-    assert stats.total_energy(st, with_traction=False).tolist() == [4.0, 6.0]
+    assert stats.total_energy(st, with_work=False).tolist() == [4.0, 6.0]
 
 
 def test_csv_round_trip(tmp_path):

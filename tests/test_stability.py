@@ -29,9 +29,9 @@ def test_small_strain_limit_is_linear_elasticity(name):
     m, lin = MATERIALS[name], MATERIALS["linear"]
     I = np.broadcast_to(np.eye(3), (6, 3, 3)).copy()
     dF = rng.standard_normal((6, 3, 3))
-    assert np.abs(m.dP(I, dF, MU, LAM) - lin.dP(I, dF, MU, LAM)).max() <= 1e-12 * np.abs(lin.dP(I, dF, MU, LAM)).max()
-    assert np.abs(m.P(I, MU, LAM)).max() <= 1e-9 * MU
-    assert np.abs(m.psi(I, MU, LAM)).max() <= 1e-9 * MU
+    assert np.abs(m.dP(I, dF, (MU, LAM)) - lin.dP(I, dF, (MU, LAM))).max() <= 1e-12 * np.abs(lin.dP(I, dF, (MU, LAM))).max()
+    assert np.abs(m.P(I, (MU, LAM))).max() <= 1e-9 * MU
+    assert np.abs(m.psi(I, (MU, LAM))).max() <= 1e-9 * MU
 
 
 @pytest.mark.parametrize("name", ["snh", "corotational", "neohookean", "stvk"])
@@ -41,10 +41,10 @@ def test_rotation_invariance(name):
     F = np.eye(3) + 0.2 * rng.standard_normal((10, 3, 3))
     F = F[np.linalg.det(F) > 0.3]
     R = rotations(len(F))
-    assert np.allclose(m.psi(R @ F, MU, LAM), m.psi(F, MU, LAM), rtol=1e-10, atol=1e-6)
-    assert np.allclose(m.P(R @ F, MU, LAM), R @ m.P(F, MU, LAM), rtol=1e-9, atol=1e-4)
+    assert np.allclose(m.psi(R @ F, (MU, LAM)), m.psi(F, (MU, LAM)), rtol=1e-10, atol=1e-6)
+    assert np.allclose(m.P(R @ F, (MU, LAM)), R @ m.P(F, (MU, LAM)), rtol=1e-9, atol=1e-4)
     lin = MATERIALS["linear"]
-    assert np.abs(lin.psi(R, MU, LAM)).min() > 1e-3 * MU
+    assert np.abs(lin.psi(R, (MU, LAM))).min() > 1e-3 * MU
 
 
 def unit_tets(m, F):
@@ -55,9 +55,9 @@ def unit_tets(m, F):
     X = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], float)
     x = np.einsum("nij,aj->nai", F, X).reshape(-1).copy()
     k = CellKernels(np.arange(4 * n, dtype=np.int32).reshape(-1, 4), np.broadcast_to(np.eye(3), (n, 3, 3)).copy(),
-                    np.full(n, 1 / 6), m.name, MU, LAM)
+                    np.full(n, 1 / 6), m.name, (MU, LAM))
     G = np.concatenate([-np.ones((1, 3)), np.eye(3)])
-    return k, x, np.einsum("nij,aj->nai", m.P(F, MU, LAM) / 6, G).reshape(-1)
+    return k, x, np.einsum("nij,aj->nai", m.P(F, (MU, LAM)) / 6, G).reshape(-1)
 
 
 @pytest.mark.parametrize("name", ["snh", "corotational"])
@@ -72,7 +72,7 @@ def test_defined_and_exact_when_inverted(name):
     assert k.forces(x, f) == 0 and np.isfinite(f).all()
     assert np.abs(f - ref).max() <= 1e-10 * np.abs(ref).max()
     W, *_ = k.energy(x)
-    assert np.isclose(W, (m.psi(F, MU, LAM) / 6).sum(), rtol=1e-10)
+    assert np.isclose(W, (m.psi(F, (MU, LAM)) / 6).sum(), rtol=1e-10)
     v = rng.standard_normal(x.shape)
     y = np.zeros_like(x)
     k.kv(x, v, y)
@@ -113,7 +113,7 @@ def test_max_step_stops_before_inversion():
     """he_max_step: the largest fraction of an update that keeps every element's det F > 0."""
     from hyperelastic.kernels import CellKernels
     X = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], float)
-    k = CellKernels(np.arange(4, dtype=np.int32)[None], np.eye(3)[None], np.array([1 / 6]), "stvk", MU, LAM)
+    k = CellKernels(np.arange(4, dtype=np.int32)[None], np.eye(3)[None], np.array([1 / 6]), "stvk", (MU, LAM))
     d = np.zeros(12)
     d[11] = -3.0                                 # vertex 3 moves through the opposite face: det F = 1 - 3 t
     assert np.isclose(k.max_step(X.ravel(), d, 0.9), 0.9 / 3, rtol=1e-12)

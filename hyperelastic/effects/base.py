@@ -15,8 +15,62 @@ All arrays are local (owned + ghost vertices, 3 dofs each); contributions are ad
 cells a rank owns, so summing local arrays into the global vector assembles them.
 """
 import time
+from dataclasses import dataclass
+from typing import Callable
 
 import numpy as np
+
+
+@dataclass(frozen=True)
+class Energy:
+    """An energy an effect reports every step (Effect.energy): a statistics column (stats.py) and its
+    part in energy_total (sign +1 or -1; 0: not an energy, e.g. J_min). `work`: the work of a load,
+    left out where a check wants the energy of the body alone. `combine`: how the values of several
+    instances and of the ranks combine (sum, min, max)."""
+    column: str
+    sign: int
+    meaning: str
+    work: bool = False
+    combine: str = "sum"
+
+
+@dataclass(frozen=True)
+class Spec:
+    """Everything the application knows of an effect, declared once in its module (effects/NAME.py) and
+    listed in effects.REGISTRY: the scene reader, the option catalog (-help, the README table, the
+    unknown-option check), the set labels, `effects.build`, the statistics columns and the energy totals
+    all loop over the registry.
+      name       the name -effects lists
+      summary    one line for -help
+      rows       its options (options.Row), as -help and the README list them
+      shares     options of another effect's rows that it reads too (the follower twist's surfaces)
+      implied_by the options whose presence switches the effect on (see scene.read_effects)
+      read       (opts, where) -> its parameters (a dataclass), read and checked; None: it has none
+      active     parameters -> whether they leave the effect on (-damping 0 switches damping off)
+      sets       parameters -> [(option, set name, "facets" | "tets")]: the surfaces and volumes it uses
+      build      (parameters, effects.Context) -> [Effect or dirichlet.Constraint]
+      dynamic    left out of -quasistatic runs (inertia, damping)
+      energies   the Energy columns its instances report"""
+    name: str
+    summary: str
+    build: Callable
+    rows: tuple = ()
+    shares: tuple = ()
+    implied_by: tuple = ()
+    read: Callable = None
+    active: Callable = None
+    sets: Callable = None
+    dynamic: bool = False
+    energies: tuple = ()
+
+    def parameters(self, opts, where):
+        return None if self.read is None else self.read(opts, where)
+
+    def is_active(self, params):
+        return True if self.active is None else bool(self.active(params))
+
+    def set_uses(self, params):
+        return [] if self.sets is None else list(self.sets(params))
 
 
 class Effect:
@@ -27,6 +81,10 @@ class Effect:
     symmetric = True
     order = 0              # 0: acts on positions; 1: on velocities (damping); 2: on accelerations (inertia)
     constant = False       # residual independent of x, changed only by begin_step (dead loads): add_constant
+    domain = False         # counts the cells where its material is undefined (`undefined`, after a residual)
+    undefined = 0
+    discrete_gradient = False  # has residual_discrete_gradient (the energy-momentum force, -energy_momentum)
+    kernels = None         # the cell kernels of its material (elasticity): the domain and inversion checks
 
     def __init__(self):
         self.evals = 0       # residual evaluations

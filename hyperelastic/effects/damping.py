@@ -1,6 +1,9 @@
+from dataclasses import dataclass
+
 import numpy as np
 
-from .base import Effect, timed
+from ..options import Row, needs
+from .base import Effect, Spec, timed
 from .mass import MassOperator
 
 
@@ -11,9 +14,9 @@ class ViscousDamping(Effect):
     cell_blocks = True
     order = 1
 
-    def __init__(self, kernels, c, lumped, nlv):
+    def __init__(self, cells, c, lumped, nlv):
         super().__init__()
-        self.C = MassOperator(kernels, c, lumped, nlv)
+        self.C = MassOperator(cells, c, lumped, nlv)
         self.cell_blocks = not lumped
 
     def begin_step(self, t, h, xn, vn):
@@ -63,11 +66,11 @@ class RayleighDamping(Effect):
     cell_blocks = True
     order = 1
 
-    def __init__(self, kernels, rho, alpha, beta, lumped, nlv):
+    def __init__(self, kernels, cells, rho, alpha, beta, lumped, nlv):
         super().__init__()
         self.k = kernels
         self.alpha, self.beta = alpha, beta
-        self.M = MassOperator(kernels, alpha * rho, lumped, nlv)
+        self.M = MassOperator(cells, alpha * rho, lumped, nlv)
 
     def begin_step(self, t, h, xn, vn):
         self.h = h
@@ -124,3 +127,42 @@ class RayleighDamping(Effect):
 
     def coo_values(self, out):
         self.M.coo_values(out, self.w)
+
+
+@dataclass(frozen=True)
+class Viscous:
+    c: float          # C = c int N^T N dV [kg/(m^3 s)]
+
+
+def _read_viscous(opts, where):
+    c = opts.real("damping", None, minimum=0, exclusive=False)
+    if c is None:
+        raise needs(where, "damping", "-damping c")
+    return Viscous(c)
+
+
+SPEC = Spec(
+    "damping", "viscous damping C = c int N^T N dV", implied_by=("damping",), read=_read_viscous,
+    active=lambda p: p.c != 0, dynamic=True,
+    build=lambda p, ctx: [ViscousDamping(ctx.cells, p.c, ctx.lumped, ctx.space.nlv)],
+    rows=(Row(("damping",), "-damping c", "viscous damping C = c∫NᵀN (0 removes the effect)"),))
+
+
+@dataclass(frozen=True)
+class Rayleigh:
+    alpha: float      # of the mass matrix [1/s]
+    beta: float       # of the stiffness K(x^n) [s]
+
+
+def _read_rayleigh(opts, where):
+    return Rayleigh(opts.real("rayleigh_alpha", 0.0, minimum=0, exclusive=False),
+                    opts.real("rayleigh_beta", 0.0, minimum=0, exclusive=False))
+
+
+RAYLEIGH = Spec(
+    "rayleigh", "Rayleigh damping (alpha M + beta K(x^n))", implied_by=("rayleigh_alpha", "rayleigh_beta"),
+    read=_read_rayleigh, active=lambda p: p.alpha != 0 or p.beta != 0, dynamic=True,
+    build=lambda p, ctx: [RayleighDamping(ctx.kernels, ctx.cells, ctx.density, p.alpha, p.beta, ctx.lumped,
+                                          ctx.space.nlv)],
+    rows=(Row(("rayleigh_alpha", "rayleigh_beta"), "-rayleigh_alpha a -rayleigh_beta b",
+              "Rayleigh damping (αM + βK(xⁿ))"),))

@@ -1,6 +1,8 @@
 import numpy as np
+from petsc4py import PETSc
 
-from .base import Effect, timed
+from .. import materials
+from .base import Effect, Energy, Spec, timed
 
 
 def project_psd(K):
@@ -17,23 +19,24 @@ class Elasticity(Effect):
     name = "elasticity"
     linear = False
     cell_blocks = True
+    discrete_gradient = True
 
     def __init__(self, kernels, projection=False):
         super().__init__()
         self.projection = projection   # -hessian_projection: PSD-projected element tangents
         self.blocks = None
         self.projected_cells = 0
-        self.k = kernels
+        self.k = self.kernels = kernels
         # every material of the scene, also those with no cells on this rank: what follows (the domain
         # check's collective, the linear flag) must be the same on every rank
-        names = [m for _, m, _, _ in kernels.spec] if hasattr(kernels, "spec") else [kernels.material]
-        self.material = ",".join(dict.fromkeys(names))     # the material name(s)
-        self.linear = all(n == "linear" for n in names)
-        from .. import materials
-        self.defined_when_inverted = all(materials.get(n).defined_when_inverted for n in names)
+        models = [materials.get(n) for n in dict.fromkeys(kernels.materials)]
+        self.material = ",".join(m.name for m in models)     # the material name(s)
+        self.linear = all(m.quadratic for m in models)
+        # materials undefined for J <= 0: every residual counts the cells where they were evaluated there
+        self.domain = not all(m.defined_when_inverted for m in models)
+        self.defined_when_inverted = not self.domain
         self.x = None
         self.undefined = 0   # cells where the material was undefined at the last evaluation
-        from petsc4py import PETSc
         # the element force loop alone, in -log_view: the rest of SNESFunctionEval is the residual's
         # fixed cost (local vectors, Dirichlet rows, other effects; scripts/bench_peer.py reports it)
         self.ev_forces = PETSc.Log.Event("HE_ElasticForces")
@@ -87,3 +90,11 @@ class Elasticity(Effect):
     def energy(self, x, v):
         W, jmin, jmax, bad = self.k.energy(x)
         return {"elastic": W, "J_min": jmin, "J_max": jmax}
+
+
+SPEC = Spec(
+    "elasticity", "the elastic force of the material(s) (always built)",
+    build=lambda p, ctx: [Elasticity(ctx.kernels, ctx.projection)],
+    energies=(Energy("elastic", 1, "elastic energy after the step [J] (accepted attempts)"),
+              Energy("J_min", 0, "smallest volume ratio det F over the cells after the step", combine="min"),
+              Energy("J_max", 0, "largest volume ratio det F over the cells after the step", combine="max")))

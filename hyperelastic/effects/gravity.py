@@ -1,6 +1,9 @@
+from dataclasses import dataclass
+
 import numpy as np
 
-from .base import Effect, timed
+from ..options import Row, needs
+from .base import Effect, Energy, Spec, timed
 
 
 class Gravity(Effect):
@@ -8,10 +11,10 @@ class Gravity(Effect):
     name = "gravity"
     constant = True
 
-    def __init__(self, kernels, rho, g, nlv):
+    def __init__(self, cells, rho, g, nlv):
         super().__init__()
         share = np.zeros(nlv)
-        np.add.at(share, kernels.cells.ravel(), np.repeat(rho * kernels.vol / 4.0, 4))
+        np.add.at(share, cells.cells.ravel(), np.repeat(rho * cells.vol / 4.0, 4))
         self.f = (share[:, None] * np.asarray(g, float)[None, :]).ravel()
         self.g = np.asarray(g, float)
 
@@ -28,3 +31,22 @@ class Gravity(Effect):
     def energy(self, x, v):
         # potential energy of gravity, -f.x (reference: x = 0)
         return {"gravity_potential": -float(self.f @ x)}
+
+
+@dataclass(frozen=True)
+class Acceleration:
+    g: tuple          # [m/s^2]
+
+
+def _read(opts, where):
+    g = opts.vector("gravity")
+    if g is None:
+        raise needs(where, "gravity", "-gravity gx,gy,gz")
+    return Acceleration(tuple(g))
+
+
+SPEC = Spec(
+    "gravity", "body force rho g on every cell", implied_by=("gravity",), read=_read,
+    build=lambda p, ctx: [Gravity(ctx.cells, ctx.density, p.g, ctx.space.nlv)],
+    rows=(Row(("gravity",), "-gravity gx,gy,gz", "body force ρg [m/s²] on the whole body (each region's ρ)"),),
+    energies=(Energy("gravity_potential", 1, "potential of gravity -f.x [J] (scenes with gravity)"),))

@@ -1,6 +1,6 @@
 import numpy as np
 
-from .base import Effect, timed
+from .base import Effect, Energy, Spec, timed
 from .mass import MassOperator
 
 
@@ -12,9 +12,9 @@ class Inertia(Effect):
     cell_blocks = True
     order = 2
 
-    def __init__(self, kernels, rho, lumped, nlv):
+    def __init__(self, cells, rho, lumped, nlv):
         super().__init__()
-        self.M = MassOperator(kernels, rho, lumped, nlv)
+        self.M = MassOperator(cells, rho, lumped, nlv)
         self.cell_blocks = not lumped
 
     def begin_step(self, t, h, xn, vn):
@@ -60,3 +60,8 @@ class Inertia(Effect):
         y = np.zeros_like(v)
         self.M.apply(v, y)
         return {"kinetic": 0.5 * float(v @ y)}  # additive over ranks: each cell counted once
+
+
+SPEC = Spec("inertia", "the mass matrix M (-mass consistent|lumped) of the density; not in -quasistatic runs",
+            build=lambda p, ctx: [Inertia(ctx.cells, ctx.density, ctx.lumped, ctx.space.nlv)], dynamic=True,
+            energies=(Energy("kinetic", 1, "kinetic energy 1/2 v^T M v after the step [J] (accepted attempts)"),))

@@ -4,21 +4,17 @@ import numpy as np
 class MassOperator:
     """coef * int N^T N dV on P1 tetrahedra, per vector component: consistent,
     M^e_ab = coef V/20 (1 + delta_ab) (thesis eqs. 4.39-4.40), or lumped, coef V/4 per vertex.
-    coef: a scalar, or one per cell (e.g. the density of each cell's region): then the kernels run on
-    the volumes weighted by it."""
+    cells: a kernels.Cells (the mass kernels need only the geometry); coef: a scalar, or one per cell
+    (e.g. the density of each cell's region): then the kernels run on the volumes weighted by it."""
 
-    def __init__(self, kernels, coef, lumped, nlv):
-        self.k = kernels
-        vol = kernels.vol
+    def __init__(self, cells, coef, lumped, nlv):
         if np.ndim(coef):
-            from ..kernels import CellKernels
-            vol = np.asarray(coef, float) * kernels.vol
-            self.k = CellKernels(kernels.cells, kernels.Dminv, vol, "linear", 0.0, 0.0)  # mass kernels only
-            coef = 1.0
+            cells, coef = cells.weighted(coef), 1.0
+        self.k = cells
         self.coef = float(coef)
         self.lumped = lumped
         vertex_share = np.zeros(nlv)
-        np.add.at(vertex_share, kernels.cells.ravel(), np.repeat(vol, 4))
+        np.add.at(vertex_share, cells.cells.ravel(), np.repeat(cells.vol, 4))
         # diagonal: lumped V/4 per vertex, consistent 2V/20 = V/10 per vertex
         self.diagonal = np.repeat(vertex_share * (0.25 if lumped else 0.1) * self.coef, 3)
 

@@ -1,6 +1,9 @@
+from dataclasses import dataclass
+
 import numpy as np
 
-from .base import Effect, load_factor, timed
+from ..options import Row, facet_sets, needs, time_function
+from .base import Effect, Energy, Spec, load_factor, timed
 
 
 def triangle_areas(X, tris):
@@ -47,118 +50,42 @@ class Traction(Effect):
         return {"traction_work": self.s * float(self.f0 @ x)}
 
 
-class FollowerTwist(Effect):
-    """Follower traction depending on current positions: t_y = k z, t_z = -k y on a face, i.e.
-    t(x) = T x with T = k [[0,0,0],[0,0,1],[0,-1,0]], integrated over the reference area:
-    f_a = sum_b (int N_a N_b dA) T x_b, int N_a N_b dA = A (1 + delta_ab)/12. Optional ramp * min(t,1).
-    Its Jacobian -dF/dx is not symmetric (T is skew): use GMRES with it."""
-    name = "follower_traction"
-    symmetric = False
-    conservative = False   # t = T x with T skew has no potential
-
-    def __init__(self, X, tris, k, scale=None, nlv=0):
-        super().__init__()
-        self.tris = tris
-        self.A = triangle_areas(X, tris)
-        self.T = float(k) * np.array([[0.0, 0, 0], [0, 0, 1], [0, -1, 0]])
-        self.scale_param = scale
-        self.s = 1.0
-        self.Mf = (np.ones((3, 3)) + np.eye(3)) / 12.0
-
-    def begin_step(self, t, h, xn, vn):
-        self.s = load_factor(self.scale_param, t)
-
-    def _force(self, x, out, sign):
-        xt = x.reshape(-1, 3)[self.tris]                         # (ntri, 3 vertices, 3)
-        mx = np.einsum("ab,tbj->taj", self.Mf, xt) * self.A[:, None, None]
-        f = np.einsum("ij,taj->tai", self.T, mx) * (sign * self.s)
-        np.add.at(out.reshape(-1, 3), self.tris, f)
-
-    @timed("evals")
-    def residual(self, x, r):
-        self._force(x, r, -1.0)
-
-    def linearize(self, x):
-        pass  # the traction is linear in x
-
-    @timed("applies")
-    def apply(self, v, y):
-        self._force(v, y, -1.0)
-
-    @timed("applies")
-    def diag(self, d):
-        pass  # T has a zero diagonal
-
-    def coo_pattern(self):
-        return triangle_coo_pattern(self.tris)
-
-    def coo_values(self, out):
-        blk = -self.s * np.einsum("t,ab,ij->taibj", self.A, self.Mf, self.T)  # (ntri,3,3,3,3)
-        out[:] = blk.reshape(len(self.tris), 81).ravel()
+@dataclass(frozen=True)
+class DeadTraction:
+    value: tuple      # [Pa per reference area]
+    faces: tuple      # ((set name, components), ...)
+    scale: object     # time function: None, a ramp A (A min(t,1)) or an expressions.TimeFunction
 
 
-class Pressure(Effect):
-    """Follower pressure p [Pa] on boundary facets, normal to the current surface (positive: pushing
-    in): traction -p n da. On a triangle with current vertices x1, x2, x3 (ordered so that
-    c = (x2 - x1) x (x3 - x1) points out of the body), int N_a n da = c/6 for each vertex a, so
-    f_a = -p c/6 and the residual adds p c/6 to each of its three vertices. Exact tangent:
-    dc/dx1 = [x3 - x2]x, dc/dx2 = [x1 - x3]x, dc/dx3 = [x2 - x1]x (the skew matrix [w]x u = w x u),
-    the same for every row a; not symmetric. p scaled by ramp * min(t,1) when a ramp is given.
-    (Bonet & Wood, Nonlinear Continuum Mechanics for FEA, 1997, sec. 8.4: the pressure load component.)"""
-    name = "pressure"
-    linear = False
-    symmetric = False
-    conservative = False   # only a closed surface's pressure has a potential (p times the enclosed volume)
+def read_faces(opts):
+    """-traction_face (default: the right end of the bar) and its time function: shared with the follower
+    twist."""
+    return tuple(facet_sets(opts, "traction_face", "right")), time_function(opts, "traction")
 
-    def __init__(self, X, tris, p, scale=None):
-        super().__init__()
-        self.tris = np.asarray(tris, np.int64)
-        self.p = float(p)
-        self.scale_param = scale
-        self.s = 1.0
-        self.x_lin = None
 
-    def begin_step(self, t, h, xn, vn):
-        self.s = load_factor(self.scale_param, t)
+def _read(opts, where):
+    faces, scale = read_faces(opts)
+    t = opts.vector("traction")
+    if t is None:
+        raise needs(where, "traction", "-traction tx,ty,tz")
+    return DeadTraction(tuple(t), faces, scale)
 
-    def _corners(self, x):
-        xt = x.reshape(-1, 3)[self.tris]
-        return xt[:, 0], xt[:, 1], xt[:, 2]
 
-    @timed("evals")
-    def residual(self, x, r):
-        x1, x2, x3 = self._corners(x)
-        c = np.cross(x2 - x1, x3 - x1) * (self.s * self.p / 6.0)
-        np.add.at(r.reshape(-1, 3), self.tris, np.repeat(c[:, None, :], 3, axis=1))
+def surfaces(option):
+    """A spec's `sets`: the facet sets of a parameter set's `faces`, named by `option`."""
+    return lambda p: [(option, n, "facets") for n, _ in p.faces]
 
-    def linearize(self, x):
-        self.x_lin = x.copy()
 
-    def _edges(self):
-        """The vectors w_b with dc/dx_b = [w_b]x: (ntri, 3 corners, 3)."""
-        x1, x2, x3 = self._corners(self.x_lin)
-        return np.stack([x3 - x2, x1 - x3, x2 - x1], axis=1)
+def build_traction(p, ctx):
+    return [Traction(ctx.space.X, ctx.space.set_triangles([n for n, _ in p.faces]), p.value, p.scale, ctx.space.nlv)]
 
-    @timed("applies")
-    def apply(self, v, y):
-        w = self._edges()
-        vt = v.reshape(-1, 3)[self.tris]                               # (ntri, 3, 3)
-        dc = np.cross(w, vt).sum(axis=1) * (self.s * self.p / 6.0)     # sum_b w_b x v_b
-        np.add.at(y.reshape(-1, 3), self.tris, np.repeat(dc[:, None, :], 3, axis=1))
 
-    @timed("applies")
-    def diag(self, d):
-        pass  # the diagonal entries of [w]x are zero
+TRACTION_WORK = Energy("traction_work", -1, "work potential f.x of the dead loads (tractions, forces) [J]",
+                       work=True)
 
-    def coo_pattern(self):
-        return triangle_coo_pattern(self.tris)
-
-    def coo_values(self, out):
-        w = self._edges()                                               # (ntri, b, 3)
-        skew = np.zeros(w.shape[:2] + (3, 3))
-        skew[..., 0, 1], skew[..., 0, 2] = -w[..., 2], w[..., 1]
-        skew[..., 1, 0], skew[..., 1, 2] = w[..., 2], -w[..., 0]
-        skew[..., 2, 0], skew[..., 2, 1] = -w[..., 1], w[..., 0]
-        blk = np.broadcast_to((self.s * self.p / 6.0) * skew[:, None].transpose(0, 1, 3, 2, 4),
-                              (len(self.tris), 3, 3, 3, 3))              # (t, a, i, b, j)
-        out[:] = np.ascontiguousarray(blk).reshape(len(self.tris), 81).ravel()
+SPEC = Spec(
+    "traction", "a dead traction per reference area on surfaces", implied_by=("traction",), read=_read,
+    sets=surfaces("traction_face"), build=build_traction, energies=(TRACTION_WORK,),
+    rows=(Row(("traction", "traction_face", "traction_ramp", "traction_time"), "-traction tx,ty,tz",
+              "dead-load traction [Pa per reference area] on the surfaces `-traction_face S1,S2,…`, scaled by "
+              "`-traction_ramp A` (A·min(t,1)) or by a time function `-traction_time EXPR`", "right"),))

@@ -83,7 +83,8 @@ static void polar(const double *F, double *R, double *V, double *sig) {
     for (int c = 0; c < 3; c++) R[3 * r + c] = u[0][r] * V[3 * c] + u[1][r] * V[3 * c + 1] + u[2][r] * V[3 * c + 2];
 }
 
-static inline int corotational_stress(double mu, double lam, const double *F, double *P, double *psi) {
+static inline int corotational_stress(const double *prm, const double *F, double *P, double *psi) {
+  const double mu = prm[0], lam = prm[1];
   double R[9], V[9], sg[3];
   polar(F, R, V, sg);
   double trS = sg[0] + sg[1] + sg[2] - 3;
@@ -96,8 +97,8 @@ static inline int corotational_stress(double mu, double lam, const double *F, do
   return 0;
 }
 
-static inline int corotational_prepare(double mu, double lam, const double *F, corotational_cache *d) {
-  (void)mu; (void)lam;
+static inline int corotational_prepare(const double *prm, const double *F, corotational_cache *d) {
+  (void)prm;
   polar(F, d->R, d->V, d->sig);
   d->c1 = d->sig[0] + d->sig[1] + d->sig[2] - 3;
   /* 1/(sig_j + sig_k): (tr S I - S)^-1 in the eigenbasis of S, guarded where a pair sums to ~0 */
@@ -111,8 +112,8 @@ static inline int corotational_prepare(double mu, double lam, const double *F, c
 
 /* dP = 2 mu (dF - dR) + lam tr(R^T dF) R + lam tr(S-I) dR, dR = R [w]x with
  * (tr S I - S) w = axial(R^T dF - dF^T R) (McAdams et al. 2011, sec. 3.3) */
-static inline void corotational_dstress(double mu, double lam, const corotational_cache *d, const double *dF,
-                                        double *dP) {
+static inline void corotational_dstress(const double *prm, const corotational_cache *d, const double *dF, double *dP) {
+  const double mu = prm[0], lam = prm[1];
   const double *R = d->R, *V = d->V;
   double A[9], a[3], wv[3], w[3], W[9], dR[9];
   mtm(R, dF, A);
@@ -152,8 +153,9 @@ static inline void corotational_cell_prep(const corotational_cache *d, double G[
   }
 }
 
-static inline void corotational_cell_tangent(double mu, double lam, const corotational_cache *d, double G[4][3],
+static inline void corotational_cell_tangent(const double *prm, const corotational_cache *d, double G[4][3],
                                              double V, double *K, int accumulate) {
+  const double mu = prm[0], lam = prm[1];
   double rho[4][3], p[4][3][3];
   corotational_cell_prep(d, G, rho, p);
   const double vm = 2 * V * mu, vl = V * lam, vr = V * (lam * d->c1 - 2 * mu);
@@ -174,8 +176,9 @@ static inline void corotational_cell_tangent(double mu, double lam, const corota
     }
 }
 
-static inline void corotational_cell_tangent_diag(double mu, double lam, const corotational_cache *d, double G[4][3],
+static inline void corotational_cell_tangent_diag(const double *prm, const corotational_cache *d, double G[4][3],
                                                   double V, double diag[12]) {
+  const double mu = prm[0], lam = prm[1];
   double rho[4][3], p[4][3][3];
   corotational_cell_prep(d, G, rho, p);
   const double vr = V * (lam * d->c1 - 2 * mu);

@@ -1,6 +1,7 @@
 import numpy as np
 
 from ._tensor import T
+from .base import Material
 
 
 def polar(F):
@@ -24,7 +25,7 @@ def skew(w):
                      np.stack([-w[..., 1], w[..., 0], z], -1)], -2)
 
 
-class Corotational:
+class Corotational(Material):
     """Corotational linear elasticity: Psi = mu |S - I|^2 + lam/2 tr(S - I)^2 with F = R S the polar
     decomposition, P = 2 mu (F - R) + lam tr(S - I) R (McAdams, Zhu, Selle, Empey, Tamstorf, Teran,
     Sifakis, "Efficient elasticity for character skinning with contact and collisions", SIGGRAPH 2011).
@@ -34,17 +35,20 @@ class Corotational:
     defined_when_inverted = True
 
     @staticmethod
-    def psi(F, mu, lam):
+    def psi(F, c):
+        mu, lam = c
         _, _, s = polar(F)
         return mu * ((s - 1) ** 2).sum(-1) + 0.5 * lam * (s.sum(-1) - 3) ** 2
 
     @staticmethod
-    def P(F, mu, lam):
+    def P(F, c):
+        mu, lam = c
         R, _, s = polar(F)
         return 2 * mu * (F - R) + (lam * (s.sum(-1) - 3))[..., None, None] * R
 
     @staticmethod
-    def dP(F, dF, mu, lam):
+    def dP(F, dF, c):
+        mu, lam = c
         R, V, s = polar(F)
         A = T(R) @ dF
         a = np.stack([A[..., 2, 1] - A[..., 1, 2], A[..., 0, 2] - A[..., 2, 0], A[..., 1, 0] - A[..., 0, 1]], -1)

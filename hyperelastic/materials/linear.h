@@ -2,7 +2,8 @@
  * Numpy reference: linear.py. The contract of a material header: see docs/design.md. */
 typedef struct { char unused; } linear_cache;
 
-static inline int linear_stress(double mu, double lam, const double *F, double *P, double *psi) {
+static inline int linear_stress(const double *prm, const double *F, double *P, double *psi) {
+  const double mu = prm[0], lam = prm[1];
   double e[9];
   for (int i = 0; i < 3; i++)
     for (int j = 0; j < 3; j++) e[3 * i + j] = 0.5 * (F[3 * i + j] + F[3 * j + i]) - (i == j);
@@ -14,12 +15,13 @@ static inline int linear_stress(double mu, double lam, const double *F, double *
   return 0;
 }
 
-static inline int linear_prepare(double mu, double lam, const double *F, linear_cache *d) {
-  (void)mu; (void)lam; (void)F; (void)d;
+static inline int linear_prepare(const double *prm, const double *F, linear_cache *d) {
+  (void)prm; (void)F; (void)d;
   return 0;
 }
 
-static inline void linear_dstress(double mu, double lam, const linear_cache *d, const double *dF, double *dP) {
+static inline void linear_dstress(const double *prm, const linear_cache *d, const double *dF, double *dP) {
+  const double mu = prm[0], lam = prm[1];
   (void)d;
   double tr = dF[0] + dF[4] + dF[8];
   for (int i = 0; i < 3; i++)
@@ -31,8 +33,9 @@ static inline void linear_dstress(double mu, double lam, const linear_cache *d, 
  * + lam G_b,k delta_ij, so row (a,i) of the force, V dP_ij G_a,j, gives
  *   K[(a,i),(b,k)] = V (mu delta_ik G_a.G_b + mu G_a,k G_b,i + lam G_a,i G_b,k)   (independent of x). */
 #define linear_CELL_TANGENT 1
-static inline void linear_cell_tangent(double mu, double lam, const linear_cache *d, double G[4][3], double V,
-                                       double *K, int accumulate) {
+static inline void linear_cell_tangent(const double *prm, const linear_cache *d, double G[4][3], double V, double *K,
+                                       int accumulate) {
+  const double mu = prm[0], lam = prm[1];
   (void)d;
   const double vl = V * lam, vm = V * mu;
   for (int a = 0; a < 4; a++) {
@@ -50,8 +53,9 @@ static inline void linear_cell_tangent(double mu, double lam, const linear_cache
   }
 }
 
-static inline void linear_cell_tangent_diag(double mu, double lam, const linear_cache *d, double G[4][3], double V,
+static inline void linear_cell_tangent_diag(const double *prm, const linear_cache *d, double G[4][3], double V,
                                             double diag[12]) {
+  const double mu = prm[0], lam = prm[1];
   (void)d;
   for (int a = 0; a < 4; a++) {
     const double g2 = G[a][0] * G[a][0] + G[a][1] * G[a][1] + G[a][2] * G[a][2];

@@ -1,26 +1,31 @@
 import numpy as np
 
 from ._tensor import I3, sym, tr
+from .base import Material
 
 
-class Linear:
+class Linear(Material):
     """Linear elasticity: eps = sym(F) - I, Psi = mu eps:eps + lam/2 tr(eps)^2,
     P = 2 mu eps + lam tr(eps) I (thesis eqs. 3.23, 3.27, 3.34)."""
     name = "linear"
     defined_when_inverted = True
+    quadratic = True               # the midpoint force is already the discrete gradient (-energy_momentum)
 
     @staticmethod
-    def psi(F, mu, lam):
+    def psi(F, c):
+        mu, lam = c
         e = sym(F) - I3
         return mu * np.einsum("...ij,...ij", e, e) + 0.5 * lam * tr(e) ** 2
 
     @staticmethod
-    def P(F, mu, lam):
+    def P(F, c):
+        mu, lam = c
         e = sym(F) - I3
         return 2 * mu * e + lam * tr(e)[..., None, None] * I3
 
     @staticmethod
-    def dP(F, dF, mu, lam):
+    def dP(F, dF, c):
+        mu, lam = c
         return 2 * mu * sym(dF) + lam * tr(dF)[..., None, None] * I3
 
 

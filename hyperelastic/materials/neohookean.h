@@ -6,8 +6,9 @@ typedef struct { double FiT[9], c1, c2; } neohookean_cache;
 /* The stress and energy density from F and the scalars of J = det F > 0: rJ = 1/J, lnJ = ln J (given:
  * the cell loops compute them for a block of cells at once, NAME_BATCH_J in _material_loops.h). */
 #define neohookean_BATCH_J 1
-static inline void neohookean_stress_j(double mu, double lam, const double *F, double rJ, double lnJ,
-                                       double *P, double *psi) {
+static inline void neohookean_stress_j(const double *prm, const double *F, double rJ, double lnJ, double *P,
+                                       double *psi) {
+  const double mu = prm[0], lam = prm[1];
   double FiT[9];
   cof_mixed(F, F, FiT);
   double c = lam * lnJ - mu, I1 = 0;
@@ -15,36 +16,36 @@ static inline void neohookean_stress_j(double mu, double lam, const double *F, d
   if (psi) *psi = 0.5 * mu * (I1 - 3) - mu * lnJ + 0.5 * lam * lnJ * lnJ;
 }
 
-static inline int neohookean_stress(double mu, double lam, const double *F, double *P, double *psi) {
+static inline int neohookean_stress(const double *prm, const double *F, double *P, double *psi) {
   double J = det3(F);
   if (!(J > 0)) {
     for (int k = 0; k < 9; k++) P[k] = NAN;
     if (psi) *psi = NAN;
     return 1;
   }
-  neohookean_stress_j(mu, lam, F, 1.0 / J, log(J), P, psi);
+  neohookean_stress_j(prm, F, 1.0 / J, log(J), P, psi);
   return 0;
 }
 
-static inline void neohookean_prepare_j(double mu, double lam, const double *F, double rJ, double lnJ,
+static inline void neohookean_prepare_j(const double *prm, const double *F, double rJ, double lnJ,
                                         neohookean_cache *d) {
+  const double mu = prm[0], lam = prm[1];
   cof_mixed(F, F, d->FiT);
   for (int k = 0; k < 9; k++) d->FiT[k] *= rJ;
   d->c1 = mu - lam * lnJ; /* coefficient of F^-T dF^T F^-T */
   d->c2 = lam;            /* coefficient of tr(F^-1 dF) F^-T */
 }
 
-static inline int neohookean_prepare(double mu, double lam, const double *F, neohookean_cache *d) {
+static inline int neohookean_prepare(const double *prm, const double *F, neohookean_cache *d) {
   double J = det3(F);
   if (!(J > 0)) return 1;
-  neohookean_prepare_j(mu, lam, F, 1.0 / J, log(J), d);
+  neohookean_prepare_j(prm, F, 1.0 / J, log(J), d);
   return 0;
 }
 
 /* dP = mu dF + c1 F^-T dF^T F^-T + lam tr(F^-1 dF) F^-T */
-static inline void neohookean_dstress(double mu, double lam, const neohookean_cache *d, const double *dF,
-                                      double *dP) {
-  (void)lam;
+static inline void neohookean_dstress(const double *prm, const neohookean_cache *d, const double *dF, double *dP) {
+  const double mu = prm[0];
   const double *Q = d->FiT;
   double T[9], U[9];
   mtm(dF, Q, T); /* T = dF^T Q ; U = Q T = F^-T dF^T F^-T */
@@ -61,9 +62,9 @@ static inline void neohookean_dstress(double mu, double lam, const neohookean_ca
  * (~0.4 kflop per cell against ~1.6 for twelve dP evaluations; the columns' result to rounding).
  * Its diagonal: V (mu |G_a|^2 + (c1 + c2) h_a,i^2). */
 #define neohookean_CELL_TANGENT 1
-static inline void neohookean_cell_tangent(double mu, double lam, const neohookean_cache *d, double G[4][3],
-                                           double V, double *K, int accumulate) {
-  (void)lam;
+static inline void neohookean_cell_tangent(const double *prm, const neohookean_cache *d, double G[4][3], double V,
+                                           double *K, int accumulate) {
+  const double mu = prm[0];
   double h[4][3], gg[4][4];
   m_grads(d->FiT, G, h);
   for (int a = 0; a < 4; a++)
@@ -81,9 +82,9 @@ static inline void neohookean_cell_tangent(double mu, double lam, const neohooke
     }
 }
 
-static inline void neohookean_cell_tangent_diag(double mu, double lam, const neohookean_cache *d, double G[4][3],
+static inline void neohookean_cell_tangent_diag(const double *prm, const neohookean_cache *d, double G[4][3],
                                                 double V, double diag[12]) {
-  (void)lam;
+  const double mu = prm[0];
   double h[4][3];
   m_grads(d->FiT, G, h);
   for (int a = 0; a < 4; a++) {

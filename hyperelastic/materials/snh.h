@@ -5,16 +5,17 @@
 typedef struct { double F[9], cof[9], c1, c2, c3, ls; } snh_cache;
 
 /* Stable Neo-Hookean constants from the Lame pair (mu, lam): ms, ls, alpha and Psi(I). */
-static inline void snh_constants(double mu, double lam, double *ms, double *ls, double *alpha, double *psi0) {
+static inline void snh_constants(const double *prm, double *ms, double *ls, double *alpha, double *psi0) {
+  const double mu = prm[0], lam = prm[1];
   *ms = 4.0 / 3.0 * mu;
   *ls = lam + 5.0 / 6.0 * mu;
   *alpha = 1 + 0.75 * (*ms) / (*ls);
   *psi0 = 0.5 * (*ls) * (1 - *alpha) * (1 - *alpha) - 0.5 * (*ms) * log(4.0);
 }
 
-static inline int snh_stress(double mu, double lam, const double *F, double *P, double *psi) {
+static inline int snh_stress(const double *prm, const double *F, double *P, double *psi) {
   double ms, ls, al, psi0, cof[9], Ic = 0;
-  snh_constants(mu, lam, &ms, &ls, &al, &psi0);
+  snh_constants(prm, &ms, &ls, &al, &psi0);
   cof_mixed(F, F, cof);
   double J = det3(F);
   for (int k = 0; k < 9; k++) Ic += F[k] * F[k];
@@ -24,10 +25,10 @@ static inline int snh_stress(double mu, double lam, const double *F, double *P, 
   return 0;
 }
 
-static inline int snh_prepare(double mu, double lam, const double *F, snh_cache *d) {
+static inline int snh_prepare(const double *prm, const double *F, snh_cache *d) {
   double ms, ls, al, psi0, Ic = 0;
   memcpy(d->F, F, sizeof d->F);
-  snh_constants(mu, lam, &ms, &ls, &al, &psi0);
+  snh_constants(prm, &ms, &ls, &al, &psi0);
   cof_mixed(F, F, d->cof); /* the cofactor matrix dJ/dF */
   for (int k = 0; k < 9; k++) Ic += F[k] * F[k];
   d->c1 = ms * (1 - 1 / (Ic + 1));        /* coefficient of dF */
@@ -38,8 +39,8 @@ static inline int snh_prepare(double mu, double lam, const double *F, snh_cache 
 }
 
 /* dP = c1 dF + c2 (F:dF) F + ls (cof:dF) cof + c3 dcof[dF] */
-static inline void snh_dstress(double mu, double lam, const snh_cache *d, const double *dF, double *dP) {
-  (void)mu; (void)lam;
+static inline void snh_dstress(const double *prm, const snh_cache *d, const double *dF, double *dP) {
+  (void)prm;
   const double *cof = d->cof;
   double A[9], B[9], fd = 0, cd = 0;
   cof_mixed(d->F, dF, A);
@@ -54,9 +55,9 @@ static inline void snh_dstress(double mu, double lam, const snh_cache *d, const 
  * cof_ij = 1/2 eps_imn eps_jpq F_mp F_nq), so
  *   K[(a,i),(b,k)] = V (c1 delta_ik G_a.G_b + c2 u_a,i u_b,k + ls h_a,i h_b,k + c3 eps_imk w_m). */
 #define snh_CELL_TANGENT 1
-static inline void snh_cell_tangent(double mu, double lam, const snh_cache *d, double G[4][3], double V,
-                                    double *K, int accumulate) {
-  (void)mu; (void)lam;
+static inline void snh_cell_tangent(const double *prm, const snh_cache *d, double G[4][3], double V, double *K,
+                                    int accumulate) {
+  (void)prm;
   const double *F = d->F;
   double u[4][3], h[4][3];
   m_grads(d->F, G, u);
@@ -81,9 +82,9 @@ static inline void snh_cell_tangent(double mu, double lam, const snh_cache *d, d
     }
 }
 
-static inline void snh_cell_tangent_diag(double mu, double lam, const snh_cache *d, double G[4][3], double V,
+static inline void snh_cell_tangent_diag(const double *prm, const snh_cache *d, double G[4][3], double V,
                                          double diag[12]) {
-  (void)mu; (void)lam;
+  (void)prm;
   double u[4][3], h[4][3];
   m_grads(d->F, G, u);
   m_grads(d->cof, G, h);

@@ -1,5 +1,6 @@
 import numpy as np
 
+from .base import Material
 
 
 def constants(mu, lam):
@@ -27,30 +28,34 @@ def dcofactor(F, dF):
                      np.cross(d0, f1) + np.cross(f0, d1)], axis=-1)
 
 
-class StableNeoHookean:
+class StableNeoHookean(Material):
     """Stable Neo-Hookean (Smith, de Goes, Kim, "Stable Neo-Hookean Flesh Simulation", ACM TOG 37(2),
     2018, eq. 14): Psi = ms/2 (I_C - 3) + ls/2 (J - alpha)^2 - ms/2 ln(I_C + 1) - Psi(I), with
     I_C = tr(F^T F). Defined for every F, inverted elements included; its Hessian is not positive
     definite everywhere (see -hessian_projection)."""
     name = "snh"
+    summary = "Stable Neo-Hookean, defined for J ≤ 0"
     defined_when_inverted = True
 
     @staticmethod
-    def psi(F, mu, lam):
+    def psi(F, c):
+        mu, lam = c
         ms, ls, al, psi0 = constants(mu, lam)
         Ic = np.einsum("...ij,...ij", F, F)
         J = np.linalg.det(F)
         return 0.5 * ms * (Ic - 3) + 0.5 * ls * (J - al) ** 2 - 0.5 * ms * np.log(Ic + 1) - psi0
 
     @staticmethod
-    def P(F, mu, lam):
+    def P(F, c):
+        mu, lam = c
         ms, ls, al, _ = constants(mu, lam)
         Ic = np.einsum("...ij,...ij", F, F)
         J = np.linalg.det(F)
         return (ms * (1 - 1 / (Ic + 1)))[..., None, None] * F + (ls * (J - al))[..., None, None] * cofactor(F)
 
     @staticmethod
-    def dP(F, dF, mu, lam):
+    def dP(F, dF, c):
+        mu, lam = c
         ms, ls, al, _ = constants(mu, lam)
         Ic = np.einsum("...ij,...ij", F, F)
         J = np.linalg.det(F)

@@ -2,7 +2,8 @@
  * Numpy reference: stvk.py. */
 typedef struct { double F[9], S[9]; } stvk_cache;
 
-static inline int stvk_stress(double mu, double lam, const double *F, double *P, double *psi) {
+static inline int stvk_stress(const double *prm, const double *F, double *P, double *psi) {
+  const double mu = prm[0], lam = prm[1];
   double C[9], S[9];
   mtm(F, F, C);
   double E[9], ee = 0;
@@ -16,7 +17,8 @@ static inline int stvk_stress(double mu, double lam, const double *F, double *P,
   return 0;
 }
 
-static inline int stvk_prepare(double mu, double lam, const double *F, stvk_cache *d) {
+static inline int stvk_prepare(const double *prm, const double *F, stvk_cache *d) {
+  const double mu = prm[0], lam = prm[1];
   memcpy(d->F, F, sizeof d->F);
   double C[9];
   mtm(F, F, C);
@@ -27,7 +29,8 @@ static inline int stvk_prepare(double mu, double lam, const double *F, stvk_cach
 }
 
 /* dP = dF S + F (2 mu dE + lam tr(dE) I), dE = sym(F^T dF) */
-static inline void stvk_dstress(double mu, double lam, const stvk_cache *d, const double *dF, double *dP) {
+static inline void stvk_dstress(const double *prm, const stvk_cache *d, const double *dF, double *dP) {
+  const double mu = prm[0], lam = prm[1];
   double G[9], dS[9], A[9], B[9];
   mtm(d->F, dF, G);
   double tr = G[0] + G[4] + G[8];
@@ -44,8 +47,9 @@ static inline void stvk_dstress(double mu, double lam, const stvk_cache *d, cons
  * mu (B_ik G_a.G_b + u_b,i u_a,k), so
  *   K[(a,i),(b,k)] = V (delta_ik G_a.S.G_b + lam u_a,i u_b,k + mu B_ik G_a.G_b + mu u_a,k u_b,i). */
 #define stvk_CELL_TANGENT 1
-static inline void stvk_cell_tangent(double mu, double lam, const stvk_cache *d, double G[4][3], double V,
-                                     double *K, int accumulate) {
+static inline void stvk_cell_tangent(const double *prm, const stvk_cache *d, double G[4][3], double V, double *K,
+                                     int accumulate) {
+  const double mu = prm[0], lam = prm[1];
   const double *F = d->F, *S = d->S;
   double u[4][3], SG[4][3], gsg[4][4], gg[4][4], B[9];
   m_grads(F, G, u);
@@ -71,8 +75,9 @@ static inline void stvk_cell_tangent(double mu, double lam, const stvk_cache *d,
     }
 }
 
-static inline void stvk_cell_tangent_diag(double mu, double lam, const stvk_cache *d, double G[4][3], double V,
+static inline void stvk_cell_tangent_diag(const double *prm, const stvk_cache *d, double G[4][3], double V,
                                           double diag[12]) {
+  const double mu = prm[0], lam = prm[1];
   const double *F = d->F, *S = d->S;
   double u[4][3];
   m_grads(F, G, u);

@@ -74,7 +74,7 @@ class Bench:
         self.n = self.x.size
         self.nc = len(tets)
         Dminv, vol = reference_geometry(self.X, np.asarray(tets))
-        self.kern = CellKernels(tets, Dminv, vol, "linear", 1.0, 1.0)
+        self.kern = CellKernels(tets, Dminv, vol, "linear", (1.0, 1.0))
         self.rho = float(rho)
         u = self.x - self.X.ravel()
         self.mu_real, self.sigma_real = float(u.mean()), float(u.std())
@@ -83,8 +83,8 @@ class Bench:
 
     def set_material(self, name, E, nu):
         from .. import materials
-        lam, mu = materials.lame(E, nu)
-        self.kern.set_material(materials.get(name).name, mu, lam)
+        solid = materials.default_solid(name, E, nu)
+        self.kern.set_material(solid.name, solid.constants)
         self.material, self.E, self.nu = name, E, nu
         self.k0 = self.k(self.x)
         for m, _, _ in self._mffd.values():
@@ -103,7 +103,7 @@ class Bench:
 
     def Mv(self, v):
         y = np.zeros(self.n)
-        self.kern.mass_apply(self.rho, np.ascontiguousarray(v), y)
+        self.kern.geometry.mass_apply(self.rho, np.ascontiguousarray(v), y)
         return y
 
     # --- approximations of K v ----------------------------------------------------------------

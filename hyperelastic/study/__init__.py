@@ -67,7 +67,7 @@ def main(argv):
     if a.jobs < 1:
         raise UserError("hyperelastic study: --jobs must be >= 1")
     out = a.output_dir or os.path.join("output", f"study_{a.which}")
-    from ..output import writable_dir
+    from ..files import writable_dir
     writable_dir(out, "-output_dir")
     command = "hyperelastic study " + " ".join(argv)
     t0 = time.perf_counter()

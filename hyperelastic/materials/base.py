@@ -1,0 +1,52 @@
+"""What every material declares (materials/NAME.py subclasses Material) and the moduli its defaults
+follow from."""
+from dataclasses import dataclass
+from typing import Callable
+
+
+def lame(E, nu):
+    """Lame constants (lambda, mu) from Young's modulus and Poisson's ratio (thesis eqs. 3.28-3.29)."""
+    return E * nu / ((1 + nu) * (1 - 2 * nu)), E / (2 * (1 + nu))
+
+
+def shear_modulus(v):
+    """mu = E / (2 (1 + nu)) of a parameter set."""
+    return v["E"] / (2 * (1 + v["nu"]))
+
+
+def bulk_modulus(v):
+    """kappa = E / (3 (1 - 2 nu)) of a parameter set."""
+    return v["E"] / (3 * (1 - 2 * v["nu"]))
+
+
+@dataclass(frozen=True)
+class Parameter:
+    """A constant of a material beyond E, nu, rho: read as -NAME (a region's as -REGION_NAME), else its
+    default from the values resolved before it (E and nu first, then the parameters in declared order)."""
+    name: str
+    unit: str
+    meaning: str
+    default: Callable           # (values: dict) -> float
+    default_text: str           # how the default follows, for -help
+    minimum: float = 0.0        # the value must be > minimum (>= when not exclusive)
+    exclusive: bool = True
+
+
+class Material:
+    """The declarations every material shares; a material subclasses it (materials/NAME.py)."""
+    name = "material"
+    summary = ""                   # a few words for -help beside the name (its own constants, its domain)
+    defined_when_inverted = True   # the energy exists for J <= 0 (else the kernels skip such cells, +inf energy)
+    quadratic = False              # energy quadratic in F: the midpoint force is the discrete gradient
+    parameters = ()                # Parameter: its constants beyond E, nu, rho
+    references = ""                # where the model comes from (for -help)
+
+    @staticmethod
+    def constants(v):
+        """The kernel's parameter block (a tuple of floats, in the C header's order) from the values."""
+        lam, mu = lame(v["E"], v["nu"])
+        return (mu, lam)
+
+    @classmethod
+    def check(cls, v, where):
+        """Conditions on the parameters together (beyond each one's range): UserError where they fail."""

@@ -1,0 +1,113 @@
+"""`hyperelastic run`: Scene -> Model (mesh, space, effects, system) -> Solver -> Writer -> integrator.
+Imported by the command line only after PETSc has been initialized with the run's arguments (cli.py)."""
+import os
+import resource
+import signal
+import sys
+
+from mpi4py import MPI
+from petsc4py import PETSc
+
+from .catalog import check_solver_options, help_text, load_scene, scene_option_names
+from .errors import Interrupted, UserError
+from .files import check_output_path
+from .integrators import BackwardEuler
+from .model import build_model, collective
+from .options import Options
+from .output import Writer, run_attributes
+from .sets import REGION_LABEL
+from .solver import Solver
+from .ts_integrator import GeneralizedAlpha, check_energy_momentum, make_ts
+
+
+def run_scene(scene_arg, options_files, restart=None, restart_path=None):
+    """Set up and run a scene (a built-in name or an options file) with the options database as it is;
+    restart: the checkpoint state of `restart_path` to continue from (files.read_checkpoint)."""
+    comm = PETSc.COMM_WORLD
+    stage = PETSc.Log.Stage("Setup")
+    stage.push()
+    scene, scene_file = load_scene(scene_arg)
+    opts = Options()
+    helping = opts.has("help")
+    if helping and comm.getRank() == 0:
+        print(help_text({n: opts.o.getString(n, "") for n in scene_option_names(scene) if opts.has(n)}), flush=True)
+    out = opts.string("output", os.path.join("output", f"{scene.name}.h5"))
+    quiet = opts.flag("quiet")
+    inputs = [scene_file, scene.mesh] + list(options_files)
+    if restart is not None:
+        inputs = [i for i in inputs if i and os.path.realpath(i) != os.path.realpath(out)]
+    collective(comm, lambda: check_output_path(out, inputs))      # before any expensive work
+    model = build_model(scene, comm)
+    if restart is not None:
+        collective(comm, lambda: _check_restart(restart, model, scene, restart_path))
+    solver, ts = _solver(scene, model, comm)
+    check_solver_options(PETSc.Options())
+    if helping:                  # PETSc printed its own options as its solvers read them
+        return 0
+    if not quiet and comm.getRank() == 0:
+        lines = [f"set {line}" for line in model.set_lines()]
+        lines += [f"note: {n}" for n in scene.notes + ([solver.merit_note] if solver.merit_note else [])]
+        print("\n".join(lines), file=sys.stderr)
+    attrs = run_attributes(model, scene_file, solver)
+    stage.pop()
+    writer = Writer(out, model.space, model.points, model.tets, attrs, resume=restart, kernels=model.kernels,
+                    region=model.space.cell_values(REGION_LABEL))
+    if ts is not None:
+        integ = GeneralizedAlpha(scene, model.system, solver, writer, model.x0, model.v0, ts, checkpoint=restart,
+                                 quiet=quiet)
+    else:
+        integ = BackwardEuler(scene, model.system, solver, writer, model.x0, model.v0, checkpoint=restart,
+                              quiet=quiet)
+    _integrate(integ, writer, comm)
+    if not quiet and comm.getRank() == 0:
+        print(f"wrote {out} ({integ.step} steps, {writer.nframes} frames)", file=sys.stderr)
+        advice = solver.advice()
+        if advice:
+            print(f"note: {advice}", file=sys.stderr)
+    return 0
+
+
+def _solver(scene, model, comm):
+    """(Solver, PETSc TS or None) of the scene: under -integrator ts the TS's own SNES."""
+    ts = make_ts(comm) if scene.integrator == "ts" else None
+    solver = Solver(model.system, scene.jacobian, scene.assembly, guard=scene.inversion_guard,
+                    objective=scene.objective and ts is None, snes=ts.getSNES() if ts else None,
+                    reuse_pc=scene.reuse_preconditioner, storage=scene.operator_storage)
+    if ts is not None:
+        ts.setFromOptions()      # (again when the integrator is set up) so that its options count as used
+        check_energy_momentum(ts, scene)
+    return solver, ts
+
+
+def _integrate(integ, writer, comm):
+    """Run the integrator with SIGINT/SIGTERM honoured at the next frame; the file is closed whatever
+    happens, kept when the run ended or stopped on request with a checkpoint."""
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, lambda signum, frame: integ.request_stop(signum))
+    ended = False
+    try:
+        integ.run()
+        ended = True
+    except Interrupted:
+        ended = True          # stopped on request with a checkpoint: keep it, even before a first step
+        raise
+    finally:
+        writer.set_attr("steps_completed", integ.step)
+        writer.set_attr("peak_rss_mb", peak_rss_mb(comm))
+        writer.close(keep=ended)
+
+
+def _check_restart(state, model, scene, path):
+    """The checkpoint fits the run it continues: the same mesh, and time left before -final_time."""
+    if len(state["x"]) != len(model.points):
+        raise UserError(f"--restart '{path}': the checkpoint has {len(state['x'])} vertices, the mesh of this run "
+                        f"{len(model.points)} (a restart continues on the mesh it was written with)")
+    if state["t"] >= scene.final_time * (1 - 1e-12):
+        raise UserError(f"--restart '{path}': the checkpoint is at t = {state['t']:g}, the end of the run "
+                        f"(-final_time {scene.final_time:g}); give a later -final_time to continue")
+
+
+def peak_rss_mb(comm):
+    """Peak resident memory [MB] of the most loaded rank so far (getrusage: KiB on Linux)."""
+    kib = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    return comm.tompi4py().allreduce(kib, op=MPI.MAX) / 1024.0
