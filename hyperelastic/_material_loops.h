@@ -2,8 +2,8 @@
  *   #include "materials/NAME.h"
  *   #define MATERIAL NAME
  *   #include "_material_loops.h"
- * which defines he_forces_NAME, he_energy_NAME, he_kv_NAME, he_tangent_NAME, he_tangent_diag_NAME
- * (bound by name in kernels.py) from NAME_stress, NAME_prepare, NAME_dstress and NAME_cache; where the
+ * which defines he_forces_NAME, he_energy_NAME, he_kv_NAME, he_tangent_NAME, he_tangent_diag_NAME and
+ * he_forces_dg_NAME (bound by name in kernels.py) from NAME_stress, NAME_prepare, NAME_dstress and NAME_cache; where the
  * header defines NAME_BATCH_J 1, the force, energy and K v loops use NAME_stress_j and NAME_prepare_j
  * (from F, 1/J, ln J); where it defines NAME_CELL_TANGENT 1, the tangent loops take the cell's 12x12
  * block and its diagonal from NAME_cell_tangent and NAME_cell_tangent_diag instead of twelve NAME_dstress.

@@ -16,6 +16,12 @@ import traceback
 
 from .errors import ArgParser, Interrupted, SolveError, UserError
 from .files import read_checkpoint
+from .mesh import generate
+from .plot import render
+
+# petsc4py reads the command line when PETSc is first imported, and mpi4py initializes MPI when imported:
+# every module that imports either (options, catalog, run, study, libpetsc) is imported only where a
+# command needs it, after _petsc for `run`.
 
 EXIT_USER, EXIT_SOLVE, EXIT_INTERNAL = 2, 3, 1
 
@@ -143,7 +149,6 @@ def mesh_cmd(argv):
         raise UserError("hyperelastic mesh: give exactly one of --level N or --size H")
     if a.refine < 0:
         raise UserError(f"hyperelastic mesh: --refine {a.refine} must be >= 0")
-    from .mesh import generate
     st = generate(a.geometry, a.level, a.output, a.size, a.refine)
     for s in (st if a.refine else [st]):
         print(f"{s['file']}: level {a.level or '-'} target edge {s['target_size']:.4g}: {s['vertices']} vertices, "
@@ -157,7 +162,6 @@ def plot_cmd(argv):
     ap.add_argument("-o", "--output", default=None)
     ap.add_argument("--frame", type=int, default=-1)
     a = ap.parse_args(argv)
-    from .plot import render
     out = a.output or os.path.splitext(a.file)[0] + ".png"
     render(a.file, out, a.frame)
     print(out)
@@ -209,7 +213,7 @@ def main(argv=None):
         return 130
     except Exception as e:
         if type(e).__name__ == "Error" and hasattr(e, "ierr"):   # petsc4py.PETSc.Error
-            from .libpetsc import error_message
+            from .libpetsc import error_message     # deferred: imports petsc4py (see run_cmd)
             _error(f"PETSc: {error_message(e.ierr)}")
             return EXIT_USER
         if debug:

@@ -1,6 +1,11 @@
 """The few PETSc C functions petsc4py does not wrap, called through ctypes on the same libpetsc."""
 import ctypes
+import glob
 import os
+
+import numpy as np
+import petsc4py
+from petsc4py import PETSc
 
 _lib = None
 _INT = ctypes.c_int32            # PetscInt of the pip-built PETSc (checked against petsc4py in lib())
@@ -9,15 +14,11 @@ _INT = ctypes.c_int32            # PetscInt of the pip-built PETSc (checked agai
 def lib():
     global _lib
     if _lib is None:
-        import glob
-        import petsc4py
         cfg = petsc4py.get_config()
         d = os.path.join(cfg["PETSC_DIR"], cfg.get("PETSC_ARCH") or "", "lib")
         # the wheel ships libpetsc.so as a stub; the real library is libpetsc.so.X.Y (the largest file)
         path = max(glob.glob(os.path.join(d, "libpetsc.so*")), key=os.path.getsize)
         _lib = ctypes.CDLL(path)
-        import numpy as np
-        from petsc4py import PETSc
         if np.dtype(PETSc.IntType).itemsize != ctypes.sizeof(_INT):
             raise RuntimeError("libpetsc: PetscInt is not 32-bit in this PETSc build (SeqAIJRowIJ assumes it)")
         _lib.SNESSetFunctionDomainError.argtypes = [ctypes.c_void_p]
@@ -53,7 +54,6 @@ class SeqAIJRowIJ:
                                   ctypes.byref(self.ia), ctypes.byref(self.ja), ctypes.byref(self.done))
 
     def __enter__(self):
-        import numpy as np
         if self._call("MatGetRowIJ") or not self.done.value:
             raise RuntimeError("MatGetRowIJ failed")
         n = self.n.value
@@ -76,7 +76,6 @@ class SeqAIJValues:
         self.mat, self.nnz, self.ptr, self.kind = mat, nnz, ctypes.c_void_p(), kind
 
     def __enter__(self):
-        import numpy as np
         err = getattr(lib(), f"MatSeq{self.kind}GetArray")(_handle(self.mat), ctypes.byref(self.ptr))
         if err or not self.ptr.value:
             raise RuntimeError(f"MatSeq{self.kind}GetArray failed ({err})")
@@ -96,7 +95,6 @@ def mpiaij_off_diagonal(mat, columns=True):
     """MatMPIAIJGetSeqAIJ: the raw handle of an MPIAIJ matrix's off-diagonal SeqAIJ part, which belongs to
     `mat` (valid while its pattern is), and with `columns` a copy of its columns' global indices:
     (handle, columns) or the handle alone."""
-    import numpy as np
     ad, ao, colmap = ctypes.c_void_p(), ctypes.c_void_p(), ctypes.c_void_p()
     if lib().MatMPIAIJGetSeqAIJ(ctypes.c_void_p(mat.handle), ctypes.byref(ad), ctypes.byref(ao), ctypes.byref(colmap)):
         raise RuntimeError("MatMPIAIJGetSeqAIJ failed")

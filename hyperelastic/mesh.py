@@ -1,8 +1,11 @@
 """Meshes: gmsh generation of the thesis' bar, reading and checking any tetrahedral mesh meshio
 reads, spatial ordering of cells, and creation + distribution of the DMPlex."""
+import json
 import os
 import sys
+import warnings
 
+import h5py
 import numpy as np
 
 from .errors import UserError
@@ -66,7 +69,7 @@ def generate(name, level, out, size=None, refine=0):
     outs = [out] + [f"{os.path.splitext(out)[0]}_r{i}.msh" for i in range(1, refine + 1)]
     for o in outs:
         check_output_path(o, suffixes=None)
-    import gmsh
+    import gmsh    # deferred on purpose: loading gmsh's library takes ~0.3 s, and only meshing needs it
     gmsh.initialize(["gmsh", "-v", "0"], readConfigFiles=False)
     tmps = []
     try:
@@ -147,8 +150,6 @@ def read_mesh(path, frame=-1):
 def _read_output(path, frame):
     """sets.Mesh of frame `frame` of an output file: its positions become the reference, its regions
     (mesh/region, named as the run's attribute `sets` names them) are kept."""
-    import json
-    import h5py
     with h5py.File(path, "r") as f:
         nf = f["x"].shape[0]
         if nf == 0:
@@ -175,8 +176,7 @@ def _read_meshio(path):
         raise UserError(f"mesh '{path}': no such file")
     if os.path.isdir(path):
         raise UserError(f"mesh '{path}': is a directory")
-    import meshio
-    import warnings
+    import meshio  # deferred on purpose: ~0.2 s to load its format readers, needed only for foreign meshes
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")

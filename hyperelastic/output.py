@@ -10,12 +10,20 @@ The XDMF beside it is a temporal collection of uniform grids on the reference me
 fields as attributes (the layout meshio's TimeSeriesReader and VTK's XDMF reader read; ParaView: Warp By
 Vector with displacement shows the deformed body).
 """
+import json
 import os
+import resource
+import shutil
 
+import h5py
 import numpy as np
+from petsc4py import PETSc
 
+from . import __version__
 from .errors import UserError
+from .fields import cell_fields
 from .files import CHECKPOINT_ATTRS, PARTIAL
+from .options import all_options
 from .stats import column_type
 
 
@@ -26,7 +34,6 @@ def room_for(path, nbytes, extra_files=()):
     """None when `nbytes` more can be written to `path` with ROOM_MARGIN to spare — the disk's free space
     and the process's file size limit (ulimit -f, RLIMIT_FSIZE) — else why not. A write that fails half
     way leaves an HDF5 file unreadable, so the writer asks before every frame and checkpoint."""
-    import resource
     need = int(1.5 * nbytes) + ROOM_MARGIN
     d = os.path.dirname(os.path.abspath(path)) or "."
     st = os.statvfs(d)
@@ -45,10 +52,6 @@ def room_for(path, nbytes, extra_files=()):
 def run_attributes(model, scene_file, solver):
     """The output file's root attributes: the full options database, the scene and what was built
     for it (effects_built: JSON {effect: instances}), versions, the rank count and the partition."""
-    import json
-    from petsc4py import PETSc
-    from . import __version__
-    from .options import all_options
     sc, space = model.scene, model.space
     built = model.system.built()
     return {"options": "\n".join(f"-{k} {v}".rstrip() for k, v in all_options()),
@@ -95,7 +98,6 @@ class Writer:
         self._ensure_room(lambda: 8 * (3 * self.nv + 5 * self.nc) + 65536, "the mesh")
         if not self.root:
             return
-        import h5py
         self.f = f = h5py.File(self.path, "w")
         nv = len(points)
         f.create_dataset("mesh/points", data=np.asarray(points, np.float64))
@@ -114,8 +116,6 @@ class Writer:
         self._ensure_room(lambda: os.path.getsize(self.final), "a copy of the checkpoint's file")
         if not self.root:
             return
-        import shutil
-        import h5py
         shutil.copyfile(self.final, self.path)        # the checkpoint's file stays as it is until _commit
         self.f = f = h5py.File(self.path, "r+")
         self.nv, self.nc = f["mesh/points"].shape[0], f["mesh/tetra"].shape[0]
@@ -168,7 +168,6 @@ class Writer:
 
     def frame(self, t, x_local, v_local=None):
         """Frame at time t: positions x, velocities v (local arrays) and the fields (fields.py). Collective."""
-        from .fields import cell_fields
         full = self.space.gather(x_local)
         vel = self.space.gather(v_local) if v_local is not None else None
         cells = {}

@@ -1,8 +1,13 @@
 """PNG of one frame of an output file: the deformed boundary surface, coloured by displacement,
 over the reference shape's outline."""
+import os
+
+import h5py
 import numpy as np
 
 from .errors import UserError
+from .figures import pyplot
+from .files import missing_datasets
 
 
 def boundary_faces(tets):
@@ -13,11 +18,7 @@ def boundary_faces(tets):
 
 
 def render(path, out, frame=-1):
-    import h5py
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    import os
+    plt = pyplot()
     if not os.path.isfile(path):
         raise UserError(f"plot: '{path}' " + ("is not a regular file" if os.path.exists(path) else "does not exist"))
     if not out.lower().endswith(".png") or os.path.isdir(out):
@@ -27,7 +28,6 @@ def render(path, out, frame=-1):
     except OSError as e:
         raise UserError(f"plot: cannot open '{path}' as HDF5 ({str(e).split('(')[0].strip()})") from None
     with f:
-        from .files import missing_datasets
         missing = missing_datasets(f)
         if missing:
             raise UserError(f"plot: '{path}' is not an output of hyperelastic (no {', '.join(missing)})")
@@ -60,8 +60,8 @@ def render(path, out, frame=-1):
 def draw(ax, X, x, tri, norm):
     """Boundary triangles `tri` of the deformed shape x (coloured by |x - X| with `norm`) over the
     reference shape X in grey, on a 3-D axis with equal aspect."""
-    import matplotlib.pyplot as plt
-    from mpl_toolkits.mplot3d.art3d import Poly3DCollection
+    plt = pyplot()
+    from mpl_toolkits.mplot3d.art3d import Poly3DCollection    # (matplotlib: deferred, see figures.py)
     val = np.linalg.norm(x - X, axis=1)[tri].mean(axis=1)
     ref = Poly3DCollection(X[tri], facecolors=(0.5, 0.5, 0.5, 0.06), edgecolor=(0.3, 0.3, 0.3, 0.08), linewidths=0.2)
     ax.add_collection3d(ref)

@@ -14,11 +14,10 @@ DEFAULT_MATERIAL = "stvk"
 DEFAULT_EFFECTS = effects_pkg.DEFAULT
 EFFECTS = effects_pkg.NAMES
 # How effects switch on (stated in -help and the README, catalog.py):
-EFFECTS_RULE = ("without `-effects`, an effect's main option switches it on (`-gravity` adds gravity); a "
-                "`-effects` list names exactly the effects built (elasticity always): on the command line it "
-                "overrides the scene file, whose options for effects it does not list are ignored (named in a "
-                "note), and an option on the command line for an effect it does not list is an error; a scene "
-                "file's own list must agree with its options, and command-line options add their effects to it")
+EFFECTS_RULE = ("an effect is on when `-effects` lists it or one of its main options is given (`-gravity` adds "
+                "gravity; elasticity is always on); a `-effects` on the command line replaces the scene file's "
+                "effects: the scene file's options for effects that are not on otherwise are then ignored, and "
+                "a note names them")
 
 
 @dataclass
@@ -200,29 +199,19 @@ def _read_solver(s, opts):
 
 def read_effects(s, opts, from_scene=frozenset()):
     """{name: parameters} of the effects the scene calls for, by EFFECTS_RULE: those -effects lists (or
-    the defaults), and those an option switches on; each effect's parameters read by its spec. Options of
-    effects not switched on are an error where they contradict the list, ignored with a note where a
-    command-line -effects overrides the scene file."""
+    the defaults), and those an option switches on; each effect's parameters read by its spec. With a
+    command-line -effects, the scene file's own options switch nothing on (they are ignored, with a note)."""
     where = f"scene '{s.name}'"
     listed = opts.names("effects", ",".join(DEFAULT_EFFECTS))
     for e in listed:
         if e not in EFFECTS:
             raise UserError(f"{where}: unknown effect '{e}' (known: {', '.join(EFFECTS)})")
     names = list(dict.fromkeys(listed))
-    explicit, list_in_scene = opts.has("effects"), "effects" in from_scene
+    override = opts.has("effects") and "effects" not in from_scene     # the command line's list
     for spec in effects_pkg.REGISTRY:
-        given = [k for k in spec.implied_by if opts.has(k)]
-        if spec.name in names or not given:
-            continue
-        own_line = [k for k in given if k not in from_scene]
-        if not explicit or (list_in_scene and own_line):
+        given = [k for k in spec.implied_by if opts.has(k) and not (override and k in from_scene)]
+        if spec.name not in names and given:
             names.append(spec.name)
-        elif not list_in_scene and own_line:
-            raise UserError(f"option -{own_line[0]}: switches on effect '{spec.name}', which -effects "
-                            f"{opts.string('effects')} does not list (add it to the list, or drop the option)")
-        elif list_in_scene:
-            raise UserError(f"{where}: option -{given[0]} switches on effect '{spec.name}', which the scene's "
-                            f"-effects {opts.string('effects')} does not list")
     if "elasticity" not in names:
         names.insert(0, "elasticity")
     out = {}
@@ -233,32 +222,28 @@ def read_effects(s, opts, from_scene=frozenset()):
         params = spec.parameters(opts, where)
         if spec.is_active(params):     # a parameter may switch the effect off (e.g. -damping 0)
             out[name] = params
-    _unused_effect_options(s, opts, names, from_scene)
+    _unused_effect_options(s, opts, names, from_scene if override else ())
     return out
 
 
-def _unused_effect_options(s, opts, names, from_scene):
-    """Options of effects the scene does not call for: under a command-line -effects, the scene file's are
-    ignored (a note names them); any other is an error."""
+def _unused_effect_options(s, opts, names, overridden):
+    """Options of effects the scene does not call for: the scene file's under a command-line -effects
+    (`overridden`) are ignored, and a note names them; any other is an error (e.g. -traction_face
+    without -traction)."""
     ignored = []
+    on = {k for n in names for r in effects_pkg.SPECS[n].rows for k in r.names} | _shared_with(names)
     for spec in effects_pkg.REGISTRY:
-        if spec.name in names:
-            continue
-        for row in spec.rows:
-            for key in row.names:
-                if "_" in key and key.split("_", 1)[0] in ("LOAD", "REGION") or not opts.has(key):
-                    continue
-                if any(key in r.names for sp in effects_pkg.REGISTRY if sp.name in names for r in sp.rows) \
-                        or key in _shared_with(names):
-                    continue
-                if key in from_scene and opts.has("effects") and "effects" not in from_scene:
-                    ignored.append(f"-{key}")
-                    continue
-                raise UserError(f"option -{key}: an option of effect '{spec.name}', which scene '{s.name}' does "
-                                f"not switch on (-effects {opts.string('effects', ','.join(DEFAULT_EFFECTS))})")
+        for key in (k for r in spec.rows for k in r.names):
+            if spec.name in names or key in on or key.startswith(("LOAD_", "REGION_")) or not opts.has(key):
+                continue
+            if key in overridden:
+                ignored.append(f"-{key}")
+                continue
+            raise UserError(f"option -{key}: an option of effect '{spec.name}', which scene '{s.name}' does not "
+                            f"switch on (give its main option, or list it in -effects)")
     if ignored:
-        s.notes.append(f"-effects {opts.string('effects')} (command line) overrides the scene file: ignored its "
-                       + " ".join(ignored))
+        s.notes.append(f"-effects {opts.string('effects')} on the command line replaces the scene file's effects: "
+                       "ignored its " + " ".join(ignored))
 
 
 def _shared_with(names):

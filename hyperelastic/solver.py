@@ -6,6 +6,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from . import jacobians
+from .errors import UserError
 from .libpetsc import lag_preconditioner, lag_preconditioner_persists, set_function_domain_error
 
 MERITS = ("energy", "residual norm")
@@ -35,7 +36,6 @@ def resolve_storage(storage, system, jacobian, assembly, mf):
     Krylov method sees of it, so it must be symmetric, assembled (by setvalues), and the operator SNES
     multiplies by (not MFFD's). `auto` (default): sbaij where it applies, else aij; an explicit sbaij
     where it does not is an error."""
-    from .errors import UserError
     if storage == "aij":
         return storage
     if storage == "auto":

@@ -14,14 +14,18 @@ import sys
 import time
 from dataclasses import asdict, dataclass
 
+import h5py
 import numpy as np
 
 from . import stats
 from .experiments import table
 from .experiments.recipes import MODES as JACOBIAN_MODES
 from .experiments.runner import last_line, parallel_map, run_hyperelastic
+from .figures import pyplot
 from .materials import REGISTRY
+from .mesh import generate
 from .sets import signed_volumes
+from .space import reference_geometry
 
 USAGE = """The hard-case matrix (issue 5): run every cell as `python -m hyperelastic run`, then write
 OUT/stability.csv, OUT/stability.md (table, properties, locking) and OUT/stability.png (outcome heatmap).
@@ -110,14 +114,12 @@ def sliver_mesh(out_dir):
     """The sliver-tetrahedra mesh (meshes/sliver_bar.geo), generated once into out_dir."""
     path = os.path.join(out_dir, "sliver_bar.msh")
     if not os.path.exists(path):
-        from .mesh import generate
         generate("sliver_bar", 1, path)
     return path
 
 
 def _strain(X, x, tets):
     """max over cells of |F^T F - I| (entrywise), F = Ds Dm^-1 from reference X to current x."""
-    from .space import reference_geometry   # (space imports petsc4py: only when needed)
     Dminv, _ = reference_geometry(X, tets)
     d = np.stack([x[tets[:, a]] - x[tets[:, 0]] for a in (1, 2, 3)], axis=-1)
     F = d @ Dminv
@@ -126,7 +128,6 @@ def _strain(X, x, tets):
 
 def analyse(cell, path, rc, stderr, wall):
     """One row of the matrix from a finished (or failed) run."""
-    import h5py
     row = asdict(cell) | {"id": cell.id, "rc": rc, "wall_s": round(wall, 2), "message": ""}
     if rc != 0:
         row["message"] = last_line(stderr, rc)
@@ -283,11 +284,8 @@ def write_csv(rows, path):
 
 
 def heatmap(rows, path):
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    import numpy as np
-    from matplotlib.colors import ListedColormap
+    plt = pyplot()
+    from matplotlib.colors import ListedColormap    # (matplotlib: deferred, see figures.py)
 
     def label(r):   # a heatmap row: scene and mode, with the axis values when off the base point
         if r["E"] == "1e6" and r["nu"] == 0.3 and r["h"] == 1e-2:

@@ -20,8 +20,6 @@ import ctypes
 import math
 import time
 
-import numpy as np
-from mpi4py import MPI
 from petsc4py import PETSc
 
 from .errors import UserError
@@ -188,8 +186,7 @@ class GeneralizedAlpha(Integrator):
 
     def _step(self, h):
         """One TSStep of (at most) size h: a stats row per attempt; the state moves to its end."""
-        sc, sysm, sp = self.scene, self.system, self.sp
-        ts = self.ts
+        sysm, ts = self.system, self.ts
         ts.setTimeStep(h)
         self.attempts = []
         self.c_last, self.w_last = self._counters(), time.perf_counter()
@@ -202,30 +199,9 @@ class GeneralizedAlpha(Integrator):
         errors = [a["error"] for a in self.attempts if "error" in a]
         if errors:
             raise errors[0]
-        failed = ts.getConvergedReason() < 0
-        startup = [a for a in self.attempts if a["startup"]]
-        tries = [a for a in self.attempts if not a["startup"]]
-        for a in startup:                     # the starting half steps are part of the step that follows
-            if tries:
-                for k, v in a.items():
-                    if k not in ("dt", "stage_time", "startup", "snes_reason", "why") and k in tries[0]:
-                        tries[0][k] += v
-        rows = []
-        for i, a in enumerate(tries):
-            accepted = i == len(tries) - 1 and not failed
-            row = {k: v for k, v in a.items() if k not in ("stage_time", "startup", "why")}
-            if "error_estimate" in a and not accepted and "why" not in a:
-                a["why"] = f"the error estimate {a['error_estimate']:.3g} exceeds 1 (TS adaptor)"
-            row.update({"step": self.step + 1, "time": t0 + a["dt"], "rejected": 0 if accepted else 1})
-            rows.append((row, a.get("why", "the error estimate exceeds the tolerance (TS adaptor)")))
-        if failed or not rows:
-            for row, why in rows:
-                self._write_stats(row)
-            self.rejections += len(rows)
-            reason = ts.getConvergedReason()
-            why = rows[-1][1] if rows else startup[-1].get("why", "?") + " (starting half step)" if startup else "?"
-            self._fail(f"step {self.step + 1} (t={t0:.6g}, h={h:.3g})",
-                       f"TS {enum_name(PETSc.TS.ConvergedReason, reason)} after {len(rows)} attempts; last: {why}")
+        rows, startup = self._attempt_rows(t0)
+        if ts.getConvergedReason() < 0 or not rows:
+            self._fail_step(rows, startup, t0, h)
         for row, why in rows[:-1]:
             self._say(f"t={t0:.4g}: step of h={row['dt']:.3g} rejected: {why}")
             self._write_stats(row)
@@ -248,6 +224,37 @@ class GeneralizedAlpha(Integrator):
         self.step += 1
         self._next_h(len(rows) > 1, row["dt_next"], h)
         return row
+
+    def _attempt_rows(self, t0):
+        """([(stats row, why rejected)] of the step's attempts, the last one accepted unless the step
+        failed; the starting half steps' attempts, whose counts go into the first row)."""
+        failed = self.ts.getConvergedReason() < 0
+        startup = [a for a in self.attempts if a["startup"]]
+        tries = [a for a in self.attempts if not a["startup"]]
+        for a in startup:                     # the starting half steps are part of the step that follows
+            if tries:
+                for k, v in a.items():
+                    if k not in ("dt", "stage_time", "startup", "snes_reason", "why") and k in tries[0]:
+                        tries[0][k] += v
+        rows = []
+        for i, a in enumerate(tries):
+            accepted = i == len(tries) - 1 and not failed
+            row = {k: v for k, v in a.items() if k not in ("stage_time", "startup", "why")}
+            if "error_estimate" in a and not accepted and "why" not in a:
+                a["why"] = f"the error estimate {a['error_estimate']:.3g} exceeds 1 (TS adaptor)"
+            row.update({"step": self.step + 1, "time": t0 + a["dt"], "rejected": 0 if accepted else 1})
+            rows.append((row, a.get("why", "the error estimate exceeds the tolerance (TS adaptor)")))
+        return rows, startup
+
+    def _fail_step(self, rows, startup, t0, h):
+        """A step TS could not complete: its attempts' rows, then the one-line SolveError."""
+        for row, why in rows:
+            self._write_stats(row)
+        self.rejections += len(rows)
+        reason = self.ts.getConvergedReason()
+        why = rows[-1][1] if rows else startup[-1].get("why", "?") + " (starting half step)" if startup else "?"
+        self._fail(f"step {self.step + 1} (t={t0:.6g}, h={h:.3g})",
+                   f"TS {enum_name(PETSc.TS.ConvergedReason, reason)} after {len(rows)} attempts; last: {why}")
 
     def _next_h(self, rejected, proposed, h):
         """The next step's size: the adaptor's proposal; without an adaptor -dt, or after rejections the

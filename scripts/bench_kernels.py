@@ -77,8 +77,7 @@ def bench(mesh_arg, material, reps):
     t_sysres = best(lambda: sysm.residual(X, R), reps)
     sysm.linearize(X)
     fills = {}
-    for name, op in (("coo", jacobians.Assembled(sysm)), ("setvalues", jacobians.AssembledChunked(sysm, direct=False)),
-                     ("direct", jacobians.AssembledChunked(sysm))):
+    for name, op in (("coo", jacobians.Assembled(sysm)), ("setvalues", jacobians.AssembledChunked(sysm))):
         op.assemble()                                   # the pattern (and the direct map) once
         fills[name] = best(lambda: op.assemble(), max(2, reps // 3))
         actx = op
@@ -94,7 +93,7 @@ def bench(mesh_arg, material, reps):
     return {"tets": nc, "vertices": sp.nlv, "setup_s": setup_s,
             "residual_Mtets_s": nc / t_res / 1e6, "numpy_residual_Mtets_s": nc / t_np / 1e6, "kv_Mtets_s": nc / t_kv / 1e6, "tangent_Mtets_s": nc / t_tan / 1e6,
             "system_residual_ms": 1e3 * t_sysres, "shell_mult_ms": 1e3 * t_shell, "coo_assemble_ms": 1e3 * t_coo,
-            "setvalues_fill_ms": 1e3 * fills["setvalues"], "direct_fill_ms": 1e3 * fills["direct"],
+            "setvalues_fill_ms": 1e3 * fills["setvalues"],
             "matmult_ms": 1e3 * t_mult, "mffd_over_matmult": t_sysres / t_mult,
             "peak_rss_MB": peak_mb}
 
@@ -114,7 +113,7 @@ def main():
     for n in (a.tets or []) + ([700000] if a.full else []):
         meshes.append((f"~{n // 1000}k", cached_bar(size=round(size_for_tets(n), 4))))
     cols = ["mesh", "tets", "numpy_residual_Mtets_s", "residual_Mtets_s", "kv_Mtets_s", "tangent_Mtets_s", "system_residual_ms",
-            "shell_mult_ms", "coo_assemble_ms", "setvalues_fill_ms", "direct_fill_ms", "matmult_ms", "mffd_over_matmult", "peak_rss_MB"]
+            "shell_mult_ms", "coo_assemble_ms", "setvalues_fill_ms", "matmult_ms", "mffd_over_matmult", "peak_rss_MB"]
     print(f"# material {a.material}, one process; M tets/s = million tetrahedra per second (best of {a.reps})")
     print(" | ".join(cols))
     rows = []

@@ -52,7 +52,7 @@ def main(scene):
         y2.axpy(-1.0, y1)
         assert y2.norm(PETSc.NormType.INFINITY) <= 1e-13 * y1.norm(PETSc.NormType.INFINITY)
     assert sb is None or sb.operator.getType() == "mpisbaij"
-    boundary = space.mpi.allreduce(len(a.boundary))
+    boundary = space.mpi.allreduce(len(a.map.boundary))
     if space.mpi.rank == 0:
         print(f"ok {scene}: {int(info['nz_used'])} entries, {boundary} boundary cells")
 

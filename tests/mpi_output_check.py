@@ -4,7 +4,12 @@ next step's first collective call, where -log_view would charge them to the resi
 import sys
 import time
 
-from hyperelastic import cli, output
+import petsc4py
+
+ARGS = ["-level", "1", "-dt", "0.01", "-final_time", "0.03", "-checkpoint_every", "1", "-quiet"]
+petsc4py.init([sys.argv[0]] + ARGS)    # as cli.main would: output imports petsc4py, which reads its options once
+
+from hyperelastic import cli, output  # noqa: E402
 
 SLOW = 0.3
 
@@ -31,8 +36,7 @@ def main(path):
     output.Writer._flush_stats = slow(output.Writer._flush_stats)   # (rank 0, in each frame and checkpoint)
     output.Writer.frame = timed(output.Writer.frame, spent)
     output.Writer.checkpoint = timed(output.Writer.checkpoint, spent)
-    rc = cli.main(["run", "bend", "-level", "1", "-dt", "0.01", "-final_time", "0.03", "-checkpoint_every", "1",
-                   "-output", path, "-quiet"])
+    rc = cli.main(["run", "bend", *ARGS, "-output", path])
     assert rc == 0, rc
     from mpi4py import MPI
     comm = MPI.COMM_WORLD

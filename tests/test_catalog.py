@@ -58,7 +58,7 @@ def test_help_lists_every_option_and_runs_nothing(tmp_path):
             assert f"-{name}" in p.stdout, name
     assert "<1e+06, 0.3, 1000>" in p.stdout and "<stvk>" in p.stdout
     from hyperelastic.scene import EFFECTS_RULE
-    assert "an effect's main option switches it on" in EFFECTS_RULE and EFFECTS_RULE.replace("`", "")[:40] in " ".join(p.stdout.split())
+    assert "replaces the scene file's effects" in EFFECTS_RULE and EFFECTS_RULE.replace("`", "")[:40] in " ".join(p.stdout.split())
     out = tmp_path / "o.h5"
     p = run_ok(["run", "bend", "-help", "-dt", "0.02", "-output", out])
     assert "<dt=0.02>" in p.stdout                       # the scene's value, not the default

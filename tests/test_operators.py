@@ -187,7 +187,7 @@ def test_sbaij_operator_is_the_assembled_tangent(petsc, scene_name):
     from hyperelastic.solver import Solver
     scene, space, system, X = state(petsc, scene_name)
     a = jacobians.AssembledChunked(system, storage="sbaij")
-    assert a.operator.getType() == "seqsbaij" and a.sb_o is None
+    assert a.operator.getType() == "seqsbaij" and a.copy.sb_o is None
     rng = np.random.default_rng(3)
     for k in range(2):
         if k:

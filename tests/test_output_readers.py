@@ -52,7 +52,7 @@ def test_cell_fields_match_the_material(bend_out):
     Dm = np.stack([X[T[:, i]] - X[T[:, 0]] for i in (1, 2, 3)], axis=-1)
     Ds = np.stack([x[T[:, i]] - x[T[:, 0]] for i in (1, 2, 3)], axis=-1)
     lam, mu = lame(1e6, 0.3)
-    assert np.allclose(psi, get("stvk").psi(Ds @ np.linalg.inv(Dm), mu, lam), rtol=1e-10, atol=0)
+    assert np.allclose(psi, get("stvk").psi(Ds @ np.linalg.inv(Dm), (mu, lam)), rtol=1e-10, atol=0)
 
 
 VTK_SCRIPT = r"""

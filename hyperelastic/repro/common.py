@@ -13,13 +13,19 @@ Test vector families (thesis sec. 7.1):
       nearly the constant sigma (1, 1, ..., 1), a rigid translation, which k does not see
 """
 import os
-import sys
 
+import argparse
+
+import h5py
 import numpy as np
+from petsc4py import PETSc
 
+from .. import materials
 from ..experiments import table
 from ..experiments.runner import command, run_hyperelastic
 from ..jacobians import PetscMFFD, seed_difference
+from ..kernels import CellKernels
+from ..space import reference_geometry
 
 FAMILIES = ("e", "r", "t", "tw")
 FAMILY_LABELS = {"e": "unit e", "r": "N(0,1) r", "t": "real t = mu + sigma randn",
@@ -33,9 +39,6 @@ THESIS_MATERIALS = ("linear", "stvk")
 
 
 def petsc():
-    import petsc4py
-    petsc4py.init([sys.argv[0]])
-    from petsc4py import PETSc
     return PETSc
 
 
@@ -56,7 +59,6 @@ def simulate_state(out_dir, level=1, final_time=0.2, scene="squeeze", extra=()):
         os.replace(tmp, path)
         if os.path.exists(tmp[:-3] + ".xdmf"):          # the XDMF index of the temporary name
             os.remove(tmp[:-3] + ".xdmf")
-    import h5py
     with h5py.File(path, "r") as f:
         return f["mesh/points"][:], f["mesh/tetra"][:], f["x"][-1], float(f["time"][-1])
 
@@ -67,8 +69,6 @@ class Bench:
     The material is switched with set_material; k(x) and the MFFD base point are refreshed then."""
 
     def __init__(self, points, tets, x, rho=1000.0):
-        from ..kernels import CellKernels
-        from ..space import reference_geometry
         self.X = np.ascontiguousarray(points, dtype=np.float64)
         self.x = np.ascontiguousarray(x, dtype=np.float64).ravel().copy()
         self.n = self.x.size
@@ -82,7 +82,6 @@ class Bench:
         self.k0 = None
 
     def set_material(self, name, E, nu):
-        from .. import materials
         solid = materials.default_solid(name, E, nu)
         self.kern.set_material(solid.name, solid.constants)
         self.material, self.E, self.nu = name, E, nu
@@ -210,13 +209,6 @@ def read_csv(path):
     return table.read_csv(path)
 
 
-def pyplot():
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    return plt
-
-
 def outdir(path):
     os.makedirs(path, exist_ok=True)
     return path
@@ -224,7 +216,6 @@ def outdir(path):
 
 def parser(description, **extra):
     """The command line every reproduction script shares: OUTPUT_DIR, --full, --seed and friends."""
-    import argparse
     ap = argparse.ArgumentParser(description=description)
     ap.add_argument("output_dir", help="folder for the CSV and PNG files (created if missing)")
     ap.add_argument("--full", action="store_true", help="the thesis' grid (minutes) instead of the quick default")

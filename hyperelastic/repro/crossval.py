@@ -12,8 +12,9 @@ import os
 
 import numpy as np
 
+from ..figures import pyplot
 from .common import (FAMILIES, FAMILY_LABELS, OP_LABELS, OPERATORS, THESIS_MATERIALS, D_INF, Bench,
-                     delta, largest_feasible, measure, outdir, pyplot, rel_J, rel_K, simulate_state,
+                     delta, largest_feasible, measure, outdir, rel_J, rel_K, simulate_state,
                      write_csv)
 
 PARAM_LABELS = {"E": "Young's modulus E [Pa]", "nu": "Poisson's ratio nu", "L": "mesh level L"}

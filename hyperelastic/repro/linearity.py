@@ -8,7 +8,8 @@ import os
 
 import numpy as np
 
-from .common import FAMILY_LABELS, Bench, outdir, pyplot, simulate_state, write_csv
+from ..figures import pyplot
+from .common import FAMILY_LABELS, Bench, outdir, simulate_state, write_csv
 
 
 def lls_line(x, Y):

@@ -6,12 +6,15 @@ line and the frames it wrote, never dropped.
 """
 import os
 
+import h5py
 import numpy as np
 
 from .. import stats
 from ..experiments.recipes import MODES as JACOBIAN_MODES
 from ..experiments.runner import last_line, run_hyperelastic
-from .common import outdir, pyplot, write_csv
+from ..plot import boundary_faces, draw
+from ..figures import pyplot
+from .common import outdir, write_csv
 
 MODES = {m: JACOBIAN_MODES[m] for m in ("assembled", "shell", "snes_mf", "snes_mf_operator", "seed_fd")}
 
@@ -21,7 +24,6 @@ def run(scene, path, args):
     step ends the run as it did there."""
     args = ["-step_control", "0", *args]
     rc, err, wall = run_hyperelastic(["run", scene, "-output", path, "-quiet", *args], path, timeout=None)
-    import h5py
     res = {"exit": rc, "error": last_line(err, rc) if rc else "", "wall_s": wall,
            "command": " ".join(["hyperelastic", "run", scene, *map(str, args)])}
     res.update(x=None, t=float("nan"), newton=0, ksp=0, J_min=float("nan"), steps=0)
@@ -63,7 +65,6 @@ def figure4(out, level, final_time, material, modes=tuple(MODES), solver=()):
 
 
 def _plot_shapes(runs, path, material, level):
-    from ..plot import boundary_faces, draw
     plt = pyplot()
     modes = [m for m in runs if runs[m]["x"] is not None]
     fig = plt.figure(figsize=(3.6 * len(modes), 3.8))

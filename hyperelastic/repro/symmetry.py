@@ -8,7 +8,8 @@ import os
 
 import numpy as np
 
-from .common import (FAMILIES, OP_LABELS, Bench, outdir, pyplot, simulate_state, write_csv)
+from ..figures import pyplot
+from .common import (FAMILIES, OP_LABELS, Bench, outdir, simulate_state, write_csv)
 
 STEPS = (1e-2, 1e-3, 1e-5)
 OPS = ("seed_fd", "mffd_wp", "mffd_ds", "exact")

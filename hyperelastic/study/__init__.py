@@ -1,6 +1,7 @@
 """What accuracy costs in time: `hyperelastic study accuracy` and `hyperelastic study refinement`.
 
-Accuracy versus time. Each sweep point is a real `python -m hyperelastic run` (sweep.py) of one
+Accuracy versus time. Each sweep point is a real `python -m hyperelastic run` (measure.py, through
+experiments/runner.py) of one
 *configuration* (scene, material, E, mesh level) with one *setting* (Jacobian mode, PC, Newton and
 Krylov tolerances, time step h). Its error is measured against the configuration's *reference*: the
 same scene and mesh run with h = h_min / REF_FACTOR (h_min the smallest h swept), the tightest
@@ -32,16 +33,18 @@ against the finest level, observed convergence order (least-squares slope of log
 edge length) and time per load step vs tets.
 """
 import os
+import shlex
 import sys
 import time
 
 from ..errors import ArgParser, UserError
+from ..files import writable_dir
+from . import measure, part, plan, refinement, report
 
 STUDIES = ("accuracy", "refinement")
 
 
-def main(argv):
-    """`hyperelastic study accuracy|refinement [-output_dir DIR] [--full] [--jobs N] ...`"""
+def _parser():
     ap = ArgParser(prog="hyperelastic study", description="What accuracy costs in time.")
     ap.add_argument("which", choices=STUDIES)
     ap.add_argument("-output_dir", "--output-dir", dest="output_dir", default=None)
@@ -56,7 +59,10 @@ def main(argv):
     ap.add_argument("--watch", default="max_displacement", help="refinement --part: the quantity, one of "
                     "max_displacement, point:X,Y,Z, elastic_energy")
     ap.add_argument("--run-args", default="", help="refinement --part: more options for every run (quoted)")
-    a = ap.parse_args(argv)
+    return ap
+
+
+def _check(a):
     part_opts = [o for o in ("scene", "size") if getattr(a, o) is not None]
     if a.part is None and part_opts:
         raise UserError(f"hyperelastic study: --{part_opts[0]} belongs to refinement --part PART")
@@ -66,8 +72,13 @@ def main(argv):
         raise UserError(f"hyperelastic study: --size {a.size} must be a positive number")
     if a.jobs < 1:
         raise UserError("hyperelastic study: --jobs must be >= 1")
+
+
+def main(argv):
+    """`hyperelastic study accuracy|refinement [-output_dir DIR] [--full] [--jobs N] ...`"""
+    a = _parser().parse_args(argv)
+    _check(a)
     out = a.output_dir or os.path.join("output", f"study_{a.which}")
-    from ..files import writable_dir
     writable_dir(out, "-output_dir")
     command = "hyperelastic study " + " ".join(argv)
     t0 = time.perf_counter()
@@ -77,30 +88,24 @@ def main(argv):
         extra = f": {r['message']}" if r["outcome"] == "failed" else ""
         print(f"[{time.perf_counter() - t0:6.1f} s] {what} {r['outcome']}{extra}", file=sys.stderr, flush=True)
     if a.which == "accuracy":
-        from .measure import accuracy, read_csv, write_csv
-        from .plan import plan
-        from .report import figures, report
         if a.from_csv:
             path = os.path.join(out, "accuracy.csv")
             if not os.path.isfile(path):
                 raise UserError(f"--from-csv: no {path}")
-            rows, p = read_csv(path), plan(a.full)
+            rows, p = measure.read_csv(path), plan.plan(a.full)
         else:
-            rows, p = accuracy(out, a.full, a.jobs, log)
-            write_csv(rows, os.path.join(out, "accuracy.csv"))
-        figures(rows, out)
-        report(rows, p, out, command)
+            rows, p = measure.accuracy(out, a.full, a.jobs, log)
+            measure.write_csv(rows, os.path.join(out, "accuracy.csv"))
+        report.figures(rows, out)
+        report.report(rows, p, out, command)
         print(os.path.join(out, "accuracy.md"))
     elif a.part is not None:
-        import shlex
-        from .part import part_refinement, part_report
-        rows = part_refinement(a.part, a.scene, a.watch, a.size, a.refine, out, a.jobs,
+        rows = part.part_refinement(a.part, a.scene, a.watch, a.size, a.refine, out, a.jobs,
                                shlex.split(a.run_args), log=log)
-        part_report(rows, out, command, a.part, a.scene, a.watch)
+        part.part_report(rows, out, command, a.part, a.scene, a.watch)
         print(os.path.join(out, "refinement.md"))
     else:
-        from .refinement import refinement, refinement_report
-        rows = refinement(out, a.full, a.jobs, a.budget, log=log)
-        refinement_report(rows, out, command)
+        rows = refinement.refinement(out, a.full, a.jobs, a.budget, log=log)
+        refinement.refinement_report(rows, out, command)
         print(os.path.join(out, "refinement.md"))
     return 0

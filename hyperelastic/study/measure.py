@@ -4,11 +4,13 @@ import math
 import os
 from dataclasses import asdict, replace
 
+import h5py
 import numpy as np
 
 from .. import stats
 from ..experiments.runner import last_line, parallel_map, run_hyperelastic
 from ..experiments.table import read_csv as _read_table, write_csv as _write_table
+from ..mesh import interpolate, locate
 from .plan import MATERIAL_POINTS, plan, with_references
 
 def launch(run, out_dir, timeout=1800):
@@ -28,7 +30,6 @@ def launch(run, out_dir, timeout=1800):
 
 
 def read_cost(path):
-    import h5py
     if not os.path.exists(path):
         return {}
     try:
@@ -51,7 +52,6 @@ def read_cost(path):
 
 def trajectory(path):
     """(times, frames (F,nv,3), reference points, tets, total energy at the accepted steps' ends)."""
-    import h5py
     with h5py.File(path, "r") as f:
         tot = stats.total_energy(stats.read(f))
         return f["time"][:], f["x"][:], f["mesh/points"][:], f["mesh/tetra"][:], tot
@@ -77,7 +77,6 @@ def errors(path, ref_path):
 
 def at_points(path, P=MATERIAL_POINTS):
     """Displacement (k,3) at material points P in the last frame of a run."""
-    from ..mesh import interpolate, locate
     _, x, X, tets, _ = trajectory(path)
     cells, w = locate(X, tets, P)
     return interpolate(tets, cells, w, x[-1] - X)

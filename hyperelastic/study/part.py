@@ -8,11 +8,15 @@ changes; Roache, "Verification and Validation in Computational Science", 1998, c
 import math
 import os
 
+import h5py
 import numpy as np
 
+from .. import stats
 from ..errors import UserError
 from ..experiments.runner import last_line, parallel_map, run_hyperelastic
 from ..experiments.table import write_csv
+from ..figures import pyplot
+from ..mesh import generate, interpolate, locate
 from ..stability import fmt
 from .measure import read_cost, slope
 
@@ -37,9 +41,6 @@ def parse_watch(spec):
 
 def watched(path, kind, point):
     """The watched quantity of a finished run (last frame / last step)."""
-    import h5py
-    from .. import stats
-    from ..mesh import interpolate, locate
     with h5py.File(path, "r") as f:
         x, X, tets = f["x"][-1], f["mesh/points"][:], f["mesh/tetra"][:]
         if kind == "elastic_energy":
@@ -53,7 +54,6 @@ def watched(path, kind, point):
 
 def meshes(part, size, refine, out_dir):
     """[(level, .msh path, tets, target h)] of the part at size and its N uniform refinements."""
-    from ..mesh import generate
     path = os.path.join(out_dir, os.path.splitext(os.path.basename(part))[0] + ".msh")
     st = generate(part, None, path, size, refine)
     st = st if refine else [st]
@@ -115,9 +115,7 @@ COLUMNS = ("level", "nprocs", "tets", "h", "quantity", "change", "order", "richa
 
 
 def part_report(rows, out_dir, command, part, scene, watch):
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
     write_csv(os.path.join(out_dir, "refinement.csv"), rows, COLUMNS)
     ok = [r for r in rows if r["outcome"] == "finished"]
     fig, (a1, a2) = plt.subplots(1, 2, figsize=(11, 4.2))

@@ -7,6 +7,8 @@ import numpy as np
 
 from ..experiments.runner import last_line, parallel_map, run_hyperelastic
 from ..experiments.table import write_csv
+from ..figures import pyplot
+from ..mesh import cached_bar, level_size, read
 from ..stability import fmt
 from .measure import at_points, read_cost, slope
 from .plan import PCS, POINT_NAMES
@@ -25,7 +27,6 @@ def refinement(out_dir, full=False, jobs=2, budget=600.0, parallel_from=20000, l
     """Run the refinement levels (quick: L1-L4; --full: L1-L8 and finer gmsh levels while the
     total stays within `budget` seconds, under mpiexec -n 2 from `parallel_from` tets on).
     Returns rows, one per level (and a 1-rank twin of the first parallel level)."""
-    from ..mesh import cached_bar
     d = os.path.join(out_dir, "runs")
     os.makedirs(d, exist_ok=True)
     levels = refine_levels(full)
@@ -67,14 +68,12 @@ def refinement(out_dir, full=False, jobs=2, budget=600.0, parallel_from=20000, l
 
 
 def _tets(path):
-    from ..mesh import read
     return len(read(path)[1])
 
 
 def analyse_refinement(rows):
     """Errors at the material points against the finest finished level, the observed orders, and
     time per load step (in place); returns the fit {quantity: slope}."""
-    from ..mesh import level_size
     ok = [r for r in rows if r["outcome"] == "finished" and not r.get("twin")]
     if len(ok) < 3:
         return {}
@@ -109,9 +108,7 @@ REFINE_COLUMNS = ("level", "nprocs", "twin", "outcome", "message", "tets", "h_me
 
 
 def refinement_report(rows, out_dir, command):
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
     write_csv(os.path.join(out_dir, "refinement.csv"), rows, REFINE_COLUMNS)
     ok = [r for r in rows if r["outcome"] == "finished" and not r.get("twin")]
     fit = [r for r in ok if r.get("err_tip")]

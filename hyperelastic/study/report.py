@@ -3,6 +3,7 @@ headline, the findings, the cheapest settings, cost vs E, references, mesh error
 import math
 import os
 
+from ..figures import pyplot
 from ..stability import fmt
 from .measure import slope
 from .plan import COST_TARGET, DISC_H, FPS, POINT_NAMES, REF_FACTOR, REF_SNES_RTOL, TARGETS, E_NAMES
@@ -52,9 +53,7 @@ def configs(rows):
 
 
 def figures(rows, out_dir):
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
     cfgs = configs(rows)
     modes = list(dict.fromkeys(r["mode"] for r in sweep_rows(rows)))
     colors = dict(zip(modes, plt.rcParams["axes.prop_cycle"].by_key()["color"]))
