@@ -32,6 +32,7 @@ class Scene:
     quasistatic: bool = False
     effects: dict = field(default_factory=dict)   # {effect name: its parameters (None: it has none)}, in order
     notes: list = field(default_factory=list)     # what the user should know (options ignored), one line each
+    ignored: list = field(default_factory=list)   # the scene file's options a command-line -effects overrode
     dt: float = 1e-2
     final_time: float = 1.0
     fps: float = 30.0
@@ -230,20 +231,19 @@ def _unused_effect_options(s, opts, names, overridden):
     """Options of effects the scene does not call for: the scene file's under a command-line -effects
     (`overridden`) are ignored, and a note names them; any other is an error (e.g. -traction_face
     without -traction)."""
-    ignored = []
     on = {k for n in names for r in effects_pkg.SPECS[n].rows for k in r.names} | _shared_with(names)
     for spec in effects_pkg.REGISTRY:
         for key in (k for r in spec.rows for k in r.names):
             if spec.name in names or key in on or key.startswith(("LOAD_", "REGION_")) or not opts.has(key):
                 continue
             if key in overridden:
-                ignored.append(f"-{key}")
+                s.ignored.append(key)
                 continue
             raise UserError(f"option -{key}: an option of effect '{spec.name}', which scene '{s.name}' does not "
                             f"switch on (give its main option, or list it in -effects)")
-    if ignored:
+    if s.ignored:
         s.notes.append(f"-effects {opts.string('effects')} on the command line replaces the scene file's effects: "
-                       "ignored its " + " ".join(ignored))
+                       "ignored its " + " ".join(f"-{k}" for k in s.ignored))
 
 
 def _shared_with(names):

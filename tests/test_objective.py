@@ -12,6 +12,9 @@ from conftest import make_model, read_h5, hyperelastic, run_ok
 
 # (scene, options): every effect with a potential, both mass matrices, every material
 CASES = [("bend", [("material", m)]) for m in ("stvk", "neohookean", "linear", "snh", "corotational")]
+CASES += [("bend", [("material", "mooney_rivlin"), ("C01", "1e5")]), ("bend", [("material", "neohookean_split")]),
+          ("bend", [("spring", "2e5"), ("spring_faces", "top:z,back"), ("force", "0,10,-30"), ("force_faces", "front"),
+                    ("body_force", "0,0,-100"), ("loads", "s"), ("s_spring", "1e4"), ("s_faces", "bottom:xy")])]
 CASES += [("sag", []), ("sag", [("mass", "lumped")]), ("twist3", []),
           ("bend", [("rayleigh_alpha", "0.5"), ("rayleigh_beta", "1e-3")]),
           ("bend", [("rayleigh_alpha", "0.5"), ("mass", "lumped"), ("damping", "40")]),

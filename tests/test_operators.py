@@ -66,6 +66,25 @@ def test_shell_matches_assembled(petsc, scene_name, material):
     assert np.abs(Da.getArray() - Ds.getArray()).max() <= 1e-12 * np.abs(Da.getArray()).max()
 
 
+# the effects and materials declared in issue 31: springs (some components), a total force, a body force,
+# Mooney-Rivlin and the split Neo-Hookean
+NEW = [[("spring", "3e5"), ("spring_faces", "bottom:z,back"), ("loads", "s"), ("s_spring", "1e5"), ("s_faces", "top:xy"),
+        ("force", "0,-50,20"), ("force_faces", "front"), ("body_force", "0,0,-200")],
+       [("material", "mooney_rivlin"), ("C01", "1e5")], [("material", "neohookean_split"), ("kappa", "5e6")]]
+
+
+@pytest.mark.parametrize("options", NEW, ids=["effects", "mooney_rivlin", "neohookean_split"])
+def test_new_effects_and_materials_tangents(petsc, options):
+    """Shell and assembled agree (operator and diagonal) and the tangent is the residual's derivative."""
+    scene, space, system, X = state(petsc, "bend", options)
+    A, S, V, Jv = check_shell_equals_assembled(system, X)
+    Da, Ds = X.duplicate(), X.duplicate()
+    A.getDiagonal(Da)
+    S.getDiagonal(Ds)
+    assert np.abs(Da.getArray() - Ds.getArray()).max() <= 1e-12 * np.abs(Da.getArray()).max()
+    check_is_derivative(system, X, V, Jv)
+
+
 @pytest.mark.parametrize("scene_name", SCENES)
 def test_tangent_is_derivative_of_residual(petsc, scene_name):
     from hyperelastic import jacobians
