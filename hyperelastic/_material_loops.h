@@ -8,8 +8,7 @@
  * (from F, 1/J, ln J); where it defines NAME_CELL_TANGENT 1, the tangent loops take the cell's 12x12
  * block and its diagonal from NAME_cell_tangent and NAME_cell_tangent_diag instead of twelve NAME_dstress.
  * Every loop takes the material's parameter block `prm` (HE_NPARAM doubles: the constants in the order
- * the header reads them, materials/NAME.py's `constants`, zero-padded) and copies it to a local array,
- * which the compiler keeps in registers (the output arrays could alias `prm`).
+ * the header reads them, materials/NAME.py's `constants`, zero-padded), restrict-qualified (_kernels.c).
  * No include guard: it is meant to be included once per material. */
 #define HE_CAT_(a, b) a##b
 #define HE_CAT(a, b) HE_CAT_(a, b)
@@ -21,7 +20,7 @@
  * K v loops go by blocks of HE_BLOCK cells, the block's F and J first (gather_block: the cells from e0,
  * returns how many), then its 1/J and ln J at once (he_jscalars, _kernels.c), then each cell's stress
  * NAME_stress_j or NAME_prepare_j. */
-static inline int HE_FN(gather_block)(int64_t e0, int64_t nc, const idx_t *cells, const double *Dminv,
+HE_INLINE int HE_FN(gather_block)(int64_t e0, int64_t nc, const idx_t *cells, const double *Dminv,
                                       const double *x, he_jblock *b) {
   int n = nc - e0 < HE_BLOCK ? (int)(nc - e0) : HE_BLOCK;
   for (int q = 0; q < n; q++) {
@@ -34,7 +33,7 @@ static inline int HE_FN(gather_block)(int64_t e0, int64_t nc, const idx_t *cells
 
 /* f += k(x). Returns the number of cells where the material is undefined (their force is skipped). */
 int64_t HE_FN(forces)(int64_t nc, const idx_t *cells, const double *Dminv, const double *vol, const double *x,
-                      const double *prm, double *f) {
+                      const double *restrict prm, double *f) {
   HE_PARAMS(p);
   int64_t bad = 0;
   he_jblock jb;
@@ -55,7 +54,7 @@ int64_t HE_FN(forces)(int64_t nc, const idx_t *cells, const double *Dminv, const
  * The sum is compensated (Kahan): the energy line search compares energies that differ by far less
  * than the energy itself near convergence, so its rounding error must stay at one ulp, not nc ulps. */
 int64_t HE_FN(energy)(int64_t nc, const idx_t *cells, const double *Dminv, const double *vol, const double *x,
-                      const double *prm, double *out /* [energy, Jmin, Jmax] */) {
+                      const double *restrict prm, double *out /* [energy, Jmin, Jmax] */) {
   HE_PARAMS(p);
   int64_t bad = 0;
   double W = 0, comp = 0, jmin = INFINITY, jmax = -INFINITY;
@@ -80,7 +79,7 @@ int64_t HE_FN(energy)(int64_t nc, const idx_t *cells, const double *Dminv, const
 /* Cell by cell (by blocks, St.VK's loop is ~10% slower: it has no division or logarithm to batch). */
 /* f += k(x). Returns the number of cells where the material is undefined (their force is skipped). */
 int64_t HE_FN(forces)(int64_t nc, const idx_t *cells, const double *Dminv, const double *vol, const double *x,
-                      const double *prm, double *f) {
+                      const double *restrict prm, double *f) {
   HE_PARAMS(p);
   int64_t bad = 0;
   for (int64_t e = 0; e < nc; e++) {
@@ -97,7 +96,7 @@ int64_t HE_FN(forces)(int64_t nc, const idx_t *cells, const double *Dminv, const
  * The sum is compensated (Kahan): the energy line search compares energies that differ by far less
  * than the energy itself near convergence, so its rounding error must stay at one ulp, not nc ulps. */
 int64_t HE_FN(energy)(int64_t nc, const idx_t *cells, const double *Dminv, const double *vol, const double *x,
-                      const double *prm, double *out /* [energy, Jmin, Jmax] */) {
+                      const double *restrict prm, double *out /* [energy, Jmin, Jmax] */) {
   HE_PARAMS(p);
   int64_t bad = 0;
   double W = 0, comp = 0, jmin = INFINITY, jmax = -INFINITY;
@@ -120,7 +119,7 @@ int64_t HE_FN(energy)(int64_t nc, const idx_t *cells, const double *Dminv, const
 #if HE_MAT(BATCH_J)
 /* y += K(x) v without assembling, by blocks of cells (NAME_prepare_j from the block's 1/J, ln J). */
 int64_t HE_FN(kv)(int64_t nc, const idx_t *cells, const double *Dminv, const double *vol, const double *x,
-                  const double *prm, const double *v, double *y) {
+                  const double *restrict prm, const double *v, double *y) {
   HE_PARAMS(p);
   int64_t bad = 0;
   he_jblock jb;
@@ -143,7 +142,7 @@ int64_t HE_FN(kv)(int64_t nc, const idx_t *cells, const double *Dminv, const dou
 #else
 /* y += K(x) v, cell by cell, without assembling. */
 int64_t HE_FN(kv)(int64_t nc, const idx_t *cells, const double *Dminv, const double *vol, const double *x,
-                  const double *prm, const double *v, double *y) {
+                  const double *restrict prm, const double *v, double *y) {
   HE_PARAMS(p);
   int64_t bad = 0;
   for (int64_t e = 0; e < nc; e++) {
@@ -161,7 +160,7 @@ int64_t HE_FN(kv)(int64_t nc, const idx_t *cells, const double *Dminv, const dou
 #endif
 
 /* Column (b,k) of the cell tangent: K[(a,i),(b,k)] = V sum_j dP(e_k (x) G_b)_ij G_a,j */
-static inline void HE_FN(tangent_column)(const double *p, const HE_MAT(cache) *d, double G[4][3], double V,
+HE_INLINE void HE_FN(tangent_column)(const double *p, const HE_MAT(cache) *d, double G[4][3], double V,
                                          int b, int k, double col[12]) {
   double dF[9] = {0}, dP[9];
   dF[3 * k + 0] = G[b][0];
@@ -176,7 +175,7 @@ static inline void HE_FN(tangent_column)(const double *p, const HE_MAT(cache) *d
 /* Cell tangents, 144 values per cell, row-major over local dofs (3a+i, 3b+k); written, or added to
  * vals when accumulate != 0. */
 int64_t HE_FN(tangent)(int64_t nc, const idx_t *cells, const double *Dminv, const double *vol, const double *x,
-                       const double *prm, double *vals, int accumulate) {
+                       const double *restrict prm, double *vals, int accumulate) {
   HE_PARAMS(p);
   int64_t bad = 0;
   for (int64_t e = 0; e < nc; e++) {
@@ -209,7 +208,7 @@ int64_t HE_FN(tangent)(int64_t nc, const idx_t *cells, const double *Dminv, cons
 
 /* diag += diagonal of K(x) */
 int64_t HE_FN(tangent_diag)(int64_t nc, const idx_t *cells, const double *Dminv, const double *vol,
-                            const double *x, const double *prm, double *diag) {
+                            const double *x, const double *restrict prm, double *diag) {
   HE_PARAMS(p);
   int64_t bad = 0;
   for (int64_t e = 0; e < nc; e++) {
@@ -241,7 +240,7 @@ int64_t HE_FN(tangent_diag)(int64_t nc, const idx_t *cells, const double *Dminv,
  * factor C_bar = L L^T, Ft = L^T, its last row negated where det F < 0.
  * Returns the number of cells where the material is undefined at xn or x1 (their force is skipped). */
 int64_t HE_FN(forces_dg)(int64_t nc, const idx_t *cells, const double *Dminv, const double *vol, const double *x,
-                         const double *prm, const double *xn, double *f) {
+                         const double *restrict prm, const double *xn, double *f) {
   HE_PARAMS(p);
   int64_t bad = 0;
   for (int64_t e = 0; e < nc; e++) {

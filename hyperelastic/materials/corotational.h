@@ -83,7 +83,7 @@ static void polar(const double *F, double *R, double *V, double *sig) {
     for (int c = 0; c < 3; c++) R[3 * r + c] = u[0][r] * V[3 * c] + u[1][r] * V[3 * c + 1] + u[2][r] * V[3 * c + 2];
 }
 
-static inline int corotational_stress(const double *prm, const double *F, double *P, double *psi) {
+HE_INLINE int corotational_stress(const double *prm, const double *F, double *P, double *psi) {
   const double mu = prm[0], lam = prm[1];
   double R[9], V[9], sg[3];
   polar(F, R, V, sg);
@@ -97,7 +97,7 @@ static inline int corotational_stress(const double *prm, const double *F, double
   return 0;
 }
 
-static inline int corotational_prepare(const double *prm, const double *F, corotational_cache *d) {
+HE_INLINE int corotational_prepare(const double *prm, const double *F, corotational_cache *d) {
   (void)prm;
   polar(F, d->R, d->V, d->sig);
   d->c1 = d->sig[0] + d->sig[1] + d->sig[2] - 3;
@@ -112,7 +112,7 @@ static inline int corotational_prepare(const double *prm, const double *F, corot
 
 /* dP = 2 mu (dF - dR) + lam tr(R^T dF) R + lam tr(S-I) dR, dR = R [w]x with
  * (tr S I - S) w = axial(R^T dF - dF^T R) (McAdams et al. 2011, sec. 3.3) */
-static inline void corotational_dstress(const double *prm, const corotational_cache *d, const double *dF, double *dP) {
+HE_INLINE void corotational_dstress(const double *prm, const corotational_cache *d, const double *dF, double *dP) {
   const double mu = prm[0], lam = prm[1];
   const double *R = d->R, *V = d->V;
   double A[9], a[3], wv[3], w[3], W[9], dR[9];
@@ -134,7 +134,7 @@ static inline void corotational_dstress(const double *prm, const corotational_ca
  * With rho_a = R G_a and p_bk = R Q (G_b x r_k):
  *   K[(a,i),(b,k)] = V (2 mu delta_ik G_a.G_b + lam rho_a,i rho_b,k + (lam tr(S-I) - 2 mu) (p_bk x rho_a)_i). */
 #define corotational_CELL_TANGENT 1
-static inline void corotational_cell_prep(const corotational_cache *d, double G[4][3], double rho[4][3],
+HE_INLINE void corotational_cell_prep(const corotational_cache *d, double G[4][3], double rho[4][3],
                                           double p[4][3][3]) {
   const double *R = d->R, *V = d->V;
   double Q[9];
@@ -153,7 +153,7 @@ static inline void corotational_cell_prep(const corotational_cache *d, double G[
   }
 }
 
-static inline void corotational_cell_tangent(const double *prm, const corotational_cache *d, double G[4][3],
+HE_INLINE void corotational_cell_tangent(const double *prm, const corotational_cache *d, double G[4][3],
                                              double V, double *K, int accumulate) {
   const double mu = prm[0], lam = prm[1];
   double rho[4][3], p[4][3][3];
@@ -176,7 +176,7 @@ static inline void corotational_cell_tangent(const double *prm, const corotation
     }
 }
 
-static inline void corotational_cell_tangent_diag(const double *prm, const corotational_cache *d, double G[4][3],
+HE_INLINE void corotational_cell_tangent_diag(const double *prm, const corotational_cache *d, double G[4][3],
                                                   double V, double diag[12]) {
   const double mu = prm[0], lam = prm[1];
   double rho[4][3], p[4][3][3];

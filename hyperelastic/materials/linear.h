@@ -2,7 +2,7 @@
  * Numpy reference: linear.py. The contract of a material header: see docs/design.md. */
 typedef struct { char unused; } linear_cache;
 
-static inline int linear_stress(const double *prm, const double *F, double *P, double *psi) {
+HE_INLINE int linear_stress(const double *prm, const double *F, double *P, double *psi) {
   const double mu = prm[0], lam = prm[1];
   double e[9];
   for (int i = 0; i < 3; i++)
@@ -15,12 +15,12 @@ static inline int linear_stress(const double *prm, const double *F, double *P, d
   return 0;
 }
 
-static inline int linear_prepare(const double *prm, const double *F, linear_cache *d) {
+HE_INLINE int linear_prepare(const double *prm, const double *F, linear_cache *d) {
   (void)prm; (void)F; (void)d;
   return 0;
 }
 
-static inline void linear_dstress(const double *prm, const linear_cache *d, const double *dF, double *dP) {
+HE_INLINE void linear_dstress(const double *prm, const linear_cache *d, const double *dF, double *dP) {
   const double mu = prm[0], lam = prm[1];
   (void)d;
   double tr = dF[0] + dF[4] + dF[8];
@@ -33,7 +33,7 @@ static inline void linear_dstress(const double *prm, const linear_cache *d, cons
  * + lam G_b,k delta_ij, so row (a,i) of the force, V dP_ij G_a,j, gives
  *   K[(a,i),(b,k)] = V (mu delta_ik G_a.G_b + mu G_a,k G_b,i + lam G_a,i G_b,k)   (independent of x). */
 #define linear_CELL_TANGENT 1
-static inline void linear_cell_tangent(const double *prm, const linear_cache *d, double G[4][3], double V, double *K,
+HE_INLINE void linear_cell_tangent(const double *prm, const linear_cache *d, double G[4][3], double V, double *K,
                                        int accumulate) {
   const double mu = prm[0], lam = prm[1];
   (void)d;
@@ -53,7 +53,7 @@ static inline void linear_cell_tangent(const double *prm, const linear_cache *d,
   }
 }
 
-static inline void linear_cell_tangent_diag(const double *prm, const linear_cache *d, double G[4][3], double V,
+HE_INLINE void linear_cell_tangent_diag(const double *prm, const linear_cache *d, double G[4][3], double V,
                                             double diag[12]) {
   const double mu = prm[0], lam = prm[1];
   (void)d;

@@ -5,7 +5,7 @@
 typedef struct { double F[9], Q[9], C[9], B[9], W[9], a2, b, I1, I2, kJ2, g; } mooney_rivlin_cache;
 
 /* Q, C, W and the scalars of F (J > 0). */
-static inline int mooney_rivlin_scalars(const double *prm, const double *F, mooney_rivlin_cache *d, double *J) {
+HE_INLINE int mooney_rivlin_scalars(const double *prm, const double *F, mooney_rivlin_cache *d, double *J) {
   const double C10 = prm[0], C01 = prm[1], kappa = prm[2];
   *J = det3(F);
   if (!(*J > 0)) return 1;
@@ -25,7 +25,7 @@ static inline int mooney_rivlin_scalars(const double *prm, const double *F, moon
   return 0;
 }
 
-static inline int mooney_rivlin_stress(const double *prm, const double *F, double *P, double *psi) {
+HE_INLINE int mooney_rivlin_stress(const double *prm, const double *F, double *P, double *psi) {
   mooney_rivlin_cache d;
   double J;
   if (mooney_rivlin_scalars(prm, F, &d, &J)) {
@@ -40,7 +40,7 @@ static inline int mooney_rivlin_stress(const double *prm, const double *F, doubl
   return 0;
 }
 
-static inline int mooney_rivlin_prepare(const double *prm, const double *F, mooney_rivlin_cache *d) {
+HE_INLINE int mooney_rivlin_prepare(const double *prm, const double *F, mooney_rivlin_cache *d) {
   double J;
   if (mooney_rivlin_scalars(prm, F, d, &J)) return 1;
   memcpy(d->F, F, sizeof d->F);
@@ -54,7 +54,7 @@ static inline int mooney_rivlin_prepare(const double *prm, const double *F, moon
 /* dP = a2 (dF - 2/3 qd F - 2/3 fd Q + 2/9 I1 qd Q + I1/3 U) + b (-4/3 qd (2 W - 4/3 I2 Q) + 2 dW - 8/3 wd Q
  *      + 4/3 I2 U) + kappa J^2 qd Q - g U, with qd = Q:dF, fd = F:dF, wd = W:dF, U = Q dF^T Q and
  * dW = 2 fd F + I1 dF - dF C - F (dF^T F + F^T dF). */
-static inline void mooney_rivlin_dstress(const double *prm, const mooney_rivlin_cache *d, const double *dF,
+HE_INLINE void mooney_rivlin_dstress(const double *prm, const mooney_rivlin_cache *d, const double *dF,
                                          double *dP) {
   (void)prm;
   const double *Q = d->Q, *F = d->F, *W = d->W;
@@ -84,7 +84,7 @@ static inline void mooney_rivlin_dstress(const double *prm, const mooney_rivlin_
  * c_hh = 2/9 a2 I1 + kappa J^2 + 16/9 b I2, c_x = a2 I1/3 - g + 4/3 b I2 (the dF, F dC and dF C terms of dW
  * give the delta_ik, B and u u terms). */
 #define mooney_rivlin_CELL_TANGENT 1
-static inline void mooney_rivlin_cell_tangent(const double *prm, const mooney_rivlin_cache *d, double G[4][3],
+HE_INLINE void mooney_rivlin_cell_tangent(const double *prm, const mooney_rivlin_cache *d, double G[4][3],
                                               double V, double *K, int accumulate) {
   (void)prm;
   double u[4][3], h[4][3], w[4][3], cg[4][3];
@@ -113,7 +113,7 @@ static inline void mooney_rivlin_cell_tangent(const double *prm, const mooney_ri
     }
 }
 
-static inline void mooney_rivlin_cell_tangent_diag(const double *prm, const mooney_rivlin_cache *d, double G[4][3],
+HE_INLINE void mooney_rivlin_cell_tangent_diag(const double *prm, const mooney_rivlin_cache *d, double G[4][3],
                                                    double V, double diag[12]) {
   double K[144];
   mooney_rivlin_cell_tangent(prm, d, G, V, K, 0);

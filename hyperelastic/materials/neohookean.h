@@ -6,7 +6,7 @@ typedef struct { double FiT[9], c1, c2; } neohookean_cache;
 /* The stress and energy density from F and the scalars of J = det F > 0: rJ = 1/J, lnJ = ln J (given:
  * the cell loops compute them for a block of cells at once, NAME_BATCH_J in _material_loops.h). */
 #define neohookean_BATCH_J 1
-static inline void neohookean_stress_j(const double *prm, const double *F, double rJ, double lnJ, double *P,
+HE_INLINE void neohookean_stress_j(const double *prm, const double *F, double rJ, double lnJ, double *P,
                                        double *psi) {
   const double mu = prm[0], lam = prm[1];
   double FiT[9];
@@ -16,7 +16,7 @@ static inline void neohookean_stress_j(const double *prm, const double *F, doubl
   if (psi) *psi = 0.5 * mu * (I1 - 3) - mu * lnJ + 0.5 * lam * lnJ * lnJ;
 }
 
-static inline int neohookean_stress(const double *prm, const double *F, double *P, double *psi) {
+HE_INLINE int neohookean_stress(const double *prm, const double *F, double *P, double *psi) {
   double J = det3(F);
   if (!(J > 0)) {
     for (int k = 0; k < 9; k++) P[k] = NAN;
@@ -27,7 +27,7 @@ static inline int neohookean_stress(const double *prm, const double *F, double *
   return 0;
 }
 
-static inline void neohookean_prepare_j(const double *prm, const double *F, double rJ, double lnJ,
+HE_INLINE void neohookean_prepare_j(const double *prm, const double *F, double rJ, double lnJ,
                                         neohookean_cache *d) {
   const double mu = prm[0], lam = prm[1];
   cof_mixed(F, F, d->FiT);
@@ -36,7 +36,7 @@ static inline void neohookean_prepare_j(const double *prm, const double *F, doub
   d->c2 = lam;            /* coefficient of tr(F^-1 dF) F^-T */
 }
 
-static inline int neohookean_prepare(const double *prm, const double *F, neohookean_cache *d) {
+HE_INLINE int neohookean_prepare(const double *prm, const double *F, neohookean_cache *d) {
   double J = det3(F);
   if (!(J > 0)) return 1;
   neohookean_prepare_j(prm, F, 1.0 / J, log(J), d);
@@ -44,7 +44,7 @@ static inline int neohookean_prepare(const double *prm, const double *F, neohook
 }
 
 /* dP = mu dF + c1 F^-T dF^T F^-T + lam tr(F^-1 dF) F^-T */
-static inline void neohookean_dstress(const double *prm, const neohookean_cache *d, const double *dF, double *dP) {
+HE_INLINE void neohookean_dstress(const double *prm, const neohookean_cache *d, const double *dF, double *dP) {
   const double mu = prm[0];
   const double *Q = d->FiT;
   double T[9], U[9];
@@ -62,7 +62,7 @@ static inline void neohookean_dstress(const double *prm, const neohookean_cache 
  * (~0.4 kflop per cell against ~1.6 for twelve dP evaluations; the columns' result to rounding).
  * Its diagonal: V (mu |G_a|^2 + (c1 + c2) h_a,i^2). */
 #define neohookean_CELL_TANGENT 1
-static inline void neohookean_cell_tangent(const double *prm, const neohookean_cache *d, double G[4][3], double V,
+HE_INLINE void neohookean_cell_tangent(const double *prm, const neohookean_cache *d, double G[4][3], double V,
                                            double *K, int accumulate) {
   const double mu = prm[0];
   double h[4][3], gg[4][4];
@@ -82,7 +82,7 @@ static inline void neohookean_cell_tangent(const double *prm, const neohookean_c
     }
 }
 
-static inline void neohookean_cell_tangent_diag(const double *prm, const neohookean_cache *d, double G[4][3],
+HE_INLINE void neohookean_cell_tangent_diag(const double *prm, const neohookean_cache *d, double G[4][3],
                                                 double V, double diag[12]) {
   const double mu = prm[0];
   double h[4][3];

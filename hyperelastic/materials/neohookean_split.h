@@ -5,7 +5,7 @@
 typedef struct { double F[9], Q[9], a, I1, kJ2, g; } neohookean_split_cache;
 
 /* The scalars of F (J > 0): Q = F^-T, I1, a = mu J^(-2/3) (J^(-2/3) = 1/cbrt(J)^2), g and kappa J^2. */
-static inline int neohookean_split_scalars(const double *prm, const double *F, neohookean_split_cache *d,
+HE_INLINE int neohookean_split_scalars(const double *prm, const double *F, neohookean_split_cache *d,
                                            double *J) {
   const double mu = prm[0], kappa = prm[1];
   *J = det3(F);
@@ -20,7 +20,7 @@ static inline int neohookean_split_scalars(const double *prm, const double *F, n
   return 0;
 }
 
-static inline int neohookean_split_stress(const double *prm, const double *F, double *P, double *psi) {
+HE_INLINE int neohookean_split_stress(const double *prm, const double *F, double *P, double *psi) {
   neohookean_split_cache d;
   double J;
   if (neohookean_split_scalars(prm, F, &d, &J)) {
@@ -34,7 +34,7 @@ static inline int neohookean_split_stress(const double *prm, const double *F, do
   return 0;
 }
 
-static inline int neohookean_split_prepare(const double *prm, const double *F, neohookean_split_cache *d) {
+HE_INLINE int neohookean_split_prepare(const double *prm, const double *F, neohookean_split_cache *d) {
   double J;
   if (neohookean_split_scalars(prm, F, d, &J)) return 1;
   memcpy(d->F, F, sizeof d->F);
@@ -42,7 +42,7 @@ static inline int neohookean_split_prepare(const double *prm, const double *F, n
 }
 
 /* dP = a (dF - 2/3 (Q:dF) F - 2/3 (F:dF) Q + 2/9 I1 (Q:dF) Q + I1/3 Q dF^T Q) + kappa J^2 (Q:dF) Q - g Q dF^T Q */
-static inline void neohookean_split_dstress(const double *prm, const neohookean_split_cache *d, const double *dF,
+HE_INLINE void neohookean_split_dstress(const double *prm, const neohookean_split_cache *d, const double *dF,
                                             double *dP) {
   (void)prm;
   const double *Q = d->Q, *F = d->F;
@@ -60,7 +60,7 @@ static inline void neohookean_split_dstress(const double *prm, const neohookean_
  *   K[(a,i),(b,k)] = V (a delta_ik G_a.G_b - 2/3 a (u_a,i h_b,k + h_a,i u_b,k) + c_hh h_a,i h_b,k + c_x h_b,i h_a,k),
  * c_hh = 2/9 a I1 + kappa J^2, c_x = a I1/3 - g. */
 #define neohookean_split_CELL_TANGENT 1
-static inline void neohookean_split_cell_tangent(const double *prm, const neohookean_split_cache *d, double G[4][3],
+HE_INLINE void neohookean_split_cell_tangent(const double *prm, const neohookean_split_cache *d, double G[4][3],
                                                  double V, double *K, int accumulate) {
   (void)prm;
   double u[4][3], h[4][3];
@@ -83,7 +83,7 @@ static inline void neohookean_split_cell_tangent(const double *prm, const neohoo
     }
 }
 
-static inline void neohookean_split_cell_tangent_diag(const double *prm, const neohookean_split_cache *d,
+HE_INLINE void neohookean_split_cell_tangent_diag(const double *prm, const neohookean_split_cache *d,
                                                       double G[4][3], double V, double diag[12]) {
   (void)prm;
   double u[4][3], h[4][3];

@@ -5,7 +5,7 @@
 typedef struct { double F[9], cof[9], c1, c2, c3, ls; } snh_cache;
 
 /* Stable Neo-Hookean constants from the Lame pair (mu, lam): ms, ls, alpha and Psi(I). */
-static inline void snh_constants(const double *prm, double *ms, double *ls, double *alpha, double *psi0) {
+HE_INLINE void snh_constants(const double *prm, double *ms, double *ls, double *alpha, double *psi0) {
   const double mu = prm[0], lam = prm[1];
   *ms = 4.0 / 3.0 * mu;
   *ls = lam + 5.0 / 6.0 * mu;
@@ -13,7 +13,7 @@ static inline void snh_constants(const double *prm, double *ms, double *ls, doub
   *psi0 = 0.5 * (*ls) * (1 - *alpha) * (1 - *alpha) - 0.5 * (*ms) * log(4.0);
 }
 
-static inline int snh_stress(const double *prm, const double *F, double *P, double *psi) {
+HE_INLINE int snh_stress(const double *prm, const double *F, double *P, double *psi) {
   double ms, ls, al, psi0, cof[9], Ic = 0;
   snh_constants(prm, &ms, &ls, &al, &psi0);
   cof_mixed(F, F, cof);
@@ -25,7 +25,7 @@ static inline int snh_stress(const double *prm, const double *F, double *P, doub
   return 0;
 }
 
-static inline int snh_prepare(const double *prm, const double *F, snh_cache *d) {
+HE_INLINE int snh_prepare(const double *prm, const double *F, snh_cache *d) {
   double ms, ls, al, psi0, Ic = 0;
   memcpy(d->F, F, sizeof d->F);
   snh_constants(prm, &ms, &ls, &al, &psi0);
@@ -39,7 +39,7 @@ static inline int snh_prepare(const double *prm, const double *F, snh_cache *d) 
 }
 
 /* dP = c1 dF + c2 (F:dF) F + ls (cof:dF) cof + c3 dcof[dF] */
-static inline void snh_dstress(const double *prm, const snh_cache *d, const double *dF, double *dP) {
+HE_INLINE void snh_dstress(const double *prm, const snh_cache *d, const double *dF, double *dP) {
   (void)prm;
   const double *cof = d->cof;
   double A[9], B[9], fd = 0, cd = 0;
@@ -55,7 +55,7 @@ static inline void snh_dstress(const double *prm, const snh_cache *d, const doub
  * cof_ij = 1/2 eps_imn eps_jpq F_mp F_nq), so
  *   K[(a,i),(b,k)] = V (c1 delta_ik G_a.G_b + c2 u_a,i u_b,k + ls h_a,i h_b,k + c3 eps_imk w_m). */
 #define snh_CELL_TANGENT 1
-static inline void snh_cell_tangent(const double *prm, const snh_cache *d, double G[4][3], double V, double *K,
+HE_INLINE void snh_cell_tangent(const double *prm, const snh_cache *d, double G[4][3], double V, double *K,
                                     int accumulate) {
   (void)prm;
   const double *F = d->F;
@@ -82,7 +82,7 @@ static inline void snh_cell_tangent(const double *prm, const snh_cache *d, doubl
     }
 }
 
-static inline void snh_cell_tangent_diag(const double *prm, const snh_cache *d, double G[4][3], double V,
+HE_INLINE void snh_cell_tangent_diag(const double *prm, const snh_cache *d, double G[4][3], double V,
                                          double diag[12]) {
   (void)prm;
   double u[4][3], h[4][3];

@@ -2,7 +2,7 @@
  * Numpy reference: stvk.py. */
 typedef struct { double F[9], S[9]; } stvk_cache;
 
-static inline int stvk_stress(const double *prm, const double *F, double *P, double *psi) {
+HE_INLINE int stvk_stress(const double *prm, const double *F, double *P, double *psi) {
   const double mu = prm[0], lam = prm[1];
   double C[9], S[9];
   mtm(F, F, C);
@@ -17,7 +17,7 @@ static inline int stvk_stress(const double *prm, const double *F, double *P, dou
   return 0;
 }
 
-static inline int stvk_prepare(const double *prm, const double *F, stvk_cache *d) {
+HE_INLINE int stvk_prepare(const double *prm, const double *F, stvk_cache *d) {
   const double mu = prm[0], lam = prm[1];
   memcpy(d->F, F, sizeof d->F);
   double C[9];
@@ -29,7 +29,7 @@ static inline int stvk_prepare(const double *prm, const double *F, stvk_cache *d
 }
 
 /* dP = dF S + F (2 mu dE + lam tr(dE) I), dE = sym(F^T dF) */
-static inline void stvk_dstress(const double *prm, const stvk_cache *d, const double *dF, double *dP) {
+HE_INLINE void stvk_dstress(const double *prm, const stvk_cache *d, const double *dF, double *dP) {
   const double mu = prm[0], lam = prm[1];
   double G[9], dS[9], A[9], B[9];
   mtm(d->F, dF, G);
@@ -47,7 +47,7 @@ static inline void stvk_dstress(const double *prm, const stvk_cache *d, const do
  * mu (B_ik G_a.G_b + u_b,i u_a,k), so
  *   K[(a,i),(b,k)] = V (delta_ik G_a.S.G_b + lam u_a,i u_b,k + mu B_ik G_a.G_b + mu u_a,k u_b,i). */
 #define stvk_CELL_TANGENT 1
-static inline void stvk_cell_tangent(const double *prm, const stvk_cache *d, double G[4][3], double V, double *K,
+HE_INLINE void stvk_cell_tangent(const double *prm, const stvk_cache *d, double G[4][3], double V, double *K,
                                      int accumulate) {
   const double mu = prm[0], lam = prm[1];
   const double *F = d->F, *S = d->S;
@@ -75,7 +75,7 @@ static inline void stvk_cell_tangent(const double *prm, const stvk_cache *d, dou
     }
 }
 
-static inline void stvk_cell_tangent_diag(const double *prm, const stvk_cache *d, double G[4][3], double V,
+HE_INLINE void stvk_cell_tangent_diag(const double *prm, const stvk_cache *d, double G[4][3], double V,
                                           double diag[12]) {
   const double mu = prm[0], lam = prm[1];
   const double *F = d->F, *S = d->S;
