@@ -80,6 +80,7 @@ class Writer:
         fields (none without); region: the local cells' region tags (collective)."""
         self.space = space
         self.kernels = kernels
+        self.f = None            # the HDF5 file (rank 0, once opened)
         self.points = None if points is None else np.asarray(points, np.float64)
         self.root = space.mpi.rank == 0
         # written under FILE.h5.partial until a step is complete (see _commit): a run that fails before
@@ -261,7 +262,7 @@ class Writer:
     def close(self, keep=True):
         """Flush and close. A run that completed no step replaces an earlier FILE.h5 only when `keep`
         (it ended normally or was interrupted with a checkpoint); else its partial file is removed."""
-        if self.root and getattr(self, "f", None) is not None:
+        if self.root and self.f is not None:
             self._flush_stats()
             self.f.flush()
             if not self.committed and (keep or not os.path.exists(self.final)):

@@ -211,3 +211,23 @@ def test_bad_new_options_are_one_line(tmp_path, args, words):
     lines = p.stderr.strip().splitlines()
     assert p.returncode == 2 and len(lines) == 1 and words in lines[0], p.stderr
     assert not out.exists()
+
+
+def test_new_materials_per_region(bimaterial, tmp_path):
+    """Each region its own material and constants (-soft_kappa, -stiff_C01): read from the declarations,
+    printed in the set report and recorded in the output; a constant for a region whose material lacks it
+    is one error line."""
+    import json
+    out = tmp_path / "r.h5"
+    p = run_ok(["run", f"{ROOT}/examples/bimaterial.opts", "-mesh", bimaterial, "-soft_material", "neohookean_split",
+                "-soft_kappa", 2e6, "-stiff_material", "mooney_rivlin", "-stiff_C01", 3e5, "-output", out])
+    assert "neohookean_split, E 1e+06, nu 0, mu 500000, kappa 2e+06, rho 1100" in p.stderr
+    assert "mooney_rivlin, E 4e+06, nu 0, C10 700000, C01 300000, kappa 1.33333e+06, rho 7800" in p.stderr
+    r = read_h5(out)
+    regions = {d["name"]: d for d in json.loads(r["attrs"]["regions"])}
+    assert regions["soft"]["kappa"] == 2e6 and regions["stiff"]["C01"] == 3e5 and regions["stiff"]["C10"] == 7e5
+    assert np.abs(r["x"][-1] - r["x"][0]).max() > 1e-3
+    p = hyperelastic(["run", f"{ROOT}/examples/bimaterial.opts", "-mesh", bimaterial, "-soft_C01", 1,
+                      "-output", tmp_path / "o.h5"])
+    assert p.returncode == 2 and p.stderr.strip().splitlines() == [
+        "hyperelastic: error: option -soft_C01: a constant of mooney_rivlin, not of region 'soft''s neohookean"]

@@ -166,3 +166,34 @@ def load_factor(scale, t):
 def ramp(t, scale, ramp_time=1.0):
     """Load factor scale * min(t / ramp_time, 1) (the thesis framework's min(t,1) ramps)."""
     return scale * min(t / ramp_time, 1.0)
+
+
+class DeadLoad(Effect):
+    """A load independent of the positions: the nodal forces f0 (a local array) scaled by a time function
+    (load_factor), potential -s f0.x, reported as the work s f0.x in the column `work_column`."""
+    constant = True
+    work_column = "load_work"
+
+    def __init__(self, f0, scale=None):
+        super().__init__()
+        self.f0 = f0
+        self.loaded = np.flatnonzero(self.f0)            # the loaded dofs: the residual touches only them
+        self.f0_loaded = self.f0[self.loaded]
+        self.scale_param = scale
+        self.s = 1.0
+
+    def begin_step(self, t, h, xn, vn):
+        self.s = load_factor(self.scale_param, t)
+
+    @timed("evals")
+    def residual(self, x, r):
+        self.add_constant(r)
+
+    def add_constant(self, r):
+        r[self.loaded] -= self.s * self.f0_loaded
+
+    def potential(self, x):
+        return -self.s * float(self.f0 @ x)
+
+    def energy(self, x, v):
+        return {self.work_column: self.s * float(self.f0 @ x)}

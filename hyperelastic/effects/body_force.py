@@ -6,37 +6,18 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..options import Row, needs, time_function, volume_sets
-from .base import Effect, Energy, Spec, load_factor, timed
+from .base import DeadLoad, Energy, Spec
 
 
-class BodyForce(Effect):
+class BodyForce(DeadLoad):
     name = "body_force"
-    constant = True
+    work_column = "body_force_work"
 
     def __init__(self, cells, which, b, scale, nlv):
         """cells: a kernels.Cells of the local cells; which: the local cells it acts on."""
-        super().__init__()
         share = np.zeros(nlv)
         np.add.at(share, cells.cells[which].ravel(), np.repeat(cells.vol[which] / 4.0, 4))
-        self.f0 = (share[:, None] * np.asarray(b, float)[None, :]).ravel()
-        self.scale_param = scale
-        self.s = 1.0
-
-    def begin_step(self, t, h, xn, vn):
-        self.s = load_factor(self.scale_param, t)
-
-    @timed("evals")
-    def residual(self, x, r):
-        self.add_constant(r)
-
-    def add_constant(self, r):
-        r -= self.s * self.f0
-
-    def potential(self, x):
-        return -self.s * float(self.f0 @ x)
-
-    def energy(self, x, v):
-        return {"body_force_work": self.s * float(self.f0 @ x)}
+        super().__init__((share[:, None] * np.asarray(b, float)[None, :]).ravel(), scale)
 
 
 @dataclass(frozen=True)

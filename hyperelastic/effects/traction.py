@@ -3,7 +3,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..options import Row, facet_sets, needs, time_function
-from .base import Effect, Energy, Spec, load_factor, timed
+from .base import DeadLoad, Energy, Spec
 
 
 def triangle_areas(X, tris):
@@ -17,37 +17,16 @@ def triangle_coo_pattern(tris):
     return np.repeat(dofs, 9, axis=1).ravel(), np.tile(dofs, (1, 9)).ravel()
 
 
-class Traction(Effect):
-    """Dead-load surface traction t [Pa] per unit reference area on a face, scaled by
-    its time function (base.load_factor: a ramp A min(t,1) or -NAME_time): f_a = int t N_a dA = t A/3 per triangle vertex."""
+class Traction(DeadLoad):
+    """Dead-load surface traction t [Pa] per unit reference area on a face, scaled by its time function
+    (base.load_factor: a ramp A min(t,1) or -NAME_time): f_a = int t N_a dA = t A/3 per triangle vertex."""
     name = "traction"
-    constant = True
+    work_column = "traction_work"
 
     def __init__(self, X, tris, traction, scale=None, nlv=0):
-        super().__init__()
-        self.scale_param = scale
         share = np.zeros(nlv)
         np.add.at(share, tris.ravel(), np.repeat(triangle_areas(X, tris) / 3.0, 3))
-        self.f0 = (share[:, None] * np.asarray(traction, float)[None, :]).ravel()
-        self.loaded = np.flatnonzero(self.f0)            # the face's dofs: the residual touches only them
-        self.f0_loaded = self.f0[self.loaded]
-        self.s = 1.0
-
-    def begin_step(self, t, h, xn, vn):
-        self.s = load_factor(self.scale_param, t)
-
-    @timed("evals")
-    def residual(self, x, r):
-        self.add_constant(r)
-
-    def add_constant(self, r):
-        r[self.loaded] -= self.s * self.f0_loaded
-
-    def potential(self, x):
-        return -self.s * float(self.f0 @ x)
-
-    def energy(self, x, v):
-        return {"traction_work": self.s * float(self.f0 @ x)}
+        super().__init__((share[:, None] * np.asarray(traction, float)[None, :]).ravel(), scale)
 
 
 @dataclass(frozen=True)

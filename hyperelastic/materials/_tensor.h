@@ -60,4 +60,15 @@ HE_INLINE void cof_mixed(const double *A, const double *B, double *C) {
   C[7] = A[2] * B[3] - A[0] * B[5];
   C[8] = A[0] * B[4] - A[1] * B[3];
 }
+/* The volumetric split's common scalars of F: J = det F, Q = F^-T and J^(-2/3); returns 1 (nothing else
+ * computed) where J <= 0, for the materials undefined there (neohookean_split.h, mooney_rivlin.h). */
+HE_INLINE int split_scalars(const double *F, double *J, double *Q, double *jm23) {
+  *J = det3(F);
+  if (!(*J > 0)) return 1;
+  const double rJ = 1.0 / *J, c = cbrt(*J);
+  cof_mixed(F, F, Q);
+  for (int k = 0; k < 9; k++) Q[k] *= rJ;
+  *jm23 = 1.0 / (c * c);
+  return 0;
+}
 #endif

@@ -7,14 +7,12 @@ typedef struct { double F[9], Q[9], C[9], B[9], W[9], a2, b, I1, I2, kJ2, g; } m
 /* Q, C, W and the scalars of F (J > 0). */
 HE_INLINE int mooney_rivlin_scalars(const double *prm, const double *F, mooney_rivlin_cache *d, double *J) {
   const double C10 = prm[0], C01 = prm[1], kappa = prm[2];
-  *J = det3(F);
-  if (!(*J > 0)) return 1;
-  const double rJ = 1.0 / *J, c = cbrt(*J), j23 = 1.0 / (c * c);
-  cof_mixed(F, F, d->Q);
+  double j23;
+  if (split_scalars(F, J, d->Q, &j23)) return 1;
   mtm(F, F, d->C);
   d->I1 = d->C[0] + d->C[4] + d->C[8];
   double cc = 0;
-  for (int k = 0; k < 9; k++) { d->Q[k] *= rJ; cc += d->C[k] * d->C[k]; }
+  for (int k = 0; k < 9; k++) cc += d->C[k] * d->C[k];
   d->I2 = 0.5 * (d->I1 * d->I1 - cc);
   mm(F, d->C, d->W); /* W = I1 F - F C */
   for (int k = 0; k < 9; k++) d->W[k] = d->I1 * F[k] - d->W[k];

@@ -8,13 +8,11 @@ typedef struct { double F[9], Q[9], a, I1, kJ2, g; } neohookean_split_cache;
 HE_INLINE int neohookean_split_scalars(const double *prm, const double *F, neohookean_split_cache *d,
                                            double *J) {
   const double mu = prm[0], kappa = prm[1];
-  *J = det3(F);
-  if (!(*J > 0)) return 1;
-  const double rJ = 1.0 / *J, c = cbrt(*J);
-  cof_mixed(F, F, d->Q);
+  double jm23;
+  if (split_scalars(F, J, d->Q, &jm23)) return 1;
   d->I1 = 0;
-  for (int k = 0; k < 9; k++) { d->Q[k] *= rJ; d->I1 += F[k] * F[k]; }
-  d->a = mu / (c * c);
+  for (int k = 0; k < 9; k++) d->I1 += F[k] * F[k];
+  d->a = mu * jm23;
   d->kJ2 = kappa * *J * *J;
   d->g = 0.5 * kappa * (*J * *J - 1);
   return 0;
