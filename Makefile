@@ -18,7 +18,8 @@ $(STAMP): requirements.txt setup.py scripts/bootstrap.sh
 
 # rebuild the compiled kernels when their source changes (no PETSc rebuild): the loops, and each
 # material's header (setup.py instantiates the loops once per hyperelastic/materials/NAME.h)
-KERNEL_SOURCES := hyperelastic/_kernels.c hyperelastic/_material_loops.h $(wildcard hyperelastic/materials/*.h)
+KERNEL_SOURCES := hyperelastic/_kernels.c hyperelastic/_material_loops.h hyperelastic/_element_loops.h \
+                  $(wildcard hyperelastic/materials/*.h)
 $(KERNELS_STAMP): $(STAMP) setup.py $(KERNEL_SOURCES)
 	$(PY) setup.py -q build_ext --inplace -f >/dev/null
 	touch $@

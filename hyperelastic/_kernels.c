@@ -161,48 +161,62 @@ void he_apply_blocks(int64_t nc, const idx_t *cells, const double *B, const doub
  * det A + s cof(A):B + s^2 cof(B):A + s^3 det B (A = F(x), B = F(d), F linear in positions). Its first
  * root in (0, 1] is found by splitting at the critical points (roots of the derivative) and bisecting
  * the first monotone piece whose end is <= 0. Cells already inverted at x are skipped. */
+/* The largest t in (0, 1] keeping det(A + s B) > 0 for s in [0, t] (A = F(x), B = F(d)), times frac when
+ * det reaches 0 within the unit step; 1 when it does not, or when det A <= 0 already (the cell is skipped). */
+HE_INLINE double det_step(const double *A, const double *B, double frac) {
+  double cA[9], cB[9];
+  double c0 = det3(A);
+  if (!(c0 > 0)) return 1.0;
+  cof_mixed(A, A, cA);
+  cof_mixed(B, B, cB);
+  double c1 = 0, c2 = 0, c3 = det3(B);
+  for (int k = 0; k < 9; k++) { c1 += cA[k] * B[k]; c2 += cB[k] * A[k]; }
+#define CUBIC(s) (c0 + (s) * (c1 + (s) * (c2 + (s) * c3)))
+  double pts[4] = {0, 1, 1, 1};
+  int np = 1;
+  /* critical points: c1 + 2 c2 s + 3 c3 s^2 = 0 */
+  double qa = 3 * c3, qb = 2 * c2, qc = c1, r[2];
+  int nr = 0;
+  if (qa != 0) {
+    double disc = qb * qb - 4 * qa * qc;
+    if (disc >= 0) {
+      double sq = sqrt(disc), q = -0.5 * (qb + (qb >= 0 ? sq : -sq));
+      if (q != 0) { r[nr++] = q / qa; r[nr++] = qc / q; }
+      else r[nr++] = 0;
+    }
+  } else if (qb != 0) r[nr++] = -qc / qb;
+  if (nr == 2 && r[0] > r[1]) { double t = r[0]; r[0] = r[1]; r[1] = t; }
+  for (int i = 0; i < nr; i++)
+    if (r[i] > 0 && r[i] < 1) pts[np++] = r[i];
+  pts[np++] = 1;
+  for (int i = 1; i < np; i++) {
+    if (CUBIC(pts[i]) > 0) continue;
+    double lo = pts[i - 1], hi = pts[i]; /* CUBIC(lo) > 0 >= CUBIC(hi) */
+    for (int it = 0; it < 60; it++) {
+      double mid = 0.5 * (lo + hi);
+      if (CUBIC(mid) > 0) lo = mid; else hi = mid;
+    }
+    return frac * lo < 1.0 ? frac * lo : 1.0;
+  }
+#undef CUBIC
+  return 1.0;
+}
+
+/* Largest t in (0, 1] such that every cell keeps det F > 0 along x + s d for s in [0, t], times frac
+ * when a cell would reach det F = 0 within the unit step. det F(x + s d) = det(A + s B) is the cubic
+ * det A + s cof(A):B + s^2 cof(B):A + s^3 det B (A = F(x), B = F(d), F linear in positions). Its first
+ * root in (0, 1] is found by splitting at the critical points (roots of the derivative) and bisecting
+ * the first monotone piece whose end is <= 0. Cells already inverted at x are skipped. */
 double he_max_step(int64_t nc, const idx_t *cells, const double *Dminv, const double *x, const double *d,
                    double frac) {
   double tmin = 1.0;
   for (int64_t e = 0; e < nc; e++) {
-    double A[9], B[9], cA[9], cB[9];
+    double A[9], B[9];
     gather_F(cells + 4 * e, Dminv + 9 * e, x, A);
-    double c0 = det3(A);
-    if (!(c0 > 0)) continue;
+    if (!(det3(A) > 0)) continue;
     gather_F(cells + 4 * e, Dminv + 9 * e, d, B);
-    cof_mixed(A, A, cA);
-    cof_mixed(B, B, cB);
-    double c1 = 0, c2 = 0, c3 = det3(B);
-    for (int k = 0; k < 9; k++) { c1 += cA[k] * B[k]; c2 += cB[k] * A[k]; }
-#define CUBIC(s) (c0 + (s) * (c1 + (s) * (c2 + (s) * c3)))
-    double pts[4] = {0, 1, 1, 1};
-    int np = 1;
-    /* critical points: c1 + 2 c2 s + 3 c3 s^2 = 0 */
-    double qa = 3 * c3, qb = 2 * c2, qc = c1, r[2];
-    int nr = 0;
-    if (qa != 0) {
-      double disc = qb * qb - 4 * qa * qc;
-      if (disc >= 0) {
-        double sq = sqrt(disc), q = -0.5 * (qb + (qb >= 0 ? sq : -sq));
-        if (q != 0) { r[nr++] = q / qa; r[nr++] = qc / q; }
-        else r[nr++] = 0;
-      }
-    } else if (qb != 0) r[nr++] = -qc / qb;
-    if (nr == 2 && r[0] > r[1]) { double t = r[0]; r[0] = r[1]; r[1] = t; }
-    for (int i = 0; i < nr; i++)
-      if (r[i] > 0 && r[i] < 1) pts[np++] = r[i];
-    pts[np++] = 1;
-    for (int i = 1; i < np; i++) {
-      if (CUBIC(pts[i]) > 0) continue;
-      double lo = pts[i - 1], hi = pts[i]; /* CUBIC(lo) > 0 >= CUBIC(hi) */
-      for (int it = 0; it < 60; it++) {
-        double mid = 0.5 * (lo + hi);
-        if (CUBIC(mid) > 0) lo = mid; else hi = mid;
-      }
-      if (frac * lo < tmin) tmin = frac * lo;
-      break;
-    }
-#undef CUBIC
+    double t = det_step(A, B, frac);
+    if (t < tmin) tmin = t;
   }
   return tmin;
 }
@@ -249,6 +263,108 @@ void he_scatter_blocks(int64_t nc, const int32_t *base, const int32_t *len, cons
         int64_t off = (int64_t)i * L[a];
         for (int b = 0; b < 4; b++) {
           double *d = dst + p[4 * a + b] + off;
+          d[0] += row[3 * b];
+          d[1] += row[3 * b + 1];
+          d[2] += row[3 * b + 2];
+        }
+      }
+  }
+}
+
+/* ---- elements with quadrature (P2 tetrahedra; _element_loops.h has the material loops and the helpers) ---- */
+
+/* y += coef * M v per vector component, M_ab = sum_q w_q N_a(q) N_b(q) (N: nq x nn at the mass rule's points,
+ * w: nc x nq, |det J| times the rule's weights). */
+void he_emass_apply(int64_t nc, int nn, int nq, const idx_t *cells, const double *N, const double *w, double coef,
+                    const double *v, double *y) {
+  for (int64_t e = 0; e < nc; e++) {
+    const idx_t *c = cells + (int64_t)nn * e;
+    double ve[HE_MAXN][3], ye[HE_MAXN][3] = {{0}};
+    e_gather(c, nn, v, ve);
+    for (int q = 0; q < nq; q++) {
+      const double *Nq = N + nn * q, wq = coef * w[(int64_t)nq * e + q];
+      double s[3] = {0, 0, 0};
+      for (int b = 0; b < nn; b++)
+        for (int i = 0; i < 3; i++) s[i] += Nq[b] * ve[b][i];
+      for (int a = 0; a < nn; a++)
+        for (int i = 0; i < 3; i++) ye[a][i] += wq * Nq[a] * s[i];
+    }
+    e_scatter(c, nn, ye, y);
+  }
+}
+
+/* vals (nc, 3nn, 3nn) += coef * M_ab I3 of each cell (the consistent mass blocks), in place. */
+void he_emass_blocks(int64_t nc, int nn, int nq, const double *N, const double *w, double coef, double *vals) {
+  const int n3 = 3 * nn;
+  for (int64_t e = 0; e < nc; e++) {
+    double *K = vals + (int64_t)n3 * n3 * e;
+    for (int a = 0; a < nn; a++)
+      for (int b = 0; b < nn; b++) {
+        double m = 0;
+        for (int q = 0; q < nq; q++) m += w[(int64_t)nq * e + q] * N[nn * q + a] * N[nn * q + b];
+        for (int i = 0; i < 3; i++) K[n3 * (3 * a + i) + 3 * b + i] += coef * m;
+      }
+  }
+}
+
+/* y += B v with per-cell (3nn x 3nn) blocks B (row-major), scattered by cells. */
+void he_eapply_blocks(int64_t nc, int nn, const idx_t *cells, const double *B, const double *v, double *y) {
+  const int n3 = 3 * nn;
+  for (int64_t e = 0; e < nc; e++) {
+    const idx_t *c = cells + (int64_t)nn * e;
+    const double *K = B + (int64_t)n3 * n3 * e;
+    double ve[HE_MAXN][3], ye[HE_MAXN][3];
+    e_gather(c, nn, v, ve);
+    for (int r = 0; r < n3; r++) {
+      double s = 0;
+      for (int k = 0; k < n3; k++) s += K[n3 * r + k] * ve[k / 3][k % 3];
+      ye[r / 3][r % 3] = s;
+    }
+    e_scatter(c, nn, ye, y);
+  }
+}
+
+/* he_max_step on elements: det F > 0 at every quadrature point along x + s d (F is linear in the positions at
+ * each point, so det_step applies point by point); cells with a point already inverted at x are skipped. */
+double he_emax_step(int64_t nc, int nn, int nq, const idx_t *cells, const double *dN, const double *geo,
+                    const double *x, const double *d, double frac) {
+  double tmin = 1.0;
+  for (int64_t e = 0; e < nc; e++) {
+    const idx_t *c = cells + (int64_t)nn * e;
+    double xe[HE_MAXN][3], de[HE_MAXN][3], t = 1.0;
+    int skip = 0;
+    e_gather(c, nn, x, xe);
+    e_gather(c, nn, d, de);
+    for (int q = 0; q < nq && !skip; q++) {
+      const double *g = geo + 10 * ((int64_t)nq * e + q);
+      double G[HE_MAXN][3], A[9], B[9];
+      e_grads(g, dN + 3 * nn * q, nn, G);
+      e_deformation(xe, G, nn, A);
+      if (!(det3(A) > 0)) { skip = 1; break; }
+      e_deformation(de, G, nn, B);
+      double tq = det_step(A, B, frac);
+      if (tq < t) t = tq;
+    }
+    if (!skip && t < tmin) tmin = t;
+  }
+  return tmin;
+}
+
+/* he_scatter_blocks for cells of nn nodes: dst += vals (nc x 3nn x 3nn), the 3x3 block of nodes (a, b) at
+ * base[nn^2 e + nn a + b] + i len[nn e + a] + j for entry (3a+i, 3b+j); cells with base[nn^2 e] < 0 skipped. */
+void he_scatter_blocks_n(int64_t nc, int nn, const int32_t *base, const int32_t *len, const double *vals,
+                         double *dst) {
+  const int n3 = 3 * nn;
+  for (int64_t e = 0; e < nc; e++) {
+    const int32_t *p = base + (int64_t)nn * nn * e, *L = len + (int64_t)nn * e;
+    if (p[0] < 0) continue;
+    const double *v = vals + (int64_t)n3 * n3 * e;
+    for (int a = 0; a < nn; a++)
+      for (int i = 0; i < 3; i++) {
+        const double *row = v + n3 * (3 * a + i);
+        int64_t off = (int64_t)i * L[a];
+        for (int b = 0; b < nn; b++) {
+          double *d = dst + p[nn * a + b] + off;
           d[0] += row[3 * b];
           d[1] += row[3 * b + 1];
           d[2] += row[3 * b + 2];

@@ -9,7 +9,8 @@
  * block and its diagonal from NAME_cell_tangent and NAME_cell_tangent_diag instead of twelve NAME_dstress.
  * Every loop takes the material's parameter block `prm` (HE_NPARAM doubles: the constants in the order
  * the header reads them, materials/NAME.py's `constants`, zero-padded), restrict-qualified (_kernels.c).
- * No include guard: it is meant to be included once per material. */
+ * No include guard: it is meant to be included once per material, followed by _element_loops.h (which
+ * undefines the macros below). */
 #define HE_CAT_(a, b) a##b
 #define HE_CAT(a, b) HE_CAT_(a, b)
 #define HE_FN(kind) HE_CAT(HE_CAT(he_, kind), HE_CAT(_, MATERIAL))
@@ -233,11 +234,52 @@ int64_t HE_FN(tangent_diag)(int64_t nc, const idx_t *cells, const double *Dminv,
   return bad;
 }
 
-/* f += the energy-momentum (discrete-gradient) force of the midpoint step from xn to x1 = 2 x - xn, x the
- * midpoint (kernels.py, CellKernels.forces_discrete_gradient, has the formulas and references):
- * P = F(x) S_alg, S_alg = S(C_bar) + (dW - S(C_bar) : dE) dE / (dE : dE). S(C_bar) = Ft^-1 P(Ft) for
+/* The energy-momentum (discrete-gradient) first Piola stress at a point of the midpoint step from Fn to
+ * F1 = 2 F - Fn, F the midpoint (kernels.py, CellKernels.forces_discrete_gradient, has the formulas and
+ * references): P = F S_alg, S_alg = S(C_bar) + (dW - S(C_bar) : dE) dE / (dE : dE). S(C_bar) = Ft^-1 P(Ft) for
  * any Ft with Ft^T Ft = C_bar and det Ft of the sign of det F (objective materials): from the Cholesky
- * factor C_bar = L L^T, Ft = L^T, its last row negated where det F < 0.
+ * factor C_bar = L L^T, Ft = L^T, its last row negated where det F < 0. Returns 1 where the material is
+ * undefined at Fn or F1 (P not set). */
+HE_INLINE int HE_FN(point_dg)(const double *p, const double *F, const double *Fn, double *P) {
+  double F1[9], Cn[9], C1[9], Cb[9], dE[9], psin, psi1;
+  for (int k = 0; k < 9; k++) F1[k] = 2 * F[k] - Fn[k];
+  if (HE_MAT(stress)(p, Fn, P, &psin) || HE_MAT(stress)(p, F1, P, &psi1)) return 1;
+  mtm(Fn, Fn, Cn);
+  mtm(F1, F1, C1);
+  for (int k = 0; k < 9; k++) { Cb[k] = 0.5 * (Cn[k] + C1[k]); dE[k] = 0.5 * (C1[k] - Cn[k]); }
+  /* Cholesky C_bar = L L^T; Ft = L^T (upper triangular, row-major) */
+  double l00 = Cb[0] > 0 ? sqrt(Cb[0]) : 0;
+  if (!(l00 > 0)) return 1;
+  double l10 = Cb[3] / l00, l20 = Cb[6] / l00;
+  double d11 = Cb[4] - l10 * l10;
+  if (!(d11 > 0)) return 1;
+  double l11 = sqrt(d11), l21 = (Cb[7] - l20 * l10) / l11;
+  double d22 = Cb[8] - l20 * l20 - l21 * l21;
+  if (!(d22 > 0)) return 1;
+  /* with the midpoint's orientation: Ft = diag(1, 1, -1) L^T where det F < 0 (materials defined when
+   * inverted depend on the sign of J, which C does not carry) */
+  double l22 = det3(F) < 0 ? -sqrt(d22) : sqrt(d22);
+  double Ft[9] = {l00, l10, l20, 0, l11, l21, 0, 0, l22}, Pt[9], cof[9], S[9];
+  if (HE_MAT(stress)(p, Ft, Pt, NULL)) return 1;
+  cof_mixed(Ft, Ft, cof);                      /* Ft^-1 = cof^T / det */
+  double idet = 1.0 / (l00 * l11 * l22);
+  mtm(cof, Pt, S);
+  double sde = 0, nn = 0;
+  for (int i = 0; i < 3; i++)
+    for (int j = i; j < 3; j++) {
+      double s = 0.5 * idet * (S[3 * i + j] + S[3 * j + i]);
+      S[3 * i + j] = S[3 * j + i] = s;
+    }
+  for (int k = 0; k < 9; k++) { sde += S[k] * dE[k]; nn += dE[k] * dE[k]; }
+  if (nn > 1e-12) { /* |dE| > 1e-6: below it the correction, O(|dE|^2), is under the rounding of dW */
+    double w = (psi1 - psin - sde) / nn;
+    for (int k = 0; k < 9; k++) S[k] += w * dE[k];
+  }
+  mm(F, S, P);
+  return 0;
+}
+
+/* f += the energy-momentum force of the midpoint step from xn to x1 = 2 x - xn, x the midpoint (point_dg).
  * Returns the number of cells where the material is undefined at xn or x1 (their force is skipped). */
 int64_t HE_FN(forces_dg)(int64_t nc, const idx_t *cells, const double *Dminv, const double *vol, const double *x,
                          const double *restrict prm, const double *xn, double *f) {
@@ -245,49 +287,12 @@ int64_t HE_FN(forces_dg)(int64_t nc, const idx_t *cells, const double *Dminv, co
   int64_t bad = 0;
   for (int64_t e = 0; e < nc; e++) {
     const idx_t *c = cells + 4 * e;
-    double F[9], Fn[9], F1[9], P[9], Cn[9], C1[9], Cb[9], dE[9], psin, psi1;
+    double F[9], Fn[9], P[9];
     gather_F(c, Dminv + 9 * e, x, F);
     gather_F(c, Dminv + 9 * e, xn, Fn);
-    for (int k = 0; k < 9; k++) F1[k] = 2 * F[k] - Fn[k];
-    if (HE_MAT(stress)(p, Fn, P, &psin) || HE_MAT(stress)(p, F1, P, &psi1)) { bad++; continue; }
-    mtm(Fn, Fn, Cn);
-    mtm(F1, F1, C1);
-    for (int k = 0; k < 9; k++) { Cb[k] = 0.5 * (Cn[k] + C1[k]); dE[k] = 0.5 * (C1[k] - Cn[k]); }
-    /* Cholesky C_bar = L L^T; Ft = L^T (upper triangular, row-major) */
-    double l00 = Cb[0] > 0 ? sqrt(Cb[0]) : 0;
-    if (!(l00 > 0)) { bad++; continue; }
-    double l10 = Cb[3] / l00, l20 = Cb[6] / l00;
-    double d11 = Cb[4] - l10 * l10;
-    if (!(d11 > 0)) { bad++; continue; }
-    double l11 = sqrt(d11), l21 = (Cb[7] - l20 * l10) / l11;
-    double d22 = Cb[8] - l20 * l20 - l21 * l21;
-    if (!(d22 > 0)) { bad++; continue; }
-    /* with the midpoint's orientation: Ft = diag(1, 1, -1) L^T where det F < 0 (materials defined when
-     * inverted depend on the sign of J, which C does not carry) */
-    double l22 = det3(F) < 0 ? -sqrt(d22) : sqrt(d22);
-    double Ft[9] = {l00, l10, l20, 0, l11, l21, 0, 0, l22}, Pt[9], cof[9], S[9];
-    if (HE_MAT(stress)(p, Ft, Pt, NULL)) { bad++; continue; }
-    cof_mixed(Ft, Ft, cof);                      /* Ft^-1 = cof^T / det */
-    double idet = 1.0 / (l00 * l11 * l22);
-    mtm(cof, Pt, S);
-    double sde = 0, nn = 0;
-    for (int i = 0; i < 3; i++)
-      for (int j = i; j < 3; j++) {
-        double s = 0.5 * idet * (S[3 * i + j] + S[3 * j + i]);
-        S[3 * i + j] = S[3 * j + i] = s;
-      }
-    for (int k = 0; k < 9; k++) { sde += S[k] * dE[k]; nn += dE[k] * dE[k]; }
-    if (nn > 1e-12) { /* |dE| > 1e-6: below it the correction, O(|dE|^2), is under the rounding of dW */
-      double w = (psi1 - psin - sde) / nn;
-      for (int k = 0; k < 9; k++) S[k] += w * dE[k];
-    }
-    mm(F, S, P);
+    if (HE_FN(point_dg)(p, F, Fn, P)) { bad++; continue; }
     scatter_force(c, Dminv + 9 * e, vol[e], P, f);
   }
   return bad;
 }
 
-#undef HE_CAT_
-#undef HE_CAT
-#undef HE_FN
-#undef HE_MAT

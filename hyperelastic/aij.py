@@ -80,25 +80,25 @@ class CellMap:
             raise RuntimeError(f"the tangent's diagonal block has {len(ja)} entries on one rank (the direct map "
                                "holds int32 positions): use more ranks or -assembly coo")
         own = owned_index(sp)
-        nc = len(blocks)
-        base = np.full((nc, 16), -1, np.int32)
-        rowlen = np.zeros((nc, 4), np.int32)
+        nc, nn = blocks.shape
+        base = np.full((nc, nn * nn), -1, np.int32)
+        rowlen = np.zeros((nc, nn), np.int32)
         interior = (own[blocks] >= 0).all(axis=1)
         ia64 = ia.astype(np.int64)
         i3, j3 = np.arange(3)[:, None], np.arange(3)[None, :]
         for lo in range(0, nc, chunk):
             hi = min(lo + chunk, nc)
             sel = np.flatnonzero(interior[lo:hi])
-            r = 3 * own[blocks[lo:hi][sel]]                           # first dof row of each vertex (m, 4)
+            r = 3 * own[blocks[lo:hi][sel]]                           # first dof row of each node (m, nn)
             L = ia64[r + 1] - ia64[r]
             # each (a, b): the position of column 3 w_b in row 3 v_a
-            p = _row_search(ia64, ja, np.repeat(r, 4, axis=1).ravel(), np.tile(r, (1, 4)).ravel())
-            pos = (p.reshape(-1, 4, 4)[:, :, :, None, None] + i3[None, None, None] * L[:, :, None, None, None]
+            p = _row_search(ia64, ja, np.repeat(r, nn, axis=1).ravel(), np.tile(r, (1, nn)).ravel())
+            pos = (p.reshape(-1, nn, nn)[:, :, :, None, None] + i3[None, None, None] * L[:, :, None, None, None]
                    + j3[None, None, None])                                   # (m, a, b, i, j)
             cols = r[:, None, :, None, None] + j3[None, None, None]     # column 3 w_b + j
             if not np.array_equal(ja[pos], np.broadcast_to(cols, pos.shape)):
                 raise RuntimeError("a cell entry is missing from the assembled pattern")
-            base[lo + sel] = p.reshape(-1, 16)
+            base[lo + sel] = p.reshape(-1, nn * nn)
             rowlen[lo + sel] = L
         self.nnz, self.base, self.rowlen = len(ja), base, rowlen
         self.boundary = np.flatnonzero(~interior)
@@ -120,8 +120,10 @@ class BoundaryExchange:
         self.mpi, self.A, self.row0, self.n_owned = mpi, A, row0, sp.n_owned
         starts = np.asarray(A.getOwnershipRanges(), np.int64) // 3              # each rank's first vertex
         g = sp.lgmap.getBlockIndices().astype(np.int64)
-        c = g[blocks[boundary].astype(np.int64)]                               # (nb, 4) global vertices
-        gr, gc = np.repeat(c, 4, axis=1).ravel(), np.tile(c, (1, 4)).ravel()    # block (cell, a, b)
+        nn = blocks.shape[1]
+        self.nn = nn
+        c = g[blocks[boundary].astype(np.int64)]                               # (nb, nn) global nodes
+        gr, gc = np.repeat(c, nn, axis=1).ravel(), np.tile(c, (1, nn)).ravel()  # block (cell, a, b)
         owner = np.searchsorted(starts, gr, side="right") - 1
         send = np.flatnonzero(owner != mpi.rank)
         send = send[np.argsort(owner[send], kind="stable")]
@@ -164,8 +166,9 @@ class BoundaryExchange:
         return off, p0.astype(np.int32), L.astype(np.int32)
 
     def add(self, bvals, Ad, nnz_d):
-        """Add the boundary cells' blocks bvals (nb, 12, 12) (their order: CellMap.boundary's)."""
-        blocks = np.ascontiguousarray(bvals.reshape(-1, 4, 3, 4, 3).transpose(0, 1, 3, 2, 4)).reshape(-1, 9)
+        """Add the boundary cells' blocks bvals (nb, 3nn, 3nn) (their order: CellMap.boundary's)."""
+        nn = self.nn
+        blocks = np.ascontiguousarray(bvals.reshape(-1, nn, 3, nn, 3).transpose(0, 1, 3, 2, 4)).reshape(-1, 9)
         sbuf = np.ascontiguousarray(blocks[self.send])
         rbuf = np.empty((self.rcount.sum() // 9, 9))
         self.mpi.Alltoallv([sbuf, self.scount], [rbuf, self.rcount])

@@ -17,6 +17,7 @@ import sys
 import textwrap
 
 from . import effects, materials
+from .element import DEFAULT_DEGREE, TET_RULES
 from .errors import UserError
 from .options import PREFIX, Options, Row, insert_defaults, parse_options_file, resolve_scene
 from .scene import (ASSEMBLIES, DEFAULT_EFFECTS, DEFAULT_MATERIAL, EFFECTS, EFFECTS_RULE, INTEGRATORS, JACOBIANS,
@@ -36,6 +37,13 @@ HEAD = (
         "default the last, becomes the reference; regions kept)", "cached bar at `-level`"),
     Row(("level",), "-level N", "bar mesh level: 1..8 = thesis L1..L8 (edge 0.80 … 0.30), 9.. finer (≈2× tets each)",
         f"{_S.level}"),
+    Row(("order",), "-order 1|2", "element order: 1, linear tetrahedra (4 nodes); 2, quadratic (10 nodes: a "
+        "linear mesh gets straight edges with a node at each midpoint, a quadratic mesh (`hyperelastic mesh "
+        "--order 2`, or an output of an order-2 run) keeps its curved ones); `-order 1` on a quadratic mesh "
+        "uses its corners", "the mesh's (1 for the bar)"),
+    Row(("quadrature_degree",), "-quadrature_degree N", "the degree of the rule that integrates quadratic "
+        "tetrahedra's stiffness: " + ", ".join(f"{d} ({len(TET_RULES[d][1])} points)" for d in TET_RULES if d > 1)
+        + "; the mass matrix and the loads are integrated exactly on straight cells", str(DEFAULT_DEGREE[2])),
     Row(("material",), "-material NAME", _material_list(), DEFAULT_MATERIAL),
     Row(("hessian_projection",), "-hessian_projection", "element tangents projected to positive semi-definite "
         "(eigenvalues clamped at 0); the residual is unchanged", "off"),

@@ -143,16 +143,18 @@ def mesh_cmd(argv):
     ap.add_argument("--level", type=int, help="refinement level: 1..8 = thesis L1..L8, 9.. finer (~2x tets each)")
     ap.add_argument("--size", type=float, help="target edge length instead of a level")
     ap.add_argument("--refine", type=int, default=0, help="also write N uniformly refined meshes OUT_r1 .. OUT_rN")
+    ap.add_argument("--order", type=int, default=1, help="2: 10-node tetrahedra, edge nodes on curved geometry")
     ap.add_argument("-o", "--output", required=True, help="output .msh file")
     a = ap.parse_args(argv)
     if (a.level is None) == (a.size is None):
         raise UserError("hyperelastic mesh: give exactly one of --level N or --size H")
     if a.refine < 0:
         raise UserError(f"hyperelastic mesh: --refine {a.refine} must be >= 0")
-    st = generate(a.geometry, a.level, a.output, a.size, a.refine)
+    st = generate(a.geometry, a.level, a.output, a.size, a.refine, a.order)
     for s in (st if a.refine else [st]):
-        print(f"{s['file']}: level {a.level or '-'} target edge {s['target_size']:.4g}: {s['vertices']} vertices, "
-              f"{s['tets']} tets, min edge {s['min_edge']:.4g}")
+        nodes = f" ({s['nodes']} nodes of 10-node tets)" if s["order"] == 2 else ""
+        print(f"{s['file']}: level {a.level or '-'} target edge {s['target_size']:.4g}: {s['vertices']} vertices"
+              f"{nodes}, {s['tets']} tets, min edge {s['min_edge']:.4g}")
     return 0
 
 

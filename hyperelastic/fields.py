@@ -3,7 +3,9 @@ density, von Mises stress of the Cauchy stress, region), evaluated on the local 
 material's numpy reference (materials/NAME.py) and gathered into the input numbering by the Writer.
 
 Cauchy stress sigma = P F^T / J (Bonet & Wood, eq. 5.41); von Mises sqrt(3/2 s:s), s = dev sigma. Where
-the material is undefined (J <= 0 for Neo-Hookean) the energy density and stress are NaN.
+the material is undefined (J <= 0 for Neo-Hookean) the energy density and stress are NaN. On quadratic cells
+each field is its mean over the cell's quadrature points weighted by their weights (|det J| w_q: the cell
+integral divided by the cell's volume).
 """
 import numpy as np
 
@@ -43,14 +45,30 @@ def cell_fields(kernels, x):
     for idx, k in kernels.parts:             # one material (CellKernels), or one per region
         cells = np.arange(kernels.nc)[idx]   # the local cells of this material
         for lo in range(0, k.nc, CHUNK):
-            part = _cell_fields(k.cells[lo:lo + CHUNK], k.Dminv[lo:lo + CHUNK], k, x)
+            part = (_cell_fields(k.cells[lo:lo + CHUNK], k.Dminv[lo:lo + CHUNK], k, x) if k.nn == 4 else
+                    _element_fields(k, x, lo, min(lo + CHUNK, k.nc)))
             for name in CELL_FIELDS:
                 out[name][cells[lo:lo + CHUNK]] = part[name]
     return out
 
 
+def _element_fields(k, x, lo, hi):
+    """The fields of cells lo..hi-1 of ElementKernels k: at every quadrature point, then their weighted mean."""
+    geo = k.geometry.geo[lo:hi]                                         # (n, nq, 10)
+    nq = geo.shape[1]
+    G = np.einsum("cqmj,qam->cqaj", geo[:, :, :9].reshape(-1, nq, 3, 3), k.geometry.dN)
+    F = np.einsum("cai,cqaj->cqij", x.reshape(-1, 3)[k.cells[lo:hi]], G).reshape(-1, 3, 3)
+    w = geo[:, :, 9]
+    point = _point_fields(F, k)
+    return {name: (v.reshape(-1, nq) * w).sum(axis=1) / w.sum(axis=1) for name, v in point.items()}
+
+
 def _cell_fields(cells, Dminv, kernels, x):
-    F = deformation_gradients(cells, Dminv, x)
+    return _point_fields(deformation_gradients(cells, Dminv, x), kernels)
+
+
+def _point_fields(F, kernels):
+    """{J, energy_density, von_mises} of deformation gradients F (n, 3, 3) of a material's kernels."""
     mat, c = kernels.model, kernels.constants
     with np.errstate(all="ignore"):
         J = np.linalg.det(F)

@@ -41,9 +41,10 @@ class Assembled:
         sp = system.space
         self.cell_effects = [e for e in system.effects if e.cell_blocks]
         self.other = []
-        cd = (3 * sp.cells[:, :, None].astype(np.int64) + np.arange(3)).reshape(-1, 12)   # (nc, 12)
-        rows = [np.repeat(cd, 12, axis=1).ravel()]
-        cols = [np.tile(cd, (1, 12)).ravel()]
+        n3 = 3 * sp.cells.shape[1]
+        cd = (3 * sp.cells[:, :, None].astype(np.int64) + np.arange(3)).reshape(-1, n3)   # (nc, 3nn)
+        rows = [np.repeat(cd, n3, axis=1).ravel()]
+        cols = [np.tile(cd, (1, n3)).ravel()]
         n = len(rows[0])
         for e in system.effects:
             r, c = e.coo_pattern()
@@ -66,6 +67,7 @@ class Assembled:
         del zero
         self.nvals = len(rows)
         self.ncell = len(cd)
+        self.n3 = n3                              # dofs per cell
         A = PETSc.Mat().create(comm=sp.comm)
         A.setSizes(_sizes(sp), bsize=3)
         A.setType(PETSc.Mat.Type.AIJ)
@@ -78,7 +80,8 @@ class Assembled:
 
     def assemble(self):
         vals = self.vals
-        cell = vals[:self.ncell * 144].reshape(-1, 12, 12)
+        n3 = self.n3
+        cell = vals[:self.ncell * n3 * n3].reshape(-1, n3, n3)
         cell.fill(0.0)
         for e in self.cell_effects:
             e.add_cell_blocks(cell)
@@ -143,10 +146,10 @@ class AssembledChunked:
     def assemble(self):
         A = self.mat
         A.zeroEntries()
-        nc = len(self.blocks)
-        buf = np.empty((min(self.CHUNK, nc), 12, 12))
+        nc, n3 = len(self.blocks), 3 * self.blocks.shape[1]
+        buf = np.empty((min(self.CHUNK, nc), n3, n3))
         boundary = self.map.boundary
-        bvals = np.empty((len(boundary), 12, 12))              # partition-boundary cells
+        bvals = np.empty((len(boundary), n3, n3))              # partition-boundary cells
         for lo in range(0, nc, self.CHUNK):
             hi = min(lo + self.CHUNK, nc)
             vals = self._cell_blocks(buf[:hi - lo], lo, hi)
@@ -177,7 +180,7 @@ class AssembledChunked:
         cc = self.constrained_cells
         cc = cc[np.searchsorted(cc, lo):np.searchsorted(cc, hi)] - lo
         if len(cc):                                               # constrained rows/columns: 0
-            cm = self.vmask[self.blocks[lo + cc]].reshape(-1, 12)
+            cm = self.vmask[self.blocks[lo + cc]].reshape(len(cc), -1)
             sub = vals[cc]
             sub[cm] = 0.0
             sub.transpose(0, 2, 1)[cm] = 0.0

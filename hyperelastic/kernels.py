@@ -16,7 +16,8 @@ IDX = np.int32  # vertex index type used by the kernels
 
 def _sources():
     """The C sources the compiled kernels are built from (setup.py): a newer one means a stale build."""
-    return ([os.path.join(_here, "_kernels.c"), os.path.join(_here, "_material_loops.h")]
+    return ([os.path.join(_here, "_kernels.c"), os.path.join(_here, "_material_loops.h"),
+             os.path.join(_here, "_element_loops.h")]
             + glob.glob(os.path.join(_here, "materials", "*.h")))
 
 
@@ -50,6 +51,8 @@ _lib.he_add_mass_blocks.restype = None
 _lib.he_add_mass_blocks.argtypes = [_I, _P, _D, _P]
 _lib.he_scatter_blocks.restype = None
 _lib.he_scatter_blocks.argtypes = [_I, _P, _P, _P, _P]
+_lib.he_scatter_blocks_n.restype = None
+_lib.he_scatter_blocks_n.argtypes = [_I, ctypes.c_int, _P, _P, _P, _P]
 _lib.he_add_blocks.restype = None
 _lib.he_add_blocks.argtypes = [_I, _P, _P, _P, _P]
 _lib.he_gather_blocks.restype = None
@@ -57,9 +60,15 @@ _lib.he_gather_blocks.argtypes = [_I, _P, _P, _P, _P, ctypes.c_int]
 
 
 def scatter_blocks(base, rowlen, vals, dst):
-    """dst += the cells' 12x12 blocks vals (nc,12,12) at CSR value positions base[e, 4a+b] + i rowlen[e, a]
-    + j for dof (3a+i, 3b+j); cells with base[e, 0] < 0 are skipped (base (nc,16), rowlen (nc,4) int32)."""
-    nc = len(vals)
+    """dst += the cells' blocks vals (nc, 3nn, 3nn) at CSR value positions base[e, nn a + b] + i rowlen[e, a]
+    + j for dof (3a+i, 3b+j); cells with base[e, 0] < 0 are skipped (base (nc, nn^2), rowlen (nc, nn) int32)."""
+    nc, nn = len(vals), rowlen.shape[1]
+    if nn != 4:
+        assert base.shape == (nc, nn * nn) and vals.shape == (nc, 3 * nn, 3 * nn)
+        assert base.dtype == rowlen.dtype == np.int32 and vals.dtype == dst.dtype == np.float64
+        assert base.flags.c_contiguous and rowlen.flags.c_contiguous and vals.flags.c_contiguous
+        _lib.he_scatter_blocks_n(nc, nn, base.ctypes.data, rowlen.ctypes.data, vals.ctypes.data, dst.ctypes.data)
+        return
     assert base.shape == (nc, 16) and rowlen.shape == (nc, 4) and vals.shape == (nc, 12, 12)
     assert base.dtype == rowlen.dtype == np.int32 and vals.dtype == dst.dtype == np.float64
     assert base.flags.c_contiguous and rowlen.flags.c_contiguous and vals.flags.c_contiguous
@@ -123,6 +132,8 @@ class Cells:
     the kernels that need nothing else: the consistent mass matrix, the inversion guard's step bound and
     stored 12x12 blocks."""
 
+    nn = 4          # nodes per cell
+
     def __init__(self, cells, Dminv, vol):
         self.cells = np.ascontiguousarray(cells, dtype=IDX)
         self.Dminv = np.ascontiguousarray(Dminv, dtype=np.float64).reshape(-1, 9)
@@ -141,11 +152,27 @@ class Cells:
         """The same cells with volumes w V (a coefficient per cell, e.g. each region's density)."""
         return Cells(self.cells, self.Dminv, np.asarray(w, np.float64) * self.vol)
 
-    def vertex_shares(self, nlv):
-        """(nlv,) the sum over each local vertex's cells of V/4: int N_a dV of P1."""
-        share = np.zeros(nlv)
-        np.add.at(share, self.cells.ravel(), np.repeat(self.vol / 4.0, 4))
-        return share
+    def subset(self, idx):
+        """The cells idx (copies)."""
+        return Cells(self.cells[idx], self.Dminv[idx], self.vol[idx])
+
+    def kernels(self, material, constants):
+        """A material's loops on these cells."""
+        return CellKernels(self, material=material, constants=constants)
+
+    def load_shares(self, coef=1.0, which=None):
+        """(n, 4): int coef N_a dV = coef V/4 of the cells `which` (default all), coef a scalar or one per cell."""
+        sel = slice(None) if which is None else which
+        c = np.asarray(coef, float)
+        per_cell = (c if c.ndim == 0 else c[sel]) * self.vol[sel] / 4.0
+        return np.repeat(per_cell, 4).reshape(-1, 4)
+
+    def mass_diagonal(self, lumped, nlv):
+        """(nlv,) the mass matrix's diagonal per node (density 1): lumped V/4 (the row sums), consistent
+        2V/20 = V/10 per vertex."""
+        vertex_share = np.zeros(nlv)
+        np.add.at(vertex_share, self.cells.ravel(), np.repeat(self.vol, 4))
+        return vertex_share * (0.25 if lumped else 0.1)
 
     def max_step(self, x, d, frac=0.9):
         """Largest t <= 1 keeping every (not already inverted) cell's det F > 0 on x + [0, t] d, times
@@ -173,6 +200,7 @@ class CellKernels:
     """A material (its name, e.g. 'stvk', and its constants, materials/NAME.py `constants`) on cells (a
     Cells, or its arrays: local vertex indices, Dm^-1, volumes), bound to the C kernels. `materials` and
     `parts` are declared as RegionKernels declares them, so callers need not know which they hold."""
+    nn = 4
 
     def __init__(self, cells, Dminv=None, vol=None, material=None, constants=()):
         self.geometry = cells if isinstance(cells, Cells) else Cells(cells, Dminv, vol)
@@ -260,11 +288,10 @@ class RegionKernels:
     def __init__(self, cells, parts):
         """cells: a Cells; parts: [(local cell indices, material name, constants)]; each cell in exactly one."""
         self.geometry = cells
-        self.cells, self.Dminv, self.vol, self.nc = cells.cells, cells.Dminv, cells.vol, cells.nc
+        self.cells, self.nc, self.nn = cells.cells, cells.nc, cells.nn
         self.spec = [(np.asarray(idx, np.int64), m, tuple(c)) for idx, m, c in parts]
         self.materials = tuple(m for _, m, _ in self.spec)
-        self.parts = [(idx, CellKernels(Cells(self.cells[idx], self.Dminv[idx], self.vol[idx]), material=m,
-                                        constants=c)) for idx, m, c in self.spec if len(idx)]
+        self.parts = [(idx, cells.subset(idx).kernels(m, c)) for idx, m, c in self.spec if len(idx)]
         self._parts = {}
 
     def part(self, lo, hi):
@@ -291,9 +318,10 @@ class RegionKernels:
         return sum(k.kv(x, v, y) for _, k in self.parts)
 
     def tangent(self, x, vals=None, accumulate=False):
+        n3 = 3 * self.nn
         if vals is None:
-            vals = np.zeros((self.nc, 12, 12))
-        assert vals.shape == (self.nc, 12, 12)
+            vals = np.zeros((self.nc, n3, n3))
+        assert vals.shape == (self.nc, n3, n3)
         bad = 0
         for idx, k in self.parts:
             K, b = k.tangent(x)
@@ -306,6 +334,188 @@ class RegionKernels:
 
     def tangent_diag(self, x, diag):
         return sum(k.tangent_diag(x, diag) for _, k in self.parts)
+
+    def max_step(self, x, d, frac=0.9):
+        return self.geometry.max_step(x, d, frac)
+
+    def apply_blocks(self, blocks, v, y):
+        self.geometry.apply_blocks(blocks, v, y)
+
+
+# ---- elements with quadrature (P2 tetrahedra) ----------------------------------------------------------
+# per material NAME: he_eKIND_NAME(nc, nn, nq, cells, dN, geo, x, prm, ...) (_element_loops.h)
+_ELEMENT_KERNELS = {"forces": [_P], "energy": [_P], "kv": [_P, _P], "tangent": [_P, ctypes.c_int],
+                    "tangent_diag": [_P], "forces_dg": [_P, _P]}
+_C = ctypes.c_int
+_lib.he_emass_apply.restype = None
+_lib.he_emass_apply.argtypes = [_I, _C, _C, _P, _P, _P, _D, _P, _P]
+_lib.he_emass_blocks.restype = None
+_lib.he_emass_blocks.argtypes = [_I, _C, _C, _P, _P, _D, _P]
+_lib.he_eapply_blocks.restype = None
+_lib.he_eapply_blocks.argtypes = [_I, _C, _P, _P, _P, _P]
+_lib.he_emax_step.restype = _D
+_lib.he_emax_step.argtypes = [_I, _C, _C, _P, _P, _P, _P, _P, _D]
+_ebound = {}
+
+
+def element_kernels(name):
+    """{kind: C function} of material `name`'s element loops."""
+    if name not in _ebound:
+        fns = {}
+        for kind, extra in _ELEMENT_KERNELS.items():
+            fn = getattr(_lib, f"he_e{kind}_{name}")
+            fn.restype = _I
+            fn.argtypes = [_I, _C, _C, _P, _P, _P, _P, _P] + extra
+            fns[kind] = fn
+        _ebound[name] = fns
+    return _ebound[name]
+
+
+class ElementCells:
+    """Local cells of an element with quadrature (element.Element): their nodes (nc, nn), per (cell, point)
+    of the stiffness rule J^-1 and the weight |det J| w_q (`geo`, nc x nq x 10), the mass rule's weights, and
+    the kernels needing nothing else — Cells' interface for P2: the consistent mass matrix, the nodal
+    integrals of a body load, the inversion guard's step bound, stored blocks."""
+
+    def __init__(self, nodes, X, element, geo=None, mass_w=None):
+        from .element import geometry
+        self.element = element
+        self.cells = np.ascontiguousarray(nodes, dtype=IDX)
+        self.nc, self.nn = self.cells.shape
+        pts, w = element.rule()
+        self.N, dN = element.tabulate()
+        self.dN = np.ascontiguousarray(dN, dtype=np.float64)
+        self.nq = len(w)
+        if geo is None:
+            Jinv, wq, _ = geometry(X, self.cells, self.dN, w)
+            geo = np.concatenate([Jinv.reshape(self.nc, self.nq, 9), wq[:, :, None]], axis=2)
+        self.geo = np.ascontiguousarray(geo, dtype=np.float64)
+        mp, mw = element.mass_rule()
+        from .element import tet_shapes
+        self.Nm = np.ascontiguousarray(tet_shapes(element.order, mp)[0])
+        if mass_w is None:
+            _, mass_w, _ = geometry(X, self.cells, np.ascontiguousarray(tet_shapes(element.order, mp)[1]), mw)
+        self.mass_w = np.ascontiguousarray(mass_w, dtype=np.float64)
+        self.nqm = len(mw)
+        self.vol = self.mass_w.sum(axis=1)
+        self._args = (self.nc, self.nn, self.nq, _ptr(self.cells, IDX), _ptr(self.dN, np.float64),
+                      _ptr(self.geo, np.float64))
+        self._parts = {}
+
+    def part(self, lo, hi):
+        """The same cells lo..hi-1 (cached)."""
+        if (lo, hi) not in self._parts:
+            self._parts[(lo, hi)] = ElementCells(self.cells[lo:hi], None, self.element, self.geo[lo:hi],
+                                                 self.mass_w[lo:hi])
+        return self._parts[(lo, hi)]
+
+    def weighted(self, w):
+        """The same cells with their mass weights times w (a coefficient per cell: each region's density)."""
+        return ElementCells(self.cells, None, self.element, self.geo,
+                            np.asarray(w, np.float64)[:, None] * self.mass_w)
+
+    def node_integrals(self, coef=1.0, which=None):
+        """(n, nn): int coef N_a dV of the cells `which` (default all; the mass rule), coef a scalar or one
+        per cell."""
+        sel = slice(None) if which is None else which
+        c = np.asarray(coef, float)
+        return (self.mass_w[sel] * (c if c.ndim == 0 else c[sel][:, None])) @ self.Nm
+
+    def subset(self, idx):
+        """The cells idx (copies)."""
+        return ElementCells(self.cells[idx], None, self.element, self.geo[idx], self.mass_w[idx])
+
+    def kernels(self, material, constants):
+        """A material's loops on these cells."""
+        return ElementKernels(self, material, constants)
+
+    load_shares = node_integrals
+
+    def mass_diagonal(self, lumped, nlv):
+        """(nlv,) the mass matrix's diagonal per node (density 1): consistent, or lumped by HRZ diagonal
+        scaling (Hinton, Rock & Zienkiewicz, "A note on mass lumping and related processes in the finite
+        element method", Earthquake Eng. Struct. Dyn. 4, 1976): each element's consistent diagonal scaled to
+        the element's mass, which stays positive for P2, where the row sums give the vertices zero or
+        negative mass (-V/20 on a straight tetrahedron)."""
+        d = self.mass_w @ (self.Nm * self.Nm)                            # (nc, nn) consistent diagonals
+        if lumped:
+            d = d * (self.vol / d.sum(axis=1))[:, None]
+        out = np.zeros(nlv)
+        np.add.at(out, self.cells.ravel(), d.ravel())
+        return out
+
+    def max_step(self, x, d, frac=0.9):
+        return _lib.he_emax_step(*self._args, _ptr(x, np.float64), _ptr(d, np.float64), float(frac))
+
+    def apply_blocks(self, blocks, v, y):
+        n3 = 3 * self.nn
+        assert blocks.shape == (self.nc, n3, n3) and blocks.flags.c_contiguous
+        _lib.he_eapply_blocks(self.nc, self.nn, _ptr(self.cells, IDX), _ptr(blocks, np.float64),
+                              _ptr(v, np.float64), _ptr(y, np.float64))
+
+    def add_mass_blocks(self, coef, vals):
+        n3 = 3 * self.nn
+        assert vals.shape == (self.nc, n3, n3)
+        _lib.he_emass_blocks(self.nc, self.nn, self.nqm, _ptr(self.Nm, np.float64), _ptr(self.mass_w, np.float64),
+                             float(coef), _ptr(vals, np.float64))
+
+    def mass_apply(self, coef, v, y):
+        _lib.he_emass_apply(self.nc, self.nn, self.nqm, _ptr(self.cells, IDX), _ptr(self.Nm, np.float64),
+                            _ptr(self.mass_w, np.float64), float(coef), _ptr(v, np.float64), _ptr(y, np.float64))
+
+
+class ElementKernels:
+    """A material on ElementCells: CellKernels' interface (forces, energy, kv, tangent blocks (nc, 3nn, 3nn),
+    tangent_diag, forces_discrete_gradient, max_step, apply_blocks, part, materials, parts, geometry)."""
+
+    def __init__(self, cells, material, constants):
+        self.geometry = cells
+        self.cells, self.nc, self.nn = cells.cells, cells.nc, cells.nn
+        self.material = material
+        self.model = materials.get(material)
+        self.materials = (material,)
+        self.fn = element_kernels(material)
+        self.constants = tuple(float(c) for c in constants)
+        self.prm = parameter_block(self.constants)
+        self._prm = _ptr(self.prm, np.float64)
+        self._args = cells._args
+        self.parts = [(slice(None), self)]
+        self._parts = {}
+
+    def part(self, lo, hi):
+        if (lo, hi) not in self._parts:
+            self._parts[(lo, hi)] = ElementKernels(self.geometry.part(lo, hi), self.material, self.constants)
+        return self._parts[(lo, hi)]
+
+    def forces(self, x, f):
+        return self.fn["forces"](*self._args, _ptr(x, np.float64), self._prm, _ptr(f, np.float64))
+
+    def forces_discrete_gradient(self, x, xn, f):
+        """The energy-momentum force, point by point (CellKernels.forces_discrete_gradient has the formulas)."""
+        if self.model.quadratic:
+            return self.forces(x, f)
+        return self.fn["forces_dg"](*self._args, _ptr(x, np.float64), self._prm, _ptr(xn, np.float64),
+                                    _ptr(f, np.float64))
+
+    def energy(self, x):
+        out = np.zeros(3)
+        bad = self.fn["energy"](*self._args, _ptr(x, np.float64), self._prm, _ptr(out, np.float64))
+        return out[0], out[1], out[2], bad
+
+    def kv(self, x, v, y):
+        return self.fn["kv"](*self._args, _ptr(x, np.float64), self._prm, _ptr(v, np.float64), _ptr(y, np.float64))
+
+    def tangent(self, x, vals=None, accumulate=False):
+        n3 = 3 * self.nn
+        if vals is None:
+            vals = np.zeros((self.nc, n3, n3))
+        assert vals.shape == (self.nc, n3, n3)
+        bad = self.fn["tangent"](*self._args, _ptr(x, np.float64), self._prm, _ptr(vals, np.float64),
+                                 int(accumulate))
+        return vals, bad
+
+    def tangent_diag(self, x, diag):
+        return self.fn["tangent_diag"](*self._args, _ptr(x, np.float64), self._prm, _ptr(diag, np.float64))
 
     def max_step(self, x, d, frac=0.9):
         return self.geometry.max_step(x, d, frac)

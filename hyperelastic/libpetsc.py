@@ -31,6 +31,7 @@ def lib():
         _lib.SNESSetLagPreconditioner.argtypes = [ctypes.c_void_p, ctypes.c_int]
         for fn in ("MatSeqAIJGetArray", "MatSeqAIJRestoreArray", "MatSeqSBAIJGetArray", "MatSeqSBAIJRestoreArray"):
             getattr(_lib, fn).argtypes = [ctypes.c_void_p, ctypes.POINTER(ctypes.c_void_p)]
+        _lib.DMPlexGetCones.argtypes = [ctypes.c_void_p, ctypes.POINTER(ctypes.c_void_p)]
         _lib.MatMPIAIJGetSeqAIJ.argtypes = [ctypes.c_void_p] + [ctypes.POINTER(ctypes.c_void_p)] * 3
         _lib.MatGetSize.argtypes = [ctypes.c_void_p, ctypes.POINTER(_INT), ctypes.POINTER(_INT)]
         for fn in ("MatGetRowIJ", "MatRestoreRowIJ"):
@@ -154,3 +155,23 @@ def error_message(code):
         return f"PETSc error {code}"
     parts = [p.decode(errors="replace").strip() for p in (text.value, specific.value) if p]
     return ": ".join(parts) or f"PETSc error {code}"
+
+
+def plex_cones(dm):
+    """The cones of an interpolated DMPlex of tetrahedra as numpy copies: (cell -> 4 faces, face -> 3 edges,
+    edge -> 2 vertices), point numbers of the DM. DMPlexGetCones gives all cones concatenated in chart order
+    (cells, vertices (none), faces, edges here: each stratum's cone size is fixed); petsc4py has getCone per
+    point only, which costs ~1 us a point."""
+    ptr = ctypes.c_void_p()
+    if lib().DMPlexGetCones(ctypes.c_void_p(dm.handle), ctypes.byref(ptr)):
+        raise RuntimeError("DMPlexGetCones failed")
+    strata = [dm.getHeightStratum(h) for h in range(4)]        # cells, faces, edges, vertices
+    (c0, c1), (f0, f1), (e0, e1), (v0, v1) = strata
+    if not (c0 == 0 and c1 <= v0 and v1 <= f0 and f1 <= e0):
+        raise RuntimeError(f"unexpected point layout of the DMPlex: {strata}")
+    total = 4 * (c1 - c0) + 3 * (f1 - f0) + 2 * (e1 - e0)
+    if not total:
+        return np.zeros((0, 4), np.int64), np.zeros((0, 3), np.int64), np.zeros((0, 2), np.int64)
+    cones = np.ctypeslib.as_array(ctypes.cast(ptr, ctypes.POINTER(_INT)), shape=(total,)).astype(np.int64)
+    nc, nf = 4 * (c1 - c0), 3 * (f1 - f0)
+    return cones[:nc].reshape(-1, 4), cones[nc:nc + nf].reshape(-1, 3), cones[nc + nf:].reshape(-1, 2)

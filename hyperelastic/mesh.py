@@ -10,7 +10,12 @@ import numpy as np
 
 from .errors import UserError
 from .files import check_output_path, is_output
+from .element import EDGES, ORDERS, TET_RULES, tet_shapes
 from .sets import FACE_VERTICES, Mesh, NamedSet, face_incidence, signed_volumes
+
+# the reference nodes of a quadratic tetrahedron (element.py's order)
+REFERENCE_NODES = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1], [.5, 0, 0], [.5, .5, 0], [0, .5, 0],
+                            [0, 0, .5], [.5, 0, .5], [0, .5, .5]])
 
 _root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 GEO_DIR = os.path.join(_root, "meshes")
@@ -56,11 +61,14 @@ def geometry_file(name):
     return geo
 
 
-def generate(name, level, out, size=None, refine=0):
+def generate(name, level, out, size=None, refine=0, order=1):
     """Mesh a geometry (meshes/<name>.geo, or a user's .geo/.step file) with gmsh at the target edge
     length of `level` (or `size` when given), keeping its physical groups; returns its statistics.
     With refine = N, also N uniformly refined meshes (each tet split into 8), OUT_r1.msh ... OUT_rN.msh,
-    and returns a list of statistics."""
+    and returns a list of statistics. order 2: 10-node tetrahedra (and 6-node triangles), their edge nodes
+    placed on the geometry where it is curved (gmsh's high-order meshing)."""
+    if order not in ORDERS:
+        raise UserError(f"hyperelastic mesh: --order {order}: give 1 or 2")
     geo = geometry_file(name)
     if size is None:
         size = level_size(level)
@@ -92,7 +100,11 @@ def generate(name, level, out, size=None, refine=0):
             raise UserError(f"geometry '{name}': gmsh cannot mesh it ({str(e).strip()[:200]})") from None
         for i, o in enumerate(outs):
             if i:
+                if order > 1:
+                    gmsh.model.mesh.setOrder(1)          # refine the linear mesh, then place the new edge nodes
                 gmsh.model.mesh.refine()
+            if order > 1:
+                gmsh.model.mesh.setOrder(order)
             tmps.append(o + f".tmp{os.getpid()}.msh")
             gmsh.write(tmps[-1])
     finally:
@@ -100,8 +112,10 @@ def generate(name, level, out, size=None, refine=0):
     stats = []
     for i, (o, tmp) in enumerate(zip(outs, tmps)):
         os.replace(tmp, o)
-        pts, tets = read(o)
-        stats.append(describe(pts, tets) | {"level": level, "target_size": size / 2 ** i, "file": o})
+        m = read_mesh(o)
+        stats.append(describe(m.points, m.tets) | {"level": level, "target_size": size / 2 ** i, "file": o,
+                                                   "vertices": len(np.unique(m.tets)), "nodes": len(m.points),
+                                                   "order": m.order})
     return stats if refine else stats[0]
 
 
@@ -143,8 +157,8 @@ def read_mesh(path, frame=-1):
         path = os.path.splitext(path)[0] + ".h5"
     if path.lower().endswith((".h5", ".hdf5")) and is_output(path):
         return _read_output(path, frame)
-    points, tets, m, boundary = _read_meshio(path)
-    return Mesh.from_meshio(path, points, tets, boundary, m)
+    points, tets, m, boundary, nodes = _read_meshio(path)
+    return Mesh.from_meshio(path, points, tets, boundary, m, nodes)
 
 
 def _read_output(path, frame):
@@ -158,13 +172,18 @@ def _read_output(path, frame):
             raise UserError(f"mesh '{path}': has no frame {frame} (it has {nf}: 0..{nf - 1})")
         else:
             points = f["x"][frame]
-        tets = f["mesh/tetra"][:].astype(np.int64)
-        region = f["mesh/region"][:] if "mesh/region" in f else np.zeros(len(tets), np.int64)
+        cells = f["mesh/tetra"][:].astype(np.int64)
+        region = f["mesh/region"][:] if "mesh/region" in f else np.zeros(len(cells), np.int64)
         try:
             named = {int(s["tag"]): s["name"] for s in json.loads(f.attrs.get("sets", "[]")) if s["kind"] == "tets"}
         except (ValueError, KeyError, TypeError):
             named = {}
-    mesh = Mesh.from_meshio(path, points, tets, check(points, tets, path))
+    if cells.ndim != 2 or cells.shape[1] not in (4, 10):
+        raise UserError(f"mesh '{path}': mesh/tetra has shape {cells.shape} (4 or 10 nodes per cell expected)")
+    if cells.shape[1] == 10:
+        mesh = Mesh.from_meshio(path, points, cells[:, :4], check_quadratic(points, cells, path), nodes=cells)
+    else:
+        mesh = Mesh.from_meshio(path, points, cells, check(points, cells, path))
     for tag in np.unique(region[region != 0]):
         name = named.get(int(tag), str(int(tag)))
         mesh.groups[name] = NamedSet(name, int(tag), "tets", np.flatnonzero(region == tag))
@@ -186,18 +205,80 @@ def _read_meshio(path):
                str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__)
         raise UserError(f"mesh '{path}': cannot be read ({msg[:200]})") from None
     points = np.asarray(m.points, dtype=np.float64)
-    blocks = [c.data for c in m.cells if c.type == "tetra"]
+    found = sorted({c.type for c in m.cells})
+    if "tetra" in found and "tetra10" in found:
+        raise UserError(f"mesh '{path}': mixes linear (tetra) and quadratic (tetra10) tetrahedra")
+    kind = "tetra10" if "tetra10" in found else "tetra"
+    blocks = [c.data for c in m.cells if c.type == kind]
     if not blocks:
-        found = sorted({c.type for c in m.cells})
-        if "tetra10" in found:
-            raise UserError(f"mesh '{path}': has second-order tetrahedra (tetra10), which are not supported yet; "
-                            "mesh with first-order elements (gmsh -3 -order 1, or Mesh.ElementOrder = 1)")
         what = ", ".join(found) if found else "no cells"
         hint = ("; a gmsh file with physical surfaces but no 'Physical Volume' holds no tetrahedra"
-                if "triangle" in found else "")
+                if "triangle" in found or "triangle6" in found else "")
         raise UserError(f"mesh '{path}': contains no tetrahedra (found: {what}){hint}")
-    tets = np.concatenate(blocks).astype(np.int64)
-    return points, tets, m, check(points, tets, path)
+    cells = np.concatenate(blocks).astype(np.int64)
+    if kind == "tetra10":
+        return points, cells[:, :4], m, check_quadratic(points, cells, path), cells
+    return points, cells, m, check(points, cells, path), None
+
+
+def check_quadratic(points, nodes, path):
+    """check() of quadratic cells (nc, 10): the corners a mesh of a solid, each edge one node shared by every
+    cell that has the edge, no node both a corner and an edge's, every point a node, and the geometry map
+    one-to-one (det J of the same sign as the corners' at every point of the degree-5 rule and at the
+    nodes). Returns the boundary face indices."""
+    if len(nodes) and ((nodes < 0) | (nodes >= len(points))).any():
+        i = int(np.flatnonzero(((nodes < 0) | (nodes >= len(points))).any(axis=1))[0])
+        raise UserError(f"mesh '{path}': tetrahedron {i} has a node index out of range {nodes[i].tolist()} "
+                        f"(mesh has {len(points)} nodes)")
+    corners = nodes[:, :4]
+    used, compact = np.unique(corners, return_inverse=True)
+    boundary = check(points[used], compact.reshape(corners.shape), path)
+    pairs = np.sort(np.stack([corners[:, [i, j]] for i, j in EDGES], axis=1), axis=2).reshape(-1, 2)
+    edge_nodes = nodes[:, 4:].reshape(-1)
+    key, first, inv = np.unique(pairs, axis=0, return_index=True, return_inverse=True)
+    bad = np.flatnonzero(edge_nodes != edge_nodes[first][inv.ravel()])
+    if len(bad):
+        c = int(bad[0] // 6)
+        raise UserError(f"mesh '{path}': tetrahedron {c} gives edge {key[inv.ravel()[bad[0]]].tolist()} another "
+                        f"node ({edge_nodes[bad[0]]}) than a neighbour does ({edge_nodes[first][inv.ravel()][bad[0]]})")
+    enodes = edge_nodes[first]
+    if len(np.unique(enodes)) != len(enodes) or np.isin(enodes, used).any():
+        raise UserError(f"mesh '{path}': an edge node is also a corner or another edge's node")
+    if len(used) + len(enodes) != len(points):
+        raise UserError(f"mesh '{path}': {len(points) - len(used) - len(enodes)} nodes belong to no tetrahedron")
+    sign = np.sign(signed_volumes(points, corners))
+    for pts in (TET_RULES[5][0], REFERENCE_NODES):
+        _, dN = tet_shapes(2, pts)
+        det = np.linalg.det(np.einsum("cai,qaj->cqij", points[nodes], dN))
+        bad = np.flatnonzero((det * sign[:, None] <= 0).any(axis=1))
+        if len(bad):
+            raise UserError(f"mesh '{path}': tetrahedron {int(bad[0])} is folded: its map from the reference "
+                            "cell changes orientation inside it (an edge node too far from its edge)")
+    return boundary
+
+
+def elevate(mesh):
+    """The quadratic (straight-sided) mesh of a linear one: a node at the midpoint of every edge, numbered
+    after the vertices in the order of the edges' first appearance."""
+    tets = mesh.tets
+    pairs = np.sort(np.stack([tets[:, [i, j]] for i, j in EDGES], axis=1), axis=2).reshape(-1, 2)
+    key, first, inv = np.unique(pairs, axis=0, return_index=True, return_inverse=True)
+    order = np.argsort(first, kind="stable")
+    rank = np.empty(len(order), np.int64)
+    rank[order] = np.arange(len(order))
+    ids = len(mesh.points) + rank[inv.ravel()].reshape(-1, 6)
+    mids = 0.5 * (mesh.points[key[order, 0]] + mesh.points[key[order, 1]])
+    out = Mesh(mesh.path, np.concatenate([mesh.points, mids]), tets, mesh.facet_cell, mesh.facet_k, mesh.groups,
+               np.concatenate([tets, ids], axis=1))
+    return out
+
+
+def corners(mesh):
+    """The linear mesh of a quadratic one's corners (its edge nodes dropped, the vertices renumbered in their
+    order)."""
+    used, compact = np.unique(mesh.tets, return_inverse=True)
+    return Mesh(mesh.path, mesh.points[used], compact.reshape(mesh.tets.shape), mesh.facet_cell, mesh.facet_k,
+                mesh.groups)
 
 
 def _quiet(fn, *args):

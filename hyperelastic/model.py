@@ -9,10 +9,11 @@ from mpi4py import MPI
 
 from . import effects as effects_pkg
 from .errors import UserError
-from .kernels import Cells, CellKernels, RegionKernels
-from .mesh import cached_bar, read_mesh
+from .element import DEFAULT_DEGREE, Element
+from .kernels import Cells, ElementCells, RegionKernels
+from .mesh import cached_bar, corners, elevate, read_mesh
 from .sets import MATERIAL_LABEL, REGION_LABEL, VERTEX_VALUE, cell_label, facet_label
-from .space import Space
+from .space import QuadraticSpace, Space
 from .system import System
 
 
@@ -70,10 +71,10 @@ def initial_state(scene, space):
 class Model:
     """Everything of a run except the solver, the integrator and the output."""
     scene: object
-    points: np.ndarray          # the checked input mesh (rank 0; None elsewhere)
-    tets: np.ndarray
+    points: np.ndarray          # the checked input mesh's nodes (rank 0; None elsewhere) ...
+    tets: np.ndarray            # ... and its cells: (nc, 4) corners, or (nc, 10) nodes of quadratic cells
     space: Space
-    kernels: CellKernels        # the material's cell kernels on the space's cells
+    kernels: object             # the material(s)' cell kernels on the space's cells (kernels.py)
     system: System
     x0: np.ndarray              # initial local positions and velocities
     v0: np.ndarray
@@ -85,9 +86,16 @@ class Model:
 
 
 def load_mesh(scene):
-    """(sets.Mesh, DMPlex labels, set report) of the scene's mesh, on rank 0: the facet and cell sets its
-    effects name (an unknown name is a UserError listing the mesh's) and its regions."""
+    """(sets.Mesh, DMPlex labels, set report) of the scene's mesh, on rank 0, at the scene's element order
+    (a linear mesh elevated to straight-sided quadratic cells, a quadratic one reduced to its corners where
+    the order asks): the facet and cell sets its effects name (an unknown name is a UserError listing the
+    mesh's) and its regions."""
     mesh = read_mesh(scene.mesh, scene.mesh_frame) if scene.mesh else read_mesh(cached_bar(scene.level))
+    order = scene.order or mesh.order
+    if order == 2 and mesh.order == 1:
+        mesh = elevate(mesh)
+    elif order == 1 and mesh.order == 2:
+        mesh = corners(mesh)
     labels, report = {}, []
     for option, name, kind in scene.set_uses():
         label = facet_label(name) if kind == "facets" else cell_label(name)
@@ -149,9 +157,13 @@ def material_regions(scene, mesh, labels, report):
 def cell_kernels(scene, space):
     """(elastic cell kernels, density: a scalar, or per local cell with -regions) of the scene's
     material(s) on the space's cells (a kernels.Cells)."""
-    sc, cells = scene, Cells(space.cells, space.Dminv, space.vol)
+    sc = scene
+    if scene.order == 2:
+        cells = ElementCells(space.cells, space.X, Element(2, scene.quadrature or DEFAULT_DEGREE[2]))
+    else:
+        cells = Cells(space.cells, space.Dminv, space.vol)
     if not sc.regions:
-        return CellKernels(cells, material=sc.solid.name, constants=sc.solid.constants), sc.solid.rho
+        return cells.kernels(sc.solid.name, sc.solid.constants), sc.solid.rho
     which = space.cell_values(MATERIAL_LABEL)
     solids = [sc.solid] + [r.solid for r in sc.regions]
     unused = space.mpi.allreduce(int((which == 0).sum())) == 0     # every cell is in a listed region
@@ -165,8 +177,14 @@ def build_model(scene, comm):
     the scene names and the System, calibrated at the initial state."""
     loaded = collective(comm, lambda: load_mesh(scene))
     mesh, labels, report = loaded if loaded is not None else (None, None, None)
-    points, tets = (mesh.points, mesh.tets) if mesh is not None else (None, None)
-    space = Space(comm, points, tets, labels)
+    order = comm.tompi4py().bcast(mesh.order if mesh is not None else None, root=0)
+    if order == 1:
+        points, tets = (mesh.points, mesh.tets) if mesh is not None else (None, None)
+        space = Space(comm, points, tets, labels)
+    else:
+        points, tets = (mesh.points, mesh.nodes) if mesh is not None else (None, None)
+        space = QuadraticSpace(comm, points, mesh.tets if mesh is not None else None, labels, tets)
+    scene.order = order
     report = space.mpi.bcast(report, root=0)
     k, density = cell_kernels(scene, space)
     ctx = effects_pkg.Context(space, k, k.geometry, density, scene.lumped, scene.hessian_projection)

@@ -1,7 +1,9 @@
 """HDF5 output (rank 0 writes, flushed every frame) and an XDMF time series beside it.
 
-Layout: mesh/points (nv,3), mesh/tetra (nc,4) in the input mesh's numbering (mesh/region (nc,): the
-region tag of each tet, 0 for none); time (F,); x (F,nv,3) positions in the input vertex order;
+Layout: mesh/points (nv,3), mesh/tetra (nc,4) in the input mesh's numbering, or (nc,10) of quadratic cells
+(element.py's node order, VTK's: the corners, then the edges' nodes; nv then counts every node)
+(mesh/region (nc,): the region tag of each tet, 0 for none); time (F,); x (F,nv,3) positions in the input
+node order;
 frames/<i>/<field> the fields of frame i (fields.py: displacement, velocity (nv,3); J, energy_density,
 von_mises (nc,)); stats/<column> (S,) one entry per step attempt (the columns: stats.py);
 attributes: see run_attributes.
@@ -277,8 +279,10 @@ class Writer:
         h5 = os.path.basename(self.final)
         times = self.f["time"][:]
         nv, nc = self.nv, self.nc
-        mesh = (f'    <Topology TopologyType="Tetrahedron" NumberOfElements="{nc}">\n'
-                f'     <DataItem Dimensions="{nc} 4" NumberType="Int" Precision="8" Format="HDF">{h5}:/mesh/tetra'
+        npc = self.f["mesh/tetra"].shape[1]          # 4, or 10 for quadratic cells (VTK's node order)
+        kind = "Tetrahedron" if npc == 4 else "Tetrahedron_10"
+        mesh = (f'    <Topology TopologyType="{kind}" NumberOfElements="{nc}">\n'
+                f'     <DataItem Dimensions="{nc} {npc}" NumberType="Int" Precision="8" Format="HDF">{h5}:/mesh/tetra'
                 '</DataItem>\n    </Topology>\n    <Geometry GeometryType="XYZ">\n'
                 f'     <DataItem Dimensions="{nv} 3" NumberType="Float" Precision="8" Format="HDF">{h5}:/mesh/points'
                 '</DataItem>\n    </Geometry>')

@@ -6,6 +6,7 @@ from dataclasses import dataclass, field
 
 from . import effects as effects_pkg
 from . import materials
+from .element import ORDERS, TET_RULES
 from .errors import UserError
 from .mesh import MAX_LEVEL
 from .options import Options, prefixed_names
@@ -27,6 +28,8 @@ class Scene:
     mesh: str = None            # path, or None for the cached bar at `level`
     mesh_frame: int = -1        # the frame of an output file given as -mesh (default: the last)
     level: int = 1
+    order: int = 0              # element order: 1 (4-node) or 2 (10-node) tetrahedra; 0: the mesh's own
+    quadrature: int = 0         # degree of the stiffness rule of P2 (element.TET_RULES); 0: element.DEFAULT_DEGREE
     solid: materials.Solid = field(default_factory=lambda: materials.default_solid(DEFAULT_MATERIAL))
     lumped: bool = False
     quasistatic: bool = False
@@ -113,6 +116,16 @@ def _read_material(s, opts):
     if s.mesh is not None and opts.has("level"):
         raise UserError(f"options -mesh and -level: -level picks the built-in bar, -mesh {s.mesh} replaces it; give "
                         "one")
+    s.order = opts.integer("order", s.order) if opts.has("order") else s.order
+    if opts.has("order") and s.order not in ORDERS:
+        raise UserError(f"option -order: {s.order}: give 1 (linear, 4-node) or 2 (quadratic, 10-node tetrahedra)")
+    s.quadrature = opts.integer("quadrature_degree", s.quadrature) if opts.has("quadrature_degree") else s.quadrature
+    if s.quadrature and s.quadrature not in TET_RULES:
+        raise UserError(f"option -quadrature_degree: {s.quadrature}: the rules are of degree "
+                        f"{', '.join(map(str, TET_RULES))}")
+    if s.quadrature and s.order == 1:
+        raise UserError("option -quadrature_degree: linear tetrahedra are integrated exactly at one point (it is "
+                        "for -order 2)")
     s.solid = materials.read_solid(opts, "", s.solid, f"scene '{s.name}'")
     s.lumped = opts.choice("mass", ("consistent", "lumped"), "lumped" if s.lumped else "consistent") == "lumped"
     s.initial_scale = opts.vector("initial_scale")

@@ -12,6 +12,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .element import EDGES
 from .errors import UserError
 
 BOX = {"left": (0, "min"), "right": (0, "max"), "front": (1, "min"), "back": (1, "max"),
@@ -85,17 +86,23 @@ class NamedSet:
 @dataclass
 class Mesh:
     path: str
-    points: np.ndarray
-    tets: np.ndarray
+    points: np.ndarray          # every node: the vertices, and for quadratic cells the edge nodes
+    tets: np.ndarray            # (nc, 4) the corner vertices of each cell (indices into points)
     facet_cell: np.ndarray = None
     facet_k: np.ndarray = None
     groups: dict = field(default_factory=dict)     # name -> NamedSet (physical surfaces and volumes)
+    nodes: np.ndarray = None    # (nc, 10) of quadratic cells (element.py's node order), None for linear
+
+    @property
+    def order(self):
+        return 1 if self.nodes is None else 2
 
     @classmethod
-    def from_meshio(cls, path, points, tets, boundary, m=None):
+    def from_meshio(cls, path, points, tets, boundary, m=None, nodes=None):
         """boundary: the boundary face indices 4 cell + k (face k, opposite vertex k, of exactly one
-        tetrahedron) that the mesh check found (mesh.check, face_incidence), in cell order."""
-        mesh = cls(path, np.ascontiguousarray(points[:, :3], np.float64), tets)
+        tetrahedron) that the mesh check found (mesh.check, face_incidence), in cell order. nodes: the
+        (nc, 10) nodes of quadratic cells (their first four are tets)."""
+        mesh = cls(path, np.ascontiguousarray(points[:, :3], np.float64), tets, nodes=nodes)
         mesh.facet_cell, mesh.facet_k = boundary // 4, boundary % 4
         if m is not None:
             mesh._read_groups(m)
@@ -127,19 +134,20 @@ class Mesh:
         key = next((k for k in TAG_KEYS if k in m.cell_data), None)
         tri_sets, tet_sets = {}, {}
         off = 0
+        tet_types, tri_types = ("tetra", "tetra10"), ("triangle", "triangle6")     # (quadratic: corners first)
         for i, block in enumerate(m.cells):
             n = len(block.data)
-            if block.type == "tetra":
+            if block.type in tet_types:
                 ids = np.arange(off, off + n)
                 off += n
-            if key is not None and block.type in ("triangle", "tetra"):
+            if key is not None and block.type in tri_types + tet_types:
                 tags = np.asarray(m.cell_data[key][i]).astype(np.int64)
-                dim = 2 if block.type == "triangle" else 3
+                dim = 2 if block.type in tri_types else 3
                 for tag in np.unique(tags):
                     name = names.get((int(tag), dim), str(int(tag)))
                     sel = tags == tag
                     dst = tri_sets if dim == 2 else tet_sets
-                    part = block.data[sel] if dim == 2 else ids[sel]
+                    part = block.data[sel][:, :3] if dim == 2 else ids[sel]
                     dst.setdefault((name, int(tag)), []).append(part)
         if key is None:                 # named cell sets (e.g. from XDMF / MED), no tags
             for name, per_block in getattr(m, "cell_sets", {}).items():
@@ -148,9 +156,9 @@ class Mesh:
                 off = 0
                 for block, sel in zip(m.cells, per_block):
                     sel = np.asarray(sel, np.int64)
-                    if block.type == "triangle" and len(sel):
-                        tri_sets.setdefault((name, None), []).append(block.data[sel])
-                    elif block.type == "tetra":
+                    if block.type in tri_types and len(sel):
+                        tri_sets.setdefault((name, None), []).append(block.data[sel][:, :3])
+                    elif block.type in tet_types:
                         if len(sel):
                             tet_sets.setdefault((name, None), []).append(off + sel)
                         off += len(block.data)
@@ -201,18 +209,31 @@ class Mesh:
             return line
         return f"{s.name}: {len(s.items)} tets, volume {self.volume(s.items):.6g}"
 
+    def face_nodes(self, idx=None):
+        """(n, 6) nodes of boundary facets `idx` of a quadratic mesh: the corners as facets() orders them,
+        then the nodes of their edges (0,1), (1,2), (0,2)."""
+        idx = slice(None) if idx is None else idx
+        tri = self.facets(idx)
+        cell = self.facet_cell[idx]
+        local = np.argmax(self.tets[cell][:, None, :] == tri[:, :, None], axis=2)     # corner -> cell corner
+        edge = np.full((4, 4), -1)
+        for e, (i, j) in enumerate(EDGES):
+            edge[i, j] = edge[j, i] = 4 + e
+        mids = [self.nodes[cell, edge[local[:, a], local[:, b]]] for a, b in ((0, 1), (1, 2), (0, 2))]
+        return np.column_stack([tri] + mids)
+
     def label_strata(self, s):
-        """{value: input cell or vertex indices} of a facet set as a DMPlex label: each cell holding
+        """{value: input cell or node indices} of a facet set as a DMPlex label: each cell holding
         facets of the set gets the bitmask of which of its faces (bit j: the face without the cell's
-        j-th smallest input vertex id, so any cone order gives the same faces), the set's vertices
-        get VERTEX_VALUE."""
+        j-th smallest input vertex id, so any cone order gives the same faces), the set's nodes (its
+        vertices, and the edge nodes of a quadratic mesh) get VERTEX_VALUE."""
         cell, k = self.facet_cell[s.items], self.facet_k[s.items]
         excluded = self.tets[cell, k]
         rank = (self.tets[cell] < excluded[:, None]).sum(axis=1)
         masks = np.zeros(len(self.tets), np.int64)
         np.bitwise_or.at(masks, cell, 1 << rank)
         out = {int(v): np.flatnonzero(masks == v) for v in np.unique(masks[cell])}
-        out[VERTEX_VALUE] = np.unique(self.facets(s.items))
+        out[VERTEX_VALUE] = np.unique(self.facets(s.items) if self.nodes is None else self.face_nodes(s.items))
         return out
 
 

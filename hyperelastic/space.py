@@ -11,7 +11,9 @@ from petsc4py import PETSc
 
 from mpi4py import MPI
 
+from .element import EDGES
 from .kernels import IDX
+from .libpetsc import plex_cones
 from .mesh import spatial_order
 from .sets import FACE_VERTICES, VERTEX_VALUE, cell_label, facet_label, orient_outward
 
@@ -264,3 +266,194 @@ class Space:
         if not tris or not sum(map(len, tris)):
             return np.zeros((0, 3), np.int64)
         return orient_outward(self.X, np.concatenate(tris), np.concatenate(opp))
+
+
+# edge index (element.EDGES) of a pair of corner positions i < j: EDGE_OF[4 i + j]
+EDGE_OF = np.full(16, -1)
+for _e, (_i, _j) in enumerate(EDGES):
+    EDGE_OF[4 * _i + _j] = EDGE_OF[4 * _j + _i] = _e
+
+
+class QuadraticSpace(Space):
+    """P2 vector field (3 dofs per node: every vertex and every edge) on a distributed interpolated DMPlex:
+    the same interface as Space, with `cells` (nc, 10) the nodes of each cell in element.py's order (its
+    corners by ascending input index, then the nodes of its edges), `X` every local node's reference
+    position and `orig` its index among the input mesh's points (mesh.nodes: a quadratic mesh's nodes, or
+    a linear mesh's with a node at every edge midpoint, mesh.elevate)."""
+
+    def __init__(self, comm, points=None, tets=None, labels=None, nodes=None):
+        """points, tets (corners), nodes (nc, 10): the checked quadratic input mesh on rank 0; labels as
+        Space's, the sets' nodes ("vertices" kind) being vertices and edge nodes."""
+        self.comm = comm
+        self.mpi = comm.tompi4py()
+        serial = self._distribute_quadratic(points, tets, nodes, labels or {})
+        dm = self.dm
+        cf, fe, ev = plex_cones(dm)
+        (c0, c1), (f0, f1), (e0, e1), (v0, v1) = (dm.getHeightStratum(h) for h in range(4))
+        nv, ne = v1 - v0, e1 - e0
+        self.nlv = nv + ne
+        self.section = self._node_section(v0, v1, e0, e1)
+        node_of_point = np.full(dm.getChart()[1], -1, np.int64)
+        node_of_point[v0:v1] = np.arange(nv)
+        node_of_point[e0:e1] = nv + np.arange(ne)
+        self._node_of_point, self._cStart = node_of_point, c0
+        orig_point = self._serial_points(serial["sf"])
+        self.orig = np.empty(self.nlv, np.int64)
+        self.orig[:nv] = serial["vertex_input"][orig_point[v0:v1] - serial["v0"]]
+        self.orig[nv:] = serial["edge_node"][orig_point[e0:e1] - serial["e0"]]
+        self.cell_orig = serial["corder"][orig_point[c0:c1]]
+        self.X = serial["points"][self.orig]
+        self.cells = self._cell_nodes(cf - f0, fe - e0, ev - v0, node_of_point[v0:v1], nv)
+        self.nc = len(self.cells)
+        cids = self.mpi.gather(self.cell_orig, root=0)
+        self._corder_gather = np.concatenate(cids) if self.mpi.rank == 0 else None
+        self.owned = np.ones(self.nlv, bool)
+        _, ilocal, _ = dm.getPointSF().getGraph()
+        if ilocal is not None and len(ilocal):
+            il = np.asarray(ilocal)
+            il = il[((il >= v0) & (il < v1)) | ((il >= e0) & (il < e1))]
+            self.owned[node_of_point[il]] = False
+        self._finish(comm)
+
+    def _distribute_quadratic(self, points, tets, nodes, labels):
+        """The serial interpolated DMPlex of the spatially ordered corners (rank 0), its labels (facet sets'
+        nodes: vertices and edges), distributed with the `simple` partitioner; returns what every rank
+        needs to find the input node of its points: the serial vertices' and edges' input points, the
+        serial strata, the cell order, the input points, the migration SF."""
+        comm, rank0 = self.comm, self.comm.getRank() == 0
+        out = {}
+        if rank0:
+            used, compact = np.unique(tets, return_inverse=True)
+            p, t, vperm, corder = spatial_order(points[used], compact.reshape(tets.shape))
+            out.update(vertex_input=used[vperm], corder=corder, points=np.asarray(points, float))
+        else:
+            p, t = np.zeros((0, 3)), np.zeros((0, 4), np.int64)
+        dm = PETSc.DMPlex().createFromCellList(3, t.astype(PETSc.IntType), p, interpolate=True, comm=comm)
+        if rank0:
+            _, _, ev = plex_cones(dm)
+            (v0, _), (e0, _) = dm.getDepthStratum(0), dm.getDepthStratum(1)
+            ends = out["vertex_input"][ev - v0]                                   # (ne, 2) input points
+            out.update(v0=v0, e0=e0, edge_node=edge_nodes(nodes, ends, len(points)))
+            point_of_input = np.full(len(points), -1, np.int64)
+            point_of_input[out["vertex_input"]] = v0 + np.arange(len(out["vertex_input"]))
+            point_of_input[out["edge_node"]] = e0 + np.arange(len(ends))
+            cpos = np.empty(len(corder), np.int64)
+            cpos[corder] = np.arange(len(corder))
+            for name, strata in labels.items():
+                dm.createLabel(name)
+                lab = dm.getLabel(name)
+                for value, (kind, idx) in strata.items():
+                    idx = np.asarray(idx, np.int64)
+                    pts = cpos[idx] if kind == "cells" else point_of_input[idx]
+                    lab.setStratumIS(int(value), PETSc.IS().createGeneral(np.sort(pts).astype(PETSc.IntType),
+                                                                          comm=PETSc.COMM_SELF))
+        out = self.mpi.bcast(out if rank0 else None, root=0)
+        self.nv_total, self.nc_total = len(out["points"]), len(out["corder"])
+        self.label_names = self.mpi.bcast(list(labels) if rank0 else None, root=0)
+        dm.getPartitioner().setType(PETSc.Partitioner.Type.SIMPLE)
+        out["sf"] = dm.distribute(overlap=0) if comm.getSize() > 1 else None
+        self.dm = dm
+        dm.viewFromOptions("-dm_view")
+        return out
+
+    def _node_section(self, v0, v1, e0, e1):
+        """3 dofs on each vertex and each edge; their offsets follow the chart (vertices, then edges)."""
+        sec = PETSc.Section().create(comm=PETSc.COMM_SELF)
+        sec.setNumFields(1)
+        sec.setFieldComponents(0, 3)
+        sec.setChart(*self.dm.getChart())
+        for lo, hi in ((v0, v1), (e0, e1)):
+            for pt in range(lo, hi):
+                sec.setDof(pt, 3)
+                sec.setFieldDof(pt, 0, 3)
+        sec.setUp()
+        self.dm.setLocalSection(sec)
+        for pt, node in ((v0, 0), (v1 - 1, v1 - 1 - v0), (e0, v1 - v0), (e1 - 1, v1 - v0 + e1 - 1 - e0)):
+            if v0 <= pt < v1 or e0 <= pt < e1:
+                if sec.getOffset(pt) != 3 * node:
+                    raise RuntimeError("the node section's offsets do not follow the chart")
+        return sec
+
+    def _serial_points(self, sf):
+        """The serial DM's point of each local point (the migration SF's roots; itself on one rank)."""
+        n = self.dm.getChart()[1]
+        if sf is None:
+            return np.arange(n)
+        _, ilocal, iremote = sf.getGraph()
+        leaves = np.arange(len(iremote)) if ilocal is None else np.asarray(ilocal)
+        orig_point = np.full(n, -1, np.int64)
+        orig_point[leaves] = np.asarray(iremote).reshape(-1, 2)[:, 1]
+        return orig_point
+
+    def _cell_nodes(self, cf, fe, ev, vnode, nv):
+        """(nc, 10) nodes of each cell: its 4 vertices by ascending input index, then its edges in
+        element.EDGES order (cf, fe, ev: cones relative to the face, edge and vertex strata)."""
+        nc = len(cf)
+        edges = np.sort(fe[cf].reshape(nc, 12), axis=1)[:, ::2]                  # each edge twice among faces
+        verts = np.sort(ev[edges].reshape(nc, 12), axis=1)[:, ::3]               # each vertex thrice
+        order = np.argsort(self.orig[vnode[verts]], axis=1, kind="stable")
+        verts = np.take_along_axis(verts, order, axis=1)
+        ends = ev[edges]                                                         # (nc, 6, 2)
+        pos = np.argmax(ends[:, :, :, None] == verts[:, None, None, :], axis=3)   # corner positions
+        ref = EDGE_OF[4 * pos[:, :, 0] + pos[:, :, 1]]
+        out = np.empty((nc, 10), IDX)
+        out[:, :4] = vnode[verts]
+        rows = np.arange(nc)[:, None]
+        out[rows, 4 + ref] = nv + edges
+        return out
+
+    def _finish(self, comm):
+        """What every space computes once its nodes are known: the local-to-global map, the bounding box,
+        the output's gather plan, whether local and global vectors coincide."""
+        self.n_owned = int(self.owned.sum())
+        self.lgmap = self.dm.getLGMap()
+        self.bbox = self._bounding_box()
+        ids = self.orig[self.owned]
+        self._counts = self.mpi.gather(len(ids), root=0)
+        allids = self.mpi.gather(ids, root=0)
+        self._gorder = np.concatenate(allids) if self.mpi.rank == 0 else None
+        self.lvid_of_owned = np.flatnonzero(self.owned)
+        g = self.lgmap.getIndices()
+        self.local_is_global = bool(comm.getSize() == 1 and len(g) == 3 * self.nlv
+                                    and (g == np.arange(3 * self.nlv)).all())
+
+    def set_vertices(self, name):
+        """Local nodes (owned and ghost: vertices and edge nodes) of the facet set labelled `name`."""
+        pts = self.label_strata(facet_label(name)).get(VERTEX_VALUE, np.zeros(0, np.int64))
+        return np.sort(self._node_of_point[pts])
+
+    def set_triangles(self, names):
+        """(ntri, 6) local nodes of the boundary facets of the named sets held by this rank's cells: the
+        corners ordered so that (b - a) x (c - a) points outward, then the nodes of edges (0,1), (1,2), (0,2)."""
+        mask = np.zeros(len(self.cells), np.int64)
+        for name in names:
+            for v, pts in self.label_strata(facet_label(name)).items():
+                if v != VERTEX_VALUE:
+                    mask[pts - self._cStart] |= v
+        out = []
+        for j in range(4):                             # bit j: the face without corner j (ascending input index)
+            sel = np.flatnonzero((mask >> j) & 1 == 1)
+            if not len(sel):
+                continue
+            f = FACE_VERTICES[j]
+            c = self.cells[sel].astype(np.int64)
+            tri = c[:, f]
+            mids = c[:, [4 + EDGE_OF[4 * f[a] + f[b]] for a, b in ((0, 1), (1, 2), (0, 2))]]
+            oriented = orient_outward(self.X, tri, c[:, j])
+            flip = oriented[:, 1] != tri[:, 1]
+            mids[flip] = mids[flip][:, ::-1]
+            out.append(np.concatenate([oriented, mids], axis=1))
+        return np.concatenate(out) if out else np.zeros((0, 6), np.int64)
+
+
+def edge_nodes(nodes, ends, n_points):
+    """The input node of each edge given by its two end points (ne, 2), from the quadratic cells' nodes."""
+    pairs = np.sort(np.stack([nodes[:, [i, j]] for i, j in EDGES], axis=1), axis=2).reshape(-1, 2)
+    keys = pairs[:, 0] * n_points + pairs[:, 1]
+    ukeys, first = np.unique(keys, return_index=True)
+    e = np.sort(ends, axis=1)
+    want = e[:, 0] * n_points + e[:, 1]
+    pos = np.searchsorted(ukeys, want)
+    if not np.array_equal(ukeys[np.minimum(pos, len(ukeys) - 1)], want):
+        raise RuntimeError("an edge of the DMPlex is not an edge of the quadratic mesh")
+    return nodes[:, 4:].reshape(-1)[first[pos]]

@@ -120,7 +120,8 @@ class Effect:
         """d += diag(J_effect)."""
 
     def add_cell_blocks(self, vals, lo=0, hi=None):
-        """vals (hi-lo,12,12) += this effect's blocks of cells lo..hi-1, default all (only if cell_blocks)."""
+        """vals (hi-lo, 3nn, 3nn) += this effect's blocks of cells lo..hi-1 (nn nodes per cell: 12x12 for P1,
+        30x30 for P2), default all (only if cell_blocks)."""
 
     def coo_pattern(self):
         """Extra COO entries (rows, cols) in local dof numbering, beyond the cell pattern."""

@@ -16,7 +16,7 @@ class BodyForce(DeadLoad):
     def __init__(self, cells, which, b, scale, nlv):
         """cells: a kernels.Cells of the local cells; which: the local cells it acts on."""
         share = np.zeros(nlv)
-        np.add.at(share, cells.cells[which].ravel(), np.repeat(cells.vol[which] / 4.0, 4))
+        np.add.at(share, cells.cells[which].ravel(), cells.load_shares(1.0, which).ravel())
         super().__init__((share[:, None] * np.asarray(b, float)[None, :]).ravel(), scale)
 
 

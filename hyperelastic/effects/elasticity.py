@@ -6,7 +6,7 @@ from .base import Effect, Energy, Spec, timed
 
 
 def project_psd(K):
-    """Each symmetric 12x12 block with its negative eigenvalues set to zero (Teran, Sifakis, Irving,
+    """Each symmetric cell block (12x12 for P1) with its negative eigenvalues set to zero (Teran, Sifakis, Irving,
     Fedkiw, "Robust quasistatic finite elements and flesh simulation", SCA 2005, sec. 5, applied to the
     element Hessian as in Smith, de Goes, Kim 2018, sec. 4). Returns the blocks and the number clamped."""
     w, Q = np.linalg.eigh(0.5 * (K + K.transpose(0, 2, 1)))
@@ -74,13 +74,13 @@ class Elasticity(Effect):
     @timed("applies")
     def diag(self, d):
         if self.projection:
-            np.add.at(d.reshape(-1, 3), self.k.cells, np.einsum("nii->ni", self.blocks).reshape(-1, 4, 3))
+            np.add.at(d.reshape(-1, 3), self.k.cells, np.einsum("nii->ni", self.blocks).reshape(-1, self.k.nn, 3))
         else:
             self.k.tangent_diag(self.x, d)
 
     @timed("applies")
     def add_cell_blocks(self, vals, lo=0, hi=None):
-        """vals (hi-lo,12,12) += the tangent blocks of cells lo..hi-1 (default: all)."""
+        """vals (hi-lo, 3nn, 3nn) += the tangent blocks of cells lo..hi-1 (default: all)."""
         whole = lo == 0 and hi in (None, self.k.nc)
         if self.projection:
             vals += self.blocks if whole else self.blocks[lo:hi]

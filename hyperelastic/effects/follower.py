@@ -3,15 +3,17 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..options import Row, needs
+from .. import faces
 from .base import Effect, Spec, load_factor, timed
-from .traction import read_faces, surfaces, triangle_areas, triangle_coo_pattern
+from .traction import read_faces, surfaces
 
 
 class FollowerTwist(Effect):
     """Follower traction depending on current positions: t_y = k z, t_z = -k y on a face, i.e.
     t(x) = T x with T = k [[0,0,0],[0,0,1],[0,-1,0]], integrated over the reference area:
-    f_a = sum_b (int N_a N_b dA) T x_b, int N_a N_b dA = A (1 + delta_ab)/12. Optional ramp * min(t,1).
-    Its Jacobian -dF/dx is not symmetric (T is skew): use GMRES with it."""
+    f_a = sum_b (int N_a N_b dA) T x_b, int N_a N_b dA = A (1 + delta_ab)/12 on a 3-node triangle (faces.mass
+    on a 6-node one). Optional ramp * min(t,1). Its Jacobian -dF/dx is not symmetric (T is skew): use GMRES
+    with it."""
     name = "follower_traction"
     symmetric = False
     conservative = False   # t = T x with T skew has no potential
@@ -19,18 +21,22 @@ class FollowerTwist(Effect):
     def __init__(self, X, tris, k, scale=None, nlv=0):
         super().__init__()
         self.tris = tris
-        self.A = triangle_areas(X, tris)
+        self.A = faces.areas(X, tris)
         self.T = float(k) * np.array([[0.0, 0, 0], [0, 0, 1], [0, -1, 0]])
         self.scale_param = scale
         self.s = 1.0
         self.Mf = (np.ones((3, 3)) + np.eye(3)) / 12.0
+        self.Mt = None if tris.shape[1] == 3 else faces.mass(X, tris)     # 6-node faces: (ntri, 6, 6)
 
     def begin_step(self, t, h, xn, vn):
         self.s = load_factor(self.scale_param, t)
 
     def _force(self, x, out, sign):
-        xt = x.reshape(-1, 3)[self.tris]                         # (ntri, 3 vertices, 3)
-        mx = np.einsum("ab,tbj->taj", self.Mf, xt) * self.A[:, None, None]
+        xt = x.reshape(-1, 3)[self.tris]                         # (ntri, nodes, 3)
+        if self.Mt is None:
+            mx = np.einsum("ab,tbj->taj", self.Mf, xt) * self.A[:, None, None]
+        else:
+            mx = np.einsum("tab,tbj->taj", self.Mt, xt)
         f = np.einsum("ij,taj->tai", self.T, mx) * (sign * self.s)
         np.add.at(out.reshape(-1, 3), self.tris, f)
 
@@ -50,11 +56,14 @@ class FollowerTwist(Effect):
         pass  # T has a zero diagonal
 
     def coo_pattern(self):
-        return triangle_coo_pattern(self.tris)
+        return faces.coo_pattern(self.tris)
 
     def coo_values(self, out):
-        blk = -self.s * np.einsum("t,ab,ij->taibj", self.A, self.Mf, self.T)  # (ntri,3,3,3,3)
-        out[:] = blk.reshape(len(self.tris), 81).ravel()
+        if self.Mt is None:
+            blk = -self.s * np.einsum("t,ab,ij->taibj", self.A, self.Mf, self.T)  # (ntri, 3, 3, 3, 3)
+        else:
+            blk = -self.s * np.einsum("tab,ij->taibj", self.Mt, self.T)          # (ntri, 6, 3, 6, 3)
+        out[:] = blk.reshape(len(self.tris), -1).ravel()
 
 
 @dataclass(frozen=True)

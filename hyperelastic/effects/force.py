@@ -7,7 +7,8 @@ from mpi4py import MPI
 
 from ..options import Row, facet_sets, needs, time_function
 from .base import Spec
-from .traction import TRACTION_WORK, Traction, surfaces, triangle_areas
+from .. import faces
+from .traction import TRACTION_WORK, Traction, surfaces
 
 
 class Force(Traction):
@@ -15,7 +16,7 @@ class Force(Traction):
     name = "force"
 
     def __init__(self, X, tris, force, scale=None, nlv=0, mpi=None):
-        local = float(triangle_areas(X, tris).sum())
+        local = float(faces.areas(X, tris).sum())
         area = local if mpi is None else mpi.allreduce(local, op=MPI.SUM)
         if not area > 0:
             raise ValueError("a total force on surfaces of zero area")

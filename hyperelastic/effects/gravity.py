@@ -14,7 +14,7 @@ class Gravity(Effect):
     def __init__(self, cells, rho, g, nlv):
         super().__init__()
         share = np.zeros(nlv)
-        np.add.at(share, cells.cells.ravel(), np.repeat(rho * cells.vol / 4.0, 4))
+        np.add.at(share, cells.cells.ravel(), cells.load_shares(rho).ravel())
         self.f = (share[:, None] * np.asarray(g, float)[None, :]).ravel()
         self.g = np.asarray(g, float)
 

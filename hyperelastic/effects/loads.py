@@ -8,7 +8,7 @@ from ..errors import UserError
 from ..options import Row, facet_sets, needs, prefixed_names, time_function
 from .base import Spec
 from .force import Force
-from .pressure import Pressure
+from .pressure import pressure
 from .spring import SPEC as SPRING, build_spring
 from .traction import TRACTION_WORK, Traction
 
@@ -18,7 +18,7 @@ def _traction(ld, ctx, tris):
 
 
 def _pressure(ld, ctx, tris):
-    return Pressure(ctx.space.X, tris, ld.value, ld.scale)
+    return pressure(ctx.space.X, tris, ld.value, ld.scale)
 
 
 def _force(ld, ctx, tris):

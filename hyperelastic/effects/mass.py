@@ -13,10 +13,8 @@ class MassOperator:
         self.k = cells
         self.coef = float(coef)
         self.lumped = lumped
-        vertex_share = np.zeros(nlv)
-        np.add.at(vertex_share, cells.cells.ravel(), np.repeat(cells.vol, 4))
-        # diagonal: lumped V/4 per vertex, consistent 2V/20 = V/10 per vertex
-        self.diagonal = np.repeat(vertex_share * (0.25 if lumped else 0.1) * self.coef, 3)
+        # per node: P1 lumped V/4 per vertex, consistent 2V/20 = V/10; P2 consistent, or lumped by HRZ
+        self.diagonal = np.repeat(cells.mass_diagonal(lumped, nlv) * self.coef, 3)
 
     def apply(self, v, y, scale=1.0):
         if self.lumped:
@@ -36,7 +34,7 @@ class MassOperator:
         d += scale * self.diagonal
 
     def add_blocks(self, vals, scale=1.0, lo=0, hi=None):
-        """Consistent mass: vals (hi-lo,12,12) += scale * M^e of cells lo..hi-1 (default: all)."""
+        """Consistent mass: vals (hi-lo, 3nn, 3nn) += scale * M^e of cells lo..hi-1 (default: all)."""
         if not self.lumped:
             k = self.k if lo == 0 and hi in (None, self.k.nc) else self.k.part(lo, hi)
             k.add_mass_blocks(scale * self.coef, vals)

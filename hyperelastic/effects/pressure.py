@@ -2,9 +2,19 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .. import faces
 from ..options import Row, facet_sets, needs, time_function
 from .base import Effect, Spec, load_factor, timed
-from .traction import surfaces, triangle_coo_pattern
+from .traction import surfaces
+
+
+def skew(w):
+    """(..., 3, 3) with skew(w) u = w x u."""
+    out = np.zeros(w.shape + (3,))
+    out[..., 0, 1], out[..., 0, 2] = -w[..., 2], w[..., 1]
+    out[..., 1, 0], out[..., 1, 2] = w[..., 2], -w[..., 0]
+    out[..., 2, 0], out[..., 2, 1] = -w[..., 1], w[..., 0]
+    return out
 
 
 class Pressure(Effect):
@@ -61,17 +71,50 @@ class Pressure(Effect):
         pass  # the diagonal entries of [w]x are zero
 
     def coo_pattern(self):
-        return triangle_coo_pattern(self.tris)
+        return faces.coo_pattern(self.tris)
 
     def coo_values(self, out):
         w = self._edges()                                               # (ntri, b, 3)
-        skew = np.zeros(w.shape[:2] + (3, 3))
-        skew[..., 0, 1], skew[..., 0, 2] = -w[..., 2], w[..., 1]
-        skew[..., 1, 0], skew[..., 1, 2] = w[..., 2], -w[..., 0]
-        skew[..., 2, 0], skew[..., 2, 1] = -w[..., 1], w[..., 0]
-        blk = np.broadcast_to((self.s * self.p / 6.0) * skew[:, None].transpose(0, 1, 3, 2, 4),
+        blk = np.broadcast_to((self.s * self.p / 6.0) * skew(w)[:, None].transpose(0, 1, 3, 2, 4),
                               (len(self.tris), 3, 3, 3, 3))              # (t, a, i, b, j)
         out[:] = np.ascontiguousarray(blk).reshape(len(self.tris), 81).ravel()
+
+
+class CurvedPressure(Pressure):
+    """The follower pressure on 6-node (possibly curved) facets: with c(q) = x_xi x x_eta at the face rule's
+    points (faces.py), int N_a n da = sum_q w_q N_a(q) c(q), so the residual adds p sum_q w_q N_a(q) c(q).
+    Exact tangent: dc = v_xi x x_eta + x_xi x v_eta with v_xi = sum_b dN_b/dxi v_b, i.e. the block of
+    nodes (a, b) is p sum_q w_q N_a (dN_b/dxi [-x_eta]x + dN_b/deta [x_xi]x); not symmetric."""
+
+    def __init__(self, X, tris, p, scale=None):
+        super().__init__(X, tris, p, scale)
+        self.N, self.dN, self.w = faces.face_tabulation(self.tris)
+
+    @timed("evals")
+    def residual(self, x, r):
+        a, b = faces.tangents(x.reshape(-1, 3), self.tris, self.dN)
+        c = np.cross(a, b) * (self.s * self.p)                          # (ntri, nq, 3)
+        np.add.at(r.reshape(-1, 3), self.tris, np.einsum("q,qa,tqi->tai", self.w, self.N, c))
+
+    @timed("applies")
+    def apply(self, v, y):
+        a, b = faces.tangents(self.x_lin.reshape(-1, 3), self.tris, self.dN)
+        va, vb = faces.tangents(v.reshape(-1, 3), self.tris, self.dN)
+        dc = (np.cross(va, b) + np.cross(a, vb)) * (self.s * self.p)
+        np.add.at(y.reshape(-1, 3), self.tris, np.einsum("q,qa,tqi->tai", self.w, self.N, dc))
+
+    def coo_values(self, out):
+        a, b = faces.tangents(self.x_lin.reshape(-1, 3), self.tris, self.dN)
+        # (t, q, b, i, j): dN_b/dxi [-x_eta]x + dN_b/deta [x_xi]x
+        dcdx = (np.einsum("qb,tqij->tqbij", self.dN[:, :, 0], skew(-b))
+                + np.einsum("qb,tqij->tqbij", self.dN[:, :, 1], skew(a)))
+        blk = (self.s * self.p) * np.einsum("q,qa,tqbij->taibj", self.w, self.N, dcdx)
+        out[:] = blk.reshape(len(self.tris), -1).ravel()
+
+
+def pressure(X, tris, p, scale=None):
+    """The follower pressure effect of 3- or 6-node facets."""
+    return (Pressure if tris.shape[1] == 3 else CurvedPressure)(X, tris, p, scale)
 
 
 @dataclass(frozen=True)
@@ -89,7 +132,7 @@ def _read(opts, where):
 
 
 def build_pressure(p, ctx):
-    return [Pressure(ctx.space.X, ctx.space.set_triangles([n for n, _ in p.faces]), p.value, p.scale)]
+    return [pressure(ctx.space.X, ctx.space.set_triangles([n for n, _ in p.faces]), p.value, p.scale)]
 
 
 SPEC = Spec(

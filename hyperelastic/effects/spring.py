@@ -1,15 +1,15 @@
 """Elastic support (a spring or Robin boundary; Abaqus' "elastic foundation"): on named surfaces the
 traction -k (x - X) per reference area, in all components or those named (`S:z`), so that a part can be
-held without a rigid clamp. Energy 1/2 k int |x - X|^2 dA over the surfaces; with P1 triangles
-int N_a N_b dA = A (1 + delta_ab) / 12, so on a triangle f_a = -k A/12 (d_a + sum_b d_b), d = x - X,
-per held component. Its tangent k M_s (M_s the surface mass matrix) is constant and symmetric."""
+held without a rigid clamp. Energy 1/2 k int |x - X|^2 dA over the surfaces = 1/2 k d^T M_s d, d = x - X per
+held component, M_s the facets' mass matrix int N_a N_b dA (faces.mass: A (1 + delta_ab)/12 on a 3-node
+triangle). Its tangent k M_s is constant and symmetric."""
 from dataclasses import dataclass
 
 import numpy as np
 
 from ..options import Row, facet_sets, needs
 from .base import Effect, Energy, Spec, timed
-from .traction import triangle_areas
+from .. import faces
 
 
 class Spring(Effect):
@@ -17,17 +17,17 @@ class Spring(Effect):
     symmetric = True
 
     def __init__(self, X, tris, k, mask):
-        """tris (ntri, 3) local vertices; k [N/m^3]; mask (ntri, 3): the components each triangle holds."""
+        """tris (ntri, 3 or 6) local nodes; k [N/m^3]; mask (ntri, 3): the components each facet holds."""
         super().__init__()
         self.tris = np.asarray(tris, np.int64)
         self.X = np.asarray(X, float).reshape(-1, 3)
-        self.w = float(k) * triangle_areas(self.X, self.tris) / 12.0        # k A/12 per triangle
+        self.Mk = float(k) * faces.mass(self.X, self.tris)                    # (ntri, k, k)
         self.mask = np.asarray(mask, float).reshape(-1, 3)
 
     def _apply(self, d, out, sign=1.0):
-        """out += sign k M_s d (d: a local array, 3 per vertex)."""
-        dt = d.reshape(-1, 3)[self.tris] * self.mask[:, None, :]                 # (ntri, 3 vertices, 3)
-        f = self.w[:, None, None] * (dt + dt.sum(axis=1, keepdims=True)) * self.mask[:, None, :]
+        """out += sign k M_s d (d: a local array, 3 per node)."""
+        dt = d.reshape(-1, 3)[self.tris] * self.mask[:, None, :]                 # (ntri, nodes, 3)
+        f = np.einsum("tab,tbi->tai", self.Mk, dt) * self.mask[:, None, :]
         np.add.at(out.reshape(-1, 3), self.tris, sign * f)
 
     @timed("evals")
@@ -46,18 +46,19 @@ class Spring(Effect):
 
     @timed("applies")
     def diag(self, d):
-        np.add.at(d.reshape(-1, 3), self.tris, np.repeat((2.0 * self.w[:, None] * self.mask)[:, None, :], 3, axis=1))
+        diag = np.einsum("taa->ta", self.Mk)[:, :, None] * self.mask[:, None, :]
+        np.add.at(d.reshape(-1, 3), self.tris, diag)
 
     def coo_pattern(self):
-        """(a, i), (b, i) for every pair of a triangle's vertices and every component: 27 per triangle."""
+        """(a, i), (b, i) for every pair of a facet's nodes and every component."""
+        t, k = self.tris.shape
         dofs = 3 * self.tris[:, :, None] + np.arange(3)                       # (ntri, a, i)
-        rows = np.broadcast_to(dofs[:, :, None, :], (len(self.tris), 3, 3, 3))  # (t, a, b, i)
-        cols = np.broadcast_to(dofs[:, None, :, :], (len(self.tris), 3, 3, 3))
+        rows = np.broadcast_to(dofs[:, :, None, :], (t, k, k, 3))              # (t, a, b, i)
+        cols = np.broadcast_to(dofs[:, None, :, :], (t, k, k, 3))
         return rows.ravel().copy(), cols.ravel().copy()
 
     def coo_values(self, out):
-        m = (np.ones((3, 3)) + np.eye(3))[None, :, :, None] * self.w[:, None, None, None] * self.mask[:, None, None, :]
-        out[:] = m.ravel()
+        out[:] = (self.Mk[:, :, :, None] * self.mask[:, None, None, :]).ravel()
 
     def energy(self, x, v):
         return {"spring_energy": self.potential(x)}
@@ -69,16 +70,14 @@ class Support:
     faces: tuple      # ((set name, components), ...)
 
 
-def spring_mask(space, faces, tris_of):
-    """(triangles, (ntri, 3) held components) of [(set, components)]: a triangle in several sets holds the
-    union of their components."""
+def spring_mask(faces_, tris_of):
+    """(facets, (ntri, 3) held components) of [(set, components)]: a facet in several sets holds the union of
+    their components."""
     tris, masks = [], []
-    for name, comps in faces:
+    for name, comps in faces_:
         t = tris_of([name])
         tris.append(t)
         masks.append(np.broadcast_to(np.array([c in comps for c in "xyz"]), (len(t), 3)))
-    if not tris:
-        return np.zeros((0, 3), np.int64), np.zeros((0, 3), bool)
     t, m = np.concatenate(tris), np.concatenate(masks)
     key = np.sort(t, axis=1)
     _, first, inv = np.unique(key, axis=0, return_index=True, return_inverse=True)
@@ -87,8 +86,8 @@ def spring_mask(space, faces, tris_of):
     return t[first], held
 
 
-def build_spring(k, faces, ctx):
-    tris, mask = spring_mask(ctx.space, faces, ctx.space.set_triangles)
+def build_spring(k, faces_, ctx):
+    tris, mask = spring_mask(faces_, ctx.space.set_triangles)
     return Spring(ctx.space.X, tris, k, mask)
 
 

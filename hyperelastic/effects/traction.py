@@ -2,30 +2,21 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .. import faces
 from ..options import Row, facet_sets, needs, time_function
 from .base import DeadLoad, Energy, Spec
 
 
-def triangle_areas(X, tris):
-    return 0.5 * np.linalg.norm(np.cross(X[tris[:, 1]] - X[tris[:, 0]], X[tris[:, 2]] - X[tris[:, 0]]), axis=1)
-
-
-def triangle_coo_pattern(tris):
-    """(rows, cols) of the dense 9x9 blocks coupling the dofs of each triangle's three vertices,
-    row-major in (vertex a, component i) x (vertex b, component j)."""
-    dofs = (3 * tris[:, :, None] + np.arange(3)).reshape(-1, 9)   # (ntri, 9)
-    return np.repeat(dofs, 9, axis=1).ravel(), np.tile(dofs, (1, 9)).ravel()
-
-
 class Traction(DeadLoad):
     """Dead-load surface traction t [Pa] per unit reference area on a face, scaled by its time function
-    (base.load_factor: a ramp A min(t,1) or -NAME_time): f_a = int t N_a dA = t A/3 per triangle vertex."""
+    (base.load_factor: a ramp A min(t,1) or -NAME_time): f_a = int t N_a dA (t A/3 per vertex of a 3-node
+    triangle; faces.shares)."""
     name = "traction"
     work_column = "traction_work"
 
     def __init__(self, X, tris, traction, scale=None, nlv=0):
         share = np.zeros(nlv)
-        np.add.at(share, tris.ravel(), np.repeat(triangle_areas(X, tris) / 3.0, 3))
+        np.add.at(share, tris.ravel(), faces.shares(X, tris).ravel())
         super().__init__((share[:, None] * np.asarray(traction, float)[None, :]).ravel(), scale)
 
 
