@@ -11,13 +11,13 @@ from conftest import ROOT, make_model
 SCENES = ["bend", "twist", "squeeze", "sag"]
 
 
-def state(petsc, scene_name, options=()):
+def state(petsc, scene_name, options=(), amp=0.05):
     """The scene's model linearized at a random state x (a step at small t from the reference
     configuration with a random velocity): (scene, space, system, X)."""
     m = make_model(petsc, scene_name, options)
     scene, space, system = m.scene, m.space, m.system
     rng = np.random.default_rng(3)
-    x = space.X.ravel() + 0.05 * rng.standard_normal(3 * space.nlv)
+    x = space.X.ravel() + amp * rng.standard_normal(3 * space.nlv)
     v = 0.1 * rng.standard_normal(3 * space.nlv)
     system.begin_step(0.02, scene.dt, space.X.ravel().copy(), v)  # small t: prescribed ends move little
     X = system.global_state(x)

@@ -257,3 +257,86 @@ def test_manufactured_solution_convergence_orders(petsc, tmp_path):
     assert (rates[2][:, 0] >= 2.8).all() and (rates[2][:, 1] >= 1.9).all(), (rates, errs)
     assert (np.abs(rates[1][-1] - [2, 1]) < 0.35).all(), (rates, errs)
     assert (errs[2] < errs[1]).all()
+
+
+@pytest.mark.parametrize("options", [[], [("material", "neohookean")], [("mass", "lumped"), ("damping", "40")],
+                                     [("rayleigh_alpha", "0.5"), ("rayleigh_beta", "1e-3")],
+                                     [("spring", "3e5"), ("spring_faces", "bottom:z,back"), ("force", "0,-50,20"),
+                                      ("force_faces", "front"), ("body_force", "0,0,-200")],
+                                     [("effects", "elasticity,inertia,fixed,pressure"), ("fix", "left"),
+                                      ("pressure", "300"), ("pressure_faces", "top,right")],
+                                     [("effects", "elasticity,inertia,fixed,follower_traction"), ("fix", "left"),
+                                      ("traction_twist", "5000")]],
+                         ids=["stvk", "neohookean", "lumped", "rayleigh", "new-effects", "pressure", "twist"])
+def test_p2_tangent_in_every_form(petsc, options):
+    """P2 on the bar: the shell and the assembled tangent agree (operator and diagonal), the tangent is the
+    residual's derivative (central differences), PETSc's MFFD agrees to 1e-5, every effect's potential is the
+    gradient of its residual."""
+    from test_operators import apply, check_is_derivative, check_shell_equals_assembled, petsc_mffd, state
+    scene, space, system, X = state(petsc, "bend", [("order", "2")] + options, amp=0.01)    # (no cell folded)
+    assert space.cells.shape[1] == 10
+    A, S, V, Jv = check_shell_equals_assembled(system, X)
+    Da, Ds = X.duplicate(), X.duplicate()
+    A.getDiagonal(Da)
+    S.getDiagonal(Ds)
+    assert np.abs(Da.getArray() - Ds.getArray()).max() <= 1e-12 * np.abs(Da.getArray()).max()
+    check_is_derivative(system, X, V, Jv)
+    M, _ = petsc_mffd(system, X)
+    assert np.linalg.norm(apply(M, V) - Jv) <= 1e-5 * np.linalg.norm(Jv)
+    rng = np.random.default_rng(2)
+    x = system.x_lin + 0.001 * rng.standard_normal(len(system.x_lin))
+    for e in system.effects:
+        if not e.conservative:
+            continue
+        r = np.zeros_like(x)
+        e.residual(x, r)
+        d = rng.standard_normal(len(x))
+        fd = (e.potential(x + 1e-6 * d) - e.potential(x - 1e-6 * d)) / 2e-6
+        assert abs(fd - r @ d) <= 1e-6 * np.abs(r).max() * np.abs(d).sum() + 1e-10, e.name
+
+
+def test_hrz_lumped_mass_is_positive_and_the_mass(petsc):
+    """HRZ lumping of P2: every node's mass > 0 (the row sums give the vertices -V/20 each) and the total is
+    rho V per component; the consistent matrix has the same total."""
+    m = make_model(petsc, "bend", [("order", "2"), ("mass", "lumped")])
+    inertia = [e for e in m.system.effects if e.name == "inertia"][0]
+    d = inertia.M.diagonal.reshape(-1, 3)[m.space.owned, 0]
+    assert (d > 0).all()
+    total = m.space.mpi.allreduce(d.sum())
+    assert total == pytest.approx(1000.0 * 160.0, rel=1e-12)
+    rows = m.kernels.geometry.mass_w @ m.kernels.geometry.Nm      # consistent row sums per cell: int N_a dV
+    assert rows[:, :4].max() < 0 and rows[:, 4:].min() > 0
+
+
+def test_p2_same_on_two_ranks_restart_and_readers(tmp_path):
+    """A P2 run on 1 and 2 ranks agrees to the solver tolerance; a restart from its checkpoint is bitwise;
+    VTK's XDMF reader sees quadratic tetrahedra with every field and meshio reads every frame; the output
+    read back as -mesh is a quadratic mesh at the last frame."""
+    import h5py
+    import meshio
+    import vtk
+    args = ["run", "bend", "-order", 2, "-final_time", 0.1, "-checkpoint_every", 4, "-snes_rtol", 1e-10,
+            "-ksp_rtol", 1e-12, "-quiet"]
+    run_ok(args + ["-output", tmp_path / "a.h5"])
+    run_ok(args + ["-output", tmp_path / "b.h5"], nprocs=2)
+    a, b = read_h5(tmp_path / "a.h5"), read_h5(tmp_path / "b.h5")
+    assert a["tetra"].shape[1] == 10 and np.array_equal(a["tetra"], b["tetra"])
+    assert np.abs(a["x"] - b["x"]).max() <= 1e-8 * np.abs(a["x"]).max()
+    run_ok(["run", "--restart", tmp_path / "a.h5", "-final_time", 0.15])
+    run_ok(args[:5] + [0.15] + args[6:] + ["-output", tmp_path / "c.h5"])
+    assert np.array_equal(read_h5(tmp_path / "a.h5")["x"], read_h5(tmp_path / "c.h5")["x"])
+    rd = vtk.vtkXdmfReader()
+    rd.SetFileName(str(tmp_path / "c.xdmf"))
+    rd.Update()
+    grid = rd.GetOutputDataObject(0)
+    assert grid.GetCellType(0) == vtk.VTK_QUADRATIC_TETRA and grid.GetNumberOfPoints() == len(a["points"])
+    assert grid.GetPointData().GetArray("displacement") and grid.GetCellData().GetArray("von_mises")
+    with meshio.xdmf.TimeSeriesReader(str(tmp_path / "c.xdmf")) as r:
+        pts, cells = r.read_points_cells()
+        assert cells[0].type == "tetra10"
+        frames = [r.read_data(k) for k in range(r.num_steps)]
+    with h5py.File(tmp_path / "c.h5", "r") as f:
+        assert np.allclose(frames[-1][1]["displacement"], f["x"][-1] - f["mesh/points"][:], atol=1e-14)
+    p = run_ok(["run", "sag", "-mesh", tmp_path / "c.h5", "-final_time", 0.02, "-output", tmp_path / "d.h5"])
+    d = read_h5(tmp_path / "d.h5")
+    assert d["tetra"].shape[1] == 10 and np.array_equal(d["points"], read_h5(tmp_path / "c.h5")["x"][-1])
