@@ -318,7 +318,11 @@ def locate(points, tets, P):
 
 
 def interpolate(tets, cells, weights, values):
-    """P1 interpolation of vertex `values` (nv,...) at points given by locate()."""
+    """Interpolation of nodal `values` (nv, ...) at points given by locate(): P1 with the barycentric weights, or
+    P2 for cells of 10 nodes (their shape functions at the point's reference coordinates: exact on
+    straight cells; on curved ones the coordinates are the corners' affine estimate)."""
+    if tets.shape[1] == 10:
+        weights = tet_shapes(2, weights[:, 1:])[0]
     return np.einsum("ka,ka...->k...", weights, values[tets[cells]])
 
 

@@ -137,15 +137,20 @@ def test_study_bad_arguments_are_one_line():
 
 
 def test_refinement_of_a_users_part(tmp_path):
-    """`study refinement --part`: the bimaterial bar's .geo meshed and refined twice, the scene run on
-    each mesh, the watched end displacement converging (changes shrink, positive order, Richardson)."""
+    """`study refinement --part --order 1,2`: the bimaterial bar's .geo meshed and refined twice, the scene run
+    on each mesh with linear and with quadratic tetrahedra, the watched end displacement converging (P1: the
+    changes shrink, positive order, Richardson), and P2 on the coarsest mesh nearer P1's limit than P1 on the
+    finest."""
     root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
     out = tmp_path / "study"
     run_ok(["study", "refinement", "--part", f"{root}/examples/bimaterial.geo", "--scene",
             f"{root}/examples/bimaterial.opts", "--size", 0.25, "--refine", 2, "--watch", "point:2,0.125,0.125",
-            "--run-args", "-soft_material linear -stiff_material linear -traction 0,2e3,0", "-output_dir", out])
+            "--run-args", "-soft_material linear -stiff_material linear -traction 0,2e3,0", "--order", "1,2",
+            "-output_dir", out])
     rows = read_csv(out / "refinement.csv")
-    assert [r["outcome"] for r in rows] == ["finished"] * 3
+    p2 = [r for r in rows if r["element_order"] == "2"]
+    rows = [r for r in rows if r["element_order"] == "1"]
+    assert [r["outcome"] for r in rows + p2] == ["finished"] * 6
     tets = [int(r["tets"]) for r in rows]
     assert tets[1] == 8 * tets[0] and tets[2] == 8 * tets[1]
     q = [float(r["quantity"]) for r in rows]
@@ -153,8 +158,10 @@ def test_refinement_of_a_users_part(tmp_path):
     change = [float(r["change"]) for r in rows]
     assert change[0] > change[1] > change[2] == 0
     assert float(rows[0]["order"]) > 0.5 and float(rows[0]["richardson_limit"]) > q[2]
+    limit = float(rows[0]["richardson_limit"])
+    assert abs(float(p2[0]["quantity"]) - limit) < abs(q[2] - limit)
     assert (out / "refinement.png").stat().st_size > 1000
-    assert "observed order" in (out / "refinement.md").read_text()
+    assert "P1: " in (out / "refinement.md").read_text() and "P2: " in (out / "refinement.md").read_text()
 
 
 @pytest.mark.parametrize("args, words", [

@@ -59,6 +59,7 @@ def _parser():
     ap.add_argument("--watch", default="max_displacement", help="refinement --part: the quantity, one of "
                     "max_displacement, point:X,Y,Z, elastic_energy")
     ap.add_argument("--run-args", default="", help="refinement --part: more options for every run (quoted)")
+    ap.add_argument("--order", default="1", help="refinement --part: element orders, e.g. 1,2 (default 1)")
     return ap
 
 
@@ -72,6 +73,12 @@ def _check(a):
         raise UserError(f"hyperelastic study: --size {a.size} must be a positive number")
     if a.jobs < 1:
         raise UserError("hyperelastic study: --jobs must be >= 1")
+    orders = [w.strip() for w in a.order.split(",")]
+    if not orders or any(w not in ("1", "2") for w in orders) or len(set(orders)) != len(orders):
+        raise UserError(f"hyperelastic study: --order {a.order}: element orders 1 and/or 2 (e.g. 1,2)")
+    if a.part is None and a.order != "1":
+        raise UserError("hyperelastic study: --order belongs to refinement --part PART")
+    a.orders = tuple(int(w) for w in orders)
 
 
 def main(argv):
@@ -101,7 +108,7 @@ def main(argv):
         print(os.path.join(out, "accuracy.md"))
     elif a.part is not None:
         rows = part.part_refinement(a.part, a.scene, a.watch, a.size, a.refine, out, a.jobs,
-                               shlex.split(a.run_args), log=log)
+                                    shlex.split(a.run_args), log=log, orders=a.orders)
         part.part_report(rows, out, command, a.part, a.scene, a.watch)
         print(os.path.join(out, "refinement.md"))
     else:

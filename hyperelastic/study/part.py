@@ -4,7 +4,9 @@ gmsh (`hyperelastic mesh`, physical groups kept, 8x the tets each time, h halved
 every mesh, and the watched quantity's convergence is reported: its change against the finest mesh,
 the observed order (slope of log change vs log h), and a Richardson estimate of its limit from the
 three finest meshes (q_inf = q_N + (q_N - q_{N-1}) / (2^p - 1), p = log2 of the ratio of the last two
-changes; Roache, "Verification and Validation in Computational Science", 1998, ch. 5)."""
+changes; Roache, "Verification and Validation in Computational Science", 1998, ch. 5). With several element
+orders (--order 1,2) every mesh runs at each order (`-order`: the linear meshes elevated to straight-sided
+quadratic cells), and the convergence is analysed per order."""
 import math
 import os
 
@@ -60,9 +62,10 @@ def meshes(part, size, refine, out_dir):
     return [(i, s["file"], s["tets"], size / 2 ** i) for i, s in enumerate(st)]
 
 
-def part_refinement(part, scene, watch, size, refine, out_dir, jobs=1, run_args=(), parallel_from=20000, log=None):
-    """Rows, one per mesh: tets, h, the watched quantity, its change against the finest mesh, the
-    run's cost; plus (in each row) the fitted order and the Richardson limit."""
+def part_refinement(part, scene, watch, size, refine, out_dir, jobs=1, run_args=(), parallel_from=20000, log=None,
+                    orders=(1,)):
+    """Rows, one per mesh and element order: tets, h, the watched quantity, its change against the finest
+    mesh of that order, the run's cost; plus (in each row) the fitted order and the Richardson limit."""
     kind, point = parse_watch(watch)
     if refine < 2:
         raise UserError(f"--refine {refine}: a convergence order needs at least 3 meshes (--refine 2)")
@@ -70,16 +73,17 @@ def part_refinement(part, scene, watch, size, refine, out_dir, jobs=1, run_args=
         raise UserError(f"--scene '{scene}': no such file")
     d = os.path.join(out_dir, "runs")
     os.makedirs(d, exist_ok=True)
-    levels = meshes(part, size, refine, d)
+    levels = [(o,) + lv for o in orders for lv in meshes(part, size, refine, d)]
 
     def one(level):
-        i, msh, tets, h = level
-        n = 2 if tets >= parallel_from else 1
-        path = os.path.join(d, f"part_r{i}.h5")
-        rc, err, wall = run_hyperelastic(["run", scene, "-mesh", msh, "-output", path, "-quiet", *run_args],
-                                         path, nprocs=n, timeout=3600)
-        row = {"level": i, "mesh": msh, "nprocs": n, "tets": tets, "h": h, "rc": rc, "wall_s": wall,
-               "outcome": "finished" if rc == 0 else "failed", "message": last_line(err, rc) if rc else ""}
+        o, i, msh, tets, h = level
+        n = 2 if tets * (4 if o == 2 else 1) >= parallel_from else 1
+        path = os.path.join(d, f"part_p{o}_r{i}.h5")
+        rc, err, wall = run_hyperelastic(["run", scene, "-mesh", msh, "-order", str(o), "-output", path, "-quiet",
+                                          *run_args], path, nprocs=n, timeout=3600)
+        row = {"element_order": o, "level": i, "mesh": msh, "nprocs": n, "tets": tets, "h": h, "rc": rc,
+               "wall_s": wall, "outcome": "finished" if rc == 0 else "failed",
+               "message": last_line(err, rc) if rc else ""}
         row.update(read_cost(path))
         if rc == 0:
             row["quantity"] = watched(path, kind, point)
@@ -87,7 +91,8 @@ def part_refinement(part, scene, watch, size, refine, out_dir, jobs=1, run_args=
         return row
 
     rows = parallel_map(one, levels, jobs, log)
-    analyse(rows)
+    for o in orders:
+        analyse([r for r in rows if r["element_order"] == o])
     return rows
 
 
@@ -109,7 +114,8 @@ def analyse(rows):
         r["order"], r["richardson_p"], r["richardson_limit"] = order, p, limit
 
 
-COLUMNS = ("level", "nprocs", "tets", "h", "quantity", "change", "order", "richardson_p", "richardson_limit",
+COLUMNS = ("element_order", "level", "nprocs", "tets", "h", "quantity", "change", "order", "richardson_p",
+           "richardson_limit",
            "outcome", "message", "steps", "newton_its", "ksp_its", "solve_s", "s_per_step", "wall_s",
            "peak_rss_mb", "mesh")
 
@@ -117,16 +123,19 @@ COLUMNS = ("level", "nprocs", "tets", "h", "quantity", "change", "order", "richa
 def part_report(rows, out_dir, command, part, scene, watch):
     plt = pyplot()
     write_csv(os.path.join(out_dir, "refinement.csv"), rows, COLUMNS)
-    ok = [r for r in rows if r["outcome"] == "finished"]
+    orders = sorted({r["element_order"] for r in rows})
     fig, (a1, a2) = plt.subplots(1, 2, figsize=(11, 4.2))
-    if ok:
-        a1.semilogx([r["h"] for r in ok], [r["quantity"] for r in ok], "o-", label=watch)
+    for o in orders:
+        ok = [r for r in rows if r["outcome"] == "finished" and r["element_order"] == o]
+        if not ok:
+            continue
+        a1.semilogx([r["h"] for r in ok], [r["quantity"] for r in ok], "o-", label=f"P{o}: {watch}")
         if math.isfinite(ok[0].get("richardson_limit", float("nan"))):
-            a1.axhline(ok[0]["richardson_limit"], ls="--", color="gray", label="Richardson limit")
+            a1.axhline(ok[0]["richardson_limit"], ls="--", color="gray", label=f"P{o} Richardson limit")
         ch = [r for r in ok[:-1] if r.get("change")]
         if ch:
             a2.loglog([r["h"] for r in ch], [r["change"] for r in ch], "s-",
-                      label=f"|q - q_finest|, slope {ok[0].get('order', float('nan')):.2f}")
+                      label=f"P{o} |q - q_finest|, slope {ok[0].get('order', float('nan')):.2f}")
     for a, yl in ((a1, watch), (a2, "change against the finest mesh")):
         a.set_xlabel("target edge length h")
         a.set_ylabel(yl)
@@ -136,20 +145,24 @@ def part_report(rows, out_dir, command, part, scene, watch):
     fig.savefig(os.path.join(out_dir, "refinement.png"), dpi=110)
     plt.close(fig)
     L = [f"# Mesh refinement of {os.path.basename(part)}", ""]
-    if len(ok) >= 3:
-        r0 = ok[0]
-        L += [f"**{watch}: {ok[-1]['quantity']:.6g} on the finest mesh ({ok[-1]['tets']:,} tets); observed order "
-              f"{r0['order']:.2f} (slope of the change against the finest mesh vs h); Richardson's limit from the "
-              f"three finest: {fmt(r0['richardson_limit'], '.6g')} (p = {fmt(r0['richardson_p'], '.2f')}).**", ""]
-    else:
-        L += ["Fewer than three meshes finished: no order.", ""]
+    for o in orders:
+        ok = [r for r in rows if r["outcome"] == "finished" and r["element_order"] == o]
+        if len(ok) >= 3:
+            r0 = ok[0]
+            L += [f"**P{o}: {watch} {ok[-1]['quantity']:.6g} on the finest mesh ({ok[-1]['tets']:,} tets); observed "
+                  f"order {r0['order']:.2f} (slope of the change against the finest mesh vs h); Richardson's limit "
+                  f"from the three finest: {fmt(r0['richardson_limit'], '.6g')} (p = "
+                  f"{fmt(r0['richardson_p'], '.2f')}).**", ""]
+        else:
+            L += [f"P{o}: fewer than three meshes finished: no order.", ""]
     L += [f"Command: `{command}`. Scene: `{scene}`; each mesh is the previous one split uniformly (8x the tets, "
           "h halved; `hyperelastic mesh --refine`). Figure: `refinement.png`.", "",
-          "| mesh | ranks | tets | h | quantity | change vs finest | Newton | Krylov | solve (s) | wall (s) | outcome |",
-          "|" + "---|" * 11]
+          "| order | mesh | ranks | tets | h | quantity | change vs finest | Newton | Krylov | solve (s) | wall (s) "
+          "| outcome |", "|" + "---|" * 12]
     for r in rows:
         out = r["outcome"] if r["outcome"] != "failed" else f"failed: {r['message'][:80]}"
-        L.append(f"| r{r['level']} | {r['nprocs']} | {r['tets']:,} | {r['h']:.4g} | {fmt(r.get('quantity'), '.6g')} | "
+        L.append(f"| P{r['element_order']} | r{r['level']} | {r['nprocs']} | {r['tets']:,} | {r['h']:.4g} | "
+                 f"{fmt(r.get('quantity'), '.6g')} | "
                  f"{fmt(r.get('change'), '.3g')} | {fmt(r.get('newton_its'))} | {fmt(r.get('ksp_its'))} | "
                  f"{fmt(r.get('solve_s'))} | {r['wall_s']:.3g} | {out} |")
     with open(os.path.join(out_dir, "refinement.md"), "w") as fh:
