@@ -82,7 +82,7 @@ def at_points(path, P=MATERIAL_POINTS):
     return interpolate(tets, cells, w, x[-1] - X)
 
 
-CSV_COLUMNS = ("id", "role", "scene", "material", "E", "level", "mode", "pc", "h", "snes_rtol", "ksp_rtol",
+CSV_COLUMNS = ("id", "role", "scene", "material", "E", "level", "order", "mode", "pc", "h", "snes_rtol", "ksp_rtol",
                "ts_rtol", "final_time", "outcome", "rc", "message", "rel_err", "err_final_max", "err_final_rms", "err_traj_max",
                "err_traj_rms", "energy_drift", "ref_displacement", "solve_s", "wall_s", "steps", "rejections",
                "newton_its", "ksp_its", "residual_evals", "peak_rss_mb", "tets", "disc_err", "disc_level", "ref_err_est")
@@ -107,8 +107,8 @@ def analyse_accuracy(rows, refs):
     for r in rows:
         if r["role"] == "disc" and r["outcome"] != "failed":
             disc.setdefault((r["scene"], r["material"], r["E"]), []).append(r)
-    for group in disc.values():        # each level's mesh error against the finest level's
-        fine = max(group, key=lambda r: r["level"])
+    for group in disc.values():        # each level's mesh error against the finest level's (quadratic) run
+        fine = max(group, key=lambda r: (r["level"], r.get("order", 1)))
         uf = at_points(fine["path"])
         for r in group:
             r["disc_err"] = float(np.linalg.norm(at_points(r["path"]) - uf, axis=1).max()
@@ -141,7 +141,7 @@ def write_csv(rows, path):
     _write_table(path, rows, CSV_COLUMNS)
 
 
-INT_COLS = {"level", "rc", "steps", "rejections", "newton_its", "ksp_its", "residual_evals", "tets", "disc_level"}
+INT_COLS = {"level", "order", "rc", "steps", "rejections", "newton_its", "ksp_its", "residual_evals", "tets", "disc_level"}
 STR_COLS = {"id", "role", "scene", "material", "mode", "pc", "outcome", "message", "path"}
 
 

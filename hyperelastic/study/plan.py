@@ -51,6 +51,7 @@ class Run:
     role: str = "sweep"              # sweep | reference | check | disc
     final_time: float = 0.3
     ts_rtol: float = 0.0             # alpha2_adapt: -ts_rtol = -ts_atol
+    order: int = 1                   # element order (-order): the discretisation runs are made at 1 and 2
 
     @property
     def config(self):
@@ -59,10 +60,11 @@ class Run:
     @property
     def id(self):
         return (f"{self.scene}-{self.material}-E{self.E:g}-L{self.level}-{self.mode}-{self.pc}-h{self.h:g}"
-                f"-r{self.snes_rtol:g}-k{self.ksp_rtol:g}-{self.role}" + (f"-a{self.ts_rtol:g}" if self.ts_rtol else ""))
+                f"-r{self.snes_rtol:g}-k{self.ksp_rtol:g}-{self.role}" + (f"-a{self.ts_rtol:g}" if self.ts_rtol else "")
+                + (f"-p{self.order}" if self.order != 1 else ""))
 
     def args(self, out):
-        a = ["run", self.scene, "-level", self.level, "-material", self.material]
+        a = ["run", self.scene, "-level", self.level, "-material", self.material, "-order", self.order]
         a += SCENE_EXTRA.get(self.scene, [])
         a += ["-E", repr(self.E), "-dt", repr(self.h), "-final_time", repr(self.final_time),
               "-frames_per_second", FPS, "-snes_rtol", repr(self.snes_rtol), "-ksp_rtol", repr(self.ksp_rtol),
@@ -149,7 +151,8 @@ DISC_H = 0.01       # time step of the discretisation-error runs (the same on ev
 def with_references(p):
     """(references by configuration, the extra runs): each configuration's reference and its check
     run (at twice the reference's step), and for each (scene, material, E) swept on more than one
-    level or headlined, reference-setting runs at DISC_H on its levels and on the finest level."""
+    level or headlined, reference-setting runs at DISC_H on its levels and on the finest level, with linear
+    and with quadratic tetrahedra (the mesh error of both against the finest level's quadratic run)."""
     by_cfg = {}
     for r in p.runs:
         by_cfg.setdefault(r.config, []).append(r)
@@ -164,6 +167,7 @@ def with_references(p):
     for key, lv in levels.items():
         if len(lv) > 1 or key == p.main[:3]:
             base = refs[next(c for c in by_cfg if c[:3] == key)]
-            extra += [replace(base, level=L, h=DISC_H, role="disc") for L in sorted(lv | {p.finest_level})]
+            extra += [replace(base, level=L, h=DISC_H, role="disc", order=o) for o in (1, 2)
+                      for L in sorted(lv | {p.finest_level})]
     return refs, extra
 

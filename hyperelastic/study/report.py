@@ -258,9 +258,10 @@ def _disc_table(rows):
         L += ["", f"## Discretisation error (mesh) at h = {DISC_H:g}", "",
               "Displacement at the material points " + ", ".join(POINT_NAMES) + ", against the finest level, "
               "relative to the largest displacement there (reference solver settings).", "",
-              "| scene, material, E | level | tets | mesh error (rel.) | solve (s) |", "|---|---|---|---|---|"]
+              "| scene, material, E | level | element | tets | mesh error (rel.) | solve (s) |", "|---|---|---|---|---|---|"]
         for r in disc:
-            L.append(f"| {r['scene']}, {r['material']}, {r['E']:g} | L{r['level']} | {fmt(r.get('tets'), ',')} | "
+            L.append(f"| {r['scene']}, {r['material']}, {r['E']:g} | L{r['level']} | P{r.get('order', 1)} | "
+                     f"{fmt(r.get('tets'), ',')} | "
                      f"{fmt(r.get('disc_err'), '.2g') if r['outcome'] != 'failed' else 'failed: ' + r['message']} | "
                      f"{fmt(r.get('solve_s'))} |")
     return L
