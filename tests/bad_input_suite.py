@@ -149,30 +149,39 @@ def option_value_cases(rng):
     out = []
     real_bad = ["nan", "inf", "-inf", "1e308", "", "abc", "1,2"]
     kinds = {
-        "positive": (["E", "rho", "dt", "frames_per_second", "dt_min"], real_bad + ["0", "-1", "1e-320"]),
+        "positive": (["E", "rho", "dt", "frames_per_second", "dt_min", "spring", "kappa", "mu"],
+                     real_bad + ["0", "-1", "1e-320"]),
         "final_time": (["final_time"], real_bad + ["-1"]),
         "nu": (["nu"], real_bad + ["0.5", "-1", "2"]),
-        "nonnegative": (["damping", "rayleigh_alpha", "rayleigh_beta"], real_bad + ["-1"]),
+        "nonnegative": (["damping", "rayleigh_alpha", "rayleigh_beta", "C01"], real_bad + ["-1"]),
+        "order": (["order"], ["0", "3", "1.5", "abc", ""]),
+        "quadrature": (["quadrature_degree"], ["0", "3", "4", "1.5", "abc", ""]),
         "real": (["traction_twist", "prescribe_amount", "pressure"], real_bad),
         "level": (["level"], ["0", "-1", "1.5", "abc", "", "99", "1e308"]),
         "int": (["checkpoint_every", "dt_grow_after", "mesh_frame"], ["1.5", "abc", "", "-5"]),
-        "vector": (["gravity", "traction", "initial_scale", "initial_spin", "initial_rotation"],
+        "vector": (["gravity", "traction", "initial_scale", "initial_spin", "initial_rotation", "force",
+                    "body_force"],
                    ["1,2", "1,2,3,4", "a,b,c", "nan,0,0", "inf,0,0", "1e308,0,0", "", ",,", "1e-320,0,0"]),
         "choice": (["material", "preset", "jacobian", "assembly", "operator_storage", "integrator", "mass",
                     "prescribe_motion"],
                    ["bogus", "", "STVK", "1"]),
         "flag": (["quasistatic", "step_control", "objective", "hessian_projection", "inversion_guard"],
                  ["maybe", "2", "-1", "yes please"]),
-        "faces": (["fix", "traction_face", "pressure_faces", "prescribe_faces"],
+        "faces": (["fix", "traction_face", "pressure_faces", "prescribe_faces", "spring_faces", "force_faces"],
                   ["", "nonexistent", "left:w", ":x", "left:xx", "7"]),
-        "names": (["regions", "loads", "effects"], ["", "nonexistent", "a b", "x,x"]),
+        "names": (["regions", "loads", "effects", "body_force_regions"], ["", "nonexistent", "a b", "x,x"]),
     }
     context = {"pressure_faces": ["-pressure", "1e3"], "prescribe_faces": ["-prescribe_motion", "stretch_x"],
                "prescribe_motion": ["-prescribe_faces", "right"], "pressure": ["-pressure_faces", "right"],
                "prescribe_amount": ["-prescribe_faces", "right", "-prescribe_motion", "stretch_x"],
-               "mesh_frame": ["-mesh", "prev.h5"], "regions": [], "loads": []}
+               "mesh_frame": ["-mesh", "prev.h5"], "regions": [], "loads": [],
+               "spring": ["-spring_faces", "right"], "spring_faces": ["-spring", "1e5"], "kappa": ["-material",
+               "neohookean_split"], "mu": ["-material", "neohookean_split"], "C01": ["-material", "mooney_rivlin"],
+               "quadrature_degree": ["-order", "2"], "force": ["-force_faces", "right"],
+               "force_faces": ["-force", "1,0,0"], "body_force_regions": ["-body_force", "0,0,1"]}
     skip = {("mesh_frame", "-5"), ("initial_spin", "1e-320,0,0"), ("initial_rotation", "1e-320,0,0"),
-            ("gravity", "1e-320,0,0"), ("traction", "1e-320,0,0")}   # valid values (a tiny vector is a vector)
+            ("gravity", "1e-320,0,0"), ("traction", "1e-320,0,0"), ("force", "1e-320,0,0"),
+            ("body_force", "1e-320,0,0")}   # valid values (a tiny vector is a vector)
     for kind, (names, values) in kinds.items():
         for name in names:
             for v in values:
@@ -376,8 +385,9 @@ def mesh_cases(rng):
     lo, hi = probe.index(b"$Nodes"), probe.index(b"$EndElements")
     for cut in rng.sample(range(lo + 7, hi), 8):
         text_mesh(f"truncated@{cut}", lambda b, c=cut: b[:c])
-    for at in rng.sample(range(lo + 7, hi), 6):
-        text_mesh(f"garbage@{at}", lambda b, a=at: b[:a] + b" @#garbage!% " + b[a:])
+    for at in rng.sample(range(lo + 7, hi), 6):    # at the start of the line: inside a number it can be benign
+        text_mesh(f"garbage@{at}", lambda b, a=at: b[:b.rindex(b"\n", 0, a) + 1] + b"@#garbage!% "
+                  + b[b.rindex(b"\n", 0, a) + 1:])
     text_mesh("elements_missing", lambda b: b[:b.index(b"$Elements")])
     text_mesh("wrong_count", lambda b: b.replace(b"$Elements\n", b"$Elements\n9999999\n", 1)[:len(b)])
 

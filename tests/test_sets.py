@@ -53,8 +53,20 @@ def test_mesh_command_keeps_physical_groups(parts, tmp_path):
                    "no such file")
 
 
-def test_second_order_mesh_is_refused(tmp_path):
+def test_second_order_meshes(tmp_path):
+    """`hyperelastic mesh --order 2`: 10-node tetrahedra with the physical groups on their 6-node triangles, run
+    as quadratic cells (the set report's areas and volumes are the curved ones); a gmsh order-2 mesh without any
+    physical group runs on the box faces; -order 1 takes its corners; a mesh mixing tetra and tetra10, or one
+    whose neighbours disagree on an edge's node, is one error line."""
     import gmsh
+    import meshio
+    p = run_ok(["mesh", f"{ROOT}/examples/bracket.geo", "--size", 0.008, "--order", 2, "-o", tmp_path / "b.msh"])
+    assert "nodes of 10-node tets" in p.stdout
+    m = meshio.read(tmp_path / "b.msh")
+    assert {c.type for c in m.cells} == {"tetra10", "triangle6"} and set(m.field_data) == {"clamp", "load", "solid"}
+    p = run_ok(["run", f"{ROOT}/examples/bracket.opts", "-mesh", tmp_path / "b.msh", "-dt", 1, "-final_time", 1,
+                "-output", tmp_path / "b.h5"])
+    assert "set load: " in p.stderr and read_h5(tmp_path / "b.h5")["tetra"].shape[1] == 10
     path = str(tmp_path / "t10.msh")
     gmsh.initialize(["gmsh", "-v", "0"], readConfigFiles=False)
     try:
@@ -67,9 +79,20 @@ def test_second_order_mesh_is_refused(tmp_path):
         gmsh.write(path)
     finally:
         gmsh.finalize()
-    one_line_error(hyperelastic(["run", "bend", "-mesh", path, "-output", tmp_path / "o.h5"]),
-                   "tetra10", "not supported", "ElementOrder")
-    assert not (tmp_path / "o.h5").exists()
+    for order, nodes in (("2", 10), ("1", 4)):
+        run_ok(["run", "bend", "-mesh", path, "-order", order, "-final_time", 0.02, "-quiet",
+                "-output", tmp_path / f"o{order}.h5"])
+        assert read_h5(tmp_path / f"o{order}.h5")["tetra"].shape[1] == nodes
+    m = meshio.read(path)
+    t10 = [c.data for c in m.cells if c.type == "tetra10"][0]
+    bad = t10.copy()
+    bad[0, 4] = bad[0, 5]                                  # one cell's edge node taken from its other edge
+    meshio.write(tmp_path / "bad.vtu", meshio.Mesh(m.points, [("tetra10", bad)]))
+    one_line_error(hyperelastic(["run", "bend", "-mesh", tmp_path / "bad.vtu", "-output", tmp_path / "x.h5"]),
+                   "mesh ", "another node")
+    meshio.write(tmp_path / "mixed.vtu", meshio.Mesh(m.points, [("tetra10", t10), ("tetra", t10[:3, :4])]))
+    one_line_error(hyperelastic(["run", "bend", "-mesh", tmp_path / "mixed.vtu", "-output", tmp_path / "x.h5"]),
+                   "mixes linear (tetra) and quadratic (tetra10)")
 
 
 @pytest.mark.parametrize("part,clamp_axis,load_area", [("plate_hole", 0, 0.1 * 0.01), ("bracket", 0, 0.06 * 0.01)])
