@@ -120,7 +120,7 @@ def _read_material(s, opts):
     if opts.has("order") and s.order not in ORDERS:
         raise UserError(f"option -order: {s.order}: give 1 (linear, 4-node) or 2 (quadratic, 10-node tetrahedra)")
     s.quadrature = opts.integer("quadrature_degree", s.quadrature) if opts.has("quadrature_degree") else s.quadrature
-    if s.quadrature and s.quadrature not in TET_RULES:
+    if opts.has("quadrature_degree") and s.quadrature not in TET_RULES:
         raise UserError(f"option -quadrature_degree: {s.quadrature}: the rules are of degree "
                         f"{', '.join(map(str, TET_RULES))}")
     if s.quadrature and s.order == 1:

@@ -9,7 +9,8 @@ bar: the cantilever bar [-5,5]x[-2,2]x[-2,2] (left end clamped, 5000 Pa down on 
 material, nu = 0.3, quasi-static in one step), watched: u_y at the tip's centre (5, 0, 0). Meshes: the bar
 levels (P1 up to L12, P2 up to L8). bracket: examples/bracket.geo with examples/bracket.opts (aluminium,
 St. Venant-Kirchhoff, 4 load steps), meshed by gmsh at decreasing sizes; watched: the largest |u|.
-The converged value is Richardson's extrapolation of the three finest P2 runs (p from them). Cost: the
+The converged value: q_inf of q(h) = q_inf + C h^p through the three finest P2 runs (Richardson with the
+meshes' own size ratios). Cost: the
 solve time (the steps' wall time, from the output's statistics) and the whole command's wall time; CG +
 GAMG (options/gamg.opts) at every size, one rank. Writes OUT/order.csv and OUT/order.md.
 """
@@ -25,7 +26,7 @@ sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 from hyperelastic.experiments.runner import last_line, run_hyperelastic  # noqa: E402
 from hyperelastic.experiments.table import write_csv  # noqa: E402
-from hyperelastic.mesh import generate, interpolate, locate  # noqa: E402
+from hyperelastic.mesh import generate, interpolate, level_size, locate  # noqa: E402
 from hyperelastic.study.measure import read_cost  # noqa: E402
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -60,7 +61,7 @@ def bar(out, quick):
     for order, lv in levels.items():
         for L in lv:
             path = os.path.join(out, f"bar_p{order}_L{L}.h5")
-            r = {"case": "bar", "order": order, "mesh": f"L{L}"}
+            r = {"case": "bar", "order": order, "mesh": f"L{L}", "h": level_size(L)}
             r.update(run(["run"] + BAR + ["-level", str(L), "-order", str(order)], path))
             if r["rc"] == 0:
                 r["quantity"] = tip_uy(path)
@@ -83,7 +84,7 @@ def bracket(out, quick):
             if order == 2 and h < 0.002:
                 continue
             path = os.path.join(out, f"bracket_p{order}_{h:g}.h5")
-            r = {"case": "bracket", "order": order, "mesh": f"h={h:g}"}
+            r = {"case": "bracket", "order": order, "mesh": f"h={h:g}", "h": h}
             r.update(run(["run", scene, "-mesh", msh, "-order", str(order)], path))
             if r["rc"] == 0:
                 r["quantity"] = max_u(path)
@@ -95,17 +96,34 @@ def bracket(out, quick):
     return rows
 
 
+def extrapolate(hs, qs):
+    """(q_inf, p) of q(h) = q_inf + C h^p through three (h, q), h decreasing (Richardson with any ratios: p by
+    bisection on (q1 - q2)/(q2 - q3) = (h1^p - h2^p)/(h2^p - h3^p)); (q3, nan) where the changes do not
+    shrink monotonically."""
+    (h1, h2, h3), (q1, q2, q3) = hs, qs
+    if not (q1 - q2) * (q2 - q3) > 0:
+        return q3, float("nan")
+    want = (q1 - q2) / (q2 - q3)
+    f = lambda p: (h1 ** p - h2 ** p) / (h2 ** p - h3 ** p) - want      # noqa: E731 (increasing in p)
+    lo, hi = 0.05, 10.0
+    if f(lo) > 0 or f(hi) < 0:
+        return q3, float("nan")
+    for _ in range(100):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if f(mid) < 0 else (lo, mid)
+    p = 0.5 * (lo + hi)
+    C = (q1 - q2) / (h1 ** p - h2 ** p)
+    return q3 - C * h3 ** p, p
+
+
 def analyse(rows, target):
-    """Per case: the converged value (Richardson on the three finest P2 runs), each run's error, and the
+    """Per case: the converged value (extrapolated from the three finest P2 runs), each run's error, and the
     cheapest run of each order within the target."""
     out = []
     for case in dict.fromkeys(r["case"] for r in rows):
         rs = [r for r in rows if r["case"] == case and r["rc"] == 0]
         p2 = [r for r in rs if r["order"] == 2][-3:]
-        q1, q2, q3 = (r["quantity"] for r in p2)
-        d1, d2 = q2 - q1, q3 - q2
-        p = math.log2(abs(d1 / d2)) if d2 and d1 / d2 > 1 else float("nan")
-        limit = q3 + d2 / (2 ** p - 1) if math.isfinite(p) else q3
+        limit, p = extrapolate([r["h"] for r in p2], [r["quantity"] for r in p2])
         for r in rs:
             r["error"] = abs(r["quantity"] - limit) / abs(limit)
             r["limit"], r["richardson_p"] = limit, p
@@ -125,7 +143,8 @@ def report(rows, summary, target, out, command):
     for case, limit, p, cheapest in summary:
         c1, c2 = cheapest.get(1), cheapest.get(2)
         ratio = (c1["solve_s"] / c2["solve_s"]) if c1 and c2 else float("nan")
-        L += [f"## {case}", "", f"Converged value {limit:.6g} (Richardson on the three finest P2 runs, p = {p:.2f}).",
+        L += [f"## {case}", "", f"Converged value {limit:.6g} (q_inf + C h^p through the three finest P2 runs, "
+                                f"p = {p:.2f}).",
               f"Cheapest within {target:g}: P1 " + (f"{c1['mesh']} ({c1['tets']:,} tets, {c1['solve_s']:.3g} s, error "
                                                      f"{c1['error']:.2g})" if c1 else "none of the meshes run")
               + "; P2 " + (f"{c2['mesh']} ({c2['tets']:,} tets, {c2['solve_s']:.3g} s, error {c2['error']:.2g})"

@@ -117,10 +117,10 @@ def parse_log_view(path):
     return out
 
 
-def ours(mesh_path, out, ranks=1, pc="gamg", traction=T, storage="aij"):
-    """(displacement in input order, Newton steps, {phase: seconds per Newton step}; "ksp_its": Krylov
-    iterations in all)."""
-    tag = f"{os.path.basename(mesh_path)[:-4]}_{pc}_{storage}_n{ranks}"
+def ours(mesh_path, out, ranks=1, pc="gamg", traction=T, storage="aij", order=1):
+    """(displacement in input order (every node), Newton steps, {phase: seconds per Newton step}; "ksp_its":
+    Krylov iterations in all; "points": the nodes)."""
+    tag = f"{os.path.basename(mesh_path)[:-4]}_p{order}_{pc}_{storage}_n{ranks}"
     path, log = os.path.join(out, f"ours_{tag}.h5"), os.path.join(out, f"ours_{tag}.log")
     solver = (["-ksp_type", "preonly", "-pc_type", "lu"] if pc == "lu" else
               ["-ksp_type", "cg", "-ksp_rtol", "1e-10"] + PCS[pc])
@@ -128,13 +128,16 @@ def ours(mesh_path, out, ranks=1, pc="gamg", traction=T, storage="aij"):
             f"0,{-traction},0", "-mesh", mesh_path, "-dt", 1, "-final_time", 1, "-jacobian", "assembled",
             "-snes_linesearch_type", "basic", "-objective", "0", "-inversion_guard", "0", "-snes_rtol", RTOL,
             "-snes_atol", "1e-14", "-snes_stol", "0", "-step_control", "0", "-output", path, "-quiet",
-            "-log_view", f":{log}", "-operator_storage", storage] + solver
+            "-log_view", f":{log}", "-operator_storage", storage, "-order", order] + solver
+    if order == 2:
+        args += ["-quadrature_degree", 2]
     rc, err, wall = run_hyperelastic(args, path, nprocs=ranks, timeout=3600)
     if rc != 0:
         raise RuntimeError(f"hyperelastic failed: {last_line(err, rc)}")
     import h5py
     with h5py.File(path, "r") as f:
         disp = f["x"][-1] - f["mesh/points"][:]
+        nodes = f["mesh/points"][:]
         its = int(f["stats/newton_its"][-1])
         ksp_its = int(f["stats/ksp_its"][-1])
     ev = parse_log_view(log)
@@ -146,7 +149,16 @@ def ours(mesh_path, out, ranks=1, pc="gamg", traction=T, storage="aij"):
     per["residual_per_matmult"] = call["SNESFunctionEval"] / call["MatMult"] if "MatMult" in call else float("nan")
     # the residual's fixed cost per call: all of it but the element force loop
     per["residual_overhead"] = call["SNESFunctionEval"] - call["HE_ElasticForces"]
+    per["nodes"] = nodes
     return disp, its, per
+
+
+def matched(theirs, nodes):
+    """A P2 peer's (coordinates, displacement) rows in the order of our nodes (matched by coordinates)."""
+    key = lambda P: [tuple(np.round(p, 9)) for p in P]         # noqa: E731
+    where = {k: i for i, k in enumerate(key(theirs[:, :3]))}
+    idx = [where[k] for k in key(nodes)]
+    return theirs[idx, 3:]
 
 
 DOLFINX_VENV = os.path.join(ROOT, ".venv-dolfinx")
@@ -170,14 +182,15 @@ def dolfinx_python():
     return py
 
 
-def dolfinx_solve(points, tets, out, tag, ranks=1, pc="gamg", traction=T):
-    """(displacement in input order, Newton steps, {phase: seconds per Newton step}, versions)."""
+def dolfinx_solve(points, tets, out, tag, ranks=1, pc="gamg", traction=T, order=1):
+    """(displacement in input order (P1) or (coordinates, displacement) of every dof (P2), Newton steps,
+    {phase: seconds per Newton step}, versions). P2: the same 4-point rule as ours (quadrature degree 2)."""
     import subprocess
     py = dolfinx_python()
-    mesh_npz, res = os.path.join(out, f"mesh_{tag}.npz"), os.path.join(out, f"dolfinx_{tag}_{pc}_n{ranks}.npz")
+    mesh_npz, res = os.path.join(out, f"mesh_{tag}.npz"), os.path.join(out, f"dolfinx_{tag}_p{order}_{pc}_n{ranks}.npz")
     np.savez(mesh_npz, points=points, tets=tets)
     cmd = [py, os.path.join(ROOT, "scripts", "peer_dolfinx.py"), mesh_npz, res, "--pc", pc, "--rtol", str(RTOL),
-           "--traction", str(traction)]
+           "--traction", str(traction), "--degree", str(order)] + (["--qdegree", "2"] if order == 2 else [])
     if ranks > 1:
         cmd = [os.path.join(DOLFINX_VENV, "bin", "mpiexec"), "-n", str(ranks)] + cmd
     env = dict(os.environ, LD_LIBRARY_PATH=os.path.join(DOLFINX_VENV, "lib"), OMP_NUM_THREADS="1",
@@ -215,6 +228,8 @@ def main():
     ap.add_argument("--pcs", default="gamg,lu", help="gamg (CG + GAMG) and/or lu (1 rank only)")
     ap.add_argument("--storage", default="aij,sbaij", help="ours: -operator_storage aij and/or sbaij (a row each)")
     ap.add_argument("--repeat", type=int, default=1, help="runs of each code per row; each phase's minimum")
+    ap.add_argument("--order", type=int, default=1, choices=(1, 2), help="element order: 1 (P1) or 2 (P2, both "
+                    "with the 4-point rule of degree 2)")
     ap.add_argument("--full", action="store_true")
     a = ap.parse_args()
     os.makedirs(a.out, exist_ok=True)
@@ -258,11 +273,11 @@ def main():
                 # MatMult from CG + Jacobi runs (AIJ)
                 peer, jr, mine = [], [], {st: [] for st in storages}
                 for _ in range(a.repeat):
-                    peer.append(dolfinx_solve(points, tets, a.out, name, n, pc))
+                    peer.append(dolfinx_solve(points, tets, a.out, name, n, pc, order=a.order))
                     if pc == "gamg":
-                        jr.append(ours(m, a.out, n, "jacobi")[2])
+                        jr.append(ours(m, a.out, n, "jacobi", order=a.order)[2])
                     for st in storages:
-                        mine[st].append(ours(m, a.out, n, pc, storage=st))
+                        mine[st].append(ours(m, a.out, n, pc, storage=st, order=a.order))
                 u2, n2, version = peer[0][0], peer[0][1], peer[0][3]
                 p2 = {k: min(r[2][k] for r in peer) for k in peer[0][2]}
                 # the smallest ratio and fixed cost of --repeat runs
@@ -271,8 +286,9 @@ def main():
                 for st in storages:
                     runs = mine[st]
                     u1, n1 = runs[0][:2]
-                    p1 = {k: min(r[2][k] for r in runs) for k in runs[0][2]}
-                    rel = np.abs(u1 - u2).max() / np.abs(u2).max()
+                    p1 = {k: min(r[2][k] for r in runs) for k in runs[0][2] if k != "nodes"}
+                    u2m = u2 if a.order == 1 else matched(u2, runs[0][2]["nodes"])
+                    rel = np.abs(u1 - u2m).max() / np.abs(u2m).max()
                     if not rel <= AGREE:
                         disagree.append(f"{name} {n} rank(s) {pc} {st}: {rel:.2g}")
                     # each run's step over the DOLFINx run just before it: their spread is the machine's noise

@@ -35,6 +35,8 @@ def main():
     ap.add_argument("--ksp-rtol", type=float, default=1e-10)
     ap.add_argument("--rtol", type=float, default=1e-10)
     ap.add_argument("--traction", type=float, default=T)
+    ap.add_argument("--degree", type=int, default=1, help="the element's degree: 1 (P1) or 2 (P2)")
+    ap.add_argument("--qdegree", type=int, default=0, help="the quadrature degree (0: UFL's estimate)")
     a = ap.parse_args()
     comm = MPI.COMM_WORLD
     if comm.rank == 0:
@@ -44,7 +46,8 @@ def main():
         points, tets = np.zeros((0, 3)), np.zeros((0, 4), np.int64)
     coord = basix.ufl.element("Lagrange", "tetrahedron", 1, shape=(3,))
     mesh = dolfinx.mesh.create_mesh(comm, tets, coord, points)
-    V = dolfinx.fem.functionspace(mesh, ("Lagrange", 1, (3,)))
+    V = dolfinx.fem.functionspace(mesh, ("Lagrange", a.degree, (3,)))
+    dx = ufl.dx(metadata={"quadrature_degree": a.qdegree}) if a.qdegree else ufl.dx
     u, v, du = dolfinx.fem.Function(V), ufl.TestFunction(V), ufl.TrialFunction(V)
     lam = E * NU / ((1 + NU) * (1 - 2 * NU))
     mu = E / (2 * (1 + NU))
@@ -56,7 +59,7 @@ def main():
     tags = dolfinx.mesh.meshtags(mesh, fdim, right, np.full(len(right), 1, np.int32))
     ds = ufl.Measure("ds", domain=mesh, subdomain_data=tags)
     t = dolfinx.fem.Constant(mesh, np.array([0.0, -a.traction, 0.0]))
-    Pi = psi * ufl.dx - ufl.dot(t, u) * ds(1)
+    Pi = psi * dx - ufl.dot(t, u) * ds(1)
     Rform = dolfinx.fem.form(ufl.derivative(Pi, u, v))
     Jform = dolfinx.fem.form(ufl.derivative(ufl.derivative(Pi, u, v), u, du))
     left = dolfinx.fem.locate_dofs_geometrical(V, lambda x: np.isclose(x[0], -5.0))
@@ -149,12 +152,16 @@ def main():
         raise SystemExit(f"DOLFINx Newton did not converge: {hist}")
 
     # the displacement at the input vertices: for P1 the k-th dof of a cell sits on its k-th geometry
-    # node, and geometry node g came from input vertex input_global_indices[g]
-    gd = (mesh.geometry.dofmaps[0] if hasattr(mesh.geometry, "dofmaps") else mesh.geometry.dofmap).reshape(-1)
-    vd = V.dofmap.list.reshape(-1)
-    igi = np.asarray(mesh.geometry.input_global_indices)
+    # node, and geometry node g came from input vertex input_global_indices[g]; for P2, every owned dof with
+    # its coordinates (the caller matches them to its nodes)
     vals = u.x.array.reshape(-1, 3)
-    mine = np.column_stack([igi[gd], vals[vd]])
+    if a.degree == 1:
+        gd = (mesh.geometry.dofmaps[0] if hasattr(mesh.geometry, "dofmaps") else mesh.geometry.dofmap).reshape(-1)
+        vd = V.dofmap.list.reshape(-1)
+        igi = np.asarray(mesh.geometry.input_global_indices)
+        mine = np.column_stack([igi[gd], vals[vd]])
+    else:
+        mine = np.column_stack([V.tabulate_dof_coordinates()[:nloc], vals[:nloc]])
     allv = mesh.comm.gather(mine, root=0)
     tmax = {}
     for k, v in times.items():              # the slowest rank's time of each call
@@ -163,8 +170,11 @@ def main():
         mesh.comm.Allreduce(arr, tmax[k], op=MPI.MAX)
     if mesh.comm.rank == 0:
         allv = np.concatenate([m for m in allv if len(m)])
-        disp = np.zeros((len(points), 3))
-        disp[allv[:, 0].astype(np.int64)] = allv[:, 1:]
+        if a.degree == 1:
+            disp = np.zeros((len(points), 3))
+            disp[allv[:, 0].astype(np.int64)] = allv[:, 1:]
+        else:
+            disp = allv                                  # (ndofs, 6): coordinates, displacement
         np.savez(a.out, disp=disp, hist=np.array(hist), version=dolfinx.__version__,
                  petsc=".".join(map(str, PETSc.Sys.getVersion())), ranks=mesh.comm.size,
                  **{k: np.asarray(v) for k, v in tmax.items()})
