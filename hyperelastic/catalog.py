@@ -88,12 +88,13 @@ TAIL = (
         "at a time, straight into its values through a per-cell map of positions (~1.0 KB/tet in all at 660k tets; "
         "cells at a partition boundary at positions found once, the rows another rank owns sent to it in one "
         "Alltoallv); `coo` uses PETSc's COO path (as fast, ~5.7 KB/tet)", _S.assembly),
-    Row(("operator_storage",), "-operator_storage auto|aij|sbaij", "`sbaij`: the Krylov method and the multigrid "
+    Row(("operator_storage",), "-operator_storage auto|aij|sbaij|shell", "`sbaij`: the Krylov method and the multigrid "
         "smoothers multiply by an SBAIJ copy of the assembled tangent (its upper block triangle, gathered from "
         "the AIJ after every fill: about 60% of the bytes per MatMult, ~120 B/tet more memory); the "
         "preconditioner is still built from the AIJ. Only for a symmetric tangent (`-jacobian assembled`, "
-        "`-assembly setvalues`, no follower loads, no `-snes_mf_operator`). `auto`: sbaij where it applies, "
-        "else aij (the output's `operator_storage` attribute says which)", _S.operator_storage),
+        "`-assembly setvalues`, no follower loads, no `-snes_mf_operator`). `shell`: the Krylov method "
+        "multiplies by the exact tangent applied cell by cell (as `-jacobian shell`), the preconditioner is built "
+        "from the assembled AIJ. `auto`: sbaij where it applies, else aij (the output's `operator_storage` attribute says which)", _S.operator_storage),
     Row(("reuse_preconditioner",), "-reuse_preconditioner auto|never", "`auto`: a GAMG set-up is kept across "
         "Newton iterations and time steps (SNESSetLagPreconditioner, persisting) until a Krylov solve needs more "
         "than 1.5× the iterations of the first solve after it, or fails; then it is rebuilt at the next Jacobian "

@@ -106,7 +106,9 @@ class AssembledChunked:
     def __init__(self, system, storage="aij"):
         """storage: `sbaij` also keeps the tangent's upper triangle as SBAIJ (`operator`, refreshed after
         every fill, aij.SBAIJCopy): the Krylov method's and the smoothers' MatMults read half the matrix,
-        while the preconditioner is still built from the AIJ (`mat`). The tangent must be symmetric."""
+        while the preconditioner is still built from the AIJ (`mat`). The tangent must be symmetric.
+        `shell`: the Krylov method multiplies by the exact tangent applied cell by cell (ExactShell, the
+        action per quadrature point), the preconditioner is built from the AIJ."""
         self.system = system
         sp = system.space
         self.cell_effects = [e for e in system.effects if e.cell_blocks]
@@ -141,7 +143,8 @@ class AssembledChunked:
             A.setOption(PETSc.Mat.Option.NO_OFF_PROC_ENTRIES, True)
         self.nullspace = rigid_body_modes(sp, A)
         self.copy = aij.SBAIJCopy(sp, A, self.Ad, self.row0, self.CHUNK) if storage == "sbaij" else None
-        self.operator = A if self.copy is None else self.copy.S   # the Mat the Krylov method multiplies by
+        # the Mat the Krylov method multiplies by: the AIJ, its SBAIJ copy, or (shell) the cells' action
+        self.operator = (ExactShell(system).mat if storage == "shell" else A if self.copy is None else self.copy.S)
 
     def assemble(self):
         A = self.mat

@@ -29,6 +29,10 @@ from .options import all_options
 from .stats import column_type
 
 
+XDMF_HEAD = ('<?xml version="1.0" ?>\n<Xdmf Version="3.0">\n <Domain>\n'
+             '  <Grid Name="hyperelastic" GridType="Collection" CollectionType="Temporal">\n')
+XDMF_TAIL = "  </Grid>\n </Domain>\n</Xdmf>\n"
+XDMF_FRAME_BYTES = 16384     # room asked for one frame's <Grid> in the XDMF (~1.5 kB with every field)
 ROOM_MARGIN = 256 * 1024     # bytes kept free for HDF5's metadata, the statistics rows and the close
 
 
@@ -93,6 +97,7 @@ class Writer:
         self.xdmf = os.path.splitext(path)[0] + ".xdmf"
         self.nframes = 0
         self.nstats = 0
+        self._mesh_text = None   # the XDMF's <Topology>/<Geometry> block (the same in every frame)
         self._pending = []       # statistics rows not yet written (see stats())
         if resume is not None:
             self._resume(resume, attrs)
@@ -204,13 +209,13 @@ class Writer:
         self._flush_stats()
         f.flush()
         if self.committed:
-            self._write_xdmf()
+            self._append_xdmf(i, t, [(name, g[name].shape) for name in g])
 
     def _ensure_room(self, nbytes, what):
         """UserError on every rank unless rank 0 can write nbytes() more (room_for). Collective."""
         why = None
         if self.root:
-            xdmf = [(self.xdmf, 2 * os.path.getsize(self.xdmf) + 4096)] if self.committed and os.path.exists(self.xdmf) else []
+            xdmf = [(self.xdmf, XDMF_FRAME_BYTES)] if self.committed and os.path.exists(self.xdmf) else []
             why = room_for(self.path, nbytes(), xdmf)
         why = self.space.mpi.bcast(why, root=0)
         if why:
@@ -274,35 +279,67 @@ class Writer:
             if not self.committed and os.path.exists(self.path):
                 os.remove(self.path)
 
-    def _write_xdmf(self):
-        """The XDMF of all frames so far (rewritten whole, atomically, at each frame)."""
+    def _mesh_xml(self):
         h5 = os.path.basename(self.final)
-        times = self.f["time"][:]
         nv, nc = self.nv, self.nc
         npc = self.f["mesh/tetra"].shape[1]          # 4, or 10 for quadratic cells (VTK's node order)
         kind = "Tetrahedron" if npc == 4 else "Tetrahedron_10"
-        mesh = (f'    <Topology TopologyType="{kind}" NumberOfElements="{nc}">\n'
+        return (f'    <Topology TopologyType="{kind}" NumberOfElements="{nc}">\n'
                 f'     <DataItem Dimensions="{nc} {npc}" NumberType="Int" Precision="8" Format="HDF">{h5}:/mesh/tetra'
                 '</DataItem>\n    </Topology>\n    <Geometry GeometryType="XYZ">\n'
                 f'     <DataItem Dimensions="{nv} 3" NumberType="Float" Precision="8" Format="HDF">{h5}:/mesh/points'
                 '</DataItem>\n    </Geometry>')
+
+    def _grid_xml(self, i, t, fields):
+        """Frame i's <Grid> (one line-terminated block): fields is [(name, shape)] of frames/i."""
+        h5 = os.path.basename(self.final)
+        if self._mesh_text is None:
+            self._mesh_text = self._mesh_xml()
+        attrs = [self._attribute(h5, "/mesh/region", "region", (self.nc,), "Cell", "Int")]
+        for name, shape in fields:
+            attrs.append(self._attribute(h5, f"/frames/{i}/{name}", name, shape,
+                                         "Node" if len(shape) == 2 else "Cell", "Float"))
+        return (f'   <Grid Name="frame{i}" GridType="Uniform">\n{self._mesh_text}\n    <Time Value="{t:.17g}"/>\n'
+                + "\n".join(attrs) + "\n   </Grid>\n")
+
+    def _write_xdmf(self):
+        """The XDMF of all frames so far, written whole and atomically (a temporary file renamed over it):
+        at the first completed step and after a restart. Later frames are appended (_append_xdmf)."""
         grids = []
-        for i, t in enumerate(times):
+        for i, t in enumerate(self.f["time"][:]):
             g = self.f.get(f"frames/{i}", {})
-            attrs = [self._attribute(h5, "/mesh/region", "region", (nc,), "Cell", "Int")]
-            for name in g:
-                shape = g[name].shape
-                attrs.append(self._attribute(h5, f"/frames/{i}/{name}", name, shape,
-                                             "Node" if len(shape) == 2 else "Cell", "Float"))
-            grids.append(f'   <Grid Name="frame{i}" GridType="Uniform">\n{mesh}\n    <Time Value="{t:.17g}"/>\n'
-                         + "\n".join(attrs) + "\n   </Grid>")
-        text = ('<?xml version="1.0" ?>\n<Xdmf Version="3.0">\n <Domain>\n'
-                '  <Grid Name="hyperelastic" GridType="Collection" CollectionType="Temporal">\n'
-                + "\n".join(grids) + "\n  </Grid>\n </Domain>\n</Xdmf>\n")
+            grids.append(self._grid_xml(i, t, [(name, g[name].shape) for name in g]))
         tmp = self.xdmf + ".tmp"
         with open(tmp, "w") as fh:
-            fh.write(text)
+            fh.write(XDMF_HEAD + "".join(grids) + XDMF_TAIL)
         os.replace(tmp, self.xdmf)
+
+    def _append_xdmf(self, i, t, fields):
+        """Frame i appended to the XDMF in one write over its closing tags (the file is a complete document
+        before and after that write, so a kill at any moment leaves it readable; the cost of a frame does
+        not grow with the frames before it). A file that does not end as this writer left it, and a write
+        that fails (the disk filled up), fall back to the whole atomic rewrite / restore the closing tags."""
+        tail = XDMF_TAIL.encode()
+        try:
+            fh = open(self.xdmf, "r+b")
+        except FileNotFoundError:
+            return self._write_xdmf()
+        with fh:
+            end = fh.seek(0, os.SEEK_END)
+            fh.seek(max(end - len(tail), 0))
+            if end < len(tail) or fh.read() != tail:
+                fh.close()
+                return self._write_xdmf()
+            at = end - len(tail)
+            fh.seek(at)
+            try:
+                fh.write(self._grid_xml(i, t, fields).encode() + tail)
+                fh.flush()
+            except OSError:
+                fh.seek(at)
+                fh.truncate()
+                fh.write(tail)
+                raise
 
     @staticmethod
     def _attribute(h5, dset, name, shape, center, number):

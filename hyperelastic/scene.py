@@ -88,7 +88,7 @@ MAX_STEPS, MAX_FRAMES = 1e9, 1e6   # a run beyond these is a typo, not a simulat
 JACOBIANS = ("assembled", "shell", "seed_fd", "seed_fd2")
 INTEGRATORS = ("beuler", "ts")
 ASSEMBLIES = ("setvalues", "coo")
-STORAGES = ("auto", "aij", "sbaij")   # the matrix the Krylov method multiplies by (solver.resolve_storage)
+STORAGES = ("auto", "aij", "sbaij", "shell")   # the matrix the Krylov method multiplies by (solver.resolve_storage)
 
 
 def read_scene(name, opts=None, from_scene=()):

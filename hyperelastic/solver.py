@@ -34,8 +34,9 @@ def apply_defaults(merit="residual norm", symmetric=True):
 def resolve_storage(storage, system, jacobian, assembly, mf):
     """-operator_storage: `aij`, or `sbaij` where it applies — the tangent's upper triangle is all the
     Krylov method sees of it, so it must be symmetric, assembled (by setvalues), and the operator SNES
-    multiplies by (not MFFD's). `auto` (default): sbaij where it applies, else aij; an explicit sbaij
-    where it does not is an error."""
+    multiplies by (not MFFD's); or `shell` — the Krylov method multiplies by the cells' action, the
+    preconditioner is built from the assembled AIJ (assembled by setvalues, not under MFFD). `auto`
+    (default): sbaij where it applies, else aij; an explicit sbaij or shell where it does not is an error."""
     if storage == "aij":
         return storage
     if storage == "auto":
@@ -50,7 +51,7 @@ def resolve_storage(storage, system, jacobian, assembly, mf):
     if assembly != "setvalues":
         raise UserError(f"{what}: needs -assembly setvalues (the exact pattern), not {assembly}")
     unsym = [e.name for e in system.effects if not e.symmetric]
-    if unsym:
+    if unsym and storage == "sbaij":
         raise UserError(f"{what}: the tangent of {', '.join(unsym)} is not symmetric; use -operator_storage aij")
     return storage
 

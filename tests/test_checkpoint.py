@@ -84,6 +84,11 @@ def test_kill_9_leaves_a_valid_file_and_a_usable_checkpoint(tmp_path, reference)
         r = read_h5(out)
         n = len(r["time"])
         assert r["x"].shape[0] == n and np.array_equal(r["x"], reference[1]["x"][:n])
+        xdmf = out.with_suffix(".xdmf")
+        if xdmf.exists():        # appended frame by frame: a whole document at every moment, one frame behind at most
+            import xml.etree.ElementTree as ET
+            grids = ET.parse(xdmf).getroot().findall("./Domain/Grid/Grid")
+            assert n - 1 <= len(grids) <= n, (len(grids), n)
         import h5py
         with h5py.File(out, "r") as f:
             has_ck = f.attrs.get("checkpoint_slot", -1) >= 0
