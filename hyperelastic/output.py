@@ -16,6 +16,7 @@ import json
 import os
 import resource
 import shutil
+import time
 
 import h5py
 import numpy as np
@@ -33,6 +34,7 @@ XDMF_HEAD = ('<?xml version="1.0" ?>\n<Xdmf Version="3.0">\n <Domain>\n'
              '  <Grid Name="hyperelastic" GridType="Collection" CollectionType="Temporal">\n')
 XDMF_TAIL = "  </Grid>\n </Domain>\n</Xdmf>\n"
 XDMF_FRAME_BYTES = 16384     # room asked for one frame's <Grid> in the XDMF (~1.5 kB with every field)
+STATS_EVERY_S = 1.0         # the longest the statistics rows wait in memory for a frame to go in with
 ROOM_MARGIN = 256 * 1024     # bytes kept free for HDF5's metadata, the statistics rows and the close
 
 
@@ -99,6 +101,8 @@ class Writer:
         self.nstats = 0
         self._mesh_text = None   # the XDMF's <Topology>/<Geometry> block (the same in every frame)
         self._pending = []       # statistics rows not yet written (see stats())
+        self._columns = {}       # the open statistics datasets by name
+        self._stats_flushed = time.monotonic()
         if resume is not None:
             self._resume(resume, attrs)
             return
@@ -193,23 +197,28 @@ class Writer:
     def _write_frame(self, t, full, vel, cells):
         f = self.f
         i = self.nframes
-        f["time"].resize((i + 1,))
-        f["x"].resize((i + 1, self.nv, 3))
-        f["x"][i] = full
-        f["time"][i] = t
+        times, xs = f["time"], f["x"]
+        times.resize((i + 1,))
+        xs.resize((i + 1, self.nv, 3))
+        xs[i] = full
+        times[i] = t
         g = f.require_group(f"frames/{i}")
         for k in list(g):
             del g[k]
-        g.create_dataset("displacement", data=full - self.points)
+        fields = {"displacement": full - self.points}
         if vel is not None:
-            g.create_dataset("velocity", data=vel)
-        for k, a in cells.items():
+            fields["velocity"] = vel
+        fields.update(cells)
+        for k, a in fields.items():
             g.create_dataset(k, data=a)
         self.nframes += 1
-        self._flush_stats()
+        # the statistics rows go in with a frame at most every STATS_EVERY_S seconds (and at every
+        # checkpoint and the close): ~30 columns x 2 HDF5 calls cost more than a small mesh's frame
+        if time.monotonic() - self._stats_flushed >= STATS_EVERY_S:
+            self._flush_stats()
         f.flush()
         if self.committed:
-            self._append_xdmf(i, t, [(name, g[name].shape) for name in g])
+            self._append_xdmf(i, t, sorted((k, a.shape) for k, a in fields.items()))
 
     def _ensure_room(self, nbytes, what):
         """UserError on every rank unless rank 0 can write nbytes() more (room_for). Collective."""
@@ -246,18 +255,23 @@ class Writer:
 
     def _flush_stats(self):
         rows, self._pending = self._pending, []
+        self._stats_flushed = time.monotonic()
         if not rows:
             return
         g = self.f["stats"]
+        cols = self._columns
+        if not cols:
+            cols.update((k, g[k]) for k in g)
         i0 = self.nstats - len(rows)
         for row in rows:
             for k in row:
-                if k not in g:
+                if k not in cols:
                     is_int = column_type(k) is int
-                    g.create_dataset(k, shape=(i0,), maxshape=(None,), chunks=(256,),
-                                     dtype=np.int64 if is_int else np.float64, fillvalue=0 if is_int else np.nan)
-        for k in g:                      # every column has one entry per step (missing: NaN / 0)
-            d = g[k]
+                    cols[k] = g.create_dataset(k, shape=(i0,), maxshape=(None,), chunks=(256,),
+                                               dtype=np.int64 if is_int else np.float64,
+                                               fillvalue=0 if is_int else np.nan)
+        for d in cols.values():          # every column has one entry per step (missing: NaN / 0)
+            k = d.name.rsplit("/", 1)[-1]
             fill = 0 if d.dtype.kind == "i" else np.nan
             d.resize((self.nstats,))
             d[i0:] = np.array([row.get(k, fill) for row in rows], dtype=d.dtype)

@@ -138,6 +138,8 @@ def ours(mesh_path, out, ranks=1, pc="gamg", traction=T, storage="aij", order=1)
     with h5py.File(path, "r") as f:
         disp = f["x"][-1] - f["mesh/points"][:]
         nodes = f["mesh/points"][:]
+        cells = f["mesh/tetra"][:]
+        rss = float(f.attrs["peak_rss_mb"])
         its = int(f["stats/newton_its"][-1])
         ksp_its = int(f["stats/ksp_its"][-1])
     ev = parse_log_view(log)
@@ -150,7 +152,18 @@ def ours(mesh_path, out, ranks=1, pc="gamg", traction=T, storage="aij", order=1)
     # the residual's fixed cost per call: all of it but the element force loop
     per["residual_overhead"] = call["SNESFunctionEval"] - call["HE_ElasticForces"]
     per["nodes"] = nodes
+    per["dofs"] = 3 * len(nodes)
+    per["nnz_per_row"] = fill(cells, len(nodes)) / per["dofs"]
+    per["rss_per_dof"] = rss * 2 ** 20 / per["dofs"] if ranks == 1 else float("nan")
     return disp, its, per
+
+
+def fill(cells, nn):
+    """Nonzeros of the assembled tangent (3x3 per pair of nodes sharing a cell)."""
+    k = cells.shape[1]
+    a = np.repeat(cells, k, axis=1).ravel().astype(np.int64)
+    b = np.tile(cells, (1, k)).ravel().astype(np.int64)
+    return 9 * len(np.unique(a * nn + b))
 
 
 def matched(theirs, nodes):
@@ -226,7 +239,7 @@ def main():
     ap.add_argument("--tets", type=int, action="append", help="also a bar with about this many tets")
     ap.add_argument("--ranks", default="1", help="rank counts, e.g. 1,2")
     ap.add_argument("--pcs", default="gamg,lu", help="gamg (CG + GAMG) and/or lu (1 rank only)")
-    ap.add_argument("--storage", default="aij,sbaij", help="ours: -operator_storage aij and/or sbaij (a row each)")
+    ap.add_argument("--storage", default="aij,sbaij", help="ours: -operator_storage aij, sbaij and/or shell (a row each)")
     ap.add_argument("--repeat", type=int, default=1, help="runs of each code per row; each phase's minimum")
     ap.add_argument("--order", type=int, default=1, choices=(1, 2), help="element order: 1 (P1) or 2 (P2, both "
                     "with the 4-point rule of degree 2)")
@@ -256,7 +269,8 @@ def main():
     hdr = ("| mesh | tets | ranks | PC | storage | max|du|/max|u| | Newton ours/peer | Krylov its ours/peer | step ours | "
            "peer | ratio | step ratio of paired runs: median (range) | Jacobian ours | peer | ratio | residual ours | "
            "peer | ratio | PC set-up ours | peer | ratio | "
-           "Krylov solve ours | peer | ratio | residual / MatMult ours | residual fixed cost ours (ms) |")
+           "Krylov solve ours | peer | ratio | residual / MatMult ours | residual fixed cost ours (ms) | dofs | "
+           "tangent nonzeros / row | peak RSS B/dof ours (1 rank) |")
     print(hdr)
     print("|" + "---|" * (hdr.count("|") - 1))
     version = ""
@@ -287,6 +301,7 @@ def main():
                     runs = mine[st]
                     u1, n1 = runs[0][:2]
                     p1 = {k: min(r[2][k] for r in runs) for k in runs[0][2] if k != "nodes"}
+                    p1["rss_per_dof"] = runs[0][2]["rss_per_dof"]
                     u2m = u2 if a.order == 1 else matched(u2, runs[0][2]["nodes"])
                     rel = np.abs(u1 - u2m).max() / np.abs(u2m).max()
                     if not rel <= AGREE:
@@ -300,6 +315,7 @@ def main():
                             cells.append(f"{np.median(paired):.2f} ({paired[0]:.2f}-{paired[-1]:.2f})")
                     cells.append(f"{rm if rm is not None else p1['residual_per_matmult']:.2f}")
                     cells.append(f"{1e3 * (ro if ro is not None else p1['residual_overhead']):.3f}")
+                    cells += [f"{p1['dofs']:,}", f"{p1['nnz_per_row']:.1f}", f"{p1['rss_per_dof']:.0f}"]
                     print(f"| {name} | {len(tets):,} | {n} | {pc} | {st} | {rel:.1e} | {n1}/{n2} | "
                           f"{p1['ksp_its']}/{p2['ksp_its']} | " + " | ".join(cells) + " |")
                     sys.stdout.flush()

@@ -33,7 +33,8 @@ def timed(fn, spent):
 
 def main(path):
     spent = []
-    output.Writer._flush_stats = slow(output.Writer._flush_stats)   # (rank 0, in each frame and checkpoint)
+    output.Writer._write_frame = slow(output.Writer._write_frame)             # (rank 0 only)
+    output.Writer._write_checkpoint = slow(output.Writer._write_checkpoint)
     output.Writer.frame = timed(output.Writer.frame, spent)
     output.Writer.checkpoint = timed(output.Writer.checkpoint, spent)
     rc = cli.main(["run", "bend", *ARGS, "-output", path])
