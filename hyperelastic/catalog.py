@@ -152,12 +152,13 @@ COMMON_PETSC = (
 
 
 # PETSc's numeric options whose wrong values it would take silently or reject only later: name ->
-# (integer?, smallest value, largest value) (-1 is "unlimited" where PETSc has it)
+# (integer?, smallest value, largest value) (-1 is "unlimited" where PETSc has it; an iteration limit of 0
+# would make every solve fail, or stop before it starts)
 PETSC_VALUES = {
     "snes_rtol": (False, 0, None), "snes_atol": (False, 0, None), "snes_stol": (False, 0, None),
     "ksp_rtol": (False, 0, 1), "ksp_atol": (False, 0, None), "ts_rtol": (False, 0, None),
     "ts_atol": (False, 0, None), "mat_mffd_err": (False, 0, None), "ts_alpha_radius": (False, 0, 1),
-    "snes_max_it": (True, 0, None), "snes_max_funcs": (True, -1, None), "ksp_max_it": (True, 0, None),
+    "snes_max_it": (True, 1, None), "snes_max_funcs": (True, -1, None), "ksp_max_it": (True, 1, None),
     "ksp_gmres_restart": (True, 1, None), "snes_max_linear_solve_fail": (True, 0, None),
     "ts_max_snes_failures": (True, -1, None), "ts_max_step_rejections": (True, -1, None),
     "snes_lag_jacobian": (True, -2, None), "snes_lag_preconditioner": (True, -2, None),
@@ -247,6 +248,36 @@ def check_solver_options(opts):
         hint = suggestion(key, [c for c in COMMON_PETSC + used if c != key])
         raise UserError(f"option -{key}: not used by PETSc for this run (unknown, or not for the solver types "
                         f"chosen){hint}")
+
+
+# options that take a PETSc viewer, `[type]:FILE[:format]` (-log_view, -ksp_view, -snes_monitor, ...)
+VIEWERS = re.compile(r"(?:^|_)(?:view|monitor|converged_reason|log_trace)(?:_|$)")
+
+
+def check_viewer_files(opts, taken=()):
+    """A PETSc viewer's FILE in a directory that does not exist, or over an input or output file (`taken`):
+    PETSc reports it only when it writes, at the end (after the run). One line, before any work is done."""
+    taken = {os.path.realpath(t): t for t in taken if t}
+    for key, value in sorted(opts.getAll().items()):
+        value = "" if value is None else str(value)
+        if VIEWERS.search(key) and ":" in value:
+            why = _viewer_file_problem(value.split(":")[1], taken)
+            if why:
+                opts.delValue(key)        # (PETSc would still try to open it at its finalization)
+                raise UserError(f"option -{key}: {why}")
+
+
+def _viewer_file_problem(path, taken):
+    if not path:
+        return None
+    d = os.path.dirname(os.path.abspath(path))
+    if not os.path.isdir(d):
+        return f"'{path}': directory '{os.path.dirname(path)}' does not exist"
+    if not os.access(d, os.W_OK) or os.path.isdir(path):
+        return f"'{path}' cannot be written"
+    if os.path.realpath(path) in taken:
+        return f"'{path}' is a file of this run (its input or output '{taken[os.path.realpath(path)]}')"
+    return None
 
 
 def _plain(text):

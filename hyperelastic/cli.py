@@ -10,12 +10,13 @@
                                                  what accuracy costs in time: CSV, PNGs, markdown
 """
 import os
-import shlex
+import re
 import sys
+import tempfile
 import traceback
 
 from .errors import ArgParser, Interrupted, SolveError, UserError
-from .files import read_checkpoint
+from .files import option_lines, read_checkpoint
 from .mesh import generate
 from .plot import render
 
@@ -31,8 +32,12 @@ def _petsc(argv):
     files = _check_options_files(argv)
     import petsc4py
     petsc4py.init([sys.argv[0]] + list(argv))
-    from petsc4py import PETSc
-    return PETSc, files
+
+    def initialize():
+        from petsc4py import PETSc
+        PETSc.COMM_WORLD.getSize()       # (the import initializes PETSc)
+        return PETSc
+    return _held_stderr(initialize), files
 
 
 def _check_options_files(argv, chain=()):
@@ -65,16 +70,55 @@ def _check_options_files(argv, chain=()):
             raise UserError(f"options file '{path}': not UTF-8 text") from None
         if "\0" in text:
             raise UserError(f"options file '{path}': holds NUL bytes (not a text file)")
-        if not any(line.split("#", 1)[0].strip() for line in text.splitlines()):
+        lines = option_lines(text, f"options file '{path}'")
+        if not lines:
             raise UserError(f"options file '{path}': holds no options")
-        inner = []
-        for line in text.splitlines():
-            try:
-                inner += shlex.split(line.split("#", 1)[0])
-            except ValueError:
-                continue   # a malformed line is PETSc's (or the scene reader's) to report
+        inner = [w for _, key, value in lines for w in ["-" + key] + ([] if value is None else [value])]
         files += _check_options_files(inner, chain + (real,))
     return files
+
+
+NUMBER = re.compile(r"-[0-9.]")      # a negative number (or a list starting with one) is a value, not an option
+
+
+def _check_words(args):
+    """PETSc reads `-option [value]` pairs and skips any other word, and `--name` is an option of its own
+    that nothing reads: each is one error line here."""
+    value_ok = False
+    for a in args:
+        if a.startswith("-") and not NUMBER.match(a):
+            if a == "-" or a.startswith("--"):
+                raise UserError(f"argument '{a[:40]}': options are -name [value] (one '-')")
+            value_ok = True
+        elif value_ok:
+            value_ok = False
+        else:
+            raise UserError(f"argument '{a[:40]}': neither an option nor an option's value (options are "
+                            "-name [value]; the scene comes first)")
+
+
+def _held_stderr(fn):
+    """fn() with file descriptor 2 sent to a temporary file: PETSc prints its own multi-line error report
+    when its initialization fails (a malformed option value); the caller prints the one line. On success
+    what was written is passed on to stderr."""
+    sys.stderr.flush()
+    saved = os.dup(2)
+    with tempfile.TemporaryFile() as tmp:
+        os.dup2(tmp.fileno(), 2)
+        try:
+            out = fn()
+        except BaseException:
+            os.dup2(saved, 2)
+            os.close(saved)
+            raise
+        os.dup2(saved, 2)
+        os.close(saved)
+        tmp.seek(0)
+        text = tmp.read()
+    if text:
+        sys.stderr.buffer.write(text)
+        sys.stderr.flush()
+    return out
 
 
 def _restart_args(argv):
@@ -84,6 +128,11 @@ def _restart_args(argv):
     if len(argv) < 2 or argv[1].startswith("-"):
         raise UserError("run --restart: needs the FILE.h5 of an earlier run")
     path = argv[1]
+    rest = list(argv[2:])
+    for i, a in enumerate(rest[:-1]):
+        if a == "-output" and os.path.realpath(rest[i + 1]) != os.path.realpath(path):
+            raise UserError(f"run --restart: continues '{path}' in place; -output {rest[i + 1]} cannot name another "
+                            f"file (copy '{path}' there first and restart the copy)")
     res = err = None
     if MPI.COMM_WORLD.rank == 0:
         try:
@@ -117,12 +166,7 @@ def run_cmd(argv):
         raise UserError("run: needs a SCENE (a built-in name or an options file); see `hyperelastic scenes`")
     else:
         scene_arg, petsc_args = argv[0], argv[1:]
-    for a in petsc_args:
-        try:
-            a.encode("utf-8")
-        except UnicodeEncodeError:
-            raise UserError(f"argument '{a.encode('utf-8', 'replace').decode()}': not valid UTF-8 (PETSc options, "
-                            "file names among them, must be)") from None
+    _check_words(petsc_args)
     _, options_files = _petsc(petsc_args)
     # deferred on purpose: petsc4py reads the command line when PETSc is first imported, so every module
     # that imports it comes after _petsc
@@ -195,6 +239,13 @@ def main(argv=None):
     if not argv or argv[0] in ("-h", "--help", "help"):
         print(__doc__)
         return 0
+    for a in argv:
+        try:
+            a.encode("utf-8")
+        except UnicodeEncodeError:
+            _error(f"argument '{a.encode('utf-8', 'replace').decode()}': not valid UTF-8 (file names and options "
+                   "must be: PETSc, HDF5 and gmsh read them as UTF-8)")
+            return EXIT_USER
     cmd = COMMANDS.get(argv[0])
     if cmd is None:
         _error(f"unknown command '{argv[0]}' (choose from {', '.join(COMMANDS)})")

@@ -3,6 +3,7 @@ is (its names, the datasets it always holds), the checks an output path passes b
 (mesh generation and runs alike), and reading a checkpoint back (before PETSc is initialized: no module
 here imports it)."""
 import os
+import shlex
 
 import h5py
 import numpy as np
@@ -19,6 +20,28 @@ def writable_dir(d, who):
             raise UserError(f"{who}: cannot create directory '{d}' ({e.strerror})") from None
     if not os.access(d, os.W_OK):
         raise UserError(f"{who}: directory '{d}' is not writable")
+
+
+def option_lines(text, where):
+    """[(line number, key without its '-', value or None)] of a PETSc options file's text: one
+    `-option [value]` per line, `#` comments. UserError naming `where` and the line for anything else —
+    PETSc itself prints a multi-line error for some (two options on a line), keeps others as options no
+    one reads (`--name`) and skips the rest."""
+    out = []
+    for lineno, line in enumerate(text.splitlines(), 1):
+        line = line.split("#", 1)[0].strip()
+        if not line:
+            continue
+        try:
+            toks = shlex.split(line)
+        except ValueError as e:
+            raise UserError(f"{where} line {lineno}: {e}") from None
+        if toks[0].startswith("--"):
+            raise UserError(f"{where} line {lineno}: '{toks[0][:40]}': an option starts with one '-'")
+        if not toks[0].startswith("-") or toks[0] == "-" or len(toks) > 2:
+            raise UserError(f"{where} line {lineno}: expected one '-option [value]' per line, got '{line[:80]}'")
+        out.append((lineno, toks[0][1:], toks[1] if len(toks) == 2 else None))
+    return out
 
 
 PARTIAL = ".partial"      # a run writes FILE.h5.partial until it has completed a step (Writer._commit)
@@ -52,8 +75,12 @@ def check_output_path(path, inputs=(), suffixes=(".h5", ".hdf5")):
     """Raise UserError unless `path` can be written without touching an input (checked before any work
     is done). The name must end in .h5 or .hdf5, so that the XDMF beside it never is the HDF5 file;
     neither may be (or be the data of) an input file: the mesh, the scene or an options file."""
+    if not path:
+        raise UserError("output '': an empty file name")
     if os.path.isdir(path):
         raise UserError(f"output '{path}' is a directory")
+    if os.path.lexists(path) and not os.path.isfile(path):
+        raise UserError(f"output '{path}': exists and is not a regular file (not replacing it)")
     if suffixes and not path.lower().endswith(suffixes):
         raise UserError(f"option -output: '{path}' must end in .h5 or .hdf5 (the .xdmf is written beside it)")
     taken = {}

@@ -1,6 +1,7 @@
 """Meshes: gmsh generation of the thesis' bar, reading and checking any tetrahedral mesh meshio
 reads, spatial ordering of cells, and creation + distribution of the DMPlex."""
 import json
+import math
 import os
 import sys
 import warnings
@@ -72,8 +73,8 @@ def generate(name, level, out, size=None, refine=0, order=1):
     geo = geometry_file(name)
     if size is None:
         size = level_size(level)
-    elif not size > 0:
-        raise UserError(f"mesh size {size} must be > 0")
+    elif not (size > 0 and math.isfinite(size)):
+        raise UserError(f"mesh size {size} must be a finite number > 0")
     outs = [out] + [f"{os.path.splitext(out)[0]}_r{i}.msh" for i in range(1, refine + 1)]
     for o in outs:
         check_output_path(o, suffixes=None)
@@ -370,7 +371,97 @@ def check(points, tets, path):
         i = int(np.flatnonzero(V < 0)[0])
         raise UserError(f"mesh '{path}': tetrahedron {i} is inverted (negative volume {V[i]:.3g}, "
                         f"vertices {tets[i].tolist()})")
-    return check_faces(points, tets, path)
+    boundary = check_faces(points, tets, path)
+    check_pieces(points, tets, path)
+    return boundary
+
+
+def components(nv, tets):
+    """The connected piece of each vertex (pieces share no vertex): labels 0..k-1 (numpy union-find,
+    hooking each tetrahedron's vertices onto the smallest root, then pointer jumping)."""
+    parent = np.arange(nv)
+    u = np.repeat(tets[:, 0], tets.shape[1] - 1)
+    v = tets[:, 1:].ravel()
+    while True:
+        pu, pv = parent[u], parent[v]
+        m = pu != pv
+        if not m.any():
+            break
+        np.minimum.at(parent, np.maximum(pu, pv)[m], np.minimum(pu, pv)[m])
+        while True:
+            pp = parent[parent]
+            if (pp == parent).all():
+                break
+            parent = pp
+    return np.unique(parent, return_inverse=True)[1]
+
+
+def check_pieces(points, tets, path):
+    """Separate pieces (sharing no vertex) must not overlap: a cell centre of one strictly inside a
+    tetrahedron of another is one error line (the face check above cannot see them)."""
+    comp = components(len(points), tets)
+    if comp.max() == 0:
+        return
+    cell_comp = comp[tets[:, 0]]
+    X = points[tets]
+    centres = X.mean(axis=1)
+    lo, hi = X.min(axis=1), X.max(axis=1)
+    k = comp.max() + 1
+    blo = np.full((k, 3), np.inf)
+    bhi = np.full((k, 3), -np.inf)
+    np.minimum.at(blo, cell_comp, lo)
+    np.maximum.at(bhi, cell_comp, hi)
+    for a in range(k):
+        for b in range(a + 1, k):
+            if (np.minimum(bhi[a], bhi[b]) <= np.maximum(blo[a], blo[b])).any():
+                continue                                    # the boxes do not overlap
+            for p, q in ((a, b), (b, a)):
+                pts = np.flatnonzero(cell_comp == p)
+                hit = inside_cells(points, tets[cell_comp == q], centres[pts])
+                if hit is not None:
+                    c = int(pts[hit[0]])
+                    other = int(np.flatnonzero(cell_comp == q)[hit[1]])
+                    raise UserError(f"mesh '{path}': tetrahedra {min(c, other)} and {max(c, other)} overlap (in "
+                                    "separate pieces of the mesh: the centre of one lies inside the other)")
+
+
+def inside_cells(points, tets, P, tol=1e-9):
+    """(index into P, index into tets) of a point strictly inside one of the tetrahedra, or None. Cells and
+    points are binned on a grid of the largest cell's extent (each cell in at most 2x2x2 bins)."""
+    X = points[tets]
+    lo, hi = X.min(axis=1), X.max(axis=1)
+    h = max(float((hi - lo).max()), 1e-300)
+    origin = lo.min(axis=0)
+    nb = np.floor((hi.max(axis=0) - origin) / h).astype(np.int64) + 2
+    key = lambda B: B[:, 0] + nb[0] * (B[:, 1] + nb[1] * B[:, 2])        # noqa: E731
+    blo = np.floor((lo - origin) / h).astype(np.int64)
+    bhi = np.floor((hi - origin) / h).astype(np.int64)
+    keys, cells = [], []
+    for off in np.ndindex(2, 2, 2):
+        B = blo + off
+        m = (B <= bhi).all(axis=1)
+        keys.append(key(B[m]))
+        cells.append(np.flatnonzero(m))
+    keys, cells = np.concatenate(keys), np.concatenate(cells)
+    order = np.argsort(keys, kind="stable")
+    keys, cells = keys[order], cells[order]
+    Bp = np.floor((P - origin) / h).astype(np.int64)
+    ok = ((Bp >= 0) & (Bp < nb)).all(axis=1)
+    pk = np.where(ok, key(np.clip(Bp, 0, nb - 1)), -1)
+    start, stop = np.searchsorted(keys, pk, "left"), np.searchsorted(keys, pk, "right")
+    n = stop - start
+    pi = np.repeat(np.arange(len(P)), n)
+    ci = cells[np.repeat(start, n) + np.arange(n.sum()) - np.repeat(np.cumsum(n) - n, n)]
+    for lo_, hi_ in ((i, min(i + 1 << 20, len(pi))) for i in range(0, len(pi), 1 << 20)):
+        pp, cc = pi[lo_:hi_], ci[lo_:hi_]
+        X0 = X[cc, 0]
+        D = np.stack([X[cc, a] - X0 for a in (1, 2, 3)], axis=-1)
+        lam = np.linalg.solve(D, (P[pp] - X0)[..., None])[..., 0]
+        bary = np.column_stack([1.0 - lam.sum(axis=1), lam])
+        inside = np.flatnonzero(bary.min(axis=1) > tol)
+        if len(inside):
+            return int(pp[inside[0]]), int(cc[inside[0]])
+    return None
 
 
 def check_faces(points, tets, path):

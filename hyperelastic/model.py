@@ -91,6 +91,11 @@ def load_mesh(scene):
     the order asks): the facet and cell sets its effects name (an unknown name is a UserError listing the
     mesh's) and its regions."""
     mesh = read_mesh(scene.mesh, scene.mesh_frame) if scene.mesh else read_mesh(cached_bar(scene.level))
+    ranks = MPI.COMM_WORLD.size
+    if len(mesh.tets) < ranks:
+        name = scene.mesh or f"bar L{scene.level}"
+        raise UserError(f"mesh '{name}': {len(mesh.tets)} tetrahedra for {ranks} MPI ranks (each rank needs "
+                        "cells: run on fewer ranks or refine the mesh)")
     order = scene.order or mesh.order
     if order == 2 and mesh.order == 1:
         mesh = elevate(mesh)

@@ -6,7 +6,6 @@ values are defaults: an option given on the command line wins.
 import math
 import os
 import re
-import shlex
 import sys
 from dataclasses import dataclass
 
@@ -14,6 +13,7 @@ from petsc4py import PETSc
 
 from .errors import UserError
 from .expressions import TimeFunction
+from .files import option_lines
 
 _root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 OPTIONS_DIR = os.path.join(_root, "options")
@@ -52,20 +52,11 @@ def parse_options_file(path):
     if "\0" in text:
         raise UserError(f"scene '{path}': holds NUL bytes (not a text file)")
     pairs = []
-    for lineno, line in enumerate(text.splitlines(), 1):
-        line = line.split("#", 1)[0].strip()
-        if not line:
-            continue
-        try:
-            toks = shlex.split(line)
-        except ValueError as e:
-            raise UserError(f"scene '{path}' line {lineno}: {e}") from None
-        if not toks[0].startswith("-") or toks[0] == "-" or len(toks) > 2:
-            raise UserError(f"scene '{path}' line {lineno}: expected '-option [value]', got '{line[:80]}'")
-        if toks[0] == "-options_file":
+    for lineno, key, value in option_lines(text, f"scene '{path}'"):
+        if key == "options_file":
             raise UserError(f"scene '{path}' line {lineno}: a scene cannot include options files (give "
                             "-options_file on the command line)")
-        pairs.append((toks[0][1:], toks[1] if len(toks) == 2 else None))
+        pairs.append((key, value))
     if not pairs:
         raise UserError(f"scene '{path}': holds no options (a scene names at least its mesh, material or effects)")
     return pairs
@@ -173,7 +164,12 @@ class Options:
 
     def names(self, name, default=""):
         s = self.string(name, default)
-        return [w.strip() for w in s.split(",") if w.strip()] if s else []
+        if not s:
+            return []
+        words = [w.strip() for w in s.split(",")]
+        if not all(words):
+            raise UserError(f"option -{name}: '{s}' has an empty entry (a comma-separated list of names)")
+        return words
 
 
 def all_options():

@@ -7,7 +7,7 @@ import numpy as np
 
 from .errors import UserError
 from .figures import pyplot
-from .files import missing_datasets
+from .files import check_output_path, missing_datasets
 
 
 def boundary_faces(tets):
@@ -42,6 +42,9 @@ def render(path, out, frame=-1):
         x = f["x"][i]
         t = f["time"][i]
         scene = f.attrs.get("scene", "")
+    if not np.isfinite(x).all() or not np.isfinite(X).all():
+        raise UserError(f"plot: frame {i} of '{path}' holds non-finite positions (choose another with --frame)")
+    check_output_path(out, [path], suffixes=())
     tri = boundary_faces(tets)
     u = np.linalg.norm(x - X, axis=1)
     fig = plt.figure(figsize=(8, 5))
@@ -52,8 +55,16 @@ def render(path, out, frame=-1):
     fig.colorbar(sm, ax=ax, shrink=0.7, label="|displacement| [m]")
     ax.set_title(f"{scene}  t = {t:.3g} s  (frame {i}; grey: reference shape)")
     fig.tight_layout()
-    fig.savefig(out, dpi=110)
-    plt.close(fig)
+    tmp = f"{out}.{os.getpid()}.tmp"
+    try:                          # written whole, then renamed: an earlier PNG stays until the new one is complete
+        fig.savefig(tmp, dpi=110, format="png")
+        os.replace(tmp, out)
+    except OSError as e:
+        raise UserError(f"plot: cannot write '{out}' ({e.strerror})") from None
+    finally:
+        plt.close(fig)
+        if os.path.exists(tmp):
+            os.remove(tmp)
     return out
 
 

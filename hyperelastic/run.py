@@ -8,9 +8,9 @@ import sys
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from .catalog import check_solver_options, help_text, load_scene, scene_option_names
+from .catalog import check_solver_options, check_viewer_files, help_text, load_scene, scene_option_names
 from .errors import Interrupted, UserError
-from .files import check_output_path
+from .files import check_output_path, output_names
 from .integrators import BackwardEuler
 from .model import build_model, collective
 from .options import Options
@@ -37,6 +37,7 @@ def run_scene(scene_arg, options_files, restart=None, restart_path=None):
     if restart is not None:
         inputs = [i for i in inputs if i and os.path.realpath(i) != os.path.realpath(out)]
     collective(comm, lambda: check_output_path(out, inputs))      # before any expensive work
+    collective(comm, lambda: check_viewer_files(PETSc.Options(), inputs + output_names(out)))
     model = build_model(scene, comm)
     if restart is not None:
         collective(comm, lambda: _check_restart(restart, model, scene, restart_path))

@@ -243,6 +243,8 @@ def main():
     ap.add_argument("--repeat", type=int, default=1, help="runs of each code per row; each phase's minimum")
     ap.add_argument("--order", type=int, default=1, choices=(1, 2), help="element order: 1 (P1) or 2 (P2, both "
                     "with the 4-point rule of degree 2)")
+    ap.add_argument("--no-jacobi", action="store_true", help="skip the CG + Jacobi runs (the last two columns "
+                    "then come from the GAMG runs)")
     ap.add_argument("--full", action="store_true")
     a = ap.parse_args()
     os.makedirs(a.out, exist_ok=True)
@@ -288,7 +290,7 @@ def main():
                 peer, jr, mine = [], [], {st: [] for st in storages}
                 for _ in range(a.repeat):
                     peer.append(dolfinx_solve(points, tets, a.out, name, n, pc, order=a.order))
-                    if pc == "gamg":
+                    if pc == "gamg" and not a.no_jacobi:
                         jr.append(ours(m, a.out, n, "jacobi", order=a.order)[2])
                     for st in storages:
                         mine[st].append(ours(m, a.out, n, pc, storage=st, order=a.order))
