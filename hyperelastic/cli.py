@@ -208,13 +208,15 @@ def plot_cmd(argv):
     ap.add_argument("-o", "--output", default=None)
     ap.add_argument("--frame", type=int, default=-1)
     a = ap.parse_args(argv)
-    out = a.output or os.path.splitext(a.file)[0] + ".png"
+    out = a.output if a.output is not None else os.path.splitext(a.file)[0] + ".png"
     render(a.file, out, a.frame)
     print(out)
     return 0
 
 
 def scenes_cmd(argv):
+    if argv:
+        raise UserError(f"hyperelastic scenes: takes no arguments (got '{argv[0][:40]}')")
     from .options import SCENES_DIR, builtin_scenes
     for s in builtin_scenes():
         with open(os.path.join(SCENES_DIR, s + ".opts")) as fh:

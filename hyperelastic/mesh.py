@@ -77,6 +77,8 @@ def generate(name, level, out, size=None, refine=0, order=1):
         raise UserError(f"mesh size {size} must be a finite number > 0")
     outs = [out] + [f"{os.path.splitext(out)[0]}_r{i}.msh" for i in range(1, refine + 1)]
     for o in outs:
+        if not o.lower().endswith(".msh"):
+            raise UserError(f"hyperelastic mesh: -o '{o}' must end in .msh (gmsh's format is what it writes)")
         check_output_path(o, suffixes=None)
     import gmsh    # deferred on purpose: loading gmsh's library takes ~0.3 s, and only meshing needs it
     gmsh.initialize(["gmsh", "-v", "0"], readConfigFiles=False)
@@ -88,6 +90,7 @@ def generate(name, level, out, size=None, refine=0, order=1):
             _quiet(gmsh.open, geo)
         except Exception as e:
             raise UserError(f"geometry '{name}': gmsh cannot read it ({str(e).strip()[:200]})") from None
+        _check_size(name, size, refine)
         gmsh.option.setNumber("Mesh.MeshSizeMin", size)
         gmsh.option.setNumber("Mesh.MeshSizeMax", size)
         gmsh.option.setNumber("Mesh.MeshSizeExtendFromBoundary", 0)
@@ -118,6 +121,24 @@ def generate(name, level, out, size=None, refine=0, order=1):
                                                    "vertices": len(np.unique(m.tets)), "nodes": len(m.points),
                                                    "order": m.order})
     return stats if refine else stats[0]
+
+
+MAX_TETS = 2e8      # beyond, gmsh would run for hours and the mesh would not fit this kind of machine
+
+
+def _check_size(name, size, refine):
+    """UserError when edge length `size` (and `refine` refinements, 8x each) would give more than MAX_TETS
+    tetrahedra for the opened geometry: its bounding box's volume over a regular tetrahedron's (an upper
+    estimate for a solid part)."""
+    import gmsh
+    x0, y0, z0, x1, y1, z1 = gmsh.model.getBoundingBox(-1, -1)
+    volume = max(x1 - x0, 0.0) * max(y1 - y0, 0.0) * max(z1 - z0, 0.0)
+    cell = size ** 3 / (6 * math.sqrt(2))
+    estimate = volume / cell * 8 ** refine if cell > 0 else math.inf
+    if estimate > MAX_TETS:
+        raise UserError(f"geometry '{name}': mesh size {size:g} would make up to ~{estimate:.2g} tetrahedra "
+                        f"(bounding box {x1 - x0:.3g} x {y1 - y0:.3g} x {z1 - z0:.3g}); give a size that makes at most "
+                        f"{MAX_TETS:.0e}")
 
 
 def describe(points, tets):

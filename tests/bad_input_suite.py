@@ -168,8 +168,9 @@ def option_value_cases(rng):
         "flag": (["quasistatic", "step_control", "objective", "hessian_projection", "inversion_guard"],
                  ["maybe", "2", "-1", "yes please"]),
         "faces": (["fix", "traction_face", "pressure_faces", "prescribe_faces", "spring_faces", "force_faces"],
-                  ["", "nonexistent", "left:w", ":x", "left:xx", "7"]),
-        "names": (["regions", "loads", "effects", "body_force_regions"], ["", "nonexistent", "a b", "x,x"]),
+                  ["", "nonexistent", "left:w", ":x", "left:xx", "7", "left,", ",left", "left,,right", ","]),
+        "names": (["regions", "loads", "effects", "body_force_regions"], ["", "nonexistent", "a b", "x,x", ",",
+                                                                        "elasticity,", ",elasticity", "a,,b"]),
     }
     context = {"pressure_faces": ["-pressure", "1e3"], "prescribe_faces": ["-prescribe_motion", "stretch_x"],
                "prescribe_motion": ["-prescribe_faces", "right"], "pressure": ["-pressure_faces", "right"],
@@ -198,6 +199,9 @@ def option_value_cases(rng):
                       ("ksp_gmres_restart", "0"), ("ts_max_snes_failures", "-5"), ("snes_lag_jacobian", "-7")):
         for v in (bad, "1.5", "abc", ""):
             out.append(Case(f"petsc:{name}={v!r}", "PETSc values", BEND + [f"-{name}", v]))
+    for name in ("snes_max_it", "ksp_max_it"):        # a limit no solve can converge within
+        for v in ("0", str(-rng.randrange(1, 100))):
+            out.append(Case(f"petsc:{name}={v}", "PETSc values", BEND + [f"-{name}", v]))
     for v in ("2", "-1"):
         out.append(Case(f"petsc:ts_alpha_radius={v}", "PETSc values",
                         BEND + ["-integrator", "ts", "-ts_alpha_radius", v]))
@@ -391,6 +395,12 @@ def mesh_cases(rng):
     text_mesh("elements_missing", lambda b: b[:b.index(b"$Elements")])
     text_mesh("wrong_count", lambda b: b.replace(b"$Elements\n", b"$Elements\n9999999\n", 1)[:len(b)])
 
+    for k in range(4):          # a second, separate copy of the cube shifted into the first: overlapping pieces
+        shift = np.array([rng.uniform(0.05, 0.8), rng.uniform(-0.5, 0.5), rng.uniform(-0.5, 0.5)])
+        add(f"overlapping_pieces@{k}", np.vstack([P, P + shift]), np.vstack([T, T + len(P)]), ("overlap",))
+    one = (np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1.0]]), np.array([[0, 1, 2, 3]]))
+    out.append(Case("mesh:fewer_cells_than_ranks", "meshes", BEND + ["-mesh", "one.msh"], nprocs=2,
+                    setup=lambda d: write_msh(os.path.join(d, "one.msh"), *one), words=("MPI ranks",)))
     out.append(Case("mesh:empty_file", "meshes", BEND + ["-mesh", "e.msh"], setup=lambda d: _write(d, "e.msh", b"")))
     out.append(Case("mesh:binary_junk", "meshes", BEND + ["-mesh", "j.msh"],
                     setup=lambda d: _write(d, "j.msh", bytes(rng.randrange(256) for _ in range(2000)))))
@@ -480,6 +490,8 @@ def restart_cases(rng):
     out = []
     base = lambda f: ["run", "--restart", f, "-quiet"]  # noqa: E731
     out.append(Case("restart:missing", "restart files", base("none.h5")))
+    for other in ("other.h5", "sub/other.h5", "scene.h5"):     # -output naming another file than the restarted one
+        out.append(Case(f"restart:output={other}", "restart files", base("prev.h5") + ["-output", other]))
     out.append(Case("restart:no_file", "restart files", ["run", "--restart"]))
     out.append(Case("restart:directory", "restart files", base("sub"), setup=lambda d: os.mkdir(os.path.join(d, "sub"))))
     out.append(Case("restart:fifo", "restart files", base("f.h5"), setup=lambda d: os.mkfifo(os.path.join(d, "f.h5"))))
@@ -581,7 +593,21 @@ def plot_cases(rng):
         Case("plot:bad_frame", "plot", base + ["prev.h5", "--frame", "99", "-o", "x.png"]),
         Case("plot:png_is_input", "plot", base + ["prev.h5", "-o", "prev.h5"]),
         Case("plot:directory", "plot", base + ["prev.h5", "-o", "."]),
-    ]
+        Case("plot:fifo", "plot", base + ["prev.h5", "-o", "f.png"], setup=lambda d: os.mkfifo(os.path.join(d, "f.png"))),
+        Case("plot:empty_name", "plot", base + ["prev.h5", "-o", ""]),
+        Case("plot:parent_is_file", "plot", base + ["prev.h5", "-o", "good.msh/x.png"]),
+    ] + [Case(f"plot:nonfinite:{v}@{frame}", "plot", base + ["r.h5", "--frame", str(frame), "-o", "x.png"],
+              setup=lambda d, v=v: _nonfinite(d, v)) for v in ("nan", "inf") for frame in (-1, 0)]
+
+
+def _nonfinite(d, value):
+    """r.h5: prev.h5 with a non-finite coordinate in every frame."""
+    import h5py
+    shutil.copy(os.path.join(d, "prev.h5"), os.path.join(d, "r.h5"))
+    with h5py.File(os.path.join(d, "r.h5"), "r+") as f:
+        x = f["x"][:]
+        x[:, 0, 0] = float(value)
+        f["x"][...] = x
 
 
 def _no_mesh(d):
@@ -589,6 +615,79 @@ def _no_mesh(d):
     shutil.copy(os.path.join(d, "prev.h5"), os.path.join(d, "r.h5"))
     with h5py.File(os.path.join(d, "r.h5"), "r+") as f:
         del f["mesh"]
+
+
+def command_line_cases(rng):
+    """Words PETSc would skip (a word after an option's value) or keep as options nothing reads (`--name`,
+    a bare `-`), at each place between the pairs of a good command line."""
+    good = ["-dt", "0.01", "-final_time", "0.02", "-E", "2e6"]
+    words = ["stray", "extra.h5", "scene.opts", "0.5", "-", "--", "--dt", "---quiet", "--final_time=1"]
+    out = []
+    for w in words:
+        for pos in range(0, len(good) + 1, 2):
+            out.append(Case(f"cmdline:{w}@{pos}", "command line", ["run", "scene.opts"] + good[:pos] + [w] + good[pos:]
+                            + ["-quiet", "-output", "prev.h5"]))
+    for args in (["mesh", "bar", "--level", "1", "-o", "m.msh", "stray"], ["plot", "prev.h5", "stray", "-o", "x.png"],
+                 ["scenes", "--bogus"], ["scenes", "stray"], ["study", "bogus"]):
+        out.append(Case(f"cmdline:{' '.join(args)}", "command line", args))
+    return out
+
+
+LINES = {"double_dash": "--dt 0.01", "two_options": "-dt 0.01 -E 2e6", "no_dash": "dt 0.01", "lone_dash": "- 0.01",
+         "open_quote": "-mesh 'good.msh", "triple_dash": "---dt 0.01", "three_words": "-dt 0.01 0.02",
+         "dash_after_comment": "-dt 0.01 # fine\n--E 2e6"}
+
+
+def options_line_cases(rng):
+    """Malformed lines, each in an -options_file (PETSc would print a multi-line report for some, keep
+    others as options nothing reads) and in a scene file, among good lines at a random place."""
+    out = []
+    for name, line in LINES.items():
+        good = ["-final_time 0.02", "-E 2e6", "# a comment"]
+        at = rng.randrange(len(good) + 1)
+        text = "\n".join(good[:at] + [line] + good[at:]) + "\n"
+        out.append(Case(f"optline:file:{name}", "scene and options files", BEND + ["-options_file", "l.opts"],
+                        setup=lambda d, t=text: _write(d, "l.opts", t.encode())))
+        scene = "-mesh good.msh\n-material neohookean\n" + text
+        out.append(Case(f"optline:scene:{name}", "scene and options files", ["run", "l.opts", "-quiet", "-output",
+                        "prev.h5"], setup=lambda d, t=scene: _write(d, "l.opts", t.encode())))
+    return out
+
+
+def viewer_cases(rng):
+    """PETSc viewers writing into a directory that does not exist, or over a file of the run (PETSc would
+    fail at its finalization, after the run, or overwrite it)."""
+    out = []
+    for key in ("log_view", "ksp_monitor", "snes_view", "ksp_converged_reason", "snes_monitor_short"):
+        for value in (":nodir/f.txt", "ascii:nodir/sub/f.txt", ":prev.xdmf", ":scene.opts", ":good.msh",
+                      ":prev.h5", ":."):
+            out.append(Case(f"viewer:{key}={value}", "PETSc values", BEND + [f"-{key}", value]))
+    return out
+
+
+def mesh_command_cases(rng):
+    """`hyperelastic mesh` with wrong values and outputs."""
+    base = ["mesh", "bar"]
+    out = []
+    for size in ("inf", "nan", "-1", "0", "abc", "", "1e-320"):
+        out.append(Case(f"meshcmd:size={size!r}", "mesh command", base + ["--size", size, "-o", "m.msh"]))
+    for level in ("0", "-1", "99", "1.5", "x"):
+        out.append(Case(f"meshcmd:level={level!r}", "mesh command", base + ["--level", level, "-o", "m.msh"]))
+    for extra in (["--order", "3"], ["--order", "0"], ["--refine", "-1"], ["--size", "1", "--level", "1"], []):
+        args = extra if "--level" in extra else extra + ["--level", "1"]
+        out.append(Case(f"meshcmd:{' '.join(extra) or 'no output'}", "mesh command",
+                        base + args + (["-o", "m.msh"] if extra else [])))
+    outputs = {"empty": ("", None), "fifo": ("f.msh", lambda d: os.mkfifo(os.path.join(d, "f.msh"))),
+               "directory": ("sub", lambda d: os.mkdir(os.path.join(d, "sub"))), "dev_null": ("/dev/null", None),
+               "parent_is_file": ("good.msh/m.msh", None), "equals_input": ("scene.opts", None)}
+    for name, (o, setup) in outputs.items():
+        out.append(Case(f"meshcmd:output:{name}", "mesh command", base + ["--level", "1", "-o", o], setup=setup))
+    for name, (g, setup) in {"missing": ("none.geo", None), "text": ("scene.opts", None),
+                             "directory": ("g.geo", lambda d: os.mkdir(os.path.join(d, "g.geo"))),
+                             "junk": ("j.geo", lambda d: _write(d, "j.geo", b"Point(1) = {0, 0;\n"))}.items():
+        out.append(Case(f"meshcmd:geometry:{name}", "mesh command", ["mesh", g, "--size", "0.5", "-o", "m.msh"],
+                        setup=setup))
+    return out
 
 
 MPI_CATEGORIES = ("option values", "unknown options", "conflicting combinations", "scene and options files",
@@ -600,7 +699,7 @@ def all_cases(seed=SEED):
     rng = random.Random(seed)
     cases = []
     for gen in (option_value_cases, unknown_option_cases, conflict_cases, file_cases, mesh_cases, output_cases,
-                restart_cases, plot_cases):
+                restart_cases, plot_cases, command_line_cases, options_line_cases, viewer_cases, mesh_command_cases):
         cases += gen(rng)
     pool = [c for c in cases if c.category in MPI_CATEGORIES and not c.fsize]
     mpi = []
