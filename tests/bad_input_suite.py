@@ -690,6 +690,24 @@ def mesh_command_cases(rng):
     return out
 
 
+def study_cases(rng):
+    """`hyperelastic study` with wrong values (each refused before any run)."""
+    part = ["study", "refinement", "--part", "part.geo", "--scene", "scene.opts", "-output_dir", "st"]
+
+    def geo(d):
+        _write(d, "part.geo", b'SetFactory("OpenCASCADE");\nBox(1) = {0, 0, 0, 1, 1, 1};\n')
+    C = {"budget": ["study", "refinement", "--budget", str(rng.choice([-5, 0, "nan", "inf"]))],
+         "jobs": ["study", "accuracy", "--jobs", "0"], "kind": ["study", "bogus"],
+         "output_dir": ["study", "accuracy", "-output_dir", "good.msh"],
+         "part_missing": part[:3] + ["none.geo"] + part[4:] + ["--size", "0.5"],
+         "part_without_size": part, "size": part + ["--size", rng.choice(["inf", "-1", "0", "nan"])],
+         "order": part + ["--size", "0.5", "--order", rng.choice(["3", "1,,2", "0", "x"])],
+         "refine": part + ["--size", "0.5", "--refine", rng.choice(["-1", "0", "1"])],
+         "watch": part + ["--size", "0.5", "--watch", rng.choice(["bogus", "point:1,2", "point:a,b,c"])],
+         "order_without_part": ["study", "refinement", "--order", "2"]}
+    return [Case(f"study:{n}", "study command", a, setup=geo) for n, a in C.items()]
+
+
 MPI_CATEGORIES = ("option values", "unknown options", "conflicting combinations", "scene and options files",
                   "meshes", "output paths", "restart files")
 
@@ -699,7 +717,8 @@ def all_cases(seed=SEED):
     rng = random.Random(seed)
     cases = []
     for gen in (option_value_cases, unknown_option_cases, conflict_cases, file_cases, mesh_cases, output_cases,
-                restart_cases, plot_cases, command_line_cases, options_line_cases, viewer_cases, mesh_command_cases):
+                restart_cases, plot_cases, command_line_cases, options_line_cases, viewer_cases, mesh_command_cases,
+                study_cases):
         cases += gen(rng)
     pool = [c for c in cases if c.category in MPI_CATEGORIES and not c.fsize]
     mpi = []

@@ -32,6 +32,7 @@ Refinement: a quasi-static ramped bend on gmsh levels L1...; displacement at the
 against the finest level, observed convergence order (least-squares slope of log error vs log
 edge length) and time per load step vs tets.
 """
+import math
 import os
 import shlex
 import sys
@@ -73,6 +74,8 @@ def _check(a):
         raise UserError(f"hyperelastic study: --size {a.size} must be a positive number")
     if a.jobs < 1:
         raise UserError("hyperelastic study: --jobs must be >= 1")
+    if not (a.budget > 0 and math.isfinite(a.budget)):
+        raise UserError(f"hyperelastic study: --budget {a.budget}: seconds, a finite number > 0")
     orders = [w.strip() for w in a.order.split(",")]
     if not orders or any(w not in ("1", "2") for w in orders) or len(set(orders)) != len(orders):
         raise UserError(f"hyperelastic study: --order {a.order}: element orders 1 and/or 2 (e.g. 1,2)")
