@@ -102,6 +102,9 @@ def generate(name, level, out, size=None, refine=0, order=1):
             gmsh.model.mesh.generate(3)
         except Exception as e:
             raise UserError(f"geometry '{name}': gmsh cannot mesh it ({str(e).strip()[:200]})") from None
+        if not len(gmsh.model.mesh.getElementTypes(3)):
+            raise UserError(f"geometry '{name}': gmsh made no tetrahedra (a 2-D geometry, or surfaces that do not "
+                            "close a volume)")
         for i, o in enumerate(outs):
             if i:
                 if order > 1:
@@ -111,12 +114,26 @@ def generate(name, level, out, size=None, refine=0, order=1):
                 gmsh.model.mesh.setOrder(order)
             tmps.append(o + f".tmp{os.getpid()}.msh")
             gmsh.write(tmps[-1])
+    except BaseException:
+        for tmp in tmps:
+            if os.path.exists(tmp):
+                os.remove(tmp)
+        raise
     finally:
         gmsh.finalize()
+    meshes = []
+    try:                  # every mesh read back and checked before any is renamed into place
+        for o, tmp in zip(outs, tmps):
+            meshes.append(read_mesh(tmp))
+    except UserError as e:
+        raise UserError(str(e).replace(tmp, o)) from None
+    finally:
+        if len(meshes) < len(tmps):
+            for tmp in tmps:
+                os.remove(tmp)
     stats = []
-    for i, (o, tmp) in enumerate(zip(outs, tmps)):
+    for i, (o, tmp, m) in enumerate(zip(outs, tmps, meshes)):
         os.replace(tmp, o)
-        m = read_mesh(o)
         stats.append(describe(m.points, m.tets) | {"level": level, "target_size": size / 2 ** i, "file": o,
                                                    "vertices": len(np.unique(m.tets)), "nodes": len(m.points),
                                                    "order": m.order})

@@ -36,7 +36,8 @@ def run_scene(scene_arg, options_files, restart=None, restart_path=None):
     inputs = [scene_file, scene.mesh] + list(options_files)
     if restart is not None:
         inputs = [i for i in inputs if i and os.path.realpath(i) != os.path.realpath(out)]
-    collective(comm, lambda: check_output_path(out, inputs))      # before any expensive work
+    if not helping:               # (-help writes nothing: not even the output's directory)
+        collective(comm, lambda: check_output_path(out, inputs))      # before any expensive work
     collective(comm, lambda: check_viewer_files(PETSc.Options(), inputs + output_names(out)))
     model = build_model(scene, comm)
     if restart is not None:

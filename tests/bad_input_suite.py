@@ -684,7 +684,9 @@ def mesh_command_cases(rng):
         out.append(Case(f"meshcmd:output:{name}", "mesh command", base + ["--level", "1", "-o", o], setup=setup))
     for name, (g, setup) in {"missing": ("none.geo", None), "text": ("scene.opts", None),
                              "directory": ("g.geo", lambda d: os.mkdir(os.path.join(d, "g.geo"))),
-                             "junk": ("j.geo", lambda d: _write(d, "j.geo", b"Point(1) = {0, 0;\n"))}.items():
+                             "junk": ("j.geo", lambda d: _write(d, "j.geo", b"Point(1) = {0, 0;\n")),
+                             "flat": ("f.geo", lambda d: _write(d, "f.geo", b'SetFactory("OpenCASCADE");\n'
+                                                                         b"Rectangle(1) = {0, 0, 0, 1, 1};\n"))}.items():
         out.append(Case(f"meshcmd:geometry:{name}", "mesh command", ["mesh", g, "--size", "0.5", "-o", "m.msh"],
                         setup=setup))
     return out

@@ -193,6 +193,18 @@ def test_mesh_command(tmp_path):
     one_line_error(hyperelastic(["mesh", "bar", "--level", "0", "-o", out]), "level")
 
 
+def test_mesh_without_a_volume_leaves_nothing_and_help_writes_nothing(tmp_path):
+    """A 2-D geometry: one line, exit 2, no .msh (issue 34); `run SCENE -help` on a scene without a mesh
+    prints the options and creates no output directory."""
+    (tmp_path / "flat.geo").write_text('SetFactory("OpenCASCADE");\nRectangle(1) = {0, 0, 0, 1, 1};\n')
+    one_line_error(hyperelastic(["mesh", "flat.geo", "--size", "0.3", "-o", "flat.msh"], cwd=tmp_path),
+                   "no tetrahedra")
+    (tmp_path / "s.opts").write_text("-material neohookean\n-quasistatic\n")
+    p = hyperelastic(["run", "s.opts", "-help"], cwd=tmp_path)
+    assert p.returncode == 0 and "-material" in p.stdout, p.stderr
+    assert sorted(os.listdir(tmp_path)) == ["flat.geo", "s.opts"]
+
+
 def options_files(d):
     """{case: (path given to -options_file, words of the error)}: files PETSc would choke on."""
     os.makedirs(d, exist_ok=True)
