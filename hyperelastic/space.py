@@ -26,6 +26,21 @@ def reference_geometry(X, cells):
     return np.ascontiguousarray(np.linalg.inv(Dm)), np.abs(np.linalg.det(Dm)) / 6.0
 
 
+def set_labels(dm, labels, corder, point_of_input):
+    """The labels {name: {value: ("cells" | "vertices", input indices)}} on a serial DMPlex whose cell i is
+    input cell corder[i] and whose point for input node k is point_of_input[k]."""
+    cpos = np.empty(len(corder), np.int64)
+    cpos[corder] = np.arange(len(corder))
+    for name, strata in labels.items():
+        dm.createLabel(name)
+        lab = dm.getLabel(name)
+        for value, (kind, idx) in strata.items():
+            idx = np.asarray(idx, np.int64)
+            pts = cpos[idx] if kind == "cells" else point_of_input[idx]
+            lab.setStratumIS(int(value), PETSc.IS().createGeneral(np.sort(pts).astype(PETSc.IntType),
+                                                                  comm=PETSc.COMM_SELF))
+
+
 class Space:
     def __init__(self, comm, points=None, tets=None, labels=None):
         """points/tets: the checked input mesh on rank 0 (ignored on other ranks); labels (rank 0):
@@ -56,20 +71,25 @@ class Space:
         self.X = X
         self.orig = self._input_indices(lvid, vStart, vEnd, vperm, sf)
         self.owned = self._ownership(lvid, vStart, vEnd)
-        self.n_owned = int(self.owned.sum())
         self.Dminv, self.vol = reference_geometry(X, self.cells)
         self.nc = len(self.cells)
-        self.lgmap = dm.getLGMap()
+        self._finish(comm)
+
+    def _finish(self, comm):
+        """What every space computes once its nodes are known: the local-to-global map, the bounding box,
+        the output's gather plan (input node order on rank 0), whether local and global vectors coincide (one
+        rank, the same order: System.residual uses it)."""
+        self.n_owned = int(self.owned.sum())
+        self.lgmap = self.dm.getLGMap()
         self.bbox = self._bounding_box()
-        # gather plan for output on rank 0 (input vertex order)
         ids = self.orig[self.owned]
         self._counts = self.mpi.gather(len(ids), root=0)
         allids = self.mpi.gather(ids, root=0)
         self._gorder = np.concatenate(allids) if self.mpi.rank == 0 else None
         self.lvid_of_owned = np.flatnonzero(self.owned)
-        # one rank: the local vector is the global one, in the same order (System.residual uses it)
         g = self.lgmap.getIndices()
-        self.local_is_global = bool(comm.getSize() == 1 and len(g) == 3 * nlv and (g == np.arange(3 * nlv)).all())
+        self.local_is_global = bool(comm.getSize() == 1 and len(g) == 3 * self.nlv
+                                    and (g == np.arange(3 * self.nlv)).all())
 
     def _distribute(self, points, tets, labels):
         """The serial DMPlex of the spatially ordered mesh (rank 0) with its labels, distributed with
@@ -100,18 +120,9 @@ class Space:
     def _set_labels(dm, labels, corder, vperm):
         """Labels on the serial DMPlex (cells first, then vertices, in the spatial order)."""
         nc = len(corder)
-        cpos = np.empty(nc, np.int64)
-        cpos[corder] = np.arange(nc)
         vpos = np.empty(len(vperm), np.int64)
-        vpos[vperm] = np.arange(len(vperm))
-        for name, strata in labels.items():
-            dm.createLabel(name)
-            lab = dm.getLabel(name)
-            for value, (kind, idx) in strata.items():
-                idx = np.asarray(idx, np.int64)
-                pts = cpos[idx] if kind == "cells" else nc + vpos[idx]
-                lab.setStratumIS(int(value), PETSc.IS().createGeneral(np.sort(pts).astype(PETSc.IntType),
-                                                                      comm=PETSc.COMM_SELF))
+        vpos[vperm] = nc + np.arange(len(vperm))
+        set_labels(dm, labels, corder, vpos)
 
     def _dof_section(self, vStart, vEnd):
         """3 dofs on each vertex."""
@@ -337,16 +348,7 @@ class QuadraticSpace(Space):
             point_of_input = np.full(len(points), -1, np.int64)
             point_of_input[out["vertex_input"]] = v0 + np.arange(len(out["vertex_input"]))
             point_of_input[out["edge_node"]] = e0 + np.arange(len(ends))
-            cpos = np.empty(len(corder), np.int64)
-            cpos[corder] = np.arange(len(corder))
-            for name, strata in labels.items():
-                dm.createLabel(name)
-                lab = dm.getLabel(name)
-                for value, (kind, idx) in strata.items():
-                    idx = np.asarray(idx, np.int64)
-                    pts = cpos[idx] if kind == "cells" else point_of_input[idx]
-                    lab.setStratumIS(int(value), PETSc.IS().createGeneral(np.sort(pts).astype(PETSc.IntType),
-                                                                          comm=PETSc.COMM_SELF))
+            set_labels(dm, labels, corder, point_of_input)
         out = self.mpi.bcast(out if rank0 else None, root=0)
         self.nv_total, self.nc_total = len(out["points"]), len(out["corder"])
         self.label_names = self.mpi.bcast(list(labels) if rank0 else None, root=0)
@@ -402,20 +404,6 @@ class QuadraticSpace(Space):
         out[rows, 4 + ref] = nv + edges
         return out
 
-    def _finish(self, comm):
-        """What every space computes once its nodes are known: the local-to-global map, the bounding box,
-        the output's gather plan, whether local and global vectors coincide."""
-        self.n_owned = int(self.owned.sum())
-        self.lgmap = self.dm.getLGMap()
-        self.bbox = self._bounding_box()
-        ids = self.orig[self.owned]
-        self._counts = self.mpi.gather(len(ids), root=0)
-        allids = self.mpi.gather(ids, root=0)
-        self._gorder = np.concatenate(allids) if self.mpi.rank == 0 else None
-        self.lvid_of_owned = np.flatnonzero(self.owned)
-        g = self.lgmap.getIndices()
-        self.local_is_global = bool(comm.getSize() == 1 and len(g) == 3 * self.nlv
-                                    and (g == np.arange(3 * self.nlv)).all())
 
     def set_vertices(self, name):
         """Local nodes (owned and ghost: vertices and edge nodes) of the facet set labelled `name`."""
