@@ -178,3 +178,27 @@ def test_part_refinement_bad_arguments(tmp_path, args, words):
     lines = p.stderr.strip().splitlines()
     assert p.returncode == 2 and len(lines) == 1, p.stderr
     assert all(w in lines[0] for w in words), lines[0]
+
+
+def test_refinement_says_when_the_meshes_are_not_asymptotic():
+    """The report's verdict: q = 1 - h^2 on P1 (expected order 2) is asymptotic and gets Richardson's limit;
+    a sequence with p = 0.36 (the bracket of issue 34) or non-monotone changes is not, and no limit is
+    presented as the answer; both say what the next refinement would cost."""
+    from hyperelastic.study.part import _verdict, analyse
+
+    def rows(qs):
+        return [{"outcome": "finished", "h": 0.5 / 2 ** i, "tets": 100 * 8 ** i, "quantity": q, "solve_s": 0.1 * 9 ** i}
+                for i, q in enumerate(qs)]
+    good = rows([1 - (0.5 / 2 ** i) ** 2 for i in range(4)])
+    analyse(good, expected=2)
+    text = _verdict(1, "max_displacement", [r for r in good if r["outcome"] == "finished"])
+    assert good[0]["asymptotic_note"] == "" and abs(good[0]["richardson_limit"] - 1) < 1e-12
+    assert "Richardson's limit from the three finest: 1 " in text and "next refinement (~409,600 tets)" in text
+    assert "about 656 s" in text
+    for qs, why in (([3.1e-5, 4.1e-5, 4.9e-5, 5.5e-5], "far from the element's 2"),
+                    ([1.0, 1.5, 1.4, 1.45], "do not shrink monotonically")):
+        bad = rows(qs)
+        analyse(bad, expected=2)
+        text = _verdict(1, "max_displacement", bad)
+        assert why in bad[0]["asymptotic_note"] and "Not in the asymptotic range" in text
+        assert "no limit is extrapolated" in text and "Richardson's limit from" not in text

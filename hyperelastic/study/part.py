@@ -92,13 +92,37 @@ def part_refinement(part, scene, watch, size, refine, out_dir, jobs=1, run_args=
 
     rows = parallel_map(one, levels, jobs, log)
     for o in orders:
-        analyse([r for r in rows if r["element_order"] == o])
+        analyse([r for r in rows if r["element_order"] == o], expected_order(kind, o))
     return rows
 
 
-def analyse(rows):
-    """In place: change against the finest finished mesh, the observed order over the others, and
-    Richardson's limit from the three finest (needs the changes to shrink monotonically)."""
+def expected_order(kind, element_order):
+    """The order at which the watched quantity converges for a smooth solution with elements of degree k:
+    k + 1 for displacements (L2 / pointwise), 2k for the energy (the energy norm's square; Strang & Fix,
+    "An Analysis of the Finite Element Method", 1973, ch. 3)."""
+    return 2 * element_order if kind == "elastic_energy" else element_order + 1
+
+
+ASYMPTOTIC = (0.6, 1.5)     # the observed order within these multiples of the expected one
+
+
+def asymptotic(p, order, expected):
+    """'' when the three finest meshes look asymptotic (their changes shrink monotonically and the
+    Richardson order p and the fitted order agree with the element's within ASYMPTOTIC), else why not."""
+    lo, hi = ASYMPTOTIC[0] * expected, ASYMPTOTIC[1] * expected
+    if not math.isfinite(p):
+        return "the changes between the three finest meshes do not shrink monotonically"
+    for name, v in (("Richardson's", p), ("the fitted", order)):
+        if not lo <= v <= hi:
+            return f"{name} observed order {v:.2f} is far from the element's {expected} (outside {lo:.2g}-{hi:.2g})"
+    return ""
+
+
+def analyse(rows, expected=2):
+    """In place: change against the finest finished mesh, the observed order over the others,
+    Richardson's limit from the three finest (needs the changes to shrink monotonically), whether the
+    meshes look asymptotic (`asymptotic_note`: '' if they do, else why not), and what the next refinement
+    would cost (8x the tets; its solve time from the growth between the two finest)."""
     ok = [r for r in rows if r["outcome"] == "finished"]
     if len(ok) < 3:
         return
@@ -110,14 +134,36 @@ def analyse(rows):
     d1, d2 = q2 - q1, q3 - q2
     p = math.log2(d1 / d2) if d1 * d2 > 0 and abs(d2) < abs(d1) else float("nan")
     limit = q3 + d2 / (2 ** p - 1) if math.isfinite(p) else float("nan")
+    note = asymptotic(p, order, expected)
+    growth = ok[-1]["solve_s"] / ok[-2]["solve_s"] if ok[-2].get("solve_s") else float("nan")
     for r in rows:
         r["order"], r["richardson_p"], r["richardson_limit"] = order, p, limit
+        r["expected_order"], r["asymptotic_note"] = expected, note
+        r["next_tets"], r["next_solve_s"] = 8 * ok[-1]["tets"], ok[-1]["solve_s"] * growth
 
 
 COLUMNS = ("element_order", "level", "nprocs", "tets", "h", "quantity", "change", "order", "richardson_p",
-           "richardson_limit",
+           "richardson_limit", "expected_order", "asymptotic_note",
            "outcome", "message", "steps", "newton_its", "ksp_its", "solve_s", "s_per_step", "wall_s",
            "peak_rss_mb", "mesh")
+
+
+def _verdict(o, watch, ok):
+    """The report's first line for element order o: the answer, and whether to trust its extrapolation."""
+    r0, last = ok[0], ok[-1]
+    head = (f"**P{o}: {watch} {last['quantity']:.6g} on the finest mesh ({last['tets']:,} tets); observed order "
+            f"{r0['order']:.2f} (slope of the change against the finest mesh vs h)")
+    nxt = (f"The next refinement (~{r0['next_tets']:,} tets) would take about {fmt(r0['next_solve_s'], '.3g')} s of "
+           "solve time (the growth between the two finest meshes).")
+    if not r0.get("asymptotic_note"):
+        return (head + f"; Richardson's limit from the three finest: {fmt(r0['richardson_limit'], '.6g')} (p = "
+                f"{fmt(r0['richardson_p'], '.2f')}, expected {r0['expected_order']}).** " + nxt)
+    prev = ok[-2]["quantity"]
+    rel = abs(last["quantity"] - prev) / abs(last["quantity"]) if last["quantity"] else float("nan")
+    return (head + f". Not in the asymptotic range: {r0['asymptotic_note']}; no limit is extrapolated (Richardson "
+            f"would give {fmt(r0['richardson_limit'], '.6g')}, p = {fmt(r0['richardson_p'], '.2f')}). The change "
+            f"from the previous mesh, {fmt(100 * rel, '.2g')}%, is the only error indication: refine further"
+            + (" (or use --order 2)" if o == 1 else "") + ".** " + nxt)
 
 
 def part_report(rows, out_dir, command, part, scene, watch):
@@ -130,7 +176,7 @@ def part_report(rows, out_dir, command, part, scene, watch):
         if not ok:
             continue
         a1.semilogx([r["h"] for r in ok], [r["quantity"] for r in ok], "o-", label=f"P{o}: {watch}")
-        if math.isfinite(ok[0].get("richardson_limit", float("nan"))):
+        if math.isfinite(ok[0].get("richardson_limit", float("nan"))) and not ok[0].get("asymptotic_note"):
             a1.axhline(ok[0]["richardson_limit"], ls="--", color="gray", label=f"P{o} Richardson limit")
         ch = [r for r in ok[:-1] if r.get("change")]
         if ch:
@@ -148,11 +194,7 @@ def part_report(rows, out_dir, command, part, scene, watch):
     for o in orders:
         ok = [r for r in rows if r["outcome"] == "finished" and r["element_order"] == o]
         if len(ok) >= 3:
-            r0 = ok[0]
-            L += [f"**P{o}: {watch} {ok[-1]['quantity']:.6g} on the finest mesh ({ok[-1]['tets']:,} tets); observed "
-                  f"order {r0['order']:.2f} (slope of the change against the finest mesh vs h); Richardson's limit "
-                  f"from the three finest: {fmt(r0['richardson_limit'], '.6g')} (p = "
-                  f"{fmt(r0['richardson_p'], '.2f')}).**", ""]
+            L += [_verdict(o, watch, ok), ""]
         else:
             L += [f"P{o}: fewer than three meshes finished: no order.", ""]
     L += [f"Command: `{command}`. Scene: `{scene}`; each mesh is the previous one split uniformly (8x the tets, "
