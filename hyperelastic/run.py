@@ -47,7 +47,7 @@ def run_scene(scene_arg, options_files, restart=None, restart_path=None):
     if helping:                  # PETSc printed its own options as its solvers read them
         return 0
     if not quiet and comm.getRank() == 0:
-        lines = [f"set {line}" for line in model.set_lines()]
+        lines = part_lines(model, scene) + [f"set {line}" for line in model.set_lines()]
         lines += [f"note: {n}" for n in scene.notes + ([solver.merit_note] if solver.merit_note else [])]
         print("\n".join(lines), file=sys.stderr)
     attrs = run_attributes(model, scene_file, solver)
@@ -67,6 +67,24 @@ def run_scene(scene_arg, options_files, restart=None, restart_path=None):
         if advice:
             print(f"note: {advice}", file=sys.stderr)
     return 0
+
+
+MM_LIKE = (20.0, 1e8)      # a part longer than this in mesh units with a modulus above this (Pa) looks like mm
+
+
+def part_lines(model, scene):
+    """The start-up line with the part's size (the mesh's units are read as metres), and a note when the
+    size and the stiffest modulus look like mixed units: a part tens of metres long with a metal's or a
+    plastic's modulus in pascals is, far more often, a part drawn in millimetres."""
+    lo, hi = model.space.bbox
+    ext = hi - lo
+    line = f"part: {ext[0]:.3g} x {ext[1]:.3g} x {ext[2]:.3g} (bounding box; the mesh's units are read as metres)"
+    E = max([scene.solid.values["E"]] + [r.solid.values["E"] for r in scene.regions])
+    if ext.max() > MM_LIKE[0] and E > MM_LIKE[1]:
+        return [line, f"note: a part {ext.max():.3g} m long with E = {E:g} Pa: if it is drawn in millimetres, "
+                      "scale the mesh to metres (or give E, pressures and tractions in MPa and forces in N: then "
+                      "stresses come out in MPa and densities must be in t/mm^3)"]
+    return [line]
 
 
 def _solver(scene, model, comm):

@@ -290,3 +290,23 @@ def test_free_cube_under_pressure_keeps_its_centre_of_mass_on_two_ranks(parts, t
     assert np.abs(centre - centre[0]).max() <= 1e-12
     assert np.abs(x[-1] - X).max() > 1e-3                  # it was compressed
     assert np.abs(r[0]["x"] - r[1]["x"]).max() <= 1e-8
+
+
+def test_part_size_line_and_the_millimetre_note(tmp_path):
+    """The start-up report gives the part's size; the bracket drawn in millimetres (its mesh scaled by 1000)
+    with the aluminium modulus in pascals gets a note naming the likely unit mix-up, the same bracket in
+    metres does not (issue 34)."""
+    import meshio
+    m = tmp_path / "m.msh"
+    run_ok(["mesh", f"{ROOT}/examples/bracket.geo", "--size", 0.012, "-o", m])
+    mesh = meshio.read(m)
+    mesh.points = mesh.points * 1000.0
+    mm = tmp_path / "mm.msh"
+    meshio.write(mm, mesh, file_format="gmsh22", binary=False)
+    for path, note in ((m, False), (mm, True)):
+        p = hyperelastic(["run", f"{ROOT}/examples/bracket.opts", "-mesh", path, "-final_time", 0.25,
+                          "-output", tmp_path / "o.h5"])
+        assert p.returncode == 0, p.stderr
+        part = [ln for ln in p.stderr.splitlines() if ln.startswith("part: ")]
+        assert len(part) == 1 and ("x 0.0" in part[0]) != note, p.stderr
+        assert ("drawn in millimetres" in p.stderr) == note, p.stderr
