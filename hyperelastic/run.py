@@ -1,5 +1,6 @@
 """`hyperelastic run`: Scene -> Model (mesh, space, effects, system) -> Solver -> Writer -> integrator.
 Imported by the command line only after PETSc has been initialized with the run's arguments (cli.py)."""
+import json
 import os
 import resource
 import signal
@@ -11,6 +12,7 @@ from petsc4py import PETSc
 from .catalog import check_solver_options, check_viewer_files, help_text, load_scene, scene_option_names
 from .errors import Interrupted, UserError
 from .files import check_output_path, output_names
+from .forces import record, surface_forces, table
 from .integrators import BackwardEuler
 from .model import build_model, collective
 from .options import Options
@@ -60,8 +62,10 @@ def run_scene(scene_arg, options_files, restart=None, restart_path=None):
     else:
         integ = BackwardEuler(scene, model.system, solver, writer, model.x0, model.v0, checkpoint=restart,
                               quiet=quiet)
-    _integrate(integ, writer, comm)
+    forces = _integrate(integ, writer, comm, scene)
     if not quiet and comm.getRank() == 0:
+        if forces:
+            print("\n".join(table(forces, integ.t)), file=sys.stderr)
         print(f"wrote {out} ({integ.step} steps, {writer.nframes} frames)", file=sys.stderr)
         advice = solver.advice()
         if advice:
@@ -99,15 +103,21 @@ def _solver(scene, model, comm):
     return solver, ts
 
 
-def _integrate(integ, writer, comm):
+def _integrate(integ, writer, comm, scene):
     """Run the integrator with SIGINT/SIGTERM honoured at the next frame; the file is closed whatever
-    happens, kept when the run ended or stopped on request with a checkpoint."""
+    happens, kept when the run ended or stopped on request with a checkpoint. Returns the forces on the
+    body at the end (forces.py; backward Euler and quasi-static runs), also recorded in the file."""
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, lambda signum, frame: integ.request_stop(signum))
     ended = False
+    forces = None
     try:
         integ.run()
         ended = True
+        if isinstance(integ, BackwardEuler):
+            forces = surface_forces(scene, integ.system, integ.x)
+            writer.set_attr("forces", json.dumps({"t": integ.t, "forces": record(forces)}))
+        return forces
     except Interrupted:
         ended = True          # stopped on request with a checkpoint: keep it, even before a first step
         raise
