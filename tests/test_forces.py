@@ -50,3 +50,25 @@ def test_dynamic_balance_includes_inertia_and_damping(tmp_path):
     total = sum(f for f, _ in F.values())
     big = max(np.abs(f).max() for f, _ in F.values())
     assert np.abs(total).max() <= 1e-8 * big and np.abs(F[("load", "inertia")][0]).max() > 0.1 * big
+
+
+def test_watch_quantities_by_name(tmp_path, bracket_mesh):
+    """`study refinement --watch` quantities a user asks for by name: a displacement component at a material
+    point and a held surface's reaction (issue 34), read from a run's output."""
+    from hyperelastic.errors import UserError
+    from hyperelastic.study.part import parse_watch, watched
+    out = tmp_path / "b.h5"
+    run_ok(["run", f"{ROOT}/examples/bracket.opts", "-mesh", bracket_mesh, "-quiet", "-output", out])
+    _, F = forces(out)
+    assert watched(out, *parse_watch("reaction_z:clamp")) == F[("reaction", "clamp")][0][2]
+    assert watched(out, *parse_watch("reaction:clamp")) == np.linalg.norm(F[("reaction", "clamp")][0])
+    with h5py.File(out, "r") as f:
+        X = f["mesh/points"][:]
+    P = ",".join(map(str, X[len(X) // 2]))
+    u = [watched(out, *parse_watch(f"u_{c}:{P}")) for c in "xyz"]
+    assert np.isclose(np.linalg.norm(u), watched(out, *parse_watch(f"point:{P}")), rtol=1e-12)
+    for bad in ("u_w:1,2,3", "u_x:1,2", "reaction", "reaction_q:clamp"):
+        with pytest.raises(UserError):
+            parse_watch(bad)
+    with pytest.raises(UserError, match="holds no surface 'load'"):
+        watched(out, *parse_watch("reaction:load"))

@@ -202,3 +202,14 @@ def test_refinement_says_when_the_meshes_are_not_asymptotic():
         text = _verdict(1, "max_displacement", bad)
         assert why in bad[0]["asymptotic_note"] and "Not in the asymptotic range" in text
         assert "no limit is extrapolated" in text and "Richardson's limit from" not in text
+
+
+def test_refinement_of_a_mesh_independent_quantity():
+    """A quantity that does not change with the mesh (a reaction balancing a dead load) is said to be so,
+    not 'refine further'."""
+    from hyperelastic.study.part import _verdict, analyse
+    rows = [{"outcome": "finished", "h": 0.5 / 2 ** i, "tets": 100 * 8 ** i, "quantity": 120 * (1 + d),
+             "solve_s": 0.1 * 9 ** i} for i, d in enumerate((3e-9, -2e-9, 4e-9, 1e-9))]
+    analyse(rows, expected=2)
+    text = _verdict(1, "reaction_z:clamp", rows)
+    assert "does not depend on the mesh" in text and "refine further" not in text

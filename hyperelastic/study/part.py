@@ -7,6 +7,7 @@ three finest meshes (q_inf = q_N + (q_N - q_{N-1}) / (2^p - 1), p = log2 of the 
 changes; Roache, "Verification and Validation in Computational Science", 1998, ch. 5). With several element
 orders (--order 1,2) every mesh runs at each order (`-order`: the linear meshes elevated to straight-sided
 quadratic cells), and the convergence is analysed per order."""
+import json
 import math
 import os
 
@@ -23,35 +24,51 @@ from ..stability import fmt
 from .measure import read_cost, slope
 
 WATCH_HELP = ("max_displacement (largest |u| over the vertices), point:X,Y,Z (|u| at that material point), "
-              "elastic_energy (at the end)")
+              "u_x:X,Y,Z / u_y / u_z (a component there), elastic_energy (at the end), reaction:SURFACE (|F| of "
+              "a held surface's reaction at the end) / reaction_x:SURFACE / _y / _z (a component)")
+COMPONENTS = {"x": 0, "y": 1, "z": 2}
 
 
 def parse_watch(spec):
-    """(kind, point or None) of a --watch value; UserError for anything else."""
+    """(kind, the material point (point, u_x/u_y/u_z), the surface (reaction, reaction_x/_y/_z) or None) of a
+    --watch value; UserError for anything else."""
     if spec in ("max_displacement", "elastic_energy"):
         return spec, None
-    if spec.startswith("point:"):
+    head, _, arg = spec.partition(":")
+    if head in ("point", "u_x", "u_y", "u_z") and arg:
         try:
-            p = [float(v) for v in spec[6:].split(",")]
+            p = [float(v) for v in arg.split(",")]
         except ValueError:
             p = []
         if len(p) != 3 or not all(map(math.isfinite, p)):
-            raise UserError(f"--watch {spec}: point:X,Y,Z needs three finite coordinates")
-        return "point", np.array(p)
+            raise UserError(f"--watch {spec}: {head}:X,Y,Z needs three finite coordinates")
+        return head, np.array(p)
+    if head in ("reaction", "reaction_x", "reaction_y", "reaction_z") and arg:
+        return head, arg
     raise UserError(f"--watch {spec}: unknown quantity (choose from {WATCH_HELP})")
 
 
-def watched(path, kind, point):
-    """The watched quantity of a finished run (last frame / last step)."""
+def watched(path, kind, where):
+    """The watched quantity of a finished run (last frame / last step); `where`: the material point, or
+    the surface of a reaction."""
     with h5py.File(path, "r") as f:
         x, X, tets = f["x"][-1], f["mesh/points"][:], f["mesh/tetra"][:]
         if kind == "elastic_energy":
             return float(stats.read(f)["elastic"][-1])
+        forces = json.loads(f.attrs["forces"])["forces"] if "forces" in f.attrs else []
+    if kind.startswith("reaction"):
+        F = [r["F"] for r in forces if r["kind"] == "reaction" and r["name"] == where]
+        if not F:
+            held = [r["name"] for r in forces if r["kind"] == "reaction"]
+            raise UserError(f"--watch {kind}:{where}: the scene holds no surface '{where}' (held: "
+                            f"{', '.join(held) or 'none'})")
+        return float(np.linalg.norm(F[0]) if kind == "reaction" else F[0][COMPONENTS[kind[-1]]])
     u = x - X
     if kind == "max_displacement":
         return float(np.linalg.norm(u, axis=1).max())
-    cells, w = locate(X, tets, point)
-    return float(np.linalg.norm(interpolate(tets, cells, w, u)[0]))
+    cells, w = locate(X, tets, where)
+    ui = interpolate(tets, cells, w, u)[0]
+    return float(np.linalg.norm(ui) if kind == "point" else ui[COMPONENTS[kind[-1]]])
 
 
 def meshes(part, size, refine, out_dir):
@@ -99,11 +116,13 @@ def part_refinement(part, scene, watch, size, refine, out_dir, jobs=1, run_args=
 def expected_order(kind, element_order):
     """The order at which the watched quantity converges for a smooth solution with elements of degree k:
     k + 1 for displacements (L2 / pointwise), 2k for the energy (the energy norm's square; Strang & Fix,
-    "An Analysis of the Finite Element Method", 1973, ch. 3)."""
-    return 2 * element_order if kind == "elastic_energy" else element_order + 1
+    "An Analysis of the Finite Element Method", 1973, ch. 3) and for reactions computed from the residual
+    (a functional of the solution like the energy)."""
+    return 2 * element_order if kind == "elastic_energy" or kind.startswith("reaction") else element_order + 1
 
 
 ASYMPTOTIC = (0.6, 1.5)     # the observed order within these multiples of the expected one
+MESH_INDEPENDENT = 1e-6     # a relative change between the two finest meshes below this: the solver's noise
 
 
 def asymptotic(p, order, expected):
@@ -160,6 +179,9 @@ def _verdict(o, watch, ok):
                 f"{fmt(r0['richardson_p'], '.2f')}, expected {r0['expected_order']}).** " + nxt)
     prev = ok[-2]["quantity"]
     rel = abs(last["quantity"] - prev) / abs(last["quantity"]) if last["quantity"] else float("nan")
+    if rel < MESH_INDEPENDENT:
+        return (head + f". It changes by {fmt(100 * rel, '.2g')}% between the two finest meshes: it does not depend "
+                "on the mesh here beyond the solver's tolerance (a reaction balancing a dead load, say).** " + nxt)
     return (head + f". Not in the asymptotic range: {r0['asymptotic_note']}; no limit is extrapolated (Richardson "
             f"would give {fmt(r0['richardson_limit'], '.6g')}, p = {fmt(r0['richardson_p'], '.2f')}). The change "
             f"from the previous mesh, {fmt(100 * rel, '.2g')}%, is the only error indication: refine further"
