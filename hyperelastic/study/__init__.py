@@ -58,7 +58,8 @@ def _parser():
     ap.add_argument("--size", type=float, help="refinement --part: edge length of the coarsest mesh")
     ap.add_argument("--refine", type=int, default=2, help="refinement --part: uniform refinements (default 2)")
     ap.add_argument("--watch", default="max_displacement", help="refinement --part: the quantity, one of "
-                    "max_displacement, point:X,Y,Z, elastic_energy")
+                    "max_displacement, point:X,Y,Z, u_x:X,Y,Z (u_y, u_z), elastic_energy, reaction:SURFACE "
+                    "(reaction_x, _y, _z)")
     ap.add_argument("--run-args", default="", help="refinement --part: more options for every run (quoted)")
     ap.add_argument("--order", default="1", help="refinement --part: element orders, e.g. 1,2 (default 1)")
     return ap
