@@ -18,6 +18,24 @@ def step_count(final_time, dt):
     return n
 
 
+# the option most likely to fix a failed step: by KSP reason for a failed linear solve, else by SNES reason
+KSP_HINTS = {
+    "DIVERGED_MAX_IT": "CG + GAMG (-options_file options/gamg.opts) or a larger -ksp_max_it",
+    "DIVERGED_ITS": "CG + GAMG (-options_file options/gamg.opts) or a larger -ksp_max_it",
+    "DIVERGED_BREAKDOWN": "-ksp_type gmres, or CG + GAMG (-options_file options/gamg.opts)",
+    "DIVERGED_INDEFINITE_PC": "-pc_type jacobi, or CG + GAMG (-options_file options/gamg.opts)",
+    "DIVERGED_INDEFINITE_MAT": "smaller steps (-dt), or -hessian_projection 1",
+}
+SNES_HINTS = {
+    "DIVERGED_MAX_IT": "smaller steps (-dt: more load steps) or a larger -snes_max_it",
+    "DIVERGED_FUNCTION_COUNT": "smaller steps (-dt) or a larger -snes_max_funcs",
+    "DIVERGED_LINE_SEARCH": "smaller steps (-dt), or -inversion_guard 1",
+    "DIVERGED_FNORM_NAN": "smaller steps (-dt), or -inversion_guard 1",
+    "DIVERGED_FUNCTION_DOMAIN": "smaller steps (-dt), or -inversion_guard 1",
+    "DIVERGED_DTOL": "smaller steps (-dt)",
+}
+
+
 class Integrator:
     """What every time integrator of a run shares: the state (x, v, t, step), frames, statistics
     rows, checkpoints, clean stops on SIGINT/SIGTERM and the progress line."""
@@ -178,6 +196,7 @@ class BackwardEuler(Integrator):
             last = t_end - self.t - h <= 1e-12 * H
             stats = self.advance(h, t_end if last else self.t + h)
             why = stats.pop("why", None)
+            linear_only, hint = stats.pop("linear_only", False), stats.pop("hint", "")
             if stats["rejected"]:
                 self._say(f"t={self.t:.4g}: step of h={h:.3g} rejected: {why}")
             self._write_stats(stats)
@@ -185,20 +204,22 @@ class BackwardEuler(Integrator):
                 self.rejections += 1
                 self.streak = 0
                 self.h_try = 0.5 * h
-                if not sc.step_control or self.h_try < sc.dt_min:
-                    self._fail_step(stats, why)
+                if not sc.step_control or self.h_try < sc.dt_min or linear_only:
+                    self._fail_step(stats, why, hint, halving=not linear_only)
                 continue
             self.streak += 1
             if self.h_try < H and self.streak >= sc.dt_grow_after:
                 self.h_try, self.streak = min(2 * self.h_try, H), 0
         return stats
 
-    def _fail_step(self, stats, why):
+    def _fail_step(self, stats, why, hint="", halving=True):
         sc = self.scene
         where = f"step {self.step + 1} (t={stats['time']:.6g}, h={stats['dt']:.3g})"
-        if sc.step_control:
+        if sc.step_control and halving:
             why += f"; step control reached -dt_min {sc.dt_min:.3g} after {self.rejections} rejected attempts"
-        self._fail(where, why)
+        elif sc.step_control:
+            why += "; not retried with a smaller load step (it would not change a quasi-static linear solve)"
+        self._fail(where, why + (f"; try {hint}" if hint else ""))
 
     def advance(self, h, t1=None):
         """One attempt of a step of size h from (x, v, t) to t1 (default t + h). Returns its stats
@@ -222,9 +243,13 @@ class BackwardEuler(Integrator):
                  **self._counter_stats(c0), "rejected": 1}
         if reason <= 0:
             name = self.solver.reason_name(reason)
-            if name == "DIVERGED_LINEAR_SOLVE":
-                name += f": KSP {self.solver.ksp_reason_name()}"
-            stats["why"] = f"SNES did not converge ({name}) after {stats['newton_its']} Newton iterations"
+            ksp = self.solver.ksp_reason_name() if name == "DIVERGED_LINEAR_SOLVE" else ""
+            stats["why"] = (f"SNES did not converge ({name}{': KSP ' + ksp if ksp else ''}) after "
+                            f"{stats['newton_its']} Newton iterations")
+            # a Krylov solve that ran out of iterations on a quasi-static step: the load step's size does not
+            # change the tangent, so halving it would not help (issue 34)
+            stats["linear_only"] = self.scene.quasistatic and ksp in ("DIVERGED_MAX_IT", "DIVERGED_ITS")
+            stats["hint"] = KSP_HINTS.get(ksp, "") if ksp else SNES_HINTS.get(name, "")
             return self._rejected(stats, w0)
         x1 = sysm.impose(sysm.local(self.X, sysm.xl).copy())
         v1 = np.zeros_like(x1) if self.scene.quasistatic else (x1 - self.x) / h
