@@ -72,3 +72,20 @@ def test_watch_quantities_by_name(tmp_path, bracket_mesh):
             parse_watch(bad)
     with pytest.raises(UserError, match="holds no surface 'load'"):
         watched(out, *parse_watch("reaction:load"))
+
+
+def test_quasi_static_linear_failure_is_not_halved_and_names_the_fix(tmp_path, bracket_mesh):
+    """A quasi-static step whose Krylov solve runs out of iterations fails at once (halving the load step
+    would not change the tangent) with the option most likely to fix it; a dynamic one is still retried
+    with smaller steps, and says the same (issue 34)."""
+    out = tmp_path / "f.h5"
+    p = hyperelastic(["run", f"{ROOT}/examples/bracket.opts", "-mesh", bracket_mesh, "-ksp_max_it", 20, "-objective",
+                      0, "-quiet", "-output", out])
+    lines = p.stderr.strip().splitlines()
+    assert p.returncode == 3 and len(lines) == 1, p.stderr
+    assert "not retried with a smaller load step" in lines[0] and "options/gamg.opts" in lines[0]
+    with h5py.File(out, "r") as f:
+        assert int(f["stats/rejected"][:].sum()) == 1
+    p = hyperelastic(["run", "bend", "-level", 1, "-final_time", 0.05, "-ksp_max_it", 2, "-objective", 0, "-quiet",
+                      "-output", tmp_path / "d.h5"])
+    assert p.returncode == 3 and "step control reached -dt_min" in p.stderr and "options/gamg.opts" in p.stderr
