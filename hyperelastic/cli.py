@@ -107,12 +107,9 @@ def _held_stderr(fn):
         os.dup2(tmp.fileno(), 2)
         try:
             out = fn()
-        except BaseException:
+        finally:
             os.dup2(saved, 2)
             os.close(saved)
-            raise
-        os.dup2(saved, 2)
-        os.close(saved)
         tmp.seek(0)
         text = tmp.read()
     if text:

@@ -21,7 +21,8 @@ def surface_forces(scene, system, x):
     each other effect's force on the body; x: the local positions. Collective."""
     sp = system.space
     mpi = sp.mpi
-    r = system.residual_local(x).reshape(-1, 3)
+    each = [(e, system.residual_local(x, effects=[e]).reshape(-1, 3)) for e in system.effects]   # once each
+    r = sum(re for _, re in each)                       # the residual of all effects
     held = system.cmask.reshape(-1, 3)
     X = x.reshape(-1, 3)
     rows = []
@@ -29,11 +30,9 @@ def surface_forces(scene, system, x):
         v = sp.set_vertices(name)
         f = np.where(held[v], r[v], 0.0)
         rows.append(("reaction", name, f.sum(axis=0), np.cross(X[v], f).sum(axis=0)))
-    for e in system.effects:
-        if e.name in INTERNAL:
-            continue
-        f = -system.residual_local(x, effects=[e]).reshape(-1, 3)
-        rows.append(("load", e.name, f.sum(axis=0), np.cross(X, f).sum(axis=0)))
+    for e, re in each:
+        if e.name not in INTERNAL:
+            rows.append(("load", e.name, -re.sum(axis=0), -np.cross(X, re).sum(axis=0)))
     local = np.array([np.concatenate([F, M]) for _, _, F, M in rows]).reshape(-1, 6)
     total = np.empty_like(local)
     mpi.Allreduce(local, total, op=MPI.SUM)

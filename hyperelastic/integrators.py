@@ -19,9 +19,9 @@ def step_count(final_time, dt):
 
 
 # the option most likely to fix a failed step: by KSP reason for a failed linear solve, else by SNES reason
+RAN_OUT = ("DIVERGED_MAX_IT", "DIVERGED_ITS")     # KSP's reason for running out of iterations (new, old name)
 KSP_HINTS = {
-    "DIVERGED_MAX_IT": "CG + GAMG (-options_file options/gamg.opts) or a larger -ksp_max_it",
-    "DIVERGED_ITS": "CG + GAMG (-options_file options/gamg.opts) or a larger -ksp_max_it",
+    **dict.fromkeys(RAN_OUT, "CG + GAMG (-options_file options/gamg.opts) or a larger -ksp_max_it"),
     "DIVERGED_BREAKDOWN": "-ksp_type gmres, or CG + GAMG (-options_file options/gamg.opts)",
     "DIVERGED_INDEFINITE_PC": "-pc_type jacobi, or CG + GAMG (-options_file options/gamg.opts)",
     "DIVERGED_INDEFINITE_MAT": "smaller steps (-dt), or -hessian_projection 1",
@@ -248,7 +248,7 @@ class BackwardEuler(Integrator):
                             f"{stats['newton_its']} Newton iterations")
             # a Krylov solve that ran out of iterations on a quasi-static step: the load step's size does not
             # change the tangent, so halving it would not help (issue 34)
-            stats["linear_only"] = self.scene.quasistatic and ksp in ("DIVERGED_MAX_IT", "DIVERGED_ITS")
+            stats["linear_only"] = self.scene.quasistatic and ksp in RAN_OUT
             stats["hint"] = KSP_HINTS.get(ksp, "") if ksp else SNES_HINTS.get(name, "")
             return self._rejected(stats, w0)
         x1 = sysm.impose(sysm.local(self.X, sysm.xl).copy())

@@ -114,23 +114,20 @@ def generate(name, level, out, size=None, refine=0, order=1):
                 gmsh.model.mesh.setOrder(order)
             tmps.append(o + f".tmp{os.getpid()}.msh")
             gmsh.write(tmps[-1])
-    except BaseException:
+        gmsh.finalize()
+        meshes = []       # every mesh read back and checked before any is renamed into place
+        for o, tmp in zip(outs, tmps):
+            try:
+                meshes.append(read_mesh(tmp))
+            except UserError as e:
+                raise UserError(str(e).replace(tmp, o)) from None
+    except BaseException:  # nothing of a failed run stays behind
+        if gmsh.isInitialized():
+            gmsh.finalize()
         for tmp in tmps:
             if os.path.exists(tmp):
                 os.remove(tmp)
         raise
-    finally:
-        gmsh.finalize()
-    meshes = []
-    try:                  # every mesh read back and checked before any is renamed into place
-        for o, tmp in zip(outs, tmps):
-            meshes.append(read_mesh(tmp))
-    except UserError as e:
-        raise UserError(str(e).replace(tmp, o)) from None
-    finally:
-        if len(meshes) < len(tmps):
-            for tmp in tmps:
-                os.remove(tmp)
     stats = []
     for i, (o, tmp, m) in enumerate(zip(outs, tmps, meshes)):
         os.replace(tmp, o)
@@ -449,16 +446,16 @@ def check_pieces(points, tets, path):
     bhi = np.full((k, 3), -np.inf)
     np.minimum.at(blo, cell_comp, lo)
     np.maximum.at(bhi, cell_comp, hi)
+    order = np.argsort(cell_comp, kind="stable")
+    members = np.split(order, np.searchsorted(cell_comp[order], np.arange(1, k)))     # each piece's cells
     for a in range(k):
         for b in range(a + 1, k):
             if (np.minimum(bhi[a], bhi[b]) <= np.maximum(blo[a], blo[b])).any():
                 continue                                    # the boxes do not overlap
             for p, q in ((a, b), (b, a)):
-                pts = np.flatnonzero(cell_comp == p)
-                hit = inside_cells(points, tets[cell_comp == q], centres[pts])
+                hit = inside_cells(points, tets[members[q]], centres[members[p]])
                 if hit is not None:
-                    c = int(pts[hit[0]])
-                    other = int(np.flatnonzero(cell_comp == q)[hit[1]])
+                    c, other = int(members[p][hit[0]]), int(members[q][hit[1]])
                     raise UserError(f"mesh '{path}': tetrahedra {min(c, other)} and {max(c, other)} overlap (in "
                                     "separate pieces of the mesh: the centre of one lies inside the other)")
 
@@ -490,8 +487,9 @@ def inside_cells(points, tets, P, tol=1e-9):
     n = stop - start
     pi = np.repeat(np.arange(len(P)), n)
     ci = cells[np.repeat(start, n) + np.arange(n.sum()) - np.repeat(np.cumsum(n) - n, n)]
-    for lo_, hi_ in ((i, min(i + 1 << 20, len(pi))) for i in range(0, len(pi), 1 << 20)):
-        pp, cc = pi[lo_:hi_], ci[lo_:hi_]
+    chunk = 1 << 20                                  # (point, cell) pairs per batch: bounded temporaries
+    for lo_ in range(0, len(pi), chunk):
+        pp, cc = pi[lo_:lo_ + chunk], ci[lo_:lo_ + chunk]
         X0 = X[cc, 0]
         D = np.stack([X[cc, a] - X0 for a in (1, 2, 3)], axis=-1)
         lam = np.linalg.solve(D, (P[pp] - X0)[..., None])[..., 0]
