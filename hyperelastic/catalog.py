@@ -20,8 +20,8 @@ from . import effects, materials
 from .element import DEFAULT_DEGREE, TET_RULES
 from .errors import UserError
 from .options import PREFIX, Options, Row, insert_defaults, parse_options_file, resolve_scene
-from .scene import (ASSEMBLIES, DEFAULT_EFFECTS, DEFAULT_MATERIAL, EFFECTS, EFFECTS_RULE, INTEGRATORS, JACOBIANS,
-                    STORAGES, Scene, read_scene)
+from .scene import (ASSEMBLIES, DEFAULT_EFFECTS, DEFAULT_MATERIAL, EFFECTS, EFFECTS_RULE, FORMULATIONS, INTEGRATORS,
+                    JACOBIANS, STORAGES, Scene, read_scene)
 
 _S = Scene(name="SCENE")
 _OWN = tuple(materials.own_parameters())       # the materials' own constants (-C10, -kappa, ...)
@@ -44,6 +44,12 @@ HEAD = (
     Row(("quadrature_degree",), "-quadrature_degree N", "the degree of the rule that integrates quadratic "
         "tetrahedra's stiffness: " + ", ".join(f"{d} ({len(TET_RULES[d][1])} points)" for d in TET_RULES if d > 1)
         + "; the mass matrix and the loads are integrated exactly on straight cells", str(DEFAULT_DEGREE[2])),
+    Row(("formulation",), "-formulation displacement|mixed", "`mixed`: a continuous linear pressure beside "
+        "quadratic displacements (Taylor–Hood P2–P1, needs `-order 2`) for nearly incompressible materials with an "
+        "isochoric/volumetric split (neohookean_split, mooney_rivlin, linear); the pressure p is the mean Cauchy "
+        "stress (an output field); GMRES with a Schur-complement field split by default", _S.formulation),
+    Row(("incompressible",), "-incompressible", "the mixed formulation's incompressible limit (bulk modulus → ∞: "
+        "J = 1, or tr ε = 0 for `linear`)", "off"),
     Row(("material",), "-material NAME", _material_list(), DEFAULT_MATERIAL),
     Row(("hessian_projection",), "-hessian_projection", "element tangents projected to positive semi-definite "
         "(eigenvalues clamped at 0); the residual is unchanged", "off"),
@@ -123,7 +129,7 @@ TAIL = (
 ROWS = HEAD + tuple(row for spec in effects.REGISTRY for row in spec.rows) + TAIL
 
 # the choices a row's values come from, checked against the scene reader's own lists by the tests
-CHOICES = {"material": materials.REGISTRY, "jacobian": JACOBIANS, "assembly": ASSEMBLIES,
+CHOICES = {"material": materials.REGISTRY, "jacobian": JACOBIANS, "formulation": FORMULATIONS, "assembly": ASSEMBLIES,
            "operator_storage": STORAGES, "integrator": INTEGRATORS, "effects": EFFECTS}
 
 # The PETSc families an option may belong to (its first word): passed on to PETSc.

@@ -11,6 +11,7 @@ import numpy as np
 
 
 POINT_FIELDS = ("displacement", "velocity")
+POINT_SCALARS = ("pressure",)     # scalar point fields: the mixed formulation's pressure (mean Cauchy stress)
 CELL_FIELDS = ("J", "energy_density", "von_mises")
 
 

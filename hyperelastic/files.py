@@ -117,6 +117,9 @@ def check_output_path(path, inputs=(), suffixes=(".h5", ".hdf5")):
 CHECKPOINT_ATTRS = ("t", "step", "n", "h_try", "streak", "rejections", "nframes", "nstats")
 
 
+CHECKPOINT_NODAL = ("pressure",)     # optional scalar state per node (the mixed formulation's pressure)
+
+
 def read_checkpoint(path):
     """(state dict with x, v and CHECKPOINT_ATTRS, root attributes) of the last complete checkpoint
     in an output file; UserError when there is none."""
@@ -148,6 +151,12 @@ def read_checkpoint(path):
             state[k] = a[:]
             if not np.isfinite(state[k]).all():
                 raise UserError(f"--restart '{path}': checkpoint {k} holds non-finite values")
+        for k in CHECKPOINT_NODAL:
+            if k in g:
+                a = g[k]
+                if a.shape != (nv,) or a.dtype.kind != "f" or not np.isfinite(a[:]).all():
+                    raise UserError(f"--restart '{path}': checkpoint {k} is not {nv} finite numbers")
+                state[k] = a[:]
         for k in CHECKPOINT_ATTRS:
             v = np.asarray(g.attrs[k])
             if v.shape != () or v.dtype.kind not in "iuf" or not np.isfinite(v):

@@ -138,13 +138,14 @@ class Integrator:
         """The state, the step-size state and the output counters (-integrator ts: x and v as TS holds them;
         there the uninterrupted run restarts at the checkpoints too)."""
         self.solver.rebuild_preconditioner()     # where a restart begins: the same set-ups in both runs
-        self.writer.checkpoint(self.x, self.v, t=self.t, step=self.step, n=n, h_try=self.h_try, streak=self.streak,
+        self.writer.checkpoint(self.x, self.v, nodal=self.system.nodal_state(), t=self.t, step=self.step, n=n, h_try=self.h_try, streak=self.streak,
                                rejections=self.rejections, nframes=self.writer.nframes, nstats=self.writer.nstats)
 
     def _resume(self, state):
         """Continue from a checkpoint (files.read_checkpoint): the same state, step control included."""
         sp = self.sp
         self.x, self.v = sp.scatter(state["x"]), sp.scatter(state["v"])
+        self.system.resume(state)
         self.t, self.step, self.n0 = float(state["t"]), int(state["step"]), int(state["n"])
         self.h_try, self.streak, self.rejections = float(state["h_try"]), int(state["streak"]), int(state["rejections"])
 
@@ -160,7 +161,7 @@ class BackwardEuler(Integrator):
         checkpoint's state (files.read_checkpoint) when given, writing frames and statistics to
         `writer` (None: nothing is written). The scene gives the time settings."""
         super().__init__(scene, system, solver, writer, x0, v0, quiet)
-        self.X = self.sp.global_vec()
+        self.X = system.unknown_vec()
         if checkpoint is not None:
             self._resume(checkpoint)
 
@@ -251,12 +252,14 @@ class BackwardEuler(Integrator):
             stats["linear_only"] = self.scene.quasistatic and ksp in RAN_OUT
             stats["hint"] = KSP_HINTS.get(ksp, "") if ksp else SNES_HINTS.get(name, "")
             return self._rejected(stats, w0)
+        sysm.solved(self.X)
         x1 = sysm.impose(sysm.local(self.X, sysm.xl).copy())
         v1 = np.zeros_like(x1) if self.scene.quasistatic else (x1 - self.x) / h
         if not self._energy_stats(x1, v1, stats):   # a NaN/Inf state never reaches the output
             stats["why"] = "non-finite positions or energies after a converged solve"
             return self._rejected(stats, w0)
         self.x, self.v, self.t = x1, v1, t1
+        sysm.accept(self.X)
         self.step += 1
         stats.update({"rejected": 0, "wall_s": time.perf_counter() - w0})
         return stats
@@ -266,11 +269,10 @@ class BackwardEuler(Integrator):
         positions. Where the material is undefined when inverted and that start inverts cells (fast
         prescribed ends outrunning their neighbours' predicted motion), the previous positions x^n
         instead, if they do not (the residual there is defined, so Newton can start)."""
-        sysm, sp = self.system, self.sp
+        sysm = self.system
         guesses = [self.x + h * self.v] if not self.scene.quasistatic and self.v.any() else []
         for guess in guesses + [self.x]:
-            self.X.getArray()[:] = sp.owned_array(guess)
-            sysm.impose_global(self.X)
+            sysm.set_guess(self.X, guess)
             if not sysm.check_domain or guess is self.x or sysm.defined_at(self.X):
                 return
 

@@ -2,12 +2,14 @@
 with the initial state the System is calibrated at. Shared by the command line, the tests and the
 scripts (PETSc must already be initialized). The solver, the integrator and the output build on it
 (see cli.run)."""
+import math
 from dataclasses import dataclass
 
 import numpy as np
 from mpi4py import MPI
 
 from . import effects as effects_pkg
+from . import mixed
 from .errors import UserError
 from .element import DEFAULT_DEGREE, Element
 from .kernels import Cells, ElementCells, RegionKernels
@@ -159,16 +161,17 @@ def material_regions(scene, mesh, labels, report):
                        "line": f"(other cells): {len(rest)} tets, volume {mesh.volume(rest):.6g}; the scene's {own}"})
 
 
-def cell_kernels(scene, space):
+def cell_kernels(scene, space, constants=None):
     """(elastic cell kernels, density: a scalar, or per local cell with -regions) of the scene's
-    material(s) on the space's cells (a kernels.Cells)."""
+    material(s) on the space's cells (a kernels.Cells); constants: the scene material's parameter block
+    instead of its own (the mixed formulation's isochoric part)."""
     sc = scene
     if scene.order == 2:
         cells = ElementCells(space.cells, space.X, Element(2, scene.quadrature or DEFAULT_DEGREE[2]))
     else:
         cells = Cells(space.cells, space.Dminv, space.vol)
     if not sc.regions:
-        return cells.kernels(sc.solid.name, sc.solid.constants), sc.solid.rho
+        return cells.kernels(sc.solid.name, constants or sc.solid.constants), sc.solid.rho
     which = space.cell_values(MATERIAL_LABEL)
     solids = [sc.solid] + [r.solid for r in sc.regions]
     unused = space.mpi.allreduce(int((which == 0).sum())) == 0     # every cell is in a listed region
@@ -191,9 +194,20 @@ def build_model(scene, comm):
         space = QuadraticSpace(comm, points, mesh.tets if mesh is not None else None, labels, tets)
     scene.order = order
     report = space.mpi.bcast(report, root=0)
-    k, density = cell_kernels(scene, space)
+    split = None
+    if scene.formulation == "mixed":
+        mixed.check_scene(scene, scene.jacobian, scene.integrator)
+        split = mixed.check_material(scene.solid, "the scene's")
+    k, density = cell_kernels(scene, space, split[0] if split else None)
     ctx = effects_pkg.Context(space, k, k.geometry, density, scene.lumped, scene.hessian_projection)
     effects, constraints = effects_pkg.build(scene, ctx)
     x0, v0 = initial_state(scene, space)
-    system = System(space, effects, constraints, x0, v0, scene.dt)
+    if split is None:
+        system = System(space, effects, constraints, x0, v0, scene.dt)
+    else:
+        _, mu, kappa = split
+        pspace = mixed.PressureSpace(space)
+        law = mixed.Volumetric(scene.solid.material.volumetric, math.inf if scene.incompressible else kappa)
+        coupling = mixed.PressureCoupling(k.geometry, law.kind, law, pspace.nlp)
+        system = mixed.MixedSystem(space, effects + [coupling], constraints, x0, v0, scene.dt, coupling, mu, pspace)
     return Model(scene, points, tets, space, k, system, x0, v0, report)

@@ -24,7 +24,7 @@ from petsc4py import PETSc
 
 from . import __version__
 from .errors import UserError
-from .fields import cell_fields
+from .fields import POINT_SCALARS, cell_fields
 from .files import CHECKPOINT_ATTRS, PARTIAL
 from .options import all_options
 from .stats import column_type
@@ -88,6 +88,7 @@ class Writer:
         fields (none without); region: the local cells' region tags (collective)."""
         self.space = space
         self.kernels = kernels
+        self.point_scalars = None      # () -> {name: local array per node}: scalar point fields of a frame
         self.f = None            # the HDF5 file (rank 0, once opened)
         self.points = None if points is None else np.asarray(points, np.float64)
         self.root = space.mpi.rank == 0
@@ -148,14 +149,16 @@ class Writer:
         f.attrs["options"] = attrs["options"]      # what this part ran with (a later restart uses it)
         f.flush()
 
-    def checkpoint(self, x_local, v_local, **state):
+    def checkpoint(self, x_local, v_local, nodal=None, **state):
         """The full state into checkpoint/<slot>, alternating two slots; the root attribute
         checkpoint_slot names the complete one and is written after its data is flushed, so a kill at
-        any moment leaves the previous checkpoint intact. Collective."""
+        any moment leaves the previous checkpoint intact; nodal: {name: local scalar per node} of the state
+        beyond x and v (the mixed formulation's pressure). Collective."""
         x, v = self.space.gather(x_local), self.space.gather(v_local)
-        self._ensure_room(lambda: 48 * len(x) + 16384, "a checkpoint")
+        extra = {k: self.space.gather_nodal(a) for k, a in (nodal or {}).items()}
+        self._ensure_room(lambda: 56 * len(x) + 16384, "a checkpoint")
         if self.root:
-            self._write_checkpoint(x, v, state)
+            self._write_checkpoint(x, v, state, extra)
         self._leave_together()
 
     def _leave_together(self):
@@ -164,12 +167,12 @@ class Writer:
         residual in -log_view and the step timers)."""
         self.space.mpi.Barrier()
 
-    def _write_checkpoint(self, x, v, state):
+    def _write_checkpoint(self, x, v, state, extra):
         f = self.f
         self._flush_stats()
         slot = 1 - int(f.attrs.get("checkpoint_slot", 1))
         g = f.require_group(f"checkpoint/{slot}")
-        for name, a in (("x", x), ("v", v)):
+        for name, a in (("x", x), ("v", v), *extra.items()):
             if name not in g:
                 g.create_dataset(name, data=a)
             else:
@@ -187,6 +190,8 @@ class Writer:
         cells = {}
         if self.kernels is not None:
             cells = {k: self.space.gather_cells(a) for k, a in cell_fields(self.kernels, x_local).items()}
+        if self.point_scalars is not None:             # (the mixed formulation's pressure)
+            cells.update({k: self.space.gather_nodal(a) for k, a in self.point_scalars().items()})
         if self.root:
             nbytes = 8 * (3 * self.nv * (3 if vel is not None else 2) + sum(len(a) for a in cells.values())) + 16384
         self._ensure_room(lambda: nbytes, f"frame {self.nframes}")
@@ -312,7 +317,7 @@ class Writer:
         attrs = [self._attribute(h5, "/mesh/region", "region", (self.nc,), "Cell", "Int")]
         for name, shape in fields:
             attrs.append(self._attribute(h5, f"/frames/{i}/{name}", name, shape,
-                                         "Node" if len(shape) == 2 else "Cell", "Float"))
+                                         "Node" if len(shape) == 2 or name in POINT_SCALARS else "Cell", "Float"))
         return (f'   <Grid Name="frame{i}" GridType="Uniform">\n{self._mesh_text}\n    <Time Value="{t:.17g}"/>\n'
                 + "\n".join(attrs) + "\n   </Grid>\n")
 

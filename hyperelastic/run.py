@@ -56,6 +56,8 @@ def run_scene(scene_arg, options_files, restart=None, restart_path=None):
     stage.pop()
     writer = Writer(out, model.space, model.points, model.tets, attrs, resume=restart, kernels=model.kernels,
                     region=model.space.cell_values(REGION_LABEL))
+    if getattr(model.system, "mixed", False):
+        writer.point_scalars = lambda: {"pressure": model.system.pressure_nodal()}
     if ts is not None:
         integ = GeneralizedAlpha(scene, model.system, solver, writer, model.x0, model.v0, ts, checkpoint=restart,
                                  quiet=quiet)

@@ -30,6 +30,8 @@ class Scene:
     level: int = 1
     order: int = 0              # element order: 1 (4-node) or 2 (10-node) tetrahedra; 0: the mesh's own
     quadrature: int = 0         # degree of the stiffness rule of P2 (element.TET_RULES); 0: element.DEFAULT_DEGREE
+    formulation: str = "displacement"   # or mixed: a pressure field (mixed.py)
+    incompressible: bool = False        # the mixed formulation's incompressible limit (kappa -> inf)
     solid: materials.Solid = field(default_factory=lambda: materials.default_solid(DEFAULT_MATERIAL))
     lumped: bool = False
     quasistatic: bool = False
@@ -86,6 +88,7 @@ class Region:
 
 MAX_STEPS, MAX_FRAMES = 1e9, 1e6   # a run beyond these is a typo, not a simulation on this machine
 JACOBIANS = ("assembled", "shell", "seed_fd", "seed_fd2")
+FORMULATIONS = ("displacement", "mixed")   # mixed: displacement-pressure, Taylor-Hood P2-P1 (mixed.py)
 INTEGRATORS = ("beuler", "ts")
 ASSEMBLIES = ("setvalues", "coo")
 STORAGES = ("auto", "aij", "sbaij", "shell")   # the matrix the Krylov method multiplies by (solver.resolve_storage)
@@ -127,6 +130,10 @@ def _read_material(s, opts):
         raise UserError("option -quadrature_degree: linear tetrahedra are integrated exactly at one point (it is "
                         "for -order 2)")
     s.solid = materials.read_solid(opts, "", s.solid, f"scene '{s.name}'")
+    s.formulation = opts.choice("formulation", FORMULATIONS, s.formulation)
+    s.incompressible = opts.flag("incompressible", s.incompressible)
+    if s.incompressible and s.formulation != "mixed":
+        raise UserError("option -incompressible: the incompressible limit needs a pressure field (-formulation mixed)")
     s.lumped = opts.choice("mass", ("consistent", "lumped"), "lumped" if s.lumped else "consistent") == "lumped"
     s.initial_scale = opts.vector("initial_scale")
     if s.initial_scale is not None and 0.0 in s.initial_scale:

@@ -5,11 +5,29 @@ loads) + Jacobi (no PC under -snes_mf)."""
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from . import jacobians
+from . import jacobians, mixed
 from .errors import UserError
 from .libpetsc import lag_preconditioner, lag_preconditioner_persists, set_function_domain_error
 
 MERITS = ("energy", "residual norm")
+
+
+# the mixed formulation's linear solver (mixed.py): GMRES on the saddle point, a full Schur-complement
+# factorization with GAMG on the displacement block and Jacobi on the scaled pressure mass matrix
+MIXED_DEFAULTS = (("ksp_type", "gmres"), ("pc_type", "fieldsplit"), ("pc_fieldsplit_type", "schur"),
+                  ("pc_fieldsplit_schur_fact_type", "full"), ("fieldsplit_u_ksp_type", "preonly"),
+                  ("fieldsplit_u_pc_type", "gamg"), ("fieldsplit_p_ksp_type", "preonly"),
+                  ("fieldsplit_p_pc_type", "jacobi"))
+
+
+def apply_mixed_defaults():
+    """The mixed formulation's solver defaults where the options database does not set them: the field split
+    only when no -pc_type is given (a user's -pc_type lu, say, replaces all of it)."""
+    opts = PETSc.Options()
+    split = not opts.getBool("snes_mf", False) and not opts.hasName("pc_type")
+    for k, v in MIXED_DEFAULTS:
+        if (k == "ksp_type" or split) and not opts.hasName(k):
+            opts.setValue(k, v)
 
 
 def apply_defaults(merit="residual norm", symmetric=True):
@@ -39,6 +57,10 @@ def resolve_storage(storage, system, jacobian, assembly, mf):
     (default): sbaij where it applies, else aij; an explicit sbaij or shell where it does not is an error."""
     if storage == "aij":
         return storage
+    if getattr(system, "mixed", False):
+        if storage == "auto":
+            return "aij"
+        raise UserError(f"option -operator_storage {storage}: the mixed formulation's tangent is stored as AIJ")
     if storage == "auto":
         ok = (jacobian == "assembled" and assembly == "setvalues" and not mf
               and all(e.symmetric for e in system.effects))
@@ -67,6 +89,7 @@ def matrix_free():
 
 
 class Solver:
+    mixed = False        # the system is the mixed formulation's (mixed.py): its field split
     def __init__(self, system, jacobian, assembly="setvalues", guard=False, objective=True, snes=None,
                  reuse_pc="auto", storage="auto"):
         """SNES on the system's residual with Jacobian mode `jacobian` (scene.JACOBIANS; filled by
@@ -86,10 +109,16 @@ class Solver:
         elif objective and not system.conservative:
             self.merit_note = (f"{', '.join(system.nonconservative())} has no potential: the line search "
                                "merit is the residual norm")
+        self.mixed = getattr(system, "mixed", False)
+        if self.mixed and objective:
+            self.merit_note = ("the mixed formulation's solution is a saddle point, not a minimum: the line search "
+                               "merit is the residual norm")
         self.merit = MERITS[0] if objective and system.conservative and snes is None else MERITS[1]
+        if self.mixed:
+            apply_mixed_defaults()
         apply_defaults(self.merit, all(e.symmetric for e in system.effects))
         self.mf = matrix_free()
-        self.R = sp.global_vec()
+        self.R = system.unknown_vec()
         own = snes is None
         self.snes = snes = PETSc.SNES().create(comm=sp.comm) if own else snes
         if own:
@@ -100,7 +129,8 @@ class Solver:
         self.op = None
         self.storage = resolve_storage(storage, system, jacobian, assembly, self.mf)
         if self.mf != "mf":   # under -snes_mf no Jacobian of ours is used: do not build one
-            self.op = jacobians.make(system, jacobian, assembly, self.storage)
+            self.op = (mixed.MixedAssembled(system) if self.mixed else
+                       jacobians.make(system, jacobian, assembly, self.storage))
             if own:
                 snes.setJacobian(self._jacobian, self.op.operator, self.op.mat)
         self.inversion_cuts = 0   # Newton updates shortened so that no element inverts
@@ -110,6 +140,8 @@ class Solver:
             snes.setLineSearchPreCheck(self._precheck)
         if own:
             snes.setFromOptions()
+        if self.mixed:
+            self._field_split()
         self.reuse = None
         self.linear_solves, self.linear_its = 0, 0
         if self.op is not None:
@@ -117,6 +149,18 @@ class Solver:
         self._setup_reuse(reuse_pc)
         self.ev_res = PETSc.Log.Event("HE_Residual")
         self.ev_jac = PETSc.Log.Event("HE_Jacobian")
+
+    def _field_split(self):
+        """Under -pc_type fieldsplit: the fields u (displacements, with the rigid-body near null space) and p
+        (pressures), and the Schur complement preconditioned by -(1/mu + 1/kappa) M_p unless the options choose."""
+        pc = self.snes.getKSP().getPC()
+        if pc.getType() != "fieldsplit":
+            return
+        sysm = self.system
+        pc.setFieldSplitIS(("u", sysm.is_u), ("p", sysm.is_p))
+        if not PETSc.Options().hasName("pc_fieldsplit_schur_precondition"):
+            self.schur_pre = sysm.pressure_mass()
+            pc.setFieldSplitSchurPreType(PETSc.PC.FieldSplitSchurPreType.USER, self.schur_pre)
 
     # preconditioner set-ups worth keeping across Newton iterations and time steps (multigrid hierarchies)
     REUSED_PCS = ("gamg",)
@@ -143,6 +187,16 @@ class Solver:
         if self.reuse is not None:
             self.reuse["pending"] = True
             lag_preconditioner(self.snes, -2)
+        if self.mixed and self.snes.getKSP().getPC().getType() == "fieldsplit":
+            # the field split's GAMG keeps state from one set-up to the next (a ILU split does not): a new KSP
+            # where a restart begins, so that both runs continue bitwise alike
+            old = self.snes.getKSP()
+            ksp = PETSc.KSP().create(comm=old.getComm())
+            ksp.setOptionsPrefix(old.getOptionsPrefix())
+            self.snes.setKSP(ksp)
+            ksp.setFromOptions()
+            ksp.setPostSolve(self._after_linear_solve)
+            self._field_split()
 
     def _after_linear_solve(self, ksp, b, x):
         its = ksp.getIterationNumber()

@@ -217,6 +217,15 @@ class Space:
         out[self._gorder] = np.concatenate(parts)
         return out
 
+    def gather_nodal(self, local_array):
+        """(nv,) array of a scalar per node in the input mesh's node order on rank 0; None elsewhere."""
+        parts = self.mpi.gather(np.ascontiguousarray(local_array[self.owned]), root=0)
+        if self.mpi.rank != 0:
+            return None
+        out = np.empty(self.nv_total)
+        out[self._gorder] = np.concatenate(parts)
+        return out
+
     def gather_cells(self, local_array):
         """(nc_total, ...) array of per-cell values in the input mesh's cell order on rank 0; None elsewhere."""
         parts = self.mpi.gather(np.ascontiguousarray(local_array), root=0)

@@ -68,6 +68,28 @@ class System:
         self.linearize(X)
         self.set_scale(self.space.global_vec())
 
+    def unknown_vec(self):
+        """A new global vector of the unknown (the positions; MixedSystem: and the pressure)."""
+        return self.space.global_vec()
+
+    def set_guess(self, X, x):
+        """X = the state with local positions x (constrained dofs imposed); MixedSystem: and the accepted pressure."""
+        X.getArray()[:] = self.space.owned_array(x)
+        self.impose_global(X)
+
+    def nodal_state(self):
+        """{name: local scalar per node} of the state beyond positions and velocities (for checkpoints)."""
+        return {}
+
+    def resume(self, state):
+        """Continue from a checkpoint's state (files.read_checkpoint) beyond x and v."""
+
+    def solved(self, X):
+        """X is a solve's result: what follows (energies, forces) is evaluated there (MixedSystem: its pressure)."""
+
+    def accept(self, X):
+        """The solve's result X is the new state (MixedSystem keeps its pressure)."""
+
     def global_state(self, x):
         """A new global vector holding local positions x, with the constrained dofs imposed."""
         X = self.space.global_vec()

@@ -7,7 +7,7 @@ import pytest
 
 from conftest import ROOT, hyperelastic, run_ok
 from hyperelastic import catalog, materials
-from hyperelastic.scene import ASSEMBLIES, EFFECTS, INTEGRATORS, JACOBIANS, STORAGES
+from hyperelastic.scene import ASSEMBLIES, EFFECTS, FORMULATIONS, INTEGRATORS, JACOBIANS, STORAGES
 
 
 def test_readme_table_is_the_catalog():
@@ -44,9 +44,10 @@ def test_every_option_read_is_in_the_catalog():
     for prefix in ("traction", "pressure", "force", "body_force"):   # time functions of the un-named loads
         assert {f"{prefix}_time", f"{prefix}_ramp"} <= known
     assert catalog.CHOICES == {"material": materials.REGISTRY, "jacobian": JACOBIANS, "assembly": ASSEMBLIES,
-                               "operator_storage": STORAGES, "integrator": INTEGRATORS, "effects": EFFECTS}
+                               "operator_storage": STORAGES, "integrator": INTEGRATORS, "effects": EFFECTS,
+                               "formulation": FORMULATIONS}
     for row in catalog.ROWS:
-        if row.names[0] in ("material", "jacobian", "assembly", "operator_storage", "integrator"):
+        if row.names[0] in ("material", "jacobian", "assembly", "operator_storage", "integrator", "formulation"):
             for choice in catalog.CHOICES[row.names[0]]:
                 assert choice in row.help + row.synopsis, (row.names[0], choice)
 

@@ -53,7 +53,7 @@ LAYERS = [
     ["materials"],
     ["kernels", "effects"],
     ["scene", "stats", "space", "system", "fields"],
-    ["catalog", "model", "aij", "jacobians", "solver", "output", "integrators", "forces"],
+    ["catalog", "model", "mixed", "aij", "jacobians", "solver", "output", "integrators", "forces"],
     ["ts_integrator", "run", "stability", "study", "repro", "experiments"],
     ["cli", "__main__"],
 ]

@@ -40,6 +40,10 @@ class Material:
     quadratic = False              # energy quadratic in F: the midpoint force is the discrete gradient
     parameters = ()                # Parameter: its constants beyond E, nu, rho
     references = ""                # where the model comes from (for -help)
+    # the mixed displacement-pressure formulation (-formulation mixed, mixed.py) takes the volumetric part of
+    # the energy as an independent pressure: "J" (the constraint G = J - 1, U(J) = kappa/4 (J^2 - 1 - 2 ln J)),
+    # "trace" (G = tr eps, U = kappa/2 (tr eps)^2: the linear material); None: no split, no mixed formulation
+    volumetric = None
 
     @staticmethod
     def constants(v):
@@ -50,3 +54,9 @@ class Material:
     @classmethod
     def check(cls, v, where):
         """Conditions on the parameters together (beyond each one's range): UserError where they fail."""
+
+    @staticmethod
+    def split(v):
+        """(the kernel's parameter block of the isochoric part alone, shear modulus mu, bulk modulus kappa):
+        for the mixed formulation, of a material with `volumetric`."""
+        raise NotImplementedError

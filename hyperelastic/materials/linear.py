@@ -1,7 +1,7 @@
 import numpy as np
 
 from ._tensor import I3, sym, tr
-from .base import Material
+from .base import Material, lame
 
 
 class Linear(Material):
@@ -10,6 +10,14 @@ class Linear(Material):
     name = "linear"
     defined_when_inverted = True
     quadratic = True               # the midpoint force is already the discrete gradient (-energy_momentum)
+    volumetric = "trace"
+
+    @staticmethod
+    def split(v):
+        """mu eps:eps + lam/2 (tr eps)^2 = mu dev eps:dev eps + kappa/2 (tr eps)^2, kappa = lam + 2 mu/3: the
+        deviatoric part is this material's energy with lam = -2 mu/3."""
+        lam, mu = lame(v["E"], v["nu"])
+        return (mu, -2.0 * mu / 3.0), mu, lam + 2.0 * mu / 3.0
 
     @staticmethod
     def psi(F, c):

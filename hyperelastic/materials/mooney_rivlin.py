@@ -17,6 +17,7 @@ class MooneyRivlin(Material):
     summary = "C10, C01, κ"
     defined_when_inverted = False
     references = "Holzapfel 2000, sec. 6.5"
+    volumetric = "J"
     parameters = (
         Parameter("C10", "Pa", "the first invariant's modulus", lambda v: shear_modulus(v) / 2 - v.get("C01", 0.0),
                   "μ/2 − C01 (μ = E/(2(1+ν)))", exclusive=False),
@@ -27,6 +28,10 @@ class MooneyRivlin(Material):
     @staticmethod
     def constants(v):
         return (v["C10"], v["C01"], v["kappa"])
+
+    @staticmethod
+    def split(v):
+        return (v["C10"], v["C01"], 0.0), 2.0 * (v["C10"] + v["C01"]), v["kappa"]
 
     @classmethod
     def check(cls, v, where):

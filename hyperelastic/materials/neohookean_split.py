@@ -20,6 +20,7 @@ class NeoHookeanSplit(Material):
     summary = "μ, κ: isochoric/volumetric split"
     defined_when_inverted = False
     references = "Simo & Taylor, CMAME 85, 1991"
+    volumetric = "J"
     parameters = (
         Parameter("mu", "Pa", "shear modulus", shear_modulus, "E/(2(1+ν))"),
         Parameter("kappa", "Pa", "bulk modulus", bulk_modulus, "E/(3(1−2ν))"),
@@ -28,6 +29,10 @@ class NeoHookeanSplit(Material):
     @staticmethod
     def constants(v):
         return (v["mu"], v["kappa"])
+
+    @staticmethod
+    def split(v):
+        return (v["mu"], 0.0), v["mu"], v["kappa"]
 
     @staticmethod
     def psi(F, c):

@@ -1,0 +1,208 @@
+"""The mixed displacement-pressure formulation (issue 33): the volumetric law's Legendre transform, the mixed
+tangent against differences of the residual, homogeneous states reproduced exactly (pressure included), Lame's
+thick-walled cylinder at nu = 0.4999 and incompressible against the closed form (with the locking of
+displacement-only P1 beside it), 2 ranks = 1 rank, a restart bitwise, and the paths it refuses."""
+import math
+
+import numpy as np
+import pytest
+
+from conftest import ROOT, hyperelastic, make_model, read_h5, run_ok
+
+E, P = 1e6, 100.0          # the cylinder's modulus and internal pressure (P/E = 1e-4: the linear regime)
+A_IN, B_OUT = 0.1, 0.2
+
+
+def lame_ur(r, nu, mu=None):
+    """Lame's radial displacement of the plane-strain thick-walled cylinder under internal pressure P, shear
+    modulus mu (default E/(2(1 + nu))): P a^2 / (2 mu (b^2 - a^2)) ((1 - 2 nu) r + b^2 / r)."""
+    mu = E / (2 * (1 + nu)) if mu is None else mu
+    return P * A_IN ** 2 / (2 * mu * (B_OUT ** 2 - A_IN ** 2)) * ((1 - 2 * nu) * r + B_OUT ** 2 / r)
+
+
+def lame_mean_stress(nu):
+    """The mean Cauchy stress, constant over the wall: (s_rr + s_tt)(1 + nu)/3, s_rr + s_tt = 2 P a^2/(b^2 - a^2)."""
+    return 2 * (1 + nu) / 3 * P * A_IN ** 2 / (B_OUT ** 2 - A_IN ** 2)
+
+
+def test_volumetric_law_is_the_legendre_transform():
+    """U*'(p) and U*''(p) are the derivatives of U*(p); at p = U'(G) the transform gives G = U*'(p) and
+    U*(p) = p G - U(G) (for U = kappa/4 (J^2 - 1 - 2 ln J), G = J - 1, and U = kappa/2 G^2); kappa = inf: 0."""
+    from hyperelastic.mixed import Volumetric
+    kappa = 3.7e6
+    rng = np.random.default_rng(7)
+    for kind, U, dU in (("J", lambda G: 0.25 * kappa * ((1 + G) ** 2 - 1 - 2 * np.log1p(G)),
+                         lambda G: 0.5 * kappa * ((1 + G) - 1 / (1 + G))),
+                        ("trace", lambda G: 0.5 * kappa * G * G, lambda G: kappa * G)):
+        law = Volumetric(kind, kappa)
+        G = rng.uniform(-0.6, 1.5, 50)
+        p = dU(G)
+        Us, dUs, d2Us = law(p)
+        assert np.abs(dUs - G).max() < 1e-12 * (1 + np.abs(G)).max()
+        assert np.abs(Us - (p * G - U(G))).max() < 1e-9 * np.abs(p * G).max()
+        eps = 1e-6 * kappa
+        fd1 = (law(p + eps)[0] - law(p - eps)[0]) / (2 * eps)
+        fd2 = (law(p + eps)[1] - law(p - eps)[1]) / (2 * eps)
+        assert np.abs(fd1 - dUs).max() < 1e-7 * (1 + np.abs(dUs).max())
+        assert np.abs(fd2 - d2Us).max() < 1e-6 * np.abs(d2Us).max()
+    z = Volumetric("J", math.inf)(np.array([1.0, -2.0]))
+    assert all(not a.any() for a in z)
+
+
+@pytest.mark.parametrize("material,extra", [("neohookean_split", ()), ("mooney_rivlin", (("C01", "1e4"),)),
+                                            ("linear", ())])
+def test_mixed_tangent_is_the_residuals_derivative(petsc, material, extra):
+    """The assembled mixed tangent (displacement, coupling and pressure blocks, Dirichlet rows) times random
+    directions equals central differences of the residual, at a deformed state with a random pressure."""
+    from hyperelastic.mixed import MixedAssembled
+    m = make_model(petsc, "bend", [("order", "2"), ("formulation", "mixed"), ("material", material),
+                                   ("nu", "0.45"), *extra])
+    s = m.system
+    rng = np.random.default_rng(11)
+    x = m.x0 + 0.02 * rng.standard_normal(len(m.x0))
+    s.begin_step(0.01, 0.01, m.x0, m.v0)
+    X = s.global_state(x)
+    a = X.getArray()
+    a[s.nu_owned:] = 1e5 * rng.standard_normal(len(a) - s.nu_owned)
+    op = MixedAssembled(s)
+    s.linearize(X)
+    op.update()
+    V = X.duplicate()
+    V.getArray()[:] = rng.standard_normal(len(a))
+    V.getArray()[s.nu_owned:] *= 1e-5           # pressures are ~1e5 times the positions' scale
+    JV = X.duplicate()
+    op.mat.mult(V, JV)
+    Rp, Rm, Xp, Xm = X.duplicate(), X.duplicate(), X.duplicate(), X.duplicate()
+    h = 1e-6
+    Xp.waxpy(h, V, X)
+    Xm.waxpy(-h, V, X)
+    s.residual(Xp, Rp)
+    s.residual(Xm, Rm)
+    fd = (Rp.getArray() - Rm.getArray()) / (2 * h)
+    jv = JV.getArray()
+    assert np.abs(fd - jv).max() < 1e-6 * np.abs(jv).max(), material
+    # the blocks are symmetric
+    T = op.mat.duplicate(copy=True)
+    T.transpose()
+    T.axpy(-1.0, op.mat)
+    assert T.norm() < 1e-12 * op.mat.norm()
+
+
+@pytest.fixture(scope="module")
+def cylinder(tmp_path_factory):
+    """The quarter thick-walled cylinder (examples/cylinder.geo), quadratic, size 0.02."""
+    d = tmp_path_factory.mktemp("cylinder")
+    run_ok(["mesh", f"{ROOT}/examples/cylinder.geo", "--size", 0.02, "--order", 2, "-o", d / "cyl.msh"])
+    return str(d / "cyl.msh")
+
+
+LAME = ["-quasistatic", "-dt", 1, "-final_time", 1, "-material", "linear", "-E", E,
+        "-effects", "elasticity,fixed,pressure", "-fix", "xsym:x,ysym:y,bottom:z,top:z",
+        "-pressure", P, "-pressure_faces", "inner", "-quiet"]
+
+
+def radial(out):
+    """(r, u_r) of every node of the output's last frame."""
+    h = read_h5(out)
+    X = h["points"]
+    u = h["x"][-1] - X
+    r = np.hypot(X[:, 0], X[:, 1])
+    return r, (u[:, 0] * X[:, 0] + u[:, 1] * X[:, 1]) / r
+
+
+def pressure(out):
+    import h5py
+    with h5py.File(out, "r") as f:
+        return f[f"frames/{len(f['time']) - 1}/pressure"][:]
+
+
+@pytest.mark.parametrize("nu", [0.4999, 0.5])
+def test_lame_cylinder(cylinder, tmp_path, nu):
+    """At nu = 0.4999 and in the incompressible limit the mixed P2-P1 solution's radial displacement is Lame's
+    within 0.5% at every node, its pressure the constant mean stress (mean within 0.2%, spread 0.5%, every
+    node within 5%: no checkerboard); P1 displacement-only on the same mesh at nu = 0.4999 locks (below 60% of Lame's at the inner wall)."""
+    out = tmp_path / "m.h5"
+    args = ["run", "bend", *LAME, "-mesh", cylinder, "-order", 2, "-formulation", "mixed", "-output", out]
+    run_ok(args + (["-nu", 0.4999] if nu < 0.5 else ["-nu", 0.3, "-incompressible"]))
+    r, ur = radial(out)
+    exact = lame_ur(r, nu) if nu < 0.5 else lame_ur(r, 0.5, E / 2.6)     # (-incompressible keeps mu of nu = 0.3)
+    assert np.abs(ur / exact - 1).max() < 5e-3, np.abs(ur / exact - 1).max()
+    p = pressure(out) / lame_mean_stress(nu)
+    assert abs(p.mean() - 1) < 2e-3 and p.std() < 5e-3 and np.abs(p - 1).max() < 0.05, (p.mean(), p.std(), p.min(), p.max())
+    if nu < 0.5:
+        out1 = tmp_path / "d.h5"
+        run_ok(["run", "bend", *LAME, "-mesh", cylinder, "-order", 1, "-nu", 0.4999, "-output", out1,
+                "-options_file", f"{ROOT}/options/gamg.opts"])
+        r1, ur1 = radial(out1)
+        inner = r1 < A_IN + 1e-9
+        assert (ur1[inner] / lame_ur(r1[inner], nu)).mean() < 0.6
+
+
+def test_homogeneous_state_is_exact(tmp_path):
+    """Every face of the cube moved affinely (a stretch with a volume change): the mixed solution is that
+    affine map at every node and its pressure U'(J) = kappa/2 (J - 1/J) everywhere (split Neo-Hookean)."""
+    d = tmp_path
+    run_ok(["mesh", f"{ROOT}/examples/cube.geo", "--size", 0.5, "-o", d / "c.msh"])
+    out = d / "h.h5"
+    Em, num = 1e6, 0.45
+    run_ok(["run", "bend", "-mesh", d / "c.msh", "-order", 2, "-formulation", "mixed", "-material",
+            "neohookean_split", "-E", Em, "-nu", num, "-quasistatic", "-dt", 0.5, "-final_time", 1,
+            "-effects", "elasticity,prescribed", "-prescribe_faces", "xmin,xmax,ymin,ymax,zmin,zmax",
+            "-prescribe_ux", "0.1*t*X", "-prescribe_uy", "-0.05*t*Y", "-prescribe_uz", "0.02*t*Z",
+            "-snes_rtol", 1e-12, "-ksp_rtol", 1e-12, "-output", out, "-quiet"])
+    h = read_h5(out)
+    X = h["points"]
+    F = np.diag([1.1, 0.95, 1.02])
+    assert np.abs(h["x"][-1] - X @ F.T).max() < 1e-12
+    J = np.linalg.det(F)
+    kappa = Em / (3 * (1 - 2 * num))
+    p = pressure(out)
+    assert np.abs(p / (0.5 * kappa * (J - 1 / J)) - 1).max() < 1e-9
+
+
+def test_two_ranks_and_restart(cylinder, tmp_path):
+    """A dynamic mixed run (backward Euler, a pressure ramp, split Neo-Hookean at nu = 0.4999) on 2 ranks equals
+    1 rank; a restart from its checkpoint ends bitwise where the uninterrupted run does."""
+    base = ["run", "bend", "-mesh", cylinder, "-order", 2, "-formulation", "mixed", "-material", "neohookean_split",
+            "-E", E, "-nu", 0.4999, "-effects", "elasticity,fixed,pressure,inertia", "-fix", "xsym:x,ysym:y,bottom:z,top:z",
+            "-pressure", 2e4, "-pressure_faces", "inner", "-pressure_ramp", 1, "-dt", 0.01, "-final_time", 0.04,
+            "-quiet"]
+    one, two = tmp_path / "one.h5", tmp_path / "two.h5"
+    run_ok(base + ["-output", one, "-checkpoint_every", 2])
+    run_ok(base + ["-output", two], nprocs=2)
+    a, b = read_h5(one), read_h5(two)
+    assert np.abs(a["x"] - b["x"]).max() < 1e-9 * np.abs(a["x"] - a["points"]).max()
+    assert np.abs(pressure(one) - pressure(two)).max() < 1e-7 * np.abs(pressure(one)).max()
+    again = tmp_path / "again.h5"
+    run_ok(base[:-3] + ["-final_time", 0.03, "-quiet", "-output", again, "-checkpoint_every", 2])
+    run_ok(["run", "--restart", again, "-final_time", 0.04, "-quiet"])
+    c = read_h5(again)
+    assert np.array_equal(a["x"][-1], c["x"][-1]) and np.array_equal(pressure(one), pressure(again))
+    import meshio
+    import vtk
+    rd = vtk.vtkXdmfReader()
+    rd.SetFileName(str(again.with_suffix(".xdmf")))
+    rd.Update()
+    arr = rd.GetOutputDataObject(0).GetPointData().GetArray("pressure")
+    assert arr is not None and arr.GetNumberOfTuples() == len(a["points"])
+    with meshio.xdmf.TimeSeriesReader(str(again.with_suffix(".xdmf"))) as r:
+        r.read_points_cells()
+        _, pd, _ = r.read_data(r.num_steps - 1)
+    assert np.array_equal(pd["pressure"], pressure(again))
+
+
+@pytest.mark.parametrize("args,words", [
+    (["-formulation", "mixed", "-material", "neohookean_split"], "needs quadratic tetrahedra"),
+    (["-formulation", "mixed", "-order", "2", "-material", "stvk"], "no isochoric/volumetric split"),
+    (["-formulation", "mixed", "-order", "2", "-material", "linear", "-jacobian", "shell"], "assembled"),
+    (["-formulation", "mixed", "-order", "2", "-material", "linear", "-integrator", "ts"], "backward Euler"),
+    (["-incompressible"], "needs a pressure field"),
+    (["-formulation", "mixd"], "unknown value"),
+    (["-formulation", "mixed", "-order", "2", "-material", "linear", "-operator_storage", "sbaij"], "AIJ"),
+])
+def test_refused_paths(args, words, tmp_path):
+    """Each path the mixed formulation does not take: one line, exit 2, nothing written."""
+    p = hyperelastic(["run", "bend", "-final_time", 0.01, "-output", tmp_path / "x.h5"] + args)
+    err = p.stderr.strip().splitlines()
+    assert p.returncode == 2 and len(err) == 1 and words in err[0], p.stderr
+    assert not list(tmp_path.iterdir())
