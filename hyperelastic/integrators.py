@@ -26,6 +26,13 @@ KSP_HINTS = {
     "DIVERGED_INDEFINITE_PC": "-pc_type jacobi, or CG + GAMG (-options_file options/gamg.opts)",
     "DIVERGED_INDEFINITE_MAT": "smaller steps (-dt), or -hessian_projection 1",
 }
+# the mixed formulation's saddle point (GMRES + Schur field split by default): CG and GAMG alone do not apply
+MIXED_KSP_HINTS = {
+    **dict.fromkeys(RAN_OUT, "a larger -ksp_max_it, or for a small problem the direct solve "
+                             "(-options_file options/mixed_direct.opts)"),
+    "DIVERGED_BREAKDOWN": "the direct solve (-options_file options/mixed_direct.opts), or -ksp_type fgmres",
+    "DIVERGED_PCSETUP_FAILED": "the default field split (no -pc_type), or options/mixed_direct.opts",
+}
 SNES_HINTS = {
     "DIVERGED_MAX_IT": "smaller steps (-dt: more load steps) or a larger -snes_max_it",
     "DIVERGED_FUNCTION_COUNT": "smaller steps (-dt) or a larger -snes_max_funcs",
@@ -250,7 +257,8 @@ class BackwardEuler(Integrator):
             # a Krylov solve that ran out of iterations on a quasi-static step: the load step's size does not
             # change the tangent, so halving it would not help (issue 34)
             stats["linear_only"] = self.scene.quasistatic and ksp in RAN_OUT
-            stats["hint"] = KSP_HINTS.get(ksp, "") if ksp else SNES_HINTS.get(name, "")
+            hints = MIXED_KSP_HINTS if self.solver.mixed else KSP_HINTS
+            stats["hint"] = hints.get(ksp, "") if ksp else SNES_HINTS.get(name, "")
             return self._rejected(stats, w0)
         sysm.solved(self.X)
         x1 = sysm.impose(sysm.local(self.X, sysm.xl).copy())
