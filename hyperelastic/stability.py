@@ -40,12 +40,15 @@ MATERIALS = REGISTRY        # every registered material, in the registry's order
 # the defaults so that only the stiffness changes along the axis
 E_AXIS = {"1e2": 1e2, "1e6": 1e6, "rubber": 1e7, "cancellous_bone": 4.5e8, "bone": 1.6e10, "steel": 2.1e11,
           "1e15": 1e15}
-NU_AXIS = (0.0, 0.3, 0.45, 0.49, 0.499)
+NU_AXIS = (0.0, 0.3, 0.45, 0.49, 0.499, 0.4999)
+SPLIT_MATERIALS = tuple(m for m in MATERIALS if m in ("linear", "neohookean_split", "mooney_rivlin"))
 H_AXIS = (1e-1, 1e-2, 1e-3)
 # the matrix's modes: the exact tangent assembled, and PETSc's MFFD operator with it as preconditioner
 MODES = {"assembled": JACOBIAN_MODES["assembled"], "mf_operator": JACOBIAN_MODES["snes_mf_operator"],
          # generalized-alpha through PETSc TS (issue 18), exact assembled tangent, rho_inf = 1
-         "alpha2": JACOBIAN_MODES["assembled"] + ["-integrator", "ts"]}
+         "alpha2": JACOBIAN_MODES["assembled"] + ["-integrator", "ts"],
+         # the mixed displacement-pressure formulation (issue 33): quadratic tets, a pressure field, its field split
+         "mixed": JACOBIAN_MODES["assembled"] + ["-order", "2", "-formulation", "mixed"]}
 # cell scene -> (built-in scene, extra options); 'sliver' is squeeze-free: stretch on a sliver mesh
 SCENES = {
     "twist3": ("twist3", []), "bend3": ("bend3", []), "squeeze": ("squeeze", []), "stretch": ("stretch", []),
@@ -81,11 +84,13 @@ def full_matrix():
     twist3, squeeze and stretch; the nu axis on squeeze and bend2; the h axis on twist3 and spin
     (assembled tangent for the axes, both modes at the extremes of E)."""
     cells = [Cell(s, m, mode=md) for s in SCENES if s != "bend2" for m in MATERIALS for md in MODES
-             if md != "alpha2"]
+             if md not in ("alpha2", "mixed")]
     cells += [Cell(s, m, E=e) for s in ("twist3", "squeeze", "stretch") for m in MATERIALS for e in E_AXIS]
     cells += [Cell(s, m, E=e, mode="mf_operator") for s in ("twist3", "stretch") for m in MATERIALS
               for e in ("steel", "1e15")]
     cells += [Cell(s, m, nu=nu) for s in ("squeeze", "bend2") for m in MATERIALS for nu in NU_AXIS]
+    cells += [Cell(s, m, nu=nu, mode="mixed") for s in ("squeeze", "bend2") for m in SPLIT_MATERIALS
+              for nu in (0.3, 0.499, 0.4999)]
     cells += [Cell(s, m, h=h) for s in ("twist3", "spin") for m in MATERIALS for h in H_AXIS]
     return list(dict.fromkeys(cells))
 
