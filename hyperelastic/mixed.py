@@ -48,6 +48,12 @@ def check_material(solid, where):
     return solid.material.split(solid.values)
 
 
+def iso_constants(solid):
+    """The kernel's parameter block of a solid in the mixed formulation: its isochoric part where it has a split
+    (the pressure carries the rest), else its own (a compressible region beside a mixed one)."""
+    return solid.material.split(solid.values)[0] if solid.material.volumetric else solid.constants
+
+
 class Volumetric:
     """U*(p) and its derivatives for a volumetric kind ("J" or "trace") and bulk modulus kappa (inf: the
     incompressible limit)."""
@@ -110,11 +116,25 @@ class PressureSpace:
         self.dm.localToGlobal(self.lvec, g, addv=PETSc.InsertMode.ADD_VALUES)
 
     def nodal(self, p, cells):
-        """The P1 pressure at every P2 node (nlv,): the vertices' values, and each edge node the mean of its two."""
-        out = np.zeros(self.space.nlv)
-        out[:self.nlp] = p
+        """The P1 pressure at every P2 node (nlv,): the vertices' values, each edge node of the mixed cells (`cells`,
+        on any rank) the mean of its two ends, 0 elsewhere (edges of compressible regions' cells only). Collective:
+        an edge node's mixed cells may all be on another rank, so the edges' values and counts are summed over
+        the ranks through the displacement space's vectors."""
+        sp = self.space
+        acc = np.zeros((sp.nlv, 3))
         for e, (i, j) in enumerate(EDGES):
-            out[cells[:, 4 + e]] = 0.5 * (p[cells[:, i]] + p[cells[:, j]])
+            node = cells[:, 4 + e]
+            acc[:, 0] += np.bincount(node, 0.5 * (p[cells[:, i]] + p[cells[:, j]]), minlength=sp.nlv)
+            acc[:, 1] += np.bincount(node, minlength=sp.nlv)
+        L, G = sp.local_vec(), sp.global_vec()
+        L.getArray()[:] = acc.ravel()
+        sp.add_to_global(L, G)
+        sp.to_local(G, L)
+        tot = L.getArray(readonly=True).reshape(-1, 3)
+        out = np.where(tot[:, 1] > 0, tot[:, 0] / np.maximum(tot[:, 1], 1.0), 0.0)
+        out[:self.nlp] = p
+        L.destroy()
+        G.destroy()
         return out
 
 
@@ -127,9 +147,14 @@ class PressureCoupling(Effect):
     cell_blocks = True
     conservative = False      # a saddle point: the line search merit is the residual norm
 
-    def __init__(self, geometry, kind, law, nlp):
+    def __init__(self, geometry, law, nlp, shear, idx=None):
+        """geometry: the local cells (an ElementCells); idx: those of one material with a split (default all); law:
+        its Volumetric; nlp: the local pressures; shear: its shear modulus (the Schur complement's preconditioner)."""
         super().__init__()
-        self.kind, self.law, self.nlp = kind, law, nlp
+        self.kind, self.law, self.nlp, self.shear = law.kind, law, nlp, shear
+        self.idx = np.arange(geometry.nc) if idx is None else np.asarray(idx, np.int64)
+        if idx is not None:
+            geometry = geometry.subset(self.idx)
         self.cells = geometry.cells                                   # (nc, 10)
         self.dofs = (3 * self.cells[:, :, None].astype(np.int64) + np.arange(3)).ravel()
         self.corners = np.ascontiguousarray(geometry.cells[:, :4])
@@ -195,8 +220,10 @@ class PressureCoupling(Effect):
             d += np.bincount(self.dofs, np.einsum("cii->ci", self.blocks).ravel(), minlength=len(d))
 
     def add_cell_blocks(self, vals, lo=0, hi=None):
+        """vals (hi-lo, 30, 30) += its blocks of the cells lo..hi-1 among all the local cells."""
         if self.blocks is not None:
-            vals += self.blocks[lo:hi]
+            sel = (self.idx >= lo) & (self.idx < (len(vals) + lo if hi is None else hi))
+            vals[self.idx[sel] - lo] += self.blocks[sel]
 
     def energy(self, x, v):
         """Its part of the elastic energy: int (p G - U*(p)) dV (at the solution, the volumetric energy)."""
@@ -204,9 +231,10 @@ class PressureCoupling(Effect):
         U, _, _ = self.law(pq)
         return {"elastic": float(np.sum(self.w * (pq * G - U)))}
 
-    def mass(self):
-        """(nc, 4, 4) the pressure mass blocks int M_b M_c dV."""
-        return np.einsum("cq,qb,qd->cbd", self.w, self.M, self.M)
+    def schur_blocks(self):
+        """(nc, 4, 4): -(1/mu + 1/kappa) int M_b M_c dV, the Schur complement's preconditioning blocks."""
+        scale = -(1.0 / self.shear + (0.0 if math.isinf(self.law.kappa) else 1.0 / self.law.kappa))
+        return scale * np.einsum("cq,qb,qd->cbd", self.w, self.M, self.M)
 
 
 def offsets(mpi, n):
@@ -218,12 +246,13 @@ def offsets(mpi, n):
 class MixedSystem(System):
     """System (system.py) of the mixed formulation: the unknown holds the displacement part and the pressure
     (module docstring); the effects, the Dirichlet elimination and the statistics act on the displacement
-    part as in System, the PressureCoupling effect adds the pressure's terms."""
+    part as in System, a PressureCoupling effect per material with a split adds the pressure's terms. With
+    -regions, pressures at vertices no mixed cell touches (on any rank) are not unknowns of the problem: their
+    rows are c p = 0 (c: the Schur preconditioner's mean diagonal), decoupled from the rest."""
     mixed = True
 
-    def __init__(self, space, effects, constraints, x0, v0, dt, coupling, shear, pspace):
-        self.coupling = coupling
-        self.shear = shear                       # the shear modulus (the Schur complement's scale)
+    def __init__(self, space, effects, constraints, x0, v0, dt, couplings, pspace):
+        self.couplings = couplings
         self.pspace = ps = pspace
         mpi = space.mpi
         nu, npo = 3 * space.n_owned, ps.n_owned
@@ -236,8 +265,30 @@ class MixedSystem(System):
         self.is_u.setBlockSize(3)
         self.is_p = PETSc.IS().createStride(npo, first + nu, 1, comm=space.comm)
         self.p_owned = np.zeros(npo)             # the pressure of the current state (owned; global order)
-        self.Xu = None
+        self._dead_pressures(mpi)
         super().__init__(space, effects, constraints, x0, v0, dt)
+
+    def _dead_pressures(self, mpi):
+        """The owned pressures no mixed cell touches on any rank (`dead_owned`: positions in the owned array) and
+        their rows' scale c (the mean diagonal of the Schur preconditioner's blocks, the same on every rank)."""
+        ps = self.pspace
+        use = np.zeros(ps.nlp)
+        diag, n = 0.0, 0
+        for c in self.couplings:
+            use += np.bincount(c.corners.ravel(), minlength=ps.nlp)
+            d = np.einsum("cbb->cb", c.schur_blocks())
+            diag, n = diag + float(d.sum()), n + d.size
+        G = ps.global_vec()
+        ps.add_to_global(use, G)
+        self.dead_owned = np.flatnonzero(G.getArray(readonly=True) == 0)
+        self.dead_local = ps.owned_idx[self.dead_owned]
+        G.destroy()
+        tot = mpi.allreduce(np.array([diag, n]))
+        self.dead_scale = float(tot[0] / max(tot[1], 1.0)) or -1.0
+
+    def set_pressure(self, p):
+        for c in self.couplings:
+            c.set_pressure(p)
 
     def unknown_vec(self):
         n = self.nu_owned + self.pspace.n_owned
@@ -277,7 +328,7 @@ class MixedSystem(System):
     def residual(self, X, R):
         if X.getLocalSize() == self.nu_owned:       # (the base class's calibration, on displacements alone)
             return super().residual(X, R)
-        self.coupling.set_pressure(self.pressure_local(X))
+        self.set_pressure(self.pressure_local(X))
         Xu, Ru = X.getSubVector(self.is_u), R.getSubVector(self.is_u)
         try:
             super().residual(Xu, Ru)
@@ -286,17 +337,20 @@ class MixedSystem(System):
             R.restoreSubVector(self.is_u, Ru)
         Rp = R.getSubVector(self.is_p)
         try:
-            self.pspace.add_to_global(self.coupling.rp, Rp)
+            self.pspace.add_to_global(sum(c.rp for c in self.couplings), Rp)
+            if len(self.dead_owned):
+                Rp.getArray()[self.dead_owned] = (
+                    self.dead_scale * X.getArray(readonly=True)[self.nu_owned:][self.dead_owned])
         finally:
             R.restoreSubVector(self.is_p, Rp)
 
     def linearize(self, X):
         if X.getLocalSize() != self.nu_owned:
-            self.coupling.set_pressure(self.pressure_local(X))
+            self.set_pressure(self.pressure_local(X))
         super().linearize(X)
 
     def solved(self, X):
-        self.coupling.set_pressure(self.pressure_local(X))
+        self.set_pressure(self.pressure_local(X))
 
     def accept(self, X):
         """The state X was accepted: its pressure is the next step's start (and the output's)."""
@@ -316,21 +370,24 @@ class MixedSystem(System):
         G.getArray()[:] = self.p_owned
         p = self.pspace.to_local(G)
         G.destroy()
-        return self.pspace.nodal(p, self.space.cells)
+        return self.pspace.nodal(p, np.concatenate([c.cells for c in self.couplings]))
 
     def pressure_mass(self):
-        """The Schur complement's preconditioning matrix -(1/mu + 1/kappa) M_p (pressure numbering), assembled."""
-        ps, cells = self.pspace, self.coupling.corners
-        law = self.coupling.law
-        scale = -(1.0 / self.shear + (0.0 if math.isinf(law.kappa) else 1.0 / law.kappa))
-        rows = np.repeat(cells, 4, axis=1).ravel()
-        cols = np.tile(cells, (1, 4)).ravel()
+        """The Schur complement's preconditioning matrix -(1/mu + 1/kappa) M_p (pressure numbering; each material's
+        own moduli), with c on the dead pressures' diagonal, assembled."""
+        ps = self.pspace
+        cells = np.concatenate([c.corners for c in self.couplings] + [np.zeros((0, 4), self.couplings[0].corners.dtype)])
+        dead = self.dead_local.astype(cells.dtype)
+        rows = np.concatenate([np.repeat(cells, 4, axis=1).ravel(), dead])
+        cols = np.concatenate([np.tile(cells, (1, 4)).ravel(), dead])
+        vals = np.concatenate([c.schur_blocks().ravel() for c in self.couplings]
+                              + [np.full(len(dead), self.dead_scale)])
         A = PETSc.Mat().create(comm=self.space.comm)
         A.setSizes(((ps.n_owned, PETSc.DETERMINE), (ps.n_owned, PETSc.DETERMINE)))
         A.setType(PETSc.Mat.Type.AIJ)
         A.setLGMap(ps.lgmap, ps.lgmap)
         A.setPreallocationCOOLocal(rows.astype(PETSc.IntType), cols.astype(PETSc.IntType))
-        A.setValuesCOO(scale * self.coupling.mass().ravel(), addv=PETSc.InsertMode.INSERT_VALUES)
+        A.setValuesCOO(vals, addv=PETSc.InsertMode.INSERT_VALUES)
         A.assemble()
         return A
 
@@ -350,21 +407,21 @@ class MixedSystem(System):
 
 class MixedAssembled:
     """The mixed tangent [[K_uu, K_up], [K_pu, K_pp]] as one AIJ matrix, filled by COO: the displacement
-    effects' cell blocks and their extra entries, the coupling blocks, the constrained rows' s I (zero in
-    their columns, as in jacobians.Assembled). The displacement block gets the rigid-body near null space
-    through is_u (PCFIELDSPLIT hands it to the split's matrix)."""
+    effects' cell blocks and their extra entries, each coupling's blocks, the constrained rows' s I (zero in
+    their columns, as in jacobians.Assembled), the dead pressures' c. The displacement block gets the rigid-body
+    near null space through is_u (PCFIELDSPLIT hands it to the split's matrix)."""
 
     def __init__(self, system):
         self.system = s = system
-        sp, c = s.space, s.coupling
+        sp = s.space
         nlu = 3 * sp.nlv
         self.cell_effects = [e for e in s.effects if e.cell_blocks]
         cd = (3 * sp.cells[:, :, None].astype(np.int64) + np.arange(3)).reshape(-1, 30)
-        pd = nlu + c.corners.astype(np.int64)
-        rows = [np.repeat(cd, 30, axis=1).ravel(), np.repeat(cd, 4, axis=1).ravel(),
-                np.repeat(pd, 30, axis=1).ravel(), np.repeat(pd, 4, axis=1).ravel()]
-        cols = [np.tile(cd, (1, 30)).ravel(), np.tile(pd, (1, 30)).ravel(),
-                np.tile(cd, (1, 4)).ravel(), np.tile(pd, (1, 4)).ravel()]
+        rows, cols = [np.repeat(cd, 30, axis=1).ravel()], [np.tile(cd, (1, 30)).ravel()]
+        for c in s.couplings:
+            cu, pd = cd[c.idx], nlu + c.corners.astype(np.int64)
+            rows += [np.repeat(cu, 4, axis=1).ravel(), np.repeat(pd, 30, axis=1).ravel(), np.repeat(pd, 4, axis=1).ravel()]
+            cols += [np.tile(pd, (1, 30)).ravel(), np.tile(cu, (1, 4)).ravel(), np.tile(pd, (1, 4)).ravel()]
         n = sum(map(len, rows))
         self.other = []
         for e in s.effects:
@@ -375,9 +432,11 @@ class MixedAssembled:
                 cols.append(cc)
                 n += len(r)
         c_owned_local = (3 * sp.lvid_of_owned[:, None] + np.arange(3)).ravel()[s.c_owned_pos]
+        dead = nlu + s.dead_local.astype(np.int64)
         self.diag_slice = slice(n, n + len(c_owned_local))
-        rows.append(c_owned_local)
-        cols.append(c_owned_local)
+        self.dead_slice = slice(n + len(c_owned_local), n + len(c_owned_local) + len(dead))
+        rows += [c_owned_local, dead]
+        cols += [c_owned_local, dead]
         rows, cols = np.concatenate(rows), np.concatenate(cols)
         cm = np.concatenate([s.cmask, np.zeros(s.pspace.nlp, bool)])
         zero = cm[rows] | cm[cols]
@@ -400,21 +459,23 @@ class MixedAssembled:
         coords.destroy()
 
     def update(self):
-        s, c, n = self.system, self.system.coupling, self.nc
+        s, n = self.system, self.nc
         v = self.vals
         uu = v[:n * 900].reshape(n, 30, 30)
         uu[:] = 0.0
         for e in self.cell_effects:
             e.add_cell_blocks(uu)
         o = n * 900
-        v[o:o + n * 120] = c.up.ravel()
-        o += n * 120
-        v[o:o + n * 120] = c.up.transpose(0, 2, 1).ravel()
-        o += n * 120
-        v[o:o + n * 16] = c.pp.ravel()
+        for c in s.couplings:
+            k = len(c.idx) * 120
+            v[o:o + k] = c.up.ravel()
+            v[o + k:o + 2 * k] = c.up.transpose(0, 2, 1).ravel()
+            v[o + 2 * k:o + 2 * k + len(c.idx) * 16] = c.pp.ravel()
+            o += 2 * k + len(c.idx) * 16
         for e, sl in self.other:
             e.coo_values(v[sl])
         v[self.diag_slice] = s.scale
+        v[self.dead_slice] = s.dead_scale
         v[self.zero] = 0.0
         self.mat.setValuesCOO(v, addv=PETSc.InsertMode.INSERT_VALUES)
         self.mat.assemble()
@@ -432,6 +493,8 @@ def check_scene(scene, jacobian, integrator):
     if integrator != "beuler":
         raise UserError(f"{what}: quasi-static and backward Euler runs (-integrator beuler), not -integrator "
                         f"{integrator}")
-    if scene.regions:
-        raise UserError(f"{what}: not yet with -regions (one material for the whole part)")
+    solids = [("the scene's", scene.solid)] + [(f"region '{r.name}'", r.solid) for r in scene.regions]
+    if not any(sol.material.volumetric for _, sol in solids):
+        where, sol = solids[0]
+        check_material(sol, where)
 

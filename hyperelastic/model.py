@@ -163,19 +163,20 @@ def material_regions(scene, mesh, labels, report):
 
 def cell_kernels(scene, space, constants=None):
     """(elastic cell kernels, density: a scalar, or per local cell with -regions) of the scene's
-    material(s) on the space's cells (a kernels.Cells); constants: the scene material's parameter block
-    instead of its own (the mixed formulation's isochoric part)."""
+    material(s) on the space's cells (a kernels.Cells); constants: solid -> its parameter block, instead of
+    its own (the mixed formulation's isochoric parts)."""
+    constants = constants or (lambda solid: solid.constants)
     sc = scene
     if scene.order == 2:
         cells = ElementCells(space.cells, space.X, Element(2, scene.quadrature or DEFAULT_DEGREE[2]))
     else:
         cells = Cells(space.cells, space.Dminv, space.vol)
     if not sc.regions:
-        return cells.kernels(sc.solid.name, constants or sc.solid.constants), sc.solid.rho
+        return cells.kernels(sc.solid.name, constants(sc.solid)), sc.solid.rho
     which = space.cell_values(MATERIAL_LABEL)
     solids = [sc.solid] + [r.solid for r in sc.regions]
     unused = space.mpi.allreduce(int((which == 0).sum())) == 0     # every cell is in a listed region
-    parts = [(np.flatnonzero(which == i), m.name, m.constants) for i, m in enumerate(solids) if i or not unused]
+    parts = [(np.flatnonzero(which == i), m.name, constants(m)) for i, m in enumerate(solids) if i or not unused]
     density = np.array([m.rho for m in solids])[which]
     return RegionKernels(cells, parts), density
 
@@ -194,20 +195,34 @@ def build_model(scene, comm):
         space = QuadraticSpace(comm, points, mesh.tets if mesh is not None else None, labels, tets)
     scene.order = order
     report = space.mpi.bcast(report, root=0)
-    split = None
-    if scene.formulation == "mixed":
+    is_mixed = scene.formulation == "mixed"
+    if is_mixed:
         mixed.check_scene(scene, scene.jacobian, scene.integrator)
-        split = mixed.check_material(scene.solid, "the scene's")
-    k, density = cell_kernels(scene, space, split[0] if split else None)
+    k, density = cell_kernels(scene, space, mixed.iso_constants if is_mixed else None)
     ctx = effects_pkg.Context(space, k, k.geometry, density, scene.lumped, scene.hessian_projection)
     effects, constraints = effects_pkg.build(scene, ctx)
     x0, v0 = initial_state(scene, space)
-    if split is None:
+    if not is_mixed:
         system = System(space, effects, constraints, x0, v0, scene.dt)
     else:
-        _, mu, kappa = split
         pspace = mixed.PressureSpace(space)
-        law = mixed.Volumetric(scene.solid.material.volumetric, math.inf if scene.incompressible else kappa)
-        coupling = mixed.PressureCoupling(k.geometry, law.kind, law, pspace.nlp)
-        system = mixed.MixedSystem(space, effects + [coupling], constraints, x0, v0, scene.dt, coupling, mu, pspace)
+        couplings = pressure_couplings(scene, space, k.geometry, pspace)
+        system = mixed.MixedSystem(space, effects + couplings, constraints, x0, v0, scene.dt, couplings, pspace)
     return Model(scene, points, tets, space, k, system, x0, v0, report)
+
+
+def pressure_couplings(scene, space, geometry, pspace):
+    """The mixed formulation's pressure terms: one PressureCoupling per material with an isochoric/volumetric
+    split, on its cells (all of them without -regions; a region's, or the cells in none, with); the same list
+    on every rank, a coupling with no local cells included."""
+    solids = [scene.solid] + [r.solid for r in scene.regions]
+    which = space.cell_values(MATERIAL_LABEL) if scene.regions else None
+    out = []
+    for i, sol in enumerate(solids):
+        if not sol.material.volumetric:
+            continue
+        _, mu, kappa = sol.material.split(sol.values)
+        law = mixed.Volumetric(sol.material.volumetric, math.inf if scene.incompressible else kappa)
+        idx = None if which is None else np.flatnonzero(which == i)
+        out.append(mixed.PressureCoupling(geometry, law, pspace.nlp, mu, idx))
+    return out
