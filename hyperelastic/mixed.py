@@ -376,7 +376,7 @@ class MixedSystem(System):
         """The Schur complement's preconditioning matrix -(1/mu + 1/kappa) M_p (pressure numbering; each material's
         own moduli), with c on the dead pressures' diagonal, assembled."""
         ps = self.pspace
-        cells = np.concatenate([c.corners for c in self.couplings] + [np.zeros((0, 4), self.couplings[0].corners.dtype)])
+        cells = np.concatenate([c.corners for c in self.couplings])
         dead = self.dead_local.astype(cells.dtype)
         rows = np.concatenate([np.repeat(cells, 4, axis=1).ravel(), dead])
         cols = np.concatenate([np.tile(cells, (1, 4)).ravel(), dead])
@@ -420,7 +420,8 @@ class MixedAssembled:
         rows, cols = [np.repeat(cd, 30, axis=1).ravel()], [np.tile(cd, (1, 30)).ravel()]
         for c in s.couplings:
             cu, pd = cd[c.idx], nlu + c.corners.astype(np.int64)
-            rows += [np.repeat(cu, 4, axis=1).ravel(), np.repeat(pd, 30, axis=1).ravel(), np.repeat(pd, 4, axis=1).ravel()]
+            rows += [np.repeat(cu, 4, axis=1).ravel(), np.repeat(pd, 30, axis=1).ravel(),
+                     np.repeat(pd, 4, axis=1).ravel()]
             cols += [np.tile(pd, (1, 30)).ravel(), np.tile(cu, (1, 4)).ravel(), np.tile(pd, (1, 4)).ravel()]
         n = sum(map(len, rows))
         self.other = []
