@@ -145,8 +145,9 @@ class Integrator:
         """The state, the step-size state and the output counters (-integrator ts: x and v as TS holds them;
         there the uninterrupted run restarts at the checkpoints too)."""
         self.solver.rebuild_preconditioner()     # where a restart begins: the same set-ups in both runs
-        self.writer.checkpoint(self.x, self.v, nodal=self.system.nodal_state(), t=self.t, step=self.step, n=n, h_try=self.h_try, streak=self.streak,
-                               rejections=self.rejections, nframes=self.writer.nframes, nstats=self.writer.nstats)
+        self.writer.checkpoint(self.x, self.v, nodal=self.system.nodal_state(), t=self.t, step=self.step, n=n,
+                               h_try=self.h_try, streak=self.streak, rejections=self.rejections,
+                               nframes=self.writer.nframes, nstats=self.writer.nstats)
 
     def _resume(self, state):
         """Continue from a checkpoint (files.read_checkpoint): the same state, step control included."""
