@@ -25,14 +25,35 @@ def _sizes(space):
     return ((n, PETSc.DETERMINE), (n, PETSc.DETERMINE))
 
 
-def rigid_body_modes(sp, A):
-    """The six rigid-body modes of the reference configuration as A's near null space (for GAMG)."""
+def rigid_body_nullspace(sp):
+    """The six rigid-body modes of the space's reference configuration (a near null space for GAMG)."""
     coords = sp.global_vec()
     coords.getArray()[:] = sp.owned_array(sp.X.ravel())
     nullspace = PETSc.NullSpace().createRigidBody(coords)
-    A.setNearNullSpace(nullspace)
     coords.destroy()
     return nullspace
+
+
+def rigid_body_modes(sp, A):
+    """The rigid-body modes as A's near null space."""
+    nullspace = rigid_body_nullspace(sp)
+    A.setNearNullSpace(nullspace)
+    return nullspace
+
+
+def effect_patterns(effects, rows, cols):
+    """Append each effect's extra COO entries (Effect.coo_pattern) to the lists rows and cols; returns
+    ([(effect, slice of its values)], the number of entries in all)."""
+    n = sum(map(len, rows))
+    other = []
+    for e in effects:
+        r, c = e.coo_pattern()
+        if len(r):
+            other.append((e, slice(n, n + len(r))))
+            rows.append(r)
+            cols.append(c)
+            n += len(r)
+    return other, n
 
 
 class Assembled:
@@ -40,19 +61,11 @@ class Assembled:
         self.system = system
         sp = system.space
         self.cell_effects = [e for e in system.effects if e.cell_blocks]
-        self.other = []
         n3 = 3 * sp.cells.shape[1]
         cd = (3 * sp.cells[:, :, None].astype(np.int64) + np.arange(3)).reshape(-1, n3)   # (nc, 3nn)
         rows = [np.repeat(cd, n3, axis=1).ravel()]
         cols = [np.tile(cd, (1, n3)).ravel()]
-        n = len(rows[0])
-        for e in system.effects:
-            r, c = e.coo_pattern()
-            if len(r):
-                self.other.append((e, slice(n, n + len(r))))
-                rows.append(r)
-                cols.append(c)
-                n += len(r)
+        self.other, n = effect_patterns(system.effects, rows, cols)
         # the constrained block s I: one entry per owned constrained dof
         c_owned_local = (3 * sp.lvid_of_owned[:, None] + np.arange(3)).ravel()[system.c_owned_pos]
         self.diag_slice = slice(n, n + len(c_owned_local))

@@ -36,6 +36,7 @@ from petsc4py import PETSc
 from .effects.base import Effect, timed
 from .element import EDGES, tet_shapes
 from .errors import UserError
+from .jacobians import effect_patterns, rigid_body_nullspace
 from .system import System
 
 
@@ -167,7 +168,6 @@ class PressureCoupling(Effect):
         self.M = tet_shapes(1, pts)[0]                                # (nq, 4) the pressure's shape functions
         self.p = np.zeros(nlp)
         self.rp = np.zeros(nlp)
-        self.x = None
         self.blocks = None
 
     def set_pressure(self, p):
@@ -194,8 +194,7 @@ class PressureCoupling(Effect):
                               minlength=self.nlp)
 
     def linearize(self, x):
-        self.x = x.copy()
-        F, pq, dG, _, h = self._points(self.x)
+        F, pq, dG, _, h = self._points(x)
         n = self.nc
         _, _, d2 = self.law(pq)
         self.up = np.einsum("cqm,qb->cmb", dG.reshape(n, self.nq, 30) * self.w[:, :, None], self.M)
@@ -295,14 +294,6 @@ class MixedSystem(System):
         v = PETSc.Vec().createMPI((n, PETSc.DETERMINE), comm=self.space.comm)
         return v
 
-    def global_state(self, x):
-        X = self.unknown_vec()
-        a = X.getArray()
-        a[:self.nu_owned] = self.space.owned_array(x)
-        a[self.nu_owned:] = self.p_owned
-        self.impose_global(X)
-        return X
-
     def set_guess(self, X, x):
         a = X.getArray()
         a[:self.nu_owned] = self.space.owned_array(x)
@@ -326,8 +317,6 @@ class MixedSystem(System):
             X.restoreSubVector(self.is_p, Xp)
 
     def residual(self, X, R):
-        if X.getLocalSize() == self.nu_owned:       # (the base class's calibration, on displacements alone)
-            return super().residual(X, R)
         self.set_pressure(self.pressure_local(X))
         Xu, Ru = X.getSubVector(self.is_u), R.getSubVector(self.is_u)
         try:
@@ -345,8 +334,7 @@ class MixedSystem(System):
             R.restoreSubVector(self.is_p, Rp)
 
     def linearize(self, X):
-        if X.getLocalSize() != self.nu_owned:
-            self.set_pressure(self.pressure_local(X))
+        self.set_pressure(self.pressure_local(X))
         super().linearize(X)
 
     def solved(self, X):
@@ -423,15 +411,7 @@ class MixedAssembled:
             rows += [np.repeat(cu, 4, axis=1).ravel(), np.repeat(pd, 30, axis=1).ravel(),
                      np.repeat(pd, 4, axis=1).ravel()]
             cols += [np.tile(pd, (1, 30)).ravel(), np.tile(cu, (1, 4)).ravel(), np.tile(pd, (1, 4)).ravel()]
-        n = sum(map(len, rows))
-        self.other = []
-        for e in s.effects:
-            r, cc = e.coo_pattern()
-            if len(r):
-                self.other.append((e, slice(n, n + len(r))))
-                rows.append(r)
-                cols.append(cc)
-                n += len(r)
+        self.other, n = effect_patterns(s.effects, rows, cols)
         c_owned_local = (3 * sp.lvid_of_owned[:, None] + np.arange(3)).ravel()[s.c_owned_pos]
         dead = nlu + s.dead_local.astype(np.int64)
         self.diag_slice = slice(n, n + len(c_owned_local))
@@ -453,11 +433,8 @@ class MixedAssembled:
         A.setLGMap(lg, lg)
         A.setPreallocationCOOLocal(rows.astype(PETSc.IntType), cols.astype(PETSc.IntType))
         self.mat = self.operator = A
-        coords = sp.global_vec()
-        coords.getArray()[:] = sp.owned_array(sp.X.ravel())
-        self.nullspace = PETSc.NullSpace().createRigidBody(coords)
+        self.nullspace = rigid_body_nullspace(sp)
         s.is_u.compose("nearnullspace", self.nullspace)
-        coords.destroy()
 
     def update(self):
         s, n = self.system, self.nc

@@ -90,6 +90,7 @@ def matrix_free():
 
 class Solver:
     mixed = False        # the system is the mixed formulation's (mixed.py): its field split
+    schur_pre = None     # its Schur complement's preconditioning matrix (MixedSystem.pressure_mass)
     def __init__(self, system, jacobian, assembly="setvalues", guard=False, objective=True, snes=None,
                  reuse_pc="auto", storage="auto"):
         """SNES on the system's residual with Jacobian mode `jacobian` (scene.JACOBIANS; filled by
@@ -159,7 +160,8 @@ class Solver:
         sysm = self.system
         pc.setFieldSplitIS(("u", sysm.is_u), ("p", sysm.is_p))
         if not PETSc.Options().hasName("pc_fieldsplit_schur_precondition"):
-            self.schur_pre = sysm.pressure_mass()
+            if self.schur_pre is None:               # (constant: assembled once, kept for a new KSP)
+                self.schur_pre = sysm.pressure_mass()
             pc.setFieldSplitSchurPreType(PETSc.PC.FieldSplitSchurPreType.USER, self.schur_pre)
 
     # preconditioner set-ups worth keeping across Newton iterations and time steps (multigrid hierarchies)

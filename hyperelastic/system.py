@@ -91,10 +91,9 @@ class System:
         """The solve's result X is the new state (MixedSystem keeps its pressure)."""
 
     def global_state(self, x):
-        """A new global vector holding local positions x, with the constrained dofs imposed."""
-        X = self.space.global_vec()
-        X.getArray()[:] = self.space.owned_array(x)
-        self.impose_global(X)
+        """A new global vector of the unknown holding local positions x, with the constrained dofs imposed."""
+        X = self.unknown_vec()
+        self.set_guess(X, x)
         return X
 
     # --- time dependence -----------------------------------------------------------------------
