@@ -8,12 +8,14 @@ surface's reaction is the sum of r over its nodes' held components, and an effec
 minus the sum of its own residual over every node (loads: the applied force; inertia: the d'Alembert force
 -M a; damping: -C v). The internal forces sum to zero, so reactions + loads + inertia + damping = 0 to the
 solver's tolerance. Sums run over each rank's local nodes, ghosts included: every cell lives on one rank,
-so each cell's contribution is counted once. A node on two constrained surfaces counts in both.
+so each cell's contribution is counted once. A node on two constrained surfaces counts in both surfaces'
+rows; with more than one such surface a row `reaction (all held)` counts every held component once, and the
+balance line sums that row and the loads.
 """
 import numpy as np
 from mpi4py import MPI
 
-INTERNAL = ("elasticity",)      # effects whose forces are internal (they sum to zero over the body)
+TOTAL = "(all held)"       # the row of every held component once (surfaces sharing held nodes count them in both rows)
 
 
 def surface_forces(scene, system, x):
@@ -26,12 +28,16 @@ def surface_forces(scene, system, x):
     held = system.cmask.reshape(-1, 3)
     X = x.reshape(-1, 3)
     rows = []
-    for name in constrained_sets(scene):
+    names = constrained_sets(scene)
+    for name in names:
         v = sp.set_vertices(name)
         f = np.where(held[v], r[v], 0.0)
         rows.append(("reaction", name, f.sum(axis=0), np.cross(X[v], f).sum(axis=0)))
+    if len(names) > 1:                  # every held component once: what the loads balance
+        f = np.where(held, r, 0.0)
+        rows.append(("reaction", TOTAL, f.sum(axis=0), np.cross(X, f).sum(axis=0)))
     for e, re in each:
-        if e.name not in INTERNAL:
+        if not e.internal:
             rows.append(("load", e.name, -re.sum(axis=0), -np.cross(X, re).sum(axis=0)))
     local = np.array([np.concatenate([F, M]) for _, _, F, M in rows]).reshape(-1, 6)
     total = np.empty_like(local)
@@ -57,8 +63,10 @@ def table(rows, t):
         lines.append(f"  {kind} {name}: F = ({F[0]:.6g}, {F[1]:.6g}, {F[2]:.6g}), "
                      f"M = ({M[0]:.6g}, {M[1]:.6g}, {M[2]:.6g})")
     if rows:
-        S = sum(F for _, _, F, _ in rows)
-        big = max(np.linalg.norm(F) for _, _, F, _ in rows)
+        total = any(k == "reaction" and n == TOTAL for k, n, _, _ in rows)
+        part = [(k, F) for k, n, F, _ in rows if not (total and k == "reaction" and n != TOTAL)]
+        S = sum(F for _, F in part)
+        big = max(np.linalg.norm(F) for _, F in part)
         rel = np.linalg.norm(S) / big if big > 0 else 0.0
         lines.append(f"  sum: F = ({S[0]:.3g}, {S[1]:.3g}, {S[2]:.3g}) ({rel:.2g} of the largest force)")
     return lines

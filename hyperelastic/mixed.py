@@ -147,6 +147,7 @@ class PressureCoupling(Effect):
     linear = False
     cell_blocks = True
     conservative = False      # a saddle point: the line search merit is the residual norm
+    internal = True           # the pressure's part of the stress: internal forces, not a load
 
     def __init__(self, geometry, law, nlp, shear, idx=None):
         """geometry: the local cells (an ElementCells); idx: those of one material with a split (default all); law:

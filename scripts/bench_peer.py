@@ -185,8 +185,9 @@ def dolfinx_python():
         import glob
         import shutil
         import subprocess
-        base = shutil.which("python3.12") or next(iter(sorted(glob.glob(os.path.expanduser(
-            "~/.pyenv/versions/3.12*/bin/python3.12")))), None)
+        # pyenv's shim answers `which` but fails unless 3.12 is selected: its versions/ directory first
+        base = next(iter(sorted(glob.glob(os.path.expanduser("~/.pyenv/versions/3.12*/bin/python3.12")))),
+                    None) or shutil.which("python3.12")
         if base is None:
             sys.exit("bench_peer.py: DOLFINx's wheel needs Python 3.12 (none found)")
         print(f"making {DOLFINX_VENV} (DOLFINx wheel, ~500 MB) ...", file=sys.stderr)

@@ -85,6 +85,7 @@ class Effect:
     undefined = 0
     discrete_gradient = False  # has residual_discrete_gradient (the energy-momentum force, -energy_momentum)
     kernels = None         # the cell kernels of its material (elasticity): the domain and inversion checks
+    internal = False       # internal forces (they sum to zero over the body): not a load in the forces table
 
     def __init__(self):
         self.evals = 0       # residual evaluations

@@ -17,6 +17,7 @@ def project_psd(K):
 class Elasticity(Effect):
     """Internal elastic force k(x) (thesis eq. 4.41) and its exact tangent K = dk/dx."""
     name = "elasticity"
+    internal = True
     linear = False
     cell_blocks = True
     discrete_gradient = True
