@@ -100,7 +100,8 @@ TAIL = (
         "preconditioner is still built from the AIJ. Only for a symmetric tangent (`-jacobian assembled`, "
         "`-assembly setvalues`, no follower loads, no `-snes_mf_operator`). `shell`: the Krylov method "
         "multiplies by the exact tangent applied cell by cell (as `-jacobian shell`), the preconditioner is built "
-        "from the assembled AIJ. `auto`: sbaij where it applies, else aij (the output's `operator_storage` attribute says which)", _S.operator_storage),
+        "from the assembled AIJ. With `-formulation mixed`, `sbaij` is a MatNest whose displacement block is "
+        "SBAIJ (the field split's GAMG smooths with it), under the field split only. `auto`: sbaij where it applies, else aij (the output's `operator_storage` attribute says which)", _S.operator_storage),
     Row(("reuse_preconditioner",), "-reuse_preconditioner auto|never", "`auto`: a GAMG set-up is kept across "
         "Newton iterations and time steps (SNESSetLagPreconditioner, persisting) until a Krylov solve needs more "
         "than 1.5× the iterations of the first solve after it, or fails; then it is rebuilt at the next Jacobian "

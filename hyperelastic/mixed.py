@@ -398,9 +398,11 @@ class MixedAssembled:
     """The mixed tangent [[K_uu, K_up], [K_pu, K_pp]] as one AIJ matrix, filled by COO: the displacement
     effects' cell blocks and their extra entries, each coupling's blocks, the constrained rows' s I (zero in
     their columns, as in jacobians.Assembled), the dead pressures' c. The displacement block gets the rigid-body
-    near null space through is_u (PCFIELDSPLIT hands it to the split's matrix)."""
+    near null space through is_u (PCFIELDSPLIT hands it to the split's matrix). storage `sbaij`: the operator the
+    Krylov method multiplies by is a MatNest of the AIJ's blocks with the displacement block as SBAIJ (`_nest`);
+    the preconditioner is built from the AIJ (`mat`)."""
 
-    def __init__(self, system):
+    def __init__(self, system, storage="aij"):
         self.system = s = system
         sp = s.space
         nlu = 3 * sp.nlv
@@ -434,8 +436,38 @@ class MixedAssembled:
         A.setLGMap(lg, lg)
         A.setPreallocationCOOLocal(rows.astype(PETSc.IntType), cols.astype(PETSc.IntType))
         self.mat = self.operator = A
+        self.nest = None
+        if storage == "sbaij":
+            self.operator = self._nest()
         self.nullspace = rigid_body_nullspace(sp)
         s.is_u.compose("nearnullspace", self.nullspace)
+
+    def _nest(self):
+        """The operator of -operator_storage sbaij: a MatNest of the AIJ's four blocks with the displacement block
+        as SBAIJ (block size 3: the Krylov method's and the field split's smoother products read half the
+        entries, blocked), the blocks copied from the AIJ after each fill."""
+        s = self.system
+        self.mat.setValuesCOO(self.vals, addv=PETSc.InsertMode.INSERT_VALUES)     # (zeros: the pattern)
+        self.mat.assemble()
+        fields = (s.is_u, s.is_p)
+        self.blocks = [[self.mat.createSubMatrix(a, b) for b in fields] for a in fields]
+        uu = self.blocks[0][0]
+        uu.setOption(PETSc.Mat.Option.SYMMETRIC, True)
+        self.S = uu.convert(PETSc.Mat.Type.SBAIJ, out=PETSc.Mat())     # (a new Mat: out=None converts in place)
+        self.nest = PETSc.Mat().createNest([[self.S, self.blocks[0][1]], self.blocks[1]], isrows=fields,
+                                           iscols=fields, comm=self.mat.getComm())
+        return self.nest
+
+    def _refresh_nest(self):
+        s = self.system
+        fields = (s.is_u, s.is_p)
+        for i, a in enumerate(fields):
+            for j, b in enumerate(fields):
+                self.mat.createSubMatrix(a, b, submat=self.blocks[i][j])
+        uu = self.blocks[0][0]
+        uu.setOption(PETSc.Mat.Option.SYMMETRIC, True)            # (a refill forgets it)
+        uu.convert(PETSc.Mat.Type.SBAIJ, out=self.S)
+        self.nest.assemble()
 
     def update(self):
         s, n = self.system, self.nc
@@ -458,6 +490,8 @@ class MixedAssembled:
         v[self.zero] = 0.0
         self.mat.setValuesCOO(v, addv=PETSc.InsertMode.INSERT_VALUES)
         self.mat.assemble()
+        if self.nest is not None:
+            self._refresh_nest()
 
 
 def check_scene(scene, jacobian, integrator):

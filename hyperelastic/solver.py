@@ -58,9 +58,19 @@ def resolve_storage(storage, system, jacobian, assembly, mf):
     if storage == "aij":
         return storage
     if getattr(system, "mixed", False):
+        # sbaij: the Krylov method multiplies by a MatNest whose displacement block is an SBAIJ copy (the field
+        # split's GAMG smooths with it: -pc_fieldsplit_diag_use_amat); the PC is built from the AIJ
+        split = PETSc.Options().getString("pc_type", "") == "fieldsplit"
+        ok = not mf and split and all(e.symmetric for e in system.effects)
         if storage == "auto":
-            return "aij"
-        raise UserError(f"option -operator_storage {storage}: the mixed formulation's tangent is stored as AIJ")
+            return "sbaij" if ok else "aij"
+        if storage == "sbaij" and not ok:
+            raise UserError(f"option -operator_storage {storage}: the mixed formulation's SBAIJ displacement block "
+                            "needs the field split (-pc_type fieldsplit), no MFFD and a symmetric tangent; use aij")
+        if storage != "sbaij":
+            raise UserError(f"option -operator_storage {storage}: the mixed formulation's tangent is stored as AIJ "
+                            "(or sbaij: its displacement block)")
+        return storage
     if storage == "auto":
         ok = (jacobian == "assembled" and assembly == "setvalues" and not mf
               and all(e.symmetric for e in system.effects))
@@ -130,7 +140,7 @@ class Solver:
         self.op = None
         self.storage = resolve_storage(storage, system, jacobian, assembly, self.mf)
         if self.mf != "mf":   # under -snes_mf no Jacobian of ours is used: do not build one
-            self.op = (mixed.MixedAssembled(system) if self.mixed else
+            self.op = (mixed.MixedAssembled(system, self.storage) if self.mixed else
                        jacobians.make(system, jacobian, assembly, self.storage))
             if own:
                 snes.setJacobian(self._jacobian, self.op.operator, self.op.mat)
@@ -139,6 +149,8 @@ class Solver:
         if guard:
             self.guard = system.elastic_kernels()
             snes.setLineSearchPreCheck(self._precheck)
+        if self.mixed and self.storage == "sbaij" and not PETSc.Options().hasName("pc_fieldsplit_diag_use_amat"):
+            PETSc.Options().setValue("pc_fieldsplit_diag_use_amat", "1")     # GAMG smooths with the SBAIJ block
         if own:
             snes.setFromOptions()
         if self.mixed:

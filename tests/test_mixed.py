@@ -207,7 +207,9 @@ def test_two_ranks_and_restart(cylinder, tmp_path):
     (["-formulation", "mixed", "-order", "2", "-material", "linear", "-integrator", "ts"], "backward Euler"),
     (["-incompressible"], "needs a pressure field"),
     (["-formulation", "mixd"], "unknown value"),
-    (["-formulation", "mixed", "-order", "2", "-material", "linear", "-operator_storage", "sbaij"], "AIJ"),
+    (["-formulation", "mixed", "-order", "2", "-material", "linear", "-operator_storage", "shell"], "AIJ"),
+    (["-formulation", "mixed", "-order", "2", "-material", "linear", "-operator_storage", "sbaij", "-pc_type", "lu"],
+     "needs the field split"),
 ])
 def test_refused_paths(args, words, tmp_path):
     """Each path the mixed formulation does not take: one line, exit 2, nothing written."""
@@ -236,6 +238,14 @@ def test_cooks_membrane(tmp_path):
     common = ["run", f"{ROOT}/examples/cook.opts", "-mesh", tmp_path / "c.msh", "-quiet"]
     run_ok(common + ["-order", 2, "-formulation", "mixed", "-output", tmp_path / "m.h5"])
     assert abs(tip_uy(tmp_path / "m.h5") / COOK_TIP - 1) < 0.01, tip_uy(tmp_path / "m.h5")
+    # the default operator (a MatNest with an SBAIJ displacement block) and the plain AIJ solve alike
+    import h5py
+    run_ok(common + ["-order", 2, "-formulation", "mixed", "-operator_storage", "aij", "-output", tmp_path / "a.h5"])
+    with h5py.File(tmp_path / "m.h5", "r") as f, h5py.File(tmp_path / "a.h5", "r") as g:
+        assert f.attrs["operator_storage"] == "sbaij" and g.attrs["operator_storage"] == "aij"
+        assert list(f["stats/ksp_its"]) == list(g["stats/ksp_its"])
+        u, v = f["frames/4/displacement"][:], g["frames/4/displacement"][:]
+        assert np.abs(u - v).max() <= 1e-10 * np.abs(u).max()
     run_ok(common + ["-order", 1, "-options_file", f"{ROOT}/options/gamg.opts", "-output", tmp_path / "d.h5"])
     assert tip_uy(tmp_path / "d.h5") < 0.55 * COOK_TIP, tip_uy(tmp_path / "d.h5")
 
