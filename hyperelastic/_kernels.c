@@ -372,3 +372,57 @@ void he_scatter_blocks_n(int64_t nc, int nn, const int32_t *base, const int32_t 
       }
   }
 }
+
+/* The mixed formulation's pressure terms (mixed.PressureCoupling, volumetric kind "J": G = J - 1, docs/design.md)
+ * on nc cells of nn nodes with nq quadrature points: g (nc, nq, nn, 3) the physical shape-function gradients,
+ * w (nc, nq) |det J| w_q, pq (nc, nq) the pressure at the points, M (nq, 4) the pressure's shape functions. With
+ * H_a = cof(F) g_a = dJ/dx_a (cof(F) = J F^-T): Jq (nc, nq) = J; where not NULL, f (nc, 3nn) = sum_q w p H_a (the
+ * pressure's force), up (nc, 3nn, 4) = sum_q w H_a M_b (the coupling block) and blocks (nc, 3nn, 3nn) =
+ * sum_q (w p / J) (H_ai H_bk - H_ak H_bi) (p d2J/dx_a dx_b, the geometric block). */
+void he_pressure_terms(int64_t nc, int nn, int nq, const idx_t *cells, const double *g, const double *w,
+                       const double *x, const double *pq, const double *M, double *Jq, double *f, double *up,
+                       double *blocks) {
+  const int nd = 3 * nn;
+  double H[3 * 10];
+  for (int64_t e = 0; e < nc; e++) {
+    const idx_t *c = cells + (int64_t)nn * e;
+    if (f) memset(f + nd * e, 0, sizeof(double) * nd);
+    if (up) memset(up + 4 * nd * e, 0, sizeof(double) * 4 * nd);
+    if (blocks) memset(blocks + (int64_t)nd * nd * e, 0, sizeof(double) * nd * nd);
+    for (int q = 0; q < nq; q++) {
+      const double *gq = g + ((e * nq + q) * nn) * 3;
+      double F[9] = {0}, C[9];
+      for (int a = 0; a < nn; a++) {
+        const double *xa = x + 3 * (int64_t)c[a];
+        for (int i = 0; i < 3; i++)
+          for (int j = 0; j < 3; j++) F[3 * i + j] += xa[i] * gq[3 * a + j];
+      }
+      const double J = det3(F);
+      Jq[e * nq + q] = J;
+      cof_mixed(F, F, C);
+      for (int a = 0; a < nn; a++) mv3(C, gq + 3 * a, H + 3 * a);
+      const double wq = w[e * nq + q], p = pq[e * nq + q];
+      if (f) {
+        double *fe = f + nd * e;
+        for (int k = 0; k < nd; k++) fe[k] += wq * p * H[k];
+      }
+      if (up) {
+        double *ue = up + 4 * nd * e;
+        const double *Mq = M + 4 * q;
+        for (int k = 0; k < nd; k++)
+          for (int b = 0; b < 4; b++) ue[4 * k + b] += wq * H[k] * Mq[b];
+      }
+      if (blocks) {
+        double *be = blocks + (int64_t)nd * nd * e;
+        const double s = wq * p / J;
+        for (int a = 0; a < nn; a++)
+          for (int i = 0; i < 3; i++) {
+            const double hai = s * H[3 * a + i];
+            double *row = be + (int64_t)(3 * a + i) * nd;
+            for (int b = 0; b < nn; b++)
+              for (int k = 0; k < 3; k++) row[3 * b + k] += hai * H[3 * b + k] - s * H[3 * a + k] * H[3 * b + i];
+          }
+      }
+    }
+  }
+}

@@ -33,6 +33,7 @@ import math
 import numpy as np
 from petsc4py import PETSc
 
+from . import kernels
 from .effects.base import Effect, timed
 from .element import EDGES, tet_shapes
 from .errors import UserError
@@ -157,14 +158,14 @@ class PressureCoupling(Effect):
         self.idx = np.arange(geometry.nc) if idx is None else np.asarray(idx, np.int64)
         if idx is not None:
             geometry = geometry.subset(self.idx)
-        self.cells = geometry.cells                                   # (nc, 10)
+        self.cells = np.ascontiguousarray(geometry.cells, dtype=kernels.IDX)      # (nc, 10)
         self.dofs = (3 * self.cells[:, :, None].astype(np.int64) + np.arange(3)).ravel()
         self.corners = np.ascontiguousarray(geometry.cells[:, :4])
         geo = geometry.geo
         self.nc, self.nq = geo.shape[0], geo.shape[1]
         self.w = np.ascontiguousarray(geo[:, :, 9])                   # |det J| w_q
         Jinv = geo[:, :, :9].reshape(self.nc, self.nq, 3, 3)
-        self.g = np.einsum("qak,cqkj->cqaj", geometry.dN, Jinv)       # physical gradients (nc, nq, 10, 3)
+        self.g = np.ascontiguousarray(np.einsum("qak,cqkj->cqaj", geometry.dN, Jinv))   # gradients (nc, nq, 10, 3)
         pts = geometry.element.rule()[0]
         self.M = tet_shapes(1, pts)[0]                                # (nq, 4) the pressure's shape functions
         self.p = np.zeros(nlp)
@@ -178,23 +179,42 @@ class PressureCoupling(Effect):
         """(F, p, dG/dF as (nc, nq, 10, 3) per node and component, G) at the quadrature points."""
         xc = x.reshape(-1, 3)[self.cells]
         F = np.einsum("cai,cqaj->cqij", xc, self.g)
-        pq = self.p[self.corners] @ self.M.T                          # (nc, nq)
+        pq = self._pq()
         if self.kind == "trace":
             return F, pq, self.g, np.trace(F, axis1=2, axis2=3) - 3.0, None
         J = np.linalg.det(F)
         h = np.einsum("cqji,cqaj->cqai", np.linalg.inv(F), self.g)    # h_a = F^-T g_a
         return F, pq, J[:, :, None, None] * h, J - 1.0, h
 
+    def _pq(self):
+        return self.p[self.corners] @ self.M.T                            # (nc, nq)
+
     @timed("evals")
     def residual(self, x, r):
-        _, pq, dG, G, _ = self._points(x)
-        f = np.einsum("cq,cqm->cm", self.w * pq, dG.reshape(self.nc, self.nq, 30))
+        if self.kind == "J":                    # (the C loops of _kernels.c; _points is their numpy reference)
+            pq = self._pq()
+            out = kernels.pressure_terms(self.cells, self.g, self.w, x, pq, self.M, force=True)
+            f, G = out["f"], out["J"] - 1.0
+        else:
+            _, pq, dG, G, _ = self._points(x)
+            f = np.einsum("cq,cqm->cm", self.w * pq, dG.reshape(self.nc, self.nq, 30))
         r += np.bincount(self.dofs, f.ravel(), minlength=len(r))
         _, du, _ = self.law(pq)
         self.rp = np.bincount(self.corners.ravel(), (np.einsum("cq,qb->cb", self.w * (G - du), self.M)).ravel(),
                               minlength=self.nlp)
 
     def linearize(self, x):
+        if self.kind == "J":
+            pq = self._pq()
+            _, _, d2 = self.law(pq)
+            out = kernels.pressure_terms(self.cells, self.g, self.w, x, pq, self.M, tangent=True)
+            self.up, self.blocks = out["up"], out["blocks"]
+            self.pp = -np.einsum("cq,qb,qd->cbd", self.w * d2, self.M, self.M)
+            return
+        self.linearize_reference(x)
+
+    def linearize_reference(self, x):
+        """linearize in numpy (the reference of the C loops for kind "J", the path of kind "trace")."""
         F, pq, dG, _, h = self._points(x)
         n = self.nc
         _, _, d2 = self.law(pq)

@@ -88,6 +88,21 @@ def check_tangent(m, amplitude=0.02):
     fd = (Rp.getArray() - Rm.getArray()) / (2 * h)
     jv = JV.getArray()
     assert np.abs(fd - jv).max() < 1e-6 * np.abs(jv).max()
+    # the C loops of the pressure terms (kind "J") against their numpy reference
+    xl = np.asarray(x, dtype=float)                 # (local positions; the pressure: the last residual's)
+    for c in s.couplings:
+        if c.kind == "J":
+            c.linearize(xl)
+            up2, blocks2 = c.up.copy(), c.blocks.copy()
+            c.linearize_reference(xl)
+            assert np.abs(c.up - up2).max() <= 1e-13 * np.abs(up2).max()
+            assert np.abs(c.blocks - blocks2).max() <= 1e-12 * np.abs(blocks2).max()
+            r1, r2 = np.zeros(len(xl)), np.zeros(len(xl))
+            c.residual(xl, r1)
+            _, pq, dG, _, _ = c._points(xl)
+            r2 += np.bincount(c.dofs, np.einsum("cq,cqm->cm", c.w * pq, dG.reshape(c.nc, c.nq, 30)).ravel(),
+                              minlength=len(r2))
+            assert np.abs(r1 - r2).max() <= 1e-12 * np.abs(r2).max()
     # the blocks are symmetric
     T = op.mat.duplicate(copy=True)
     T.transpose()
