@@ -33,7 +33,7 @@ import math
 import numpy as np
 from petsc4py import PETSc
 
-from . import kernels
+from . import jacobians, kernels
 from .effects.base import Effect, timed
 from .element import EDGES, tet_shapes
 from .errors import UserError
@@ -241,9 +241,13 @@ class PressureCoupling(Effect):
 
     def add_cell_blocks(self, vals, lo=0, hi=None):
         """vals (hi-lo, 30, 30) += its blocks of the cells lo..hi-1 among all the local cells."""
-        if self.blocks is not None:
-            sel = (self.idx >= lo) & (self.idx < (len(vals) + lo if hi is None else hi))
-            vals[self.idx[sel] - lo] += self.blocks[sel]
+        if self.blocks is None:
+            return
+        if lo == 0 and len(self.idx) and len(vals) == len(self.idx) == self.idx[-1] + 1:     # all cells, in order
+            vals += self.blocks
+            return
+        sel = (self.idx >= lo) & (self.idx < (len(vals) + lo if hi is None else hi))
+        vals[self.idx[sel] - lo] += self.blocks[sel]
 
     def energy(self, x, v):
         """Its part of the elastic energy: int (p G - U*(p)) dV (at the solution, the volumetric energy)."""
@@ -418,9 +422,8 @@ class MixedAssembled:
     """The mixed tangent [[K_uu, K_up], [K_pu, K_pp]] as one AIJ matrix, filled by COO: the displacement
     effects' cell blocks and their extra entries, each coupling's blocks, the constrained rows' s I (zero in
     their columns, as in jacobians.Assembled), the dead pressures' c. The displacement block gets the rigid-body
-    near null space through is_u (PCFIELDSPLIT hands it to the split's matrix). storage `sbaij`: the operator the
-    Krylov method multiplies by is a MatNest of the AIJ's blocks with the displacement block as SBAIJ (`_nest`);
-    the preconditioner is built from the AIJ (`mat`)."""
+    near null space through is_u (PCFIELDSPLIT hands it to the split's matrix). Any preconditioner (LU of the
+    whole, the field split); the default under the field split is MixedNest."""
 
     def __init__(self, system, storage="aij"):
         self.system = s = system
@@ -456,38 +459,8 @@ class MixedAssembled:
         A.setLGMap(lg, lg)
         A.setPreallocationCOOLocal(rows.astype(PETSc.IntType), cols.astype(PETSc.IntType))
         self.mat = self.operator = A
-        self.nest = None
-        if storage == "sbaij":
-            self.operator = self._nest()
         self.nullspace = rigid_body_nullspace(sp)
         s.is_u.compose("nearnullspace", self.nullspace)
-
-    def _nest(self):
-        """The operator of -operator_storage sbaij: a MatNest of the AIJ's four blocks with the displacement block
-        as SBAIJ (block size 3: the Krylov method's and the field split's smoother products read half the
-        entries, blocked), the blocks copied from the AIJ after each fill."""
-        s = self.system
-        self.mat.setValuesCOO(self.vals, addv=PETSc.InsertMode.INSERT_VALUES)     # (zeros: the pattern)
-        self.mat.assemble()
-        fields = (s.is_u, s.is_p)
-        self.blocks = [[self.mat.createSubMatrix(a, b) for b in fields] for a in fields]
-        uu = self.blocks[0][0]
-        uu.setOption(PETSc.Mat.Option.SYMMETRIC, True)
-        self.S = uu.convert(PETSc.Mat.Type.SBAIJ, out=PETSc.Mat())     # (a new Mat: out=None converts in place)
-        self.nest = PETSc.Mat().createNest([[self.S, self.blocks[0][1]], self.blocks[1]], isrows=fields,
-                                           iscols=fields, comm=self.mat.getComm())
-        return self.nest
-
-    def _refresh_nest(self):
-        s = self.system
-        fields = (s.is_u, s.is_p)
-        for i, a in enumerate(fields):
-            for j, b in enumerate(fields):
-                self.mat.createSubMatrix(a, b, submat=self.blocks[i][j])
-        uu = self.blocks[0][0]
-        uu.setOption(PETSc.Mat.Option.SYMMETRIC, True)            # (a refill forgets it)
-        uu.convert(PETSc.Mat.Type.SBAIJ, out=self.S)
-        self.nest.assemble()
 
     def update(self):
         s, n = self.system, self.nc
@@ -510,8 +483,82 @@ class MixedAssembled:
         v[self.zero] = 0.0
         self.mat.setValuesCOO(v, addv=PETSc.InsertMode.INSERT_VALUES)
         self.mat.assemble()
-        if self.nest is not None:
-            self._refresh_nest()
+
+
+class MixedNest:
+    """The mixed tangent by blocks (-operator_storage sbaij, the default under the field split): `mat` (what the
+    preconditioner is built from) is a MatNest [[K_uu, K_up], [K_pu, K_pp]] over is_u and is_p, `operator` (what
+    the Krylov method multiplies by) the same blocks with K_uu's SBAIJ copy. K_uu is the displacement formulation's
+    assembled tangent (jacobians.AssembledChunked, storage sbaij: cell blocks straight into the CSR values, with
+    the rigid-body near null space), the couplings' geometric blocks among its cell effects; K_up, K_pu and K_pp
+    (with the dead pressures' c) are filled by COO, zero in the constrained displacement rows. PCFIELDSPLIT takes
+    the blocks without copies (-pc_fieldsplit_diag_use_amat: the displacement split's GAMG smooths with the SBAIJ
+    copy)."""
+
+    def __init__(self, system):
+        self.system = s = system
+        sp, ps = s.space, s.pspace
+        self.uu = jacobians.AssembledChunked(s, storage="sbaij")
+        cd = (3 * sp.cells[:, :, None].astype(np.int64) + np.arange(3)).reshape(-1, 30)
+        up_r, up_c, pp_r, pp_c = [], [], [], []
+        for c in s.couplings:
+            cu, pd = cd[c.idx], c.corners.astype(np.int64)
+            up_r.append(np.repeat(cu, 4, axis=1).ravel())
+            up_c.append(np.tile(pd, (1, 30)).ravel())
+            pp_r.append(np.repeat(pd, 4, axis=1).ravel())
+            pp_c.append(np.tile(pd, (1, 4)).ravel())
+        dead = s.dead_local.astype(np.int64)
+        up_r, up_c = np.concatenate(up_r), np.concatenate(up_c)
+        pp_r, pp_c = np.concatenate(pp_r + [dead]), np.concatenate(pp_c + [dead])
+        self.up_zero = np.flatnonzero(s.cmask[up_r])              # constrained displacement rows (columns of K_pu)
+        self.up_vals = np.zeros(len(up_r))
+        self.pp_vals = np.zeros(len(pp_r))
+        self.n_pp = len(pp_r) - len(dead)
+        sizes_u, sizes_p = (s.nu_owned, PETSc.DETERMINE), (ps.n_owned, PETSc.DETERMINE)
+
+        def coo(rsz, csz, rmap, cmap, r, c):
+            A = PETSc.Mat().create(comm=sp.comm)
+            A.setSizes((rsz, csz))
+            A.setType(PETSc.Mat.Type.AIJ)
+            A.setLGMap(rmap, cmap)
+            A.setPreallocationCOOLocal(r.astype(PETSc.IntType), c.astype(PETSc.IntType))
+            return A
+        self.K_up = coo(sizes_u, sizes_p, sp.lgmap, ps.lgmap, up_r, up_c)
+        self.K_pu = coo(sizes_p, sizes_u, ps.lgmap, sp.lgmap, up_c, up_r)
+        self.K_pp = coo(sizes_p, sizes_p, ps.lgmap, ps.lgmap, pp_r, pp_c)
+        self._fill_coupling()                                     # (the nests want assembled blocks)
+        self.uu.mat.assemble()
+        self.uu.copy.refresh(self.uu.map.nnz)
+        fields = [s.is_u, s.is_p]
+        self.mat = PETSc.Mat().createNest([[self.uu.mat, self.K_up], [self.K_pu, self.K_pp]], isrows=fields,
+                                          iscols=fields, comm=sp.comm)
+        self.operator = PETSc.Mat().createNest([[self.uu.operator, self.K_up], [self.K_pu, self.K_pp]],
+                                               isrows=fields, iscols=fields, comm=sp.comm)
+        self.nullspace = self.uu.nullspace
+        s.is_u.compose("nearnullspace", self.nullspace)
+
+    def _fill_coupling(self):
+        s, o, q = self.system, 0, 0
+        for c in s.couplings:
+            k, m = len(c.idx) * 120, len(c.idx) * 16
+            if getattr(c, "up", None) is not None:             # (linearized)
+                self.up_vals[o:o + k] = c.up.ravel()
+                self.pp_vals[q:q + m] = c.pp.ravel()
+            o, q = o + k, q + m
+        self.up_vals[self.up_zero] = 0.0
+        self.pp_vals[self.n_pp:] = s.dead_scale
+        INSERT = PETSc.InsertMode.INSERT_VALUES
+        self.K_up.setValuesCOO(self.up_vals, addv=INSERT)
+        self.K_pu.setValuesCOO(self.up_vals, addv=INSERT)
+        self.K_pp.setValuesCOO(self.pp_vals, addv=INSERT)
+        for A in (self.K_up, self.K_pu, self.K_pp):
+            A.assemble()
+
+    def update(self):
+        self.uu.assemble()
+        self._fill_coupling()
+        self.mat.assemble()          # (a new state: the field split sets its blocks up again)
+        self.operator.assemble()
 
 
 def check_scene(scene, jacobian, integrator):

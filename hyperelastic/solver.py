@@ -140,7 +140,8 @@ class Solver:
         self.op = None
         self.storage = resolve_storage(storage, system, jacobian, assembly, self.mf)
         if self.mf != "mf":   # under -snes_mf no Jacobian of ours is used: do not build one
-            self.op = (mixed.MixedAssembled(system, self.storage) if self.mixed else
+            self.op = ((mixed.MixedNest(system) if self.storage == "sbaij" else mixed.MixedAssembled(system))
+                       if self.mixed else
                        jacobians.make(system, jacobian, assembly, self.storage))
             if own:
                 snes.setJacobian(self._jacobian, self.op.operator, self.op.mat)

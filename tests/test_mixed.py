@@ -88,6 +88,15 @@ def check_tangent(m, amplitude=0.02):
     fd = (Rp.getArray() - Rm.getArray()) / (2 * h)
     jv = JV.getArray()
     assert np.abs(fd - jv).max() < 1e-6 * np.abs(jv).max()
+    # the block form (MatNest of K_uu, its SBAIJ copy and the COO coupling blocks) multiplies alike
+    from hyperelastic.mixed import MixedNest
+    s.linearize(X)
+    nest = MixedNest(s)
+    nest.update()
+    for A in (nest.mat, nest.operator):
+        Y = X.duplicate()
+        A.mult(V, Y)
+        assert np.abs(Y.getArray() - jv).max() <= 1e-12 * np.abs(jv).max()
     # the C loops of the pressure terms (kind "J") against their numpy reference
     xl = np.asarray(x, dtype=float)                 # (local positions; the pressure: the last residual's)
     for c in s.couplings:
