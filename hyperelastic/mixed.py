@@ -151,8 +151,9 @@ class PressureCoupling(Effect):
     internal = True           # the pressure's part of the stress: internal forces, not a load
 
     def __init__(self, geometry, law, nlp, shear, idx=None):
-        """geometry: the local cells (an ElementCells); idx: those of one material with a split (default all); law:
-        its Volumetric; nlp: the local pressures; shear: its shear modulus (the Schur complement's preconditioner)."""
+        """geometry: the local cells (an ElementCells); idx: those of one material with a split, sorted (default
+        all); law: its Volumetric; nlp: the local pressures; shear: its shear modulus (the Schur complement's
+        preconditioner)."""
         super().__init__()
         self.kind, self.law, self.nlp, self.shear = law.kind, law, nlp, shear
         self.idx = np.arange(geometry.nc) if idx is None else np.asarray(idx, np.int64)
@@ -243,11 +244,15 @@ class PressureCoupling(Effect):
         """vals (hi-lo, 30, 30) += its blocks of the cells lo..hi-1 among all the local cells."""
         if self.blocks is None:
             return
-        if lo == 0 and len(self.idx) and len(vals) == len(self.idx) == self.idx[-1] + 1:     # all cells, in order
-            vals += self.blocks
+        hi = len(vals) + lo if hi is None else hi
+        k0, k1 = np.searchsorted(self.idx, (lo, hi))              # (idx is sorted)
+        if k1 == k0:
             return
-        sel = (self.idx >= lo) & (self.idx < (len(vals) + lo if hi is None else hi))
-        vals[self.idx[sel] - lo] += self.blocks[sel]
+        a, b = self.idx[k0] - lo, self.idx[k1 - 1] - lo + 1
+        if b - a == k1 - k0:                                      # consecutive cells (all of them, one material)
+            vals[a:b] += self.blocks[k0:k1]
+        else:
+            vals[self.idx[k0:k1] - lo] += self.blocks[k0:k1]
 
     def energy(self, x, v):
         """Its part of the elastic energy: int (p G - U*(p)) dV (at the solution, the volumetric energy)."""
