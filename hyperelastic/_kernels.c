@@ -412,17 +412,26 @@ void he_pressure_terms(int64_t nc, int nn, int nq, const idx_t *cells, const dou
         for (int k = 0; k < nd; k++)
           for (int b = 0; b < 4; b++) ue[4 * k + b] += wq * H[k] * Mq[b];
       }
-      if (blocks) {
+      if (blocks) {                           /* K1 += s H H^T here; blocks = K1 - its swap of i and k below */
         double *be = blocks + (int64_t)nd * nd * e;
         const double s = wq * p / J;
-        for (int a = 0; a < nn; a++)
-          for (int i = 0; i < 3; i++) {
-            const double hai = s * H[3 * a + i];
-            double *row = be + (int64_t)(3 * a + i) * nd;
-            for (int b = 0; b < nn; b++)
-              for (int k = 0; k < 3; k++) row[3 * b + k] += hai * H[3 * b + k] - s * H[3 * a + k] * H[3 * b + i];
-          }
+        for (int m = 0; m < nd; m++) {
+          const double hm = s * H[m];
+          double *row = be + (int64_t)m * nd;
+          for (int k = 0; k < nd; k++) row[k] += hm * H[k];
+        }
       }
+    }
+    if (blocks) {                             /* [a,i,b,k] = K1[a,i,b,k] - K1[a,k,b,i], for each pair of nodes */
+      double *be = blocks + (int64_t)nd * nd * e;
+      for (int a = 0; a < nn; a++)
+        for (int b = 0; b < nn; b++) {
+          double K[9], *B = be + (int64_t)3 * a * nd + 3 * b;
+          for (int i = 0; i < 3; i++)
+            for (int k = 0; k < 3; k++) K[3 * i + k] = B[(int64_t)i * nd + k];
+          for (int i = 0; i < 3; i++)
+            for (int k = 0; k < 3; k++) B[(int64_t)i * nd + k] = K[3 * i + k] - K[3 * k + i];
+        }
     }
   }
 }

@@ -44,10 +44,12 @@ HEAD = (
     Row(("quadrature_degree",), "-quadrature_degree N", "the degree of the rule that integrates quadratic "
         "tetrahedra's stiffness: " + ", ".join(f"{d} ({len(TET_RULES[d][1])} points)" for d in TET_RULES if d > 1)
         + "; the mass matrix and the loads are integrated exactly on straight cells", str(DEFAULT_DEGREE[2])),
-    Row(("formulation",), "-formulation displacement|mixed", "`mixed`: a continuous linear pressure beside "
+    Row(("formulation",), "-formulation auto|displacement|mixed", "`mixed`: a continuous linear pressure beside "
         "quadratic displacements (Taylor–Hood P2–P1, needs `-order 2`) for nearly incompressible materials with an "
         "isochoric/volumetric split (neohookean_split, mooney_rivlin, linear); the pressure p is the mean Cauchy "
-        "stress (an output field); GMRES with a Schur-complement field split by default", _S.formulation),
+        "stress (an output field); GMRES with a Schur-complement field split by default. `auto`: mixed where a "
+        "material with a split has κ/μ ≥ 100 (ν ≥ 0.495) on quadratic tetrahedra and the run allows it, else "
+        "displacement (a start-up note says which; the output's `formulation` attribute records it)", _S.formulation),
     Row(("incompressible",), "-incompressible", "the mixed formulation's incompressible limit (bulk modulus → ∞: "
         "J = 1, or tr ε = 0 for `linear`)", "off"),
     Row(("material",), "-material NAME", _material_list(), DEFAULT_MATERIAL),

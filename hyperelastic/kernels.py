@@ -61,22 +61,27 @@ _lib.he_pressure_terms.restype = None
 _lib.he_pressure_terms.argtypes = [_I, ctypes.c_int, ctypes.c_int, _P, _P, _P, _P, _P, _P, _P, _P, _P, _P]
 
 
-def pressure_terms(cells, g, w, x, pq, M, force=False, tangent=False):
+def pressure_terms(cells, g, w, x, pq, M, force=False, tangent=False, out=None):
     """The mixed formulation's pressure terms of volumetric kind "J" (_kernels.c, he_pressure_terms) on cells
     (nc, nn) int32 with gradients g (nc, nq, nn, 3), weights w (nc, nq), pressures pq (nc, nq) at the points, the
     pressure's shape functions M (nq, 4), local positions x: {"J": (nc, nq)}, with force: "f" (nc, 3nn), with
-    tangent: "up" (nc, 3nn, 4) and "blocks" (nc, 3nn, 3nn)."""
+    tangent: "up" (nc, 3nn, 4) and "blocks" (nc, 3nn, 3nn); into the arrays of `out` where it has them (kept
+    between calls: a new (nc, 30, 30) array costs more in page faults than the loop)."""
     nc, nq, nn = g.shape[:3]
     assert nn <= 10 and cells.dtype == IDX and cells.shape == (nc, nn) and M.shape == (nq, 4)
     arrays = [np.ascontiguousarray(a, dtype=np.float64) for a in (g, w, x, pq, M)]
     cells = np.ascontiguousarray(cells)
-    out = {"J": np.empty((nc, nq))}
+    out = {} if out is None else out
+    shapes = {"J": (nc, nq)}
     if force:
-        out["f"] = np.empty((nc, 3 * nn))
+        shapes["f"] = (nc, 3 * nn)
     if tangent:
-        out["up"] = np.empty((nc, 3 * nn, 4))
-        out["blocks"] = np.empty((nc, 3 * nn, 3 * nn))
-    ptr = lambda k: out[k].ctypes.data if k in out else None        # noqa: E731
+        shapes.update(up=(nc, 3 * nn, 4), blocks=(nc, 3 * nn, 3 * nn))
+    for k, shape in shapes.items():
+        if k not in out:
+            out[k] = np.empty(shape)
+        assert out[k].shape == shape and out[k].dtype == np.float64 and out[k].flags.c_contiguous
+    ptr = lambda k: out[k].ctypes.data if k in shapes else None     # noqa: E731
     _lib.he_pressure_terms(nc, nn, nq, cells.ctypes.data, *(a.ctypes.data for a in arrays), out["J"].ctypes.data,
                            ptr("f"), ptr("up"), ptr("blocks"))
     return out

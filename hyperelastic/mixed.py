@@ -172,6 +172,7 @@ class PressureCoupling(Effect):
         self.p = np.zeros(nlp)
         self.rp = np.zeros(nlp)
         self.blocks = None
+        self.buffers = {}         # the C loops' output arrays, kept
 
     def set_pressure(self, p):
         self.p = p
@@ -194,7 +195,7 @@ class PressureCoupling(Effect):
     def residual(self, x, r):
         if self.kind == "J":                    # (the C loops of _kernels.c; _points is their numpy reference)
             pq = self._pq()
-            out = kernels.pressure_terms(self.cells, self.g, self.w, x, pq, self.M, force=True)
+            out = kernels.pressure_terms(self.cells, self.g, self.w, x, pq, self.M, force=True, out=self.buffers)
             f, G = out["f"], out["J"] - 1.0
         else:
             _, pq, dG, G, _ = self._points(x)
@@ -208,7 +209,7 @@ class PressureCoupling(Effect):
         if self.kind == "J":
             pq = self._pq()
             _, _, d2 = self.law(pq)
-            out = kernels.pressure_terms(self.cells, self.g, self.w, x, pq, self.M, tangent=True)
+            out = kernels.pressure_terms(self.cells, self.g, self.w, x, pq, self.M, tangent=True, out=self.buffers)
             self.up, self.blocks = out["up"], out["blocks"]
             self.pp = -np.einsum("cq,qb,qd->cbd", self.w * d2, self.M, self.M)
             return
@@ -566,9 +567,46 @@ class MixedNest:
         self.operator.assemble()
 
 
+# -formulation auto takes the mixed formulation from this bulk-to-shear ratio kappa/mu up (nu >= 0.495), where the
+# element order and the solver allow it: measured on Lame's cylinder, docs/mixed.md "Which formulation by default"
+AUTO_RATIO = 100.0
+
+
+def bulk_to_shear(solid):
+    """kappa/mu of a solid: its split's moduli where it has one, else from E and nu."""
+    if solid.material.volumetric:
+        _, mu, kappa = solid.material.split(solid.values)
+        return kappa / mu
+    nu = solid.values["nu"]
+    return 2 * (1 + nu) / (3 * (1 - 2 * nu))
+
+
+def choose_formulation(scene):
+    """(formulation, note or None) for the scene, its mesh's order known: -formulation auto is `mixed` where some
+    material has kappa/mu >= AUTO_RATIO and a split, the elements are quadratic and the run's paths allow it (the
+    note says so), else `displacement` (with a note where linear tetrahedra would lock)."""
+    if scene.formulation != "auto":
+        return scene.formulation, None
+    solids = [scene.solid] + [r.solid for r in scene.regions]
+    ratio = max(bulk_to_shear(sol) for sol in solids)
+    if ratio < AUTO_RATIO:
+        return "displacement", None
+    nu = (3 * ratio - 2) / (2 * (3 * ratio + 1))
+    what = f"nearly incompressible (kappa/mu = {ratio:.3g}, nu = {nu:.5g})"
+    if scene.order != 2:
+        return "displacement", (f"{what}: linear tetrahedra lock (too stiff); -order 2 takes the mixed "
+                                "displacement-pressure formulation (docs/mixed.md)")
+    try:
+        check_scene(scene, scene.jacobian, scene.integrator)
+    except UserError as e:
+        return "displacement", f"{what}, displacements alone: the mixed formulation {str(e).split(': ', 1)[1]}"
+    return "mixed", (f"{what}: -formulation auto takes the mixed displacement-pressure formulation (-formulation "
+                     "displacement: displacements alone)")
+
+
 def check_scene(scene, jacobian, integrator):
     """The paths the mixed formulation does not take, each refused with one line."""
-    what = "option -formulation mixed"
+    what = "option -incompressible (a pressure field)" if scene.incompressible else "option -formulation mixed"
     if scene.order != 2:
         raise UserError(f"{what}: needs quadratic tetrahedra (-order 2: Taylor-Hood P2-P1); equal-order P1-P1 is "
                         "not inf-sup stable")

@@ -195,6 +195,9 @@ def build_model(scene, comm):
         space = QuadraticSpace(comm, points, mesh.tets if mesh is not None else None, labels, tets)
     scene.order = order
     report = space.mpi.bcast(report, root=0)
+    scene.formulation, note = mixed.choose_formulation(scene)
+    if note:
+        scene.notes.append(note)
     is_mixed = scene.formulation == "mixed"
     if is_mixed:
         mixed.check_scene(scene, scene.jacobian, scene.integrator)

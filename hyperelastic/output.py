@@ -69,6 +69,7 @@ def run_attributes(model, scene_file, solver):
             "effects_built": json.dumps(built, sort_keys=True), "hyperelastic_version": __version__,
             "petsc_version": ".".join(map(str, PETSc.Sys.getVersion())), "mpi_ranks": space.comm.getSize(),
             "jacobian": sc.jacobian + (f" ({solver.mf})" if solver.mf else ""), "integrator": sc.integrator,
+            "formulation": sc.formulation + (" (incompressible)" if sc.incompressible else ""),
             "operator_storage": solver.storage if solver.op is not None else "",
             "line_search_merit": solver.merit + (f" ({solver.merit_note})" if solver.merit_note else ""),
             "material": sc.solid.name, "E": sc.solid.values["E"], "nu": sc.solid.values["nu"], "rho": sc.solid.rho,

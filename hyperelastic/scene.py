@@ -30,7 +30,7 @@ class Scene:
     level: int = 1
     order: int = 0              # element order: 1 (4-node) or 2 (10-node) tetrahedra; 0: the mesh's own
     quadrature: int = 0         # degree of the stiffness rule of P2 (element.TET_RULES); 0: element.DEFAULT_DEGREE
-    formulation: str = "displacement"   # or mixed: a pressure field (mixed.py)
+    formulation: str = "auto"           # displacement, mixed (a pressure field, mixed.py) or auto (mixed.choose)
     incompressible: bool = False        # the mixed formulation's incompressible limit (kappa -> inf)
     solid: materials.Solid = field(default_factory=lambda: materials.default_solid(DEFAULT_MATERIAL))
     lumped: bool = False
@@ -88,7 +88,9 @@ class Region:
 
 MAX_STEPS, MAX_FRAMES = 1e9, 1e6   # a run beyond these is a typo, not a simulation on this machine
 JACOBIANS = ("assembled", "shell", "seed_fd", "seed_fd2")
-FORMULATIONS = ("displacement", "mixed")   # mixed: displacement-pressure, Taylor-Hood P2-P1 (mixed.py)
+# mixed: displacement-pressure, Taylor-Hood P2-P1 (mixed.py); auto: mixed for nearly incompressible materials on
+# quadratic tetrahedra, else displacement (mixed.choose_formulation, once the mesh's order is known)
+FORMULATIONS = ("auto", "displacement", "mixed")
 INTEGRATORS = ("beuler", "ts")
 ASSEMBLIES = ("setvalues", "coo")
 STORAGES = ("auto", "aij", "sbaij", "shell")   # the matrix the Krylov method multiplies by (solver.resolve_storage)
@@ -132,6 +134,8 @@ def _read_material(s, opts):
     s.solid = materials.read_solid(opts, "", s.solid, f"scene '{s.name}'")
     s.formulation = opts.choice("formulation", FORMULATIONS, s.formulation)
     s.incompressible = opts.flag("incompressible", s.incompressible)
+    if s.incompressible and s.formulation == "auto":
+        s.formulation = "mixed"
     if s.incompressible and s.formulation != "mixed":
         raise UserError("option -incompressible: the incompressible limit needs a pressure field (-formulation mixed)")
     s.lumped = opts.choice("mass", ("consistent", "lumped"), "lumped" if s.lumped else "consistent") == "lumped"

@@ -44,8 +44,7 @@ def run(msh, ratio, order, formulation, extra, out):
             "-quasistatic", "-dt", "1", "-final_time", "1",
             "-effects", "elasticity,fixed,pressure", "-fix", "xsym:x,ysym:y,bottom:z,top:z", "-pressure", str(P),
             "-pressure_faces", "inner", "-snes_rtol", "1e-10", "-output", out, "-quiet"] + extra
-    if formulation == "mixed":
-        args += ["-formulation", "mixed"] + (["-incompressible"] if ratio == np.inf else [])
+    args += ["-formulation", formulation] + (["-incompressible"] if ratio == np.inf else [])
     p = subprocess.run(args, capture_output=True, text=True)
     if p.returncode:
         return None, p.stderr.strip().splitlines()[-1]

@@ -229,7 +229,8 @@ def test_two_ranks_and_restart(cylinder, tmp_path):
     (["-formulation", "mixed", "-order", "2", "-material", "stvk"], "no isochoric/volumetric split"),
     (["-formulation", "mixed", "-order", "2", "-material", "linear", "-jacobian", "shell"], "assembled"),
     (["-formulation", "mixed", "-order", "2", "-material", "linear", "-integrator", "ts"], "backward Euler"),
-    (["-incompressible"], "needs a pressure field"),
+    (["-incompressible"], "-incompressible (a pressure field): needs quadratic tetrahedra"),
+    (["-incompressible", "-formulation", "displacement"], "needs a pressure field"),
     (["-formulation", "mixd"], "unknown value"),
     (["-formulation", "mixed", "-order", "2", "-material", "linear", "-operator_storage", "shell"], "AIJ"),
     (["-formulation", "mixed", "-order", "2", "-material", "linear", "-operator_storage", "sbaij", "-pc_type", "lu"],
@@ -352,3 +353,32 @@ def test_mfd_operator_matches_assembled(cylinder, tmp_path):
     _, a = radial(tmp_path / "a.h5")
     _, m = radial(tmp_path / "m.h5")
     assert np.abs(a - m).max() < 1e-6 * np.abs(a).max()
+
+
+def test_auto_formulation_rule(tmp_path):
+    """-formulation auto (the default): mixed for a nearly incompressible split material on quadratic tetrahedra (a
+    note says so, the output records it), displacements alone for a compressible one, and for the paths the mixed
+    formulation does not take, with a note saying why (linear tetrahedra lock; a material without a split); the
+    rubber preset is nearly incompressible."""
+    import h5py
+    msh = tmp_path / "c.msh"
+    run_ok(["mesh", f"{ROOT}/examples/cook.geo", "--size", 8, "--order", 2, "-o", msh])
+    keep = [ln for ln in open(f"{ROOT}/examples/cook.opts").read().splitlines()
+            if ln.split()[:1] not in (["-E"], ["-nu"], ["-mu"], ["-kappa"], ["-material"])]
+    split = ["-material", "neohookean_split", "-mu", 80.194]
+    cases = [(split + ["-kappa", 400889.8], 2, "mixed", "-formulation auto takes the mixed"),
+             (split + ["-kappa", 173.75], 2, "displacement", None),
+             (split + ["-kappa", 400889.8], 1, "displacement", "linear tetrahedra lock"),
+             (["-material", "neohookean", "-E", 240.565, "-nu", 0.4999], 2, "displacement",
+              "no isochoric/volumetric split"),
+             (["-material", "neohookean_split", "-preset", "rubber"], 2, "mixed", "nu = 0.4995")]
+    for k, (material, order, form, note) in enumerate(cases):
+        scene, out = tmp_path / f"s{k}.opts", tmp_path / f"o{k}.h5"
+        pairs = [f"{material[i]} {material[i + 1]}" for i in range(0, len(material), 2)]
+        scene.write_text("\n".join(keep + pairs) + "\n")
+        p = hyperelastic(["run", scene, "-mesh", msh, "-order", order, "-final_time", 0.25, "-output", out])
+        assert p.returncode == 0, (material, p.stderr)
+        with h5py.File(out, "r") as f:
+            assert f.attrs["formulation"] == form, material
+        notes = [ln for ln in p.stderr.splitlines() if ln.startswith("note:") and "nearly incompressible" in ln]
+        assert (note is None and not notes) or (note is not None and len(notes) == 1 and note in notes[0]), notes

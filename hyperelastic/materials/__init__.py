@@ -30,9 +30,12 @@ REGISTRY = ("linear", "stvk", "neohookean", "snh", "corotational", "mooney_rivli
 MATERIALS = {n: importlib.import_module(f".{n}", __name__).MATERIAL for n in REGISTRY}
 
 # Preset values of the thesis framework (K. Erleben, hyper-sim, simulate/create_params.m, 2011);
-# "bone" is its "cortical bone". E [Pa], nu [-], rho [kg/m^3].
+# "bone" is its "cortical bone". E [Pa], nu [-], rho [kg/m^3]. Rubber is nearly incompressible: its bulk modulus,
+# ~2 GPa, is some thousand times its shear modulus (Treloar, The Physics of Rubber Elasticity, 3rd ed., 1975,
+# ch. 1), so nu = 0.4995 (kappa/mu = 1000: kappa = 3.3 GPa with the framework's E = 10 MPa) where the framework
+# had 0.48 (kappa/mu = 25); on quadratic tetrahedra -formulation auto takes the mixed formulation for it.
 PRESETS = {
-    "rubber": (0.01e9, 0.48, 1050.0),
+    "rubber": (0.01e9, 0.4995, 1050.0),
     "steel": (210e9, 0.31, 7800.0),
     "cartilage": (0.69e6, 0.018, 1000.0),
     "cortical_bone": (16.16e9, 0.33, 1600.0),
