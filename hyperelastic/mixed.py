@@ -492,19 +492,19 @@ class MixedAssembled:
 
 
 class MixedNest:
-    """The mixed tangent by blocks (-operator_storage sbaij, the default under the field split): `mat` (what the
-    preconditioner is built from) is a MatNest [[K_uu, K_up], [K_pu, K_pp]] over is_u and is_p, `operator` (what
-    the Krylov method multiplies by) the same blocks with K_uu's SBAIJ copy. K_uu is the displacement formulation's
-    assembled tangent (jacobians.AssembledChunked, storage sbaij: cell blocks straight into the CSR values, with
-    the rigid-body near null space), the couplings' geometric blocks among its cell effects; K_up, K_pu and K_pp
+    """The mixed tangent by blocks (under the field split): `mat` (what the preconditioner is built from) is a
+    MatNest [[K_uu, K_up], [K_pu, K_pp]] over is_u and is_p; with storage `sbaij` (the default where K_uu is
+    symmetric) `operator` (what the Krylov method multiplies by) has the same blocks with K_uu's SBAIJ copy. K_uu is
+    the displacement formulation's assembled tangent (jacobians.AssembledChunked: cell blocks straight into the CSR
+    values, with the rigid-body near null space), the couplings' geometric blocks among its cell effects; K_up, K_pu and K_pp
     (with the dead pressures' c) are filled by COO, zero in the constrained displacement rows. PCFIELDSPLIT takes
     the blocks without copies (-pc_fieldsplit_diag_use_amat: the displacement split's GAMG smooths with the SBAIJ
     copy)."""
 
-    def __init__(self, system):
+    def __init__(self, system, storage="sbaij"):
         self.system = s = system
         sp, ps = s.space, s.pspace
-        self.uu = jacobians.AssembledChunked(s, storage="sbaij")
+        self.uu = jacobians.AssembledChunked(s, storage=storage)
         cd = (3 * sp.cells[:, :, None].astype(np.int64) + np.arange(3)).reshape(-1, 30)
         up_r, up_c, pp_r, pp_c = [], [], [], []
         for c in s.couplings:
@@ -534,12 +534,14 @@ class MixedNest:
         self.K_pp = coo(sizes_p, sizes_p, ps.lgmap, ps.lgmap, pp_r, pp_c)
         self._fill_coupling()                                     # (the nests want assembled blocks)
         self.uu.mat.assemble()
-        self.uu.copy.refresh(self.uu.map.nnz)
+        if self.uu.copy is not None:
+            self.uu.copy.refresh(self.uu.map.nnz)
         fields = [s.is_u, s.is_p]
-        self.mat = PETSc.Mat().createNest([[self.uu.mat, self.K_up], [self.K_pu, self.K_pp]], isrows=fields,
-                                          iscols=fields, comm=sp.comm)
-        self.operator = PETSc.Mat().createNest([[self.uu.operator, self.K_up], [self.K_pu, self.K_pp]],
-                                               isrows=fields, iscols=fields, comm=sp.comm)
+        self.mat = self.operator = PETSc.Mat().createNest([[self.uu.mat, self.K_up], [self.K_pu, self.K_pp]],
+                                                          isrows=fields, iscols=fields, comm=sp.comm)
+        if self.uu.operator is not self.uu.mat:
+            self.operator = PETSc.Mat().createNest([[self.uu.operator, self.K_up], [self.K_pu, self.K_pp]],
+                                                   isrows=fields, iscols=fields, comm=sp.comm)
         self.nullspace = self.uu.nullspace
         s.is_u.compose("nearnullspace", self.nullspace)
 
@@ -564,7 +566,8 @@ class MixedNest:
         self.uu.assemble()
         self._fill_coupling()
         self.mat.assemble()          # (a new state: the field split sets its blocks up again)
-        self.operator.assemble()
+        if self.operator is not self.mat:
+            self.operator.assemble()
 
 
 # -formulation auto takes the mixed formulation from this bulk-to-shear ratio kappa/mu up (nu >= 0.495), where the

@@ -60,8 +60,7 @@ def resolve_storage(storage, system, jacobian, assembly, mf):
     if getattr(system, "mixed", False):
         # sbaij: the Krylov method multiplies by a MatNest whose displacement block is an SBAIJ copy (the field
         # split's GAMG smooths with it: -pc_fieldsplit_diag_use_amat); the PC is built from the AIJ
-        split = PETSc.Options().getString("pc_type", "") == "fieldsplit"
-        ok = not mf and split and all(e.symmetric for e in system.effects)
+        ok = mixed_blocks(mf) and all(e.symmetric for e in system.effects)
         if storage == "auto":
             return "sbaij" if ok else "aij"
         if storage == "sbaij" and not ok:
@@ -86,6 +85,11 @@ def resolve_storage(storage, system, jacobian, assembly, mf):
     if unsym and storage == "sbaij":
         raise UserError(f"{what}: the tangent of {', '.join(unsym)} is not symmetric; use -operator_storage aij")
     return storage
+
+
+def mixed_blocks(mf):
+    """The mixed tangent by blocks (mixed.MixedNest): under the field split without MFFD; else one AIJ."""
+    return not mf and PETSc.Options().getString("pc_type", "") == "fieldsplit"
 
 
 def matrix_free():
@@ -140,8 +144,8 @@ class Solver:
         self.op = None
         self.storage = resolve_storage(storage, system, jacobian, assembly, self.mf)
         if self.mf != "mf":   # under -snes_mf no Jacobian of ours is used: do not build one
-            self.op = ((mixed.MixedNest(system) if self.storage == "sbaij" else mixed.MixedAssembled(system))
-                       if self.mixed else
+            self.op = ((mixed.MixedNest(system, self.storage) if mixed_blocks(self.mf) else
+                        mixed.MixedAssembled(system)) if self.mixed else
                        jacobians.make(system, jacobian, assembly, self.storage))
             if own:
                 snes.setJacobian(self._jacobian, self.op.operator, self.op.mat)

@@ -382,3 +382,20 @@ def test_auto_formulation_rule(tmp_path):
             assert f.attrs["formulation"] == form, material
         notes = [ln for ln in p.stderr.splitlines() if ln.startswith("note:") and "nearly incompressible" in ln]
         assert (note is None and not notes) or (note is not None and len(notes) == 1 and note in notes[0]), notes
+
+
+def test_direct_recipe_agrees_with_the_field_split(tmp_path):
+    """options/mixed_direct.opts (LU of the whole saddle point: the tangent as one AIJ) and the default field split
+    (the tangent by blocks, MixedNest) reach the same solution."""
+    import h5py
+    msh = tmp_path / "c.msh"
+    run_ok(["mesh", f"{ROOT}/examples/cook.geo", "--size", 8, "--order", 2, "-o", msh])
+    base = ["run", f"{ROOT}/examples/cook.opts", "-mesh", msh, "-order", 2, "-final_time", 0.5, "-snes_rtol", 1e-10,
+            "-quiet"]
+    run_ok(base + ["-output", tmp_path / "a.h5"])
+    run_ok(base + ["-output", tmp_path / "b.h5", "-options_file", f"{ROOT}/options/mixed_direct.opts"])
+    with h5py.File(tmp_path / "a.h5", "r") as f, h5py.File(tmp_path / "b.h5", "r") as g:
+        assert f.attrs["formulation"] == g.attrs["formulation"] == "mixed"
+        u, v = f["frames/2/displacement"][:], g["frames/2/displacement"][:]
+        p, q = f["frames/2/pressure"][:], g["frames/2/pressure"][:]
+    assert np.abs(u - v).max() <= 1e-8 * np.abs(u).max() and np.abs(p - q).max() <= 1e-7 * np.abs(p).max()
