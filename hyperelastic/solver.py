@@ -21,10 +21,10 @@ MIXED_DEFAULTS = (("ksp_type", "gmres"), ("pc_type", "fieldsplit"), ("pc_fieldsp
 
 
 def apply_mixed_defaults():
-    """The mixed formulation's solver defaults where the options database does not set them: the field split
-    only when no -pc_type is given (a user's -pc_type lu, say, replaces all of it)."""
+    """The mixed formulation's solver defaults where the options database does not set them: the field split's
+    when no -pc_type or -pc_type fieldsplit is given (a user's -pc_type lu, say, replaces all of it)."""
     opts = PETSc.Options()
-    split = not opts.getBool("snes_mf", False) and not opts.hasName("pc_type")
+    split = not opts.getBool("snes_mf", False) and opts.getString("pc_type", "fieldsplit") == "fieldsplit"
     for k, v in MIXED_DEFAULTS:
         if (k == "ksp_type" or split) and not opts.hasName(k):
             opts.setValue(k, v)
