@@ -27,6 +27,35 @@ import ufl
 E, NU, T = 1e6, 0.3, 5000.0
 
 
+def read_mesh(path):
+    """(the DOLFINx mesh, the input points on rank 0) of MESH.npz (`points`, `tets`), read on rank 0, distributed."""
+    comm = MPI.COMM_WORLD
+    if comm.rank == 0:
+        d = np.load(path)
+        points, tets = d["points"].astype(np.float64), d["tets"].astype(np.int64)
+    else:
+        points, tets = np.zeros((0, 3)), np.zeros((0, 4), np.int64)
+    coord = basix.ufl.element("Lagrange", "tetrahedron", 1, shape=(3,))
+    return dolfinx.mesh.create_mesh(comm, tets, coord, points), points
+
+
+def rigid_body_modes(V):
+    """The six rigid-body modes on the vector space V (translations, rotations about the origin) as PETSc Vecs."""
+    x = V.tabulate_dof_coordinates()
+    modes = []
+    for k in range(6):
+        w = dolfinx.fem.Function(V)
+        arr = w.x.array.reshape(-1, 3)
+        if k < 3:
+            arr[:, k] = 1.0
+        else:
+            i, j = [(1, 2), (2, 0), (0, 1)][k - 3]
+            arr[:, i] = -x[:, j]
+            arr[:, j] = x[:, i]
+        modes.append(w.x.petsc_vec.copy())
+    return modes
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("mesh")
@@ -38,14 +67,7 @@ def main():
     ap.add_argument("--degree", type=int, default=1, help="the element's degree: 1 (P1) or 2 (P2)")
     ap.add_argument("--qdegree", type=int, default=0, help="the quadrature degree (0: UFL's estimate)")
     a = ap.parse_args()
-    comm = MPI.COMM_WORLD
-    if comm.rank == 0:
-        d = np.load(a.mesh)
-        points, tets = d["points"].astype(np.float64), d["tets"].astype(np.int64)
-    else:
-        points, tets = np.zeros((0, 3)), np.zeros((0, 4), np.int64)
-    coord = basix.ufl.element("Lagrange", "tetrahedron", 1, shape=(3,))
-    mesh = dolfinx.mesh.create_mesh(comm, tets, coord, points)
+    mesh, points = read_mesh(a.mesh)
     V = dolfinx.fem.functionspace(mesh, ("Lagrange", a.degree, (3,)))
     dx = ufl.dx(metadata={"quadrature_degree": a.qdegree}) if a.qdegree else ufl.dx
     u, v, du = dolfinx.fem.Function(V), ufl.TestFunction(V), ufl.TrialFunction(V)
@@ -69,19 +91,8 @@ def main():
     b = dolfinx.fem.petsc.create_vector(V)
     du_f = dolfinx.fem.Function(V)
     # the six rigid-body modes (translations, rotations about the origin) as GAMG's near null space
-    x = V.tabulate_dof_coordinates()
     nloc = V.dofmap.index_map.size_local
-    modes = []
-    for k in range(6):
-        w = dolfinx.fem.Function(V)
-        arr = w.x.array.reshape(-1, 3)
-        if k < 3:
-            arr[:, k] = 1.0
-        else:
-            i, j = [(1, 2), (2, 0), (0, 1)][k - 3]
-            arr[:, i] = -x[:, j]
-            arr[:, j] = x[:, i]
-        modes.append(w.x.petsc_vec.copy())
+    modes = rigid_body_modes(V)
     from dolfinx.la import orthonormalize
     try:
         orthonormalize(modes)

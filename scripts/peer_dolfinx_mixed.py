@@ -25,29 +25,18 @@ import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
-import basix.ufl
 import dolfinx
 import dolfinx.fem.petsc
 import ufl
+from peer_dolfinx import read_mesh, rigid_body_modes
 
 EVENTS = ("SNESSolve", "SNESJacobianEval", "SNESFunctionEval", "PCSetUp", "KSPSolve", "MatMult")
 
 
-def rigid_body_modes(V):
-    """The six rigid-body modes on V (translations, rotations about the origin), orthonormalized."""
-    x = V.tabulate_dof_coordinates()
-    modes = []
-    for k in range(6):
-        w = dolfinx.fem.Function(V)
-        arr = w.x.array.reshape(-1, 3)
-        if k < 3:
-            arr[:, k] = 1.0
-        else:
-            i, j = [(1, 2), (2, 0), (0, 1)][k - 3]
-            arr[:, i] = -x[:, j]
-            arr[:, j] = x[:, i]
-        modes.append(w.x.petsc_vec.copy())
-    for i, m in enumerate(modes):                        # Gram-Schmidt, twice
+def near_null_space(V):
+    """The six rigid-body modes on V, orthonormalized (Gram-Schmidt, twice), as a PETSc NullSpace."""
+    modes = rigid_body_modes(V)
+    for i, m in enumerate(modes):
         for _ in range(2):
             for n in modes[:i]:
                 m.axpy(-m.dot(n), n)
@@ -66,13 +55,7 @@ def main():
     ap.add_argument("--ksp-rtol", type=float, default=1e-10)
     a = ap.parse_args()
     comm = MPI.COMM_WORLD
-    if comm.rank == 0:
-        d = np.load(a.mesh)
-        points, tets = d["points"].astype(np.float64), d["tets"].astype(np.int64)
-    else:
-        points, tets = np.zeros((0, 3)), np.zeros((0, 4), np.int64)
-    coord = basix.ufl.element("Lagrange", "tetrahedron", 1, shape=(3,))
-    mesh = dolfinx.mesh.create_mesh(comm, tets, coord, points)
+    mesh, _ = read_mesh(a.mesh)
     V = dolfinx.fem.functionspace(mesh, ("Lagrange", 2, (3,)))
     Q = dolfinx.fem.functionspace(mesh, ("Lagrange", 1))
     u, p = dolfinx.fem.Function(V), dolfinx.fem.Function(Q)
@@ -121,7 +104,7 @@ def main():
     is_u = PETSc.IS().createStride(nu_own, first, 1, comm=comm)
     is_u.setBlockSize(3)
     is_p = PETSc.IS().createStride(np_own, first + nu_own, 1, comm=comm)
-    is_u.compose("nearnullspace", rigid_body_modes(V))
+    is_u.compose("nearnullspace", near_null_space(V))
     pc = snes.getKSP().getPC()
     pc.setFieldSplitIS(("u", is_u), ("p", is_p))
     Mp = dolfinx.fem.petsc.assemble_matrix(dolfinx.fem.form(-(1 / mu + 1 / kappa) * dp * q * dx))
