@@ -66,7 +66,7 @@ def table(rows, t):
         total = any(k == "reaction" and n == TOTAL for k, n, _, _ in rows)
         part = [(k, F) for k, n, F, _ in rows if not (total and k == "reaction" and n != TOTAL)]
         S = sum(F for _, F in part)
-        big = max(np.linalg.norm(F) for _, F in part)
+        big = max(np.linalg.norm(F) for _, _, F, _ in rows)       # (a surface's own reaction, where no load)
         rel = np.linalg.norm(S) / big if big > 0 else 0.0
         lines.append(f"  sum: F = ({S[0]:.3g}, {S[1]:.3g}, {S[2]:.3g}) ({rel:.2g} of the largest force)")
     return lines

@@ -31,6 +31,7 @@ Unknowns: one global vector, on each rank its owned displacement dofs followed b
 import math
 
 import numpy as np
+from mpi4py import MPI
 from petsc4py import PETSc
 
 from . import jacobians, kernels
@@ -297,6 +298,36 @@ class MixedSystem(System):
         self.p_owned = np.zeros(npo)             # the pressure of the current state (owned; global order)
         self._dead_pressures(mpi)
         super().__init__(space, effects, constraints, x0, v0, dt)
+        self.constant_pressure_free = self._constant_pressure_free(mpi)
+
+    def _constant_pressure_free(self, mpi):
+        """Whether a constant pressure is a null vector of the tangent: every material incompressible (K_pp = 0),
+        no dead pressures, and every displacement the volume depends on prescribed (d vol/dx = sum_q w g_a, the same
+        in every configuration since the volume depends on the boundary only, zero on the free dofs: a part whose
+        whole boundary moves as prescribed). Then the pressure is known up to a constant (kept at its start)."""
+        if any(not math.isinf(c.law.kappa) for c in self.couplings) or mpi.allreduce(len(self.dead_owned)):
+            return False
+        dv = np.zeros(3 * self.space.nlv)
+        scale = 0.0
+        for c in self.couplings:
+            f = np.einsum("cq,cqai->cai", c.w, c.g).reshape(c.nc, 3 * c.cells.shape[1])
+            dv += np.bincount(c.dofs, f.ravel(), minlength=len(dv))
+            scale = max(scale, float(np.abs(f).max(initial=0.0)))
+        sp = self.space
+        lv, gv = sp.local_vec(), sp.global_vec()
+        lv.getArray()[:] = dv
+        sp.add_to_global(lv, gv)                    # (a node's cells may be on several ranks)
+        held = sp.owned_array(self.cmask.astype(float)) > 0
+        free = float(np.abs(gv.getArray(readonly=True)[~held]).max(initial=0.0))
+        return mpi.allreduce(free, op=MPI.MAX) <= 1e-10 * mpi.allreduce(scale, op=MPI.MAX)
+
+    def constant_pressure_nullspace(self):
+        """(the unknown's null space: a constant pressure, zero displacement; the pressures' own constant)."""
+        z = self.unknown_vec()
+        z.getArray()[self.nu_owned:] = 1.0
+        z.normalize()
+        zp = PETSc.NullSpace().create(constant=True, comm=self.space.comm)
+        return PETSc.NullSpace().create(vectors=[z], comm=self.space.comm), zp
 
     def _dead_pressures(self, mpi):
         """The owned pressures no mixed cell touches on any rank (`dead_owned`: positions in the owned array) and
@@ -496,10 +527,10 @@ class MixedNest:
     MatNest [[K_uu, K_up], [K_pu, K_pp]] over is_u and is_p; with storage `sbaij` (the default where K_uu is
     symmetric) `operator` (what the Krylov method multiplies by) has the same blocks with K_uu's SBAIJ copy. K_uu is
     the displacement formulation's assembled tangent (jacobians.AssembledChunked: cell blocks straight into the CSR
-    values, with the rigid-body near null space), the couplings' geometric blocks among its cell effects; K_up, K_pu and K_pp
-    (with the dead pressures' c) are filled by COO, zero in the constrained displacement rows. PCFIELDSPLIT takes
-    the blocks without copies (-pc_fieldsplit_diag_use_amat: the displacement split's GAMG smooths with the SBAIJ
-    copy)."""
+    values, with the rigid-body near null space), the couplings' geometric blocks among its cell effects; K_up, K_pu
+    and K_pp (with the dead pressures' c) are filled by COO, zero in the constrained displacement rows. PCFIELDSPLIT
+    takes the blocks without copies (-pc_fieldsplit_diag_use_amat: the displacement split's GAMG smooths with the
+    SBAIJ copy)."""
 
     def __init__(self, system, storage="sbaij"):
         self.system = s = system

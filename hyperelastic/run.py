@@ -50,7 +50,7 @@ def run_scene(scene_arg, options_files, restart=None, restart_path=None):
         return 0
     if not quiet and comm.getRank() == 0:
         lines = part_lines(model, scene) + [f"set {line}" for line in model.set_lines()]
-        lines += [f"note: {n}" for n in scene.notes + ([solver.merit_note] if solver.merit_note else [])]
+        lines += [f"note: {n}" for n in scene.notes + ([solver.merit_note] if solver.merit_note else []) + solver.notes]
         print("\n".join(lines), file=sys.stderr)
     attrs = run_attributes(model, scene_file, solver)
     stage.pop()

@@ -119,6 +119,7 @@ class Solver:
         self.system = system
         sp = system.space
         self.merit_note = ""
+        self.notes = []              # what the run should say at its start (run.py), one line each
         if snes is not None and objective:
             self.merit_note = "under -integrator ts the line search merit is the residual norm"
         elif objective and not system.conservative:
@@ -160,6 +161,8 @@ class Solver:
             snes.setFromOptions()
         if self.mixed:
             self._field_split()
+            if system.constant_pressure_free and self.op is not None:
+                self._constant_pressure(system)
         self.reuse = None
         self.linear_solves, self.linear_its = 0, 0
         if self.op is not None:
@@ -180,6 +183,19 @@ class Solver:
             if self.schur_pre is None:               # (constant: assembled once, kept for a new KSP)
                 self.schur_pre = sysm.pressure_mass()
             pc.setFieldSplitSchurPreType(PETSc.PC.FieldSplitSchurPreType.USER, self.schur_pre)
+
+    def _constant_pressure(self, sysm):
+        """A part whose whole boundary moves as prescribed, incompressible: the pressure is known up to a constant,
+        the tangent singular. Its null space on the operators (the Krylov method keeps the constant out of every
+        update: the pressure's constant stays where it starts) and on is_p (the field split's Schur complement)."""
+        ns, nsp = sysm.constant_pressure_nullspace()
+        for A in {self.op.mat.handle: self.op.mat, self.op.operator.handle: self.op.operator}.values():
+            A.setNullSpace(ns)
+            A.setTransposeNullSpace(ns)
+        sysm.is_p.compose("nullspace", nsp)
+        self.constant_pressure = ns
+        self.notes.append("incompressible with every displacement of the boundary prescribed: the pressure is known "
+                          "up to a constant (it stays at its start)")
 
     # preconditioner set-ups worth keeping across Newton iterations and time steps (multigrid hierarchies)
     REUSED_PCS = ("gamg",)

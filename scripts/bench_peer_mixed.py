@@ -94,7 +94,8 @@ def peer(npz, out, ranks, tag):
     d = np.load(res)
     its = int(d["newton"])
     ev = {k: float(d[k]) for k in ("SNESSolve", "SNESJacobianEval", "SNESFunctionEval", "PCSetUp", "KSPSolve")}
-    return d["disp"], d["pressure"], its, int(d["ksp_its"]), per_step(ev, its), f"DOLFINx {d['version']} (PETSc {d['petsc']})"
+    version = f"DOLFINx {d['version']} (PETSc {d['petsc']})"
+    return d["disp"], d["pressure"], its, int(d["ksp_its"]), per_step(ev, its), version
 
 
 def row(size, out, ranks, repeat):
@@ -127,8 +128,9 @@ def main():
     a = ap.parse_args()
     os.makedirs(a.out, exist_ok=True)
     head = " | ".join(f"{ph} ours | peer | ratio" for ph in PHASES)
-    print(f"| size mm | tets | unknowns | ranks | max\\|Δu\\|/max\\|u\\| | max\\|Δp\\|/max\\|p\\| | Newton ours/peer | "
-          f"GMRES its ours/peer | {head} (ms per Newton step) | step ratio per pair: median (range) |")
+    print("| size mm | tets | unknowns | ranks | max\\|Δu\\|/max\\|u\\| | max\\|Δp\\|/max\\|p\\| | "
+          f"Newton ours/peer | GMRES its ours/peer | {head} (ms per Newton step) | "
+          "step ratio per pair: median (range) |")
     print("|" + "---|" * (10 + 3 * len(PHASES)))
     worst, version = 0.0, ""
     for size in a.sizes.split(","):
