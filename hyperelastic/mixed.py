@@ -268,6 +268,31 @@ class PressureCoupling(Effect):
         return scale * np.einsum("cq,qb,qd->cbd", self.w, self.M, self.M)
 
 
+def coo_aij(comm, n_rows, n_cols, rmap, cmap, rows, cols):
+    """An AIJ matrix of n_rows x n_cols owned rows/columns, preallocated for the COO entries (rows, cols) in the
+    local numberings of the LGMaps rmap and cmap."""
+    A = PETSc.Mat().create(comm=comm)
+    A.setSizes(((n_rows, PETSc.DETERMINE), (n_cols, PETSc.DETERMINE)))
+    A.setType(PETSc.Mat.Type.AIJ)
+    A.setLGMap(rmap, cmap)
+    A.setPreallocationCOOLocal(rows.astype(PETSc.IntType), cols.astype(PETSc.IntType))
+    return A
+
+
+def coupling_patterns(system):
+    """Per coupling of the system: (its cells' displacement dofs (nc, 30), their local pressures (nc, 4)), and the
+    COO entries of its blocks: K_up as (np.repeat(u, 4), np.tile(p, 30)) and K_pp as (np.repeat(p, 4),
+    np.tile(p, 4)), each (rows, cols), both in cell order."""
+    sp = system.space
+    cd = (3 * sp.cells[:, :, None].astype(np.int64) + np.arange(3)).reshape(-1, 30)
+    out = []
+    for c in system.couplings:
+        u, p = cd[c.idx], c.corners.astype(np.int64)
+        out.append(((np.repeat(u, 4, axis=1).ravel(), np.tile(p, (1, 30)).ravel()),
+                    (np.repeat(p, 4, axis=1).ravel(), np.tile(p, (1, 4)).ravel())))
+    return cd, out
+
+
 def offsets(mpi, n):
     """The first global index of each rank's n, and the total."""
     counts = np.array(mpi.allgather(int(n)), np.int64)
@@ -432,11 +457,7 @@ class MixedSystem(System):
         cols = np.concatenate([np.tile(cells, (1, 4)).ravel(), dead])
         vals = np.concatenate([c.schur_blocks().ravel() for c in self.couplings]
                               + [np.full(len(dead), self.dead_scale)])
-        A = PETSc.Mat().create(comm=self.space.comm)
-        A.setSizes(((ps.n_owned, PETSc.DETERMINE), (ps.n_owned, PETSc.DETERMINE)))
-        A.setType(PETSc.Mat.Type.AIJ)
-        A.setLGMap(ps.lgmap, ps.lgmap)
-        A.setPreallocationCOOLocal(rows.astype(PETSc.IntType), cols.astype(PETSc.IntType))
+        A = coo_aij(self.space.comm, ps.n_owned, ps.n_owned, ps.lgmap, ps.lgmap, rows, cols)
         A.setValuesCOO(vals, addv=PETSc.InsertMode.INSERT_VALUES)
         A.assemble()
         return A
@@ -462,18 +483,16 @@ class MixedAssembled:
     near null space through is_u (PCFIELDSPLIT hands it to the split's matrix). Any preconditioner (LU of the
     whole, the field split); the default under the field split is MixedNest."""
 
-    def __init__(self, system, storage="aij"):
+    def __init__(self, system):
         self.system = s = system
         sp = s.space
         nlu = 3 * sp.nlv
         self.cell_effects = [e for e in s.effects if e.cell_blocks]
-        cd = (3 * sp.cells[:, :, None].astype(np.int64) + np.arange(3)).reshape(-1, 30)
+        cd, patterns = coupling_patterns(s)
         rows, cols = [np.repeat(cd, 30, axis=1).ravel()], [np.tile(cd, (1, 30)).ravel()]
-        for c in s.couplings:
-            cu, pd = cd[c.idx], nlu + c.corners.astype(np.int64)
-            rows += [np.repeat(cu, 4, axis=1).ravel(), np.repeat(pd, 30, axis=1).ravel(),
-                     np.repeat(pd, 4, axis=1).ravel()]
-            cols += [np.tile(pd, (1, 30)).ravel(), np.tile(cu, (1, 4)).ravel(), np.tile(pd, (1, 4)).ravel()]
+        for (ur, pc), (pr, pcc) in patterns:            # K_up, K_pu (K_up's pairs swapped), K_pp; pressures after nlu
+            rows += [ur, nlu + pc, nlu + pr]
+            cols += [nlu + pc, ur, nlu + pcc]
         self.other, n = effect_patterns(s.effects, rows, cols)
         c_owned_local = (3 * sp.lvid_of_owned[:, None] + np.arange(3)).ravel()[s.c_owned_pos]
         dead = nlu + s.dead_local.astype(np.int64)
@@ -488,14 +507,8 @@ class MixedAssembled:
         self.zero = np.flatnonzero(zero)
         self.nc = len(cd)
         self.vals = np.zeros(len(rows))
-        A = PETSc.Mat().create(comm=sp.comm)
-        nloc = s.nu_owned + s.pspace.n_owned
-        A.setSizes(((nloc, PETSc.DETERMINE), (nloc, PETSc.DETERMINE)))
-        A.setType(PETSc.Mat.Type.AIJ)
-        lg = s.combined_lgmap()
-        A.setLGMap(lg, lg)
-        A.setPreallocationCOOLocal(rows.astype(PETSc.IntType), cols.astype(PETSc.IntType))
-        self.mat = self.operator = A
+        nloc, lg = s.nu_owned + s.pspace.n_owned, s.combined_lgmap()
+        self.mat = self.operator = coo_aij(sp.comm, nloc, nloc, lg, lg, rows, cols)
         self.nullspace = rigid_body_nullspace(sp)
         s.is_u.compose("nearnullspace", self.nullspace)
 
@@ -510,7 +523,7 @@ class MixedAssembled:
         for c in s.couplings:
             k = len(c.idx) * 120
             v[o:o + k] = c.up.ravel()
-            v[o + k:o + 2 * k] = c.up.transpose(0, 2, 1).ravel()
+            v[o + k:o + 2 * k] = v[o:o + k]                        # (K_pu's entries: K_up's, row and column swapped)
             v[o + 2 * k:o + 2 * k + len(c.idx) * 16] = c.pp.ravel()
             o += 2 * k + len(c.idx) * 16
         for e, sl in self.other:
@@ -536,33 +549,18 @@ class MixedNest:
         self.system = s = system
         sp, ps = s.space, s.pspace
         self.uu = jacobians.AssembledChunked(s, storage=storage)
-        cd = (3 * sp.cells[:, :, None].astype(np.int64) + np.arange(3)).reshape(-1, 30)
-        up_r, up_c, pp_r, pp_c = [], [], [], []
-        for c in s.couplings:
-            cu, pd = cd[c.idx], c.corners.astype(np.int64)
-            up_r.append(np.repeat(cu, 4, axis=1).ravel())
-            up_c.append(np.tile(pd, (1, 30)).ravel())
-            pp_r.append(np.repeat(pd, 4, axis=1).ravel())
-            pp_c.append(np.tile(pd, (1, 4)).ravel())
+        _, patterns = coupling_patterns(s)
         dead = s.dead_local.astype(np.int64)
-        up_r, up_c = np.concatenate(up_r), np.concatenate(up_c)
-        pp_r, pp_c = np.concatenate(pp_r + [dead]), np.concatenate(pp_c + [dead])
+        up_r, up_c = (np.concatenate(x) for x in zip(*(up for up, _ in patterns)))
+        pp_r, pp_c = (np.concatenate(list(x) + [dead]) for x in zip(*(pp for _, pp in patterns)))
         self.up_zero = np.flatnonzero(s.cmask[up_r])              # constrained displacement rows (columns of K_pu)
         self.up_vals = np.zeros(len(up_r))
         self.pp_vals = np.zeros(len(pp_r))
         self.n_pp = len(pp_r) - len(dead)
-        sizes_u, sizes_p = (s.nu_owned, PETSc.DETERMINE), (ps.n_owned, PETSc.DETERMINE)
-
-        def coo(rsz, csz, rmap, cmap, r, c):
-            A = PETSc.Mat().create(comm=sp.comm)
-            A.setSizes((rsz, csz))
-            A.setType(PETSc.Mat.Type.AIJ)
-            A.setLGMap(rmap, cmap)
-            A.setPreallocationCOOLocal(r.astype(PETSc.IntType), c.astype(PETSc.IntType))
-            return A
-        self.K_up = coo(sizes_u, sizes_p, sp.lgmap, ps.lgmap, up_r, up_c)
-        self.K_pu = coo(sizes_p, sizes_u, ps.lgmap, sp.lgmap, up_c, up_r)
-        self.K_pp = coo(sizes_p, sizes_p, ps.lgmap, ps.lgmap, pp_r, pp_c)
+        nu, npo = s.nu_owned, ps.n_owned
+        self.K_up = coo_aij(sp.comm, nu, npo, sp.lgmap, ps.lgmap, up_r, up_c)
+        self.K_pu = coo_aij(sp.comm, npo, nu, ps.lgmap, sp.lgmap, up_c, up_r)
+        self.K_pp = coo_aij(sp.comm, npo, npo, ps.lgmap, ps.lgmap, pp_r, pp_c)
         self._fill_coupling()                                     # (the nests want assembled blocks)
         self.uu.mat.assemble()
         if self.uu.copy is not None:
