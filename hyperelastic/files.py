@@ -60,6 +60,18 @@ def missing_datasets(f, more=()):
     return [k for k in OUTPUT_DATASETS + tuple(more) if k not in f]
 
 
+def completed_frames(f):
+    """The number of complete frames in an open output file. The writer writes a frame's time last, in a flush
+    of its own, after the frame's positions and fields are in (output.Writer._write_frame): after a kill -9, x
+    may hold one row more than time, and a time extended before its data reached the file reads NaN, its fill
+    value. A closed run's file has len(time) frames."""
+    t = f["time"]
+    n = min(t.shape[0], f["x"].shape[0])
+    while n and not np.isfinite(t[n - 1]):
+        n -= 1
+    return n
+
+
 def is_output(path):
     """Whether `path` is an output file of `hyperelastic run` (HDF5 with OUTPUT_DATASETS)."""
     if not os.path.isfile(path):

@@ -10,7 +10,7 @@ import h5py
 import numpy as np
 
 from .errors import UserError
-from .files import check_output_path, is_output
+from .files import check_output_path, completed_frames, is_output
 from .element import EDGES, ORDERS, TET_RULES, tet_shapes
 from .sets import FACE_VERTICES, Mesh, NamedSet, face_incidence, signed_volumes
 
@@ -201,13 +201,13 @@ def _read_output(path, frame):
     """sets.Mesh of frame `frame` of an output file: its positions become the reference, its regions
     (mesh/region, named as the run's attribute `sets` names them) are kept."""
     with h5py.File(path, "r") as f:
-        nf = f["x"].shape[0]
+        nf = completed_frames(f)
         if nf == 0:
             points = f["mesh/points"][:]
         elif not -nf <= frame < nf:
             raise UserError(f"mesh '{path}': has no frame {frame} (it has {nf}: 0..{nf - 1})")
         else:
-            points = f["x"][frame]
+            points = f["x"][frame % nf]
         cells = f["mesh/tetra"][:].astype(np.int64)
         region = f["mesh/region"][:] if "mesh/region" in f else np.zeros(len(cells), np.int64)
         try:

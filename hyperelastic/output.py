@@ -12,10 +12,10 @@ The XDMF beside it is a temporal collection of uniform grids on the reference me
 fields as attributes (the layout meshio's TimeSeriesReader and VTK's XDMF reader read; ParaView: Warp By
 Vector with displacement shows the deformed body).
 """
+import ctypes
 import json
 import os
 import resource
-import shutil
 import time
 
 import h5py
@@ -36,6 +36,53 @@ XDMF_TAIL = "  </Grid>\n </Domain>\n</Xdmf>\n"
 XDMF_FRAME_BYTES = 16384     # room asked for one frame's <Grid> in the XDMF (~1.5 kB with every field)
 STATS_EVERY_S = 1.0         # the longest the statistics rows wait in memory for a frame to go in with
 ROOM_MARGIN = 256 * 1024     # bytes kept free for HDF5's metadata, the statistics rows and the close
+# HDF5 File Format Specification 3.0, "Version 0 Superblock" (and version 1): the end-of-file address is at
+# byte 40 (signature 8, versions and sizes 8, B-tree K values 4, consistency flags 4, base address 8,
+# free-space address 8), little-endian, with 8-byte offsets
+SUPERBLOCK_EOA_AT = 40
+ROOM_ATTR, ROOM_ATTR_BYTES = "_room", 8192     # room in the root group's header for set_attr's attributes
+FRAME_LINKS = 4096       # the frames group's links kept in its header (made with room for them)
+FIELD_LINKS = 16         # a frame's fields, the same
+
+
+def _compact_group(parent, name, links):
+    """A group whose links are kept in its own object header, made with room for `links` of them: adding a
+    link rewrites that header in place. HDF5's default group adds each name to a heap, a symbol node and a
+    B-tree, blocks that a kill in the middle of a flush left disagreeing (measured by scripts/crash_writes.py:
+    every frame's fields unreadable). Past `links` links HDF5 moves them to its dense storage."""
+    lib = _libhdf5()
+    if lib is None:                 # (h5py on an HDF5 not in the process's maps: HDF5's default group)
+        return parent.require_group(name)
+    if name in parent:
+        return parent[name]
+    gcpl = h5py.h5p.create(h5py.h5p.GROUP_CREATE)
+    gcpl.set_link_creation_order(h5py.h5p.CRT_ORDER_TRACKED)    # (what makes HDF5 use its newer group format)
+    ok = lib.H5Pset_link_phase_change(ctypes.c_int64(gcpl.id), links, links - 1) >= 0
+    ok = ok and lib.H5Pset_est_link_info(ctypes.c_int64(gcpl.id), links, 16) >= 0
+    h5py.h5g.create(parent.id, name.encode(), gcpl=gcpl if ok else None)
+    return parent[name]
+
+
+_LIB = []
+
+
+def _libhdf5():
+    """The HDF5 library h5py runs on (ctypes), for the two group-creation settings h5py does not wrap:
+    H5Pset_link_phase_change and H5Pset_est_link_info (HDF5 reference manual, H5P)."""
+    if not _LIB:
+        h5py.h5p.create(h5py.h5p.GROUP_CREATE)            # (the library is loaded)
+        with open("/proc/self/maps") as fh:
+            paths = sorted({ln.split()[-1] for ln in fh if "/libhdf5" in ln and "libhdf5_hl" not in ln})
+        lib = None
+        for path in paths:
+            try:
+                lib = ctypes.CDLL(path)
+                lib.H5Pset_link_phase_change, lib.H5Pset_est_link_info     # noqa: B018 (both there)
+                break
+            except (OSError, AttributeError):
+                lib = None
+        _LIB.append(lib)
+    return _LIB[0]
 
 
 def room_for(path, nbytes, extra_files=()):
@@ -105,6 +152,7 @@ class Writer:
         self._pending = []       # statistics rows not yet written (see stats())
         self._columns = {}       # the open statistics datasets by name
         self._stats_flushed = time.monotonic()
+        self._guard = False      # the end-of-file reserve (_reserve) is on: the superblock is as expected
         if resume is not None:
             self._resume(resume, attrs)
             return
@@ -114,41 +162,76 @@ class Writer:
         self._ensure_room(lambda: 8 * (3 * self.nv + 5 * self.nc) + 65536, "the mesh")
         if not self.root:
             return
-        self.f = f = h5py.File(self.path, "w")
+        self.f = self._new_file(points, tets, reg, attrs)
+        self.f.flush()
+        self.nv, self.nc = len(points), len(tets)
+        self._guard = self._superblock_eoa() == os.fstat(self._fd()).st_size
+
+    def _new_file(self, points, tets, region, attrs):
+        """The file's layout, made before the first step (a kill after that only meets writes into it)."""
+        f = h5py.File(self.path, "w")
         nv = len(points)
         f.create_dataset("mesh/points", data=np.asarray(points, np.float64))
         f.create_dataset("mesh/tetra", data=np.asarray(tets, np.int64))
-        f.create_dataset("mesh/region", data=reg)
-        f.create_dataset("time", shape=(0,), maxshape=(None,), dtype=np.float64, chunks=(256,))
-        f.create_dataset("x", shape=(0, nv, 3), maxshape=(None, nv, 3), dtype=np.float64, chunks=(1, nv, 3))
+        f.create_dataset("mesh/region", data=region)
+        # NaN fill: a frame's row extended before its data reached the file reads NaN (files.completed_frames)
+        f.create_dataset("time", shape=(0,), maxshape=(None,), dtype=np.float64, chunks=(256,), fillvalue=np.nan)
+        f.create_dataset("x", shape=(0, nv, 3), maxshape=(None, nv, 3), dtype=np.float64, chunks=(1, nv, 3),
+                         fillvalue=np.nan)
         f.create_group("stats")
+        _compact_group(f, "frames", FRAME_LINKS)
+        ck = f.create_group("checkpoint")
+        for slot in (0, 1):                 # made before the first step: a checkpoint only fills them
+            _compact_group(ck, str(slot), FIELD_LINKS)
         for k, v in attrs.items():
             f.attrs[k] = v
-        f.flush()
-        self.nv, self.nc = nv, len(tets)
+        f.attrs["checkpoint_slot"] = -1     # made here: a checkpoint then rewrites it in place
+        f.attrs[ROOM_ATTR] = np.zeros(ROOM_ATTR_BYTES, np.uint8)
+        return f
 
     def _resume(self, st, attrs):
         self.nframes, self.nstats = int(st["nframes"]), int(st["nstats"])
         self._ensure_room(lambda: os.path.getsize(self.final), "a copy of the checkpoint's file")
         if not self.root:
             return
-        shutil.copyfile(self.final, self.path)        # the checkpoint's file stays as it is until _commit
-        self.f = f = h5py.File(self.path, "r+")
-        self.nv, self.nc = f["mesh/points"].shape[0], f["mesh/tetra"].shape[0]
-        f["time"].resize((self.nframes,))
-        f["x"].resize((self.nframes, self.nv, 3))
-        self.points = f["mesh/points"][:]
-        for k in list(f.get("frames", {})):
-            if int(k) >= self.nframes:
-                del f["frames"][k]
-        for k in f["stats"]:
-            f["stats"][k].resize((self.nstats,))
-        for k in ("failure", "interrupted"):
-            if k in f.attrs:
-                del f.attrs[k]
-        f.attrs["restarts"] = int(f.attrs.get("restarts", 0)) + 1
-        f.attrs["options"] = attrs["options"]      # what this part ran with (a later restart uses it)
+        with h5py.File(self.final, "r") as src:      # the checkpoint's file stays as it is until _commit
+            self.f = f = self._copy_until_checkpoint(src, attrs)
         f.flush()
+        self._guard = self._superblock_eoa() == os.fstat(self._fd()).st_size
+
+    def _copy_until_checkpoint(self, src, attrs):
+        """A new file with what `src` held up to its checkpoint: the mesh, the checkpoint's frames and
+        statistics rows, the checkpoint, the run's attributes. Only those objects are read: a file left by
+        a kill may hold a frame or a checkpoint slot that was being written (unreadable), which a copy of
+        the whole file would carry on and cutting it back in place would have to open."""
+        keep = {k: v for k, v in src.attrs.items() if k not in ("failure", "interrupted", "checkpoint_slot", ROOM_ATTR)}
+        keep["restarts"] = int(src.attrs.get("restarts", 0)) + 1
+        keep["options"] = attrs["options"]         # what this part ran with (a later restart uses it)
+        self.points = src["mesh/points"][:]
+        tets = src["mesh/tetra"][:]
+        self.nv, self.nc = len(self.points), len(tets)
+        region = src["mesh/region"][:] if "mesh/region" in src else np.zeros(self.nc, np.int64)
+        f = self._new_file(self.points, tets, region, keep)
+        n = self.nframes
+        f["time"].resize((n,))
+        f["time"][:] = src["time"][:n]
+        f["x"].resize((n, self.nv, 3))
+        for i in range(n):
+            f["x"][i] = src["x"][i]
+            g = _compact_group(f["frames"], str(i), FIELD_LINKS)
+            for k, d in src[f"frames/{i}"].items():
+                g.create_dataset(k, data=d[:])
+        for k, d in src["stats"].items():
+            f["stats"].create_dataset(k, data=d[:self.nstats], maxshape=(None,), chunks=(256,),
+                                      fillvalue=0 if d.dtype.kind == "i" else np.nan)
+        slot = int(src.attrs["checkpoint_slot"])
+        g, h = src[f"checkpoint/{slot}"], f[f"checkpoint/{slot}"]
+        for k, d in g.items():
+            h.create_dataset(k, data=d[:])
+        for k, v in g.attrs.items():
+            h.attrs[k] = v
+        f.attrs.modify("checkpoint_slot", slot)
+        return f
 
     def checkpoint(self, x_local, v_local, nodal=None, **state):
         """The full state into checkpoint/<slot>, alternating two slots; the root attribute
@@ -157,8 +240,11 @@ class Writer:
         beyond x and v (the mixed formulation's pressure). Collective."""
         x, v = self.space.gather(x_local), self.space.gather(v_local)
         extra = {k: self.space.gather_nodal(a) for k, a in (nodal or {}).items()}
-        self._ensure_room(lambda: 56 * len(x) + 16384, "a checkpoint")
         if self.root:
+            nbytes = 8 * (6 * len(x) + sum(len(a) for a in extra.values())) + 16384
+        self._ensure_room(lambda: nbytes, "a checkpoint")
+        if self.root:
+            self._reserve(nbytes)
             self._write_checkpoint(x, v, state, extra)
         self._leave_together()
 
@@ -171,7 +257,7 @@ class Writer:
     def _write_checkpoint(self, x, v, state, extra):
         f = self.f
         self._flush_stats()
-        slot = 1 - int(f.attrs.get("checkpoint_slot", 1))
+        slot = 1 if int(f.attrs.get("checkpoint_slot", -1)) == 0 else 0
         g = f.require_group(f"checkpoint/{slot}")
         for name, a in (("x", x), ("v", v), *extra.items()):
             if name not in g:
@@ -181,7 +267,7 @@ class Writer:
         for k in CHECKPOINT_ATTRS:
             g.attrs[k] = state[k]
         f.flush()
-        f.attrs["checkpoint_slot"] = slot
+        f.attrs.modify("checkpoint_slot", slot)
         f.flush()
 
     def frame(self, t, x_local, v_local=None):
@@ -197,18 +283,20 @@ class Writer:
             nbytes = 8 * (3 * self.nv * (3 if vel is not None else 2) + sum(len(a) for a in cells.values())) + 16384
         self._ensure_room(lambda: nbytes, f"frame {self.nframes}")
         if self.root:
+            self._reserve(nbytes)
             self._write_frame(t, full, vel, cells)
         self._leave_together()
 
     def _write_frame(self, t, full, vel, cells):
+        """The positions and the fields, a flush, then the time and a flush of its own: a frame counts once
+        its time is in (files.completed_frames), so a kill in the first flush leaves at most a row of x that
+        no reader counts."""
         f = self.f
         i = self.nframes
         times, xs = f["time"], f["x"]
-        times.resize((i + 1,))
         xs.resize((i + 1, self.nv, 3))
         xs[i] = full
-        times[i] = t
-        g = f.require_group(f"frames/{i}")
+        g = _compact_group(f["frames"], str(i), FIELD_LINKS)
         for k in list(g):
             del g[k]
         fields = {"displacement": full - self.points}
@@ -222,6 +310,9 @@ class Writer:
         # checkpoint and the close): ~30 columns x 2 HDF5 calls cost more than a small mesh's frame
         if time.monotonic() - self._stats_flushed >= STATS_EVERY_S:
             self._flush_stats()
+        f.flush()
+        times.resize((i + 1,))
+        times[i] = t
         f.flush()
         if self.committed:
             self._append_xdmf(i, t, sorted((k, a.shape) for k, a in fields.items()))
@@ -283,13 +374,41 @@ class Writer:
             d[i0:] = np.array([row.get(k, fill) for row in rows], dtype=d.dtype)
 
     def set_attr(self, key, value):
+        """An attribute of the run (written with the next flush). The root group's header was made with room
+        (ROOM_ATTR): it is given up here, so the new attribute goes into that room and the header is rewritten
+        in place, in one write, instead of growing by a continuation block that a kill could leave unwritten
+        while the header already points to it (the whole file unreadable)."""
         if self.root:
+            self._reserve(len(str(value)) + 16384)
+            if ROOM_ATTR in self.f.attrs:
+                del self.f.attrs[ROOM_ATTR]
             self.f.attrs[key] = value
+
+    def _fd(self):
+        return self.f.id.get_vfd_handle()
+
+    def _superblock_eoa(self):
+        return int.from_bytes(os.pread(self._fd(), 8, SUPERBLOCK_EOA_AT), "little")
+
+    def _reserve(self, nbytes):
+        """Room in the file for the next writes, recorded in the superblock before HDF5 allocates it. HDF5
+        writes its superblock (with the file's end address) last in a flush, after the metadata that points
+        into space it has just allocated; a kill between them left a file whose readers refused that space
+        ('addr overflow'). So the file is first extended (sparsely) by the writes' bytes and the margin, then
+        the superblock's end-of-file address is set to the new end: whatever HDF5 writes up to its own flush
+        lies below it. HDF5 rewrites the address at that flush; close() trims the file to it."""
+        if not self._guard:
+            return
+        fd = self._fd()
+        end = os.fstat(fd).st_size + int(1.5 * nbytes) + ROOM_MARGIN     # what room_for checked
+        os.ftruncate(fd, end)
+        os.pwrite(fd, end.to_bytes(8, "little"), SUPERBLOCK_EOA_AT)
 
     def close(self, keep=True):
         """Flush and close. A run that completed no step replaces an earlier FILE.h5 only when `keep`
         (it ended normally or was interrupted with a checkpoint); else its partial file is removed."""
         if self.root and self.f is not None:
+            self._reserve(65536)
             self._flush_stats()
             self.f.flush()
             if not self.committed and (keep or not os.path.exists(self.final)):
@@ -298,6 +417,15 @@ class Writer:
             self.f = None
             if not self.committed and os.path.exists(self.path):
                 os.remove(self.path)
+            elif self._guard:
+                self._trim()
+
+    def _trim(self):
+        """The closed file cut to the end HDF5 recorded (the reserve's sparse tail gone)."""
+        with open(self.path, "r+b") as fh:
+            end = int.from_bytes(os.pread(fh.fileno(), 8, SUPERBLOCK_EOA_AT), "little")
+            if os.fstat(fh.fileno()).st_size > end:
+                fh.truncate(end)
 
     def _mesh_xml(self):
         h5 = os.path.basename(self.final)
@@ -328,7 +456,7 @@ class Writer:
         grids = []
         for i, t in enumerate(self.f["time"][:]):
             g = self.f.get(f"frames/{i}", {})
-            grids.append(self._grid_xml(i, t, [(name, g[name].shape) for name in g]))
+            grids.append(self._grid_xml(i, t, [(name, g[name].shape) for name in sorted(g)]))
         tmp = self.xdmf + ".tmp"
         with open(tmp, "w") as fh:
             fh.write(XDMF_HEAD + "".join(grids) + XDMF_TAIL)

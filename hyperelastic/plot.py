@@ -7,7 +7,7 @@ import numpy as np
 
 from .errors import UserError
 from .figures import pyplot
-from .files import check_output_path, missing_datasets
+from .files import check_output_path, completed_frames, missing_datasets
 
 
 def boundary_faces(tets):
@@ -31,11 +31,11 @@ def render(path, out, frame=-1):
         missing = missing_datasets(f)
         if missing:
             raise UserError(f"plot: '{path}' is not an output of hyperelastic (no {', '.join(missing)})")
-        if f["x"].shape[0] == 0:
+        n = completed_frames(f)
+        if n == 0:
             raise UserError(f"plot: '{path}' has no frames")
         X = f["mesh/points"][:]
         tets = f["mesh/tetra"][:]
-        n = f["x"].shape[0]
         i = frame if frame >= 0 else n + frame
         if not 0 <= i < n:
             raise UserError(f"plot: frame {frame} out of range (0..{n - 1})")

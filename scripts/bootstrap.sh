@@ -10,11 +10,16 @@ REQ=requirements.txt
 have_lapack() {
   ls /usr/lib/*/liblapack.so /usr/lib/liblapack.so /usr/lib64/liblapack.so 2>/dev/null | grep -q .
 }
-if ! have_lapack; then
-  echo "bootstrap: no LAPACK found; installing liblapack-dev with apt-get"
+# liblapack-dev for PETSc; strace for the test that kills a run at each of its writes (test_checkpoint)
+APT=""
+have_lapack || APT=" liblapack-dev"
+command -v strace >/dev/null || APT="$APT strace"
+if [ -n "$APT" ]; then
+  echo "bootstrap: installing${APT} with apt-get"
   SUDO=""; [ "$(id -u)" -ne 0 ] && SUDO=sudo
   $SUDO apt-get update -qq
-  DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq liblapack-dev >/dev/null
+  # shellcheck disable=SC2086
+  DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq $APT >/dev/null
 fi
 
 if [ -f "$STAMP" ] && [ "$STAMP" -nt "$REQ" ] && [ "$STAMP" -nt setup.py ]; then

@@ -37,8 +37,10 @@ def run_ok(args, nprocs=1, **kw):
 
 def read_h5(path):
     import h5py
+    from hyperelastic.files import completed_frames
     with h5py.File(path, "r") as f:
-        out = {"x": f["x"][:], "time": f["time"][:], "points": f["mesh/points"][:], "tetra": f["mesh/tetra"][:],
+        n = completed_frames(f)          # (a killed run's file may hold one row of x more)
+        out = {"x": f["x"][:n], "time": f["time"][:n], "points": f["mesh/points"][:], "tetra": f["mesh/tetra"][:],
                "attrs": dict(f.attrs), "stats": {k: f["stats"][k][:] for k in f["stats"]}}
     return out
 
