@@ -111,6 +111,12 @@ TAIL = (
         _S.reuse_preconditioner),
     Row(("output",), "-output FILE.h5", "output file (an `.xdmf` is written beside it); it may not be an input",
         "output/SCENE.h5"),
+    Row(("output_fields",), "-output_fields LIST", "what each frame holds besides `x`: `displacement`, "
+        "`velocity` (point); `J`, `energy_density`, `von_mises` (cell); on request `stress` (Cauchy, Tensor6: xx, "
+        "xy, xz, yy, yz, zz), `principal_stress` (its eigenvalues, largest first), `strain` (Green–Lagrange, "
+        "Tensor6), and `NAME_nodal` of any cell field (averaged at the nodes, weighted by the cells' volumes); "
+        "`default`, `all`. With the mixed formulation the stress's mean is the pressure field's",
+        "default (displacement, velocity, J, energy_density, von_mises)"),
     Row(("checkpoint_every",), "-checkpoint_every N", "write the full state (x, v, t, step-control state) into "
         "FILE.h5 every N steps", "0 (only on a signal)"),
     Row(("integrator",), "-integrator beuler|ts", "`beuler`: backward Euler (the thesis' integrator, one SNES solve "

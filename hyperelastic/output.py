@@ -24,7 +24,8 @@ from petsc4py import PETSc
 
 from . import __version__
 from .errors import UserError
-from .fields import POINT_SCALARS, cell_fields
+from .fields import (DEFAULT_FIELDS, NODAL, POINT_FIELDS, POINT_SCALARS, cell_fields, cell_quantities, finish,
+                     reference_volumes)
 from .files import CHECKPOINT_ATTRS, PARTIAL
 from .options import all_options
 from .stats import column_type
@@ -130,12 +131,17 @@ def run_attributes(model, scene_file, solver):
 
 
 class Writer:
-    def __init__(self, path, space, points, tets, attrs, resume=None, kernels=None, region=None):
+    def __init__(self, path, space, points, tets, attrs, resume=None, kernels=None, region=None,
+                 fields=DEFAULT_FIELDS):
         """A new output file, or (resume = a checkpoint's state) the existing one cut back to the
         frames and statistics rows the checkpoint had. kernels: the elastic cell kernels, for the cell
-        fields (none without); region: the local cells' region tags (collective)."""
+        fields (none without); region: the local cells' region tags (collective); fields: what each frame
+        holds (fields.output_fields)."""
         self.space = space
         self.kernels = kernels
+        self.fields = tuple(fields)
+        self._tets = None        # (rank 0) the cells' nodes, for the fields that need them (fields.finish)
+        self._volume = None
         self.point_scalars = None      # () -> {name: local array per node}: scalar point fields of a frame
         self.f = None            # the HDF5 file (rank 0, once opened)
         self.points = None if points is None else np.asarray(points, np.float64)
@@ -162,6 +168,7 @@ class Writer:
         self._ensure_room(lambda: 8 * (3 * self.nv + 5 * self.nc) + 65536, "the mesh")
         if not self.root:
             return
+        self._tets = np.asarray(tets) if self._needs_tets() else None
         self.f = self._new_file(points, tets, reg, attrs)
         self.f.flush()
         self.nv, self.nc = len(points), len(tets)
@@ -210,6 +217,7 @@ class Writer:
         self.points = src["mesh/points"][:]
         tets = src["mesh/tetra"][:]
         self.nv, self.nc = len(self.points), len(tets)
+        self._tets = tets if self._needs_tets() else None
         region = src["mesh/region"][:] if "mesh/region" in src else np.zeros(self.nc, np.int64)
         f = self._new_file(self.points, tets, region, keep)
         n = self.nframes
@@ -274,13 +282,17 @@ class Writer:
         """Frame at time t: positions x, velocities v (local arrays) and the fields (fields.py). Collective."""
         full = self.space.gather(x_local)
         vel = self.space.gather(v_local) if v_local is not None else None
-        cells = {}
+        cells, nodal = {}, {}
         if self.kernels is not None:
-            cells = {k: self.space.gather_cells(a) for k, a in cell_fields(self.kernels, x_local).items()}
+            cells = {k: self.space.gather_cells(a)
+                     for k, a in cell_fields(self.kernels, x_local, cell_quantities(self.fields)).items()}
         if self.point_scalars is not None:             # (the mixed formulation's pressure)
-            cells.update({k: self.space.gather_nodal(a) for k, a in self.point_scalars().items()})
+            nodal = {k: self.space.gather_nodal(a) for k, a in self.point_scalars().items()}
         if self.root:
-            nbytes = 8 * (3 * self.nv * (3 if vel is not None else 2) + sum(len(a) for a in cells.values())) + 16384
+            if self.kernels is not None:
+                cells = finish(cells, self.fields, self._tets, self._volumes(), nodal.get("pressure"))
+            cells.update(nodal)
+            nbytes = 8 * (3 * self.nv * (3 if vel is not None else 2) + sum(a.size for a in cells.values())) + 16384
         self._ensure_room(lambda: nbytes, f"frame {self.nframes}")
         if self.root:
             self._reserve(nbytes)
@@ -299,8 +311,8 @@ class Writer:
         g = _compact_group(f["frames"], str(i), FIELD_LINKS)
         for k in list(g):
             del g[k]
-        fields = {"displacement": full - self.points}
-        if vel is not None:
+        fields = {"displacement": full - self.points} if "displacement" in self.fields else {}
+        if vel is not None and "velocity" in self.fields:
             fields["velocity"] = vel
         fields.update(cells)
         for k, a in fields.items():
@@ -384,6 +396,14 @@ class Writer:
                 del self.f.attrs[ROOM_ATTR]
             self.f.attrs[key] = value
 
+    def _needs_tets(self):
+        return any(n.endswith(NODAL) for n in self.fields) or "stress" in cell_quantities(self.fields)
+
+    def _volumes(self):
+        if self._volume is None and self._tets is not None and any(n.endswith(NODAL) for n in self.fields):
+            self._volume = reference_volumes(self.points, self._tets)
+        return self._volume
+
     def _fd(self):
         return self.f.id.get_vfd_handle()
 
@@ -445,8 +465,8 @@ class Writer:
             self._mesh_text = self._mesh_xml()
         attrs = [self._attribute(h5, "/mesh/region", "region", (self.nc,), "Cell", "Int")]
         for name, shape in fields:
-            attrs.append(self._attribute(h5, f"/frames/{i}/{name}", name, shape,
-                                         "Node" if len(shape) == 2 or name in POINT_SCALARS else "Cell", "Float"))
+            node = name in POINT_FIELDS + POINT_SCALARS or name.endswith(NODAL)
+            attrs.append(self._attribute(h5, f"/frames/{i}/{name}", name, shape, "Node" if node else "Cell", "Float"))
         return (f'   <Grid Name="frame{i}" GridType="Uniform">\n{self._mesh_text}\n    <Time Value="{t:.17g}"/>\n'
                 + "\n".join(attrs) + "\n   </Grid>\n")
 
@@ -491,7 +511,7 @@ class Writer:
 
     @staticmethod
     def _attribute(h5, dset, name, shape, center, number):
-        kind = "Vector" if len(shape) == 2 else "Scalar"
+        kind = {1: "Scalar", 3: "Vector", 6: "Tensor6"}[1 if len(shape) == 1 else shape[1]]
         dims = " ".join(map(str, shape))
         return (f'    <Attribute Name="{name}" AttributeType="{kind}" Center="{center}">\n'
                 f'     <DataItem Dimensions="{dims}" NumberType="{number}" Precision="8" Format="HDF">{h5}:{dset}'

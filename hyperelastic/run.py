@@ -55,7 +55,7 @@ def run_scene(scene_arg, options_files, restart=None, restart_path=None):
     attrs = run_attributes(model, scene_file, solver)
     stage.pop()
     writer = Writer(out, model.space, model.points, model.tets, attrs, resume=restart, kernels=model.kernels,
-                    region=model.space.cell_values(REGION_LABEL))
+                    region=model.space.cell_values(REGION_LABEL), fields=scene.output_fields)
     if getattr(model.system, "mixed", False):
         writer.point_scalars = lambda: {"pressure": model.system.pressure_nodal()}
     if ts is not None:

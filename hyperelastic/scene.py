@@ -8,6 +8,7 @@ from . import effects as effects_pkg
 from . import materials
 from .element import ORDERS, TET_RULES
 from .errors import UserError
+from .fields import DEFAULT_FIELDS, output_fields
 from .mesh import MAX_LEVEL
 from .options import Options, prefixed_names
 
@@ -55,6 +56,7 @@ class Scene:
     inversion_guard: bool = False # shorten Newton updates that would invert an element (default: on for
                                   # materials undefined when inverted)
     checkpoint_every: int = 0     # write the full state every N steps (0: only on SIGINT/SIGTERM)
+    output_fields: tuple = DEFAULT_FIELDS   # what each frame holds (fields.OUTPUT_FIELDS)
     reuse_preconditioner: str = "auto"  # auto: keep a GAMG set-up until the Krylov iterations grow (solver.py)
     integrator: str = "beuler"    # beuler: backward Euler (thesis); ts: PETSc TS (-ts_type alpha2)
     energy_momentum: bool = False  # -integrator ts at rho_inf = 1: the discrete-gradient elastic force
@@ -186,6 +188,7 @@ def _read_time(s, opts):
         raise UserError(f"option -dt_min: {s.dt_min:g} must be <= -dt {s.dt:g}")
     s.dt_grow_after = opts.integer("dt_grow_after", s.dt_grow_after, minimum=1)
     s.checkpoint_every = opts.integer("checkpoint_every", s.checkpoint_every, minimum=0)
+    s.output_fields = output_fields(opts.names("output_fields", ""))
     s.integrator = opts.choice("integrator", INTEGRATORS, s.integrator)
     s.energy_momentum = opts.flag("energy_momentum", s.energy_momentum)
     if s.energy_momentum and s.integrator != "ts":

@@ -181,7 +181,7 @@ def test_homogeneous_state_is_exact(tmp_path):
             "neohookean_split", "-E", Em, "-nu", num, "-quasistatic", "-dt", 0.5, "-final_time", 1,
             "-effects", "elasticity,prescribed", "-prescribe_faces", "xmin,xmax,ymin,ymax,zmin,zmax",
             "-prescribe_ux", "0.1*t*X", "-prescribe_uy", "-0.05*t*Y", "-prescribe_uz", "0.02*t*Z",
-            "-snes_rtol", 1e-12, "-ksp_rtol", 1e-12, "-output", out, "-quiet"])
+            "-snes_rtol", 1e-12, "-ksp_rtol", 1e-12, "-output", out, "-quiet", "-output_fields", "default,stress"])
     h = read_h5(out)
     X = h["points"]
     F = np.diag([1.1, 0.95, 1.02])
@@ -190,6 +190,16 @@ def test_homogeneous_state_is_exact(tmp_path):
     kappa = Em / (3 * (1 - 2 * num))
     p = pressure(out)
     assert np.abs(p / (0.5 * kappa * (J - 1 / J)) - 1).max() < 1e-9
+    # the stress field's mean is the pressure field's, its deviator the isochoric Neo-Hookean one:
+    # dev(mu J^(-5/3) b), b = F F^T (Bonet & Wood, eq. 6.52)
+    import h5py
+    with h5py.File(out) as f:
+        s = f[f"frames/{len(h['time']) - 1}/stress"][:]
+    mu = Em / (2 * (1 + num))
+    b = F @ F.T
+    dev = mu * J ** (-5 / 3) * (b - np.trace(b) / 3 * np.eye(3))
+    want = dev + 0.5 * kappa * (J - 1 / J) * np.eye(3)
+    assert np.abs(s - [want[i, j] for i, j in ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))]).max() < 1e-8 * mu
 
 
 def test_two_ranks_and_restart(cylinder, tmp_path):
