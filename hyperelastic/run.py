@@ -41,7 +41,14 @@ def run_scene(scene_arg, options_files, restart=None, restart_path=None):
     if not helping:               # (-help writes nothing: not even the output's directory)
         collective(comm, lambda: check_output_path(out, inputs))      # before any expensive work
     collective(comm, lambda: check_viewer_files(PETSc.Options(), inputs + output_names(out)))
-    model = build_model(scene, comm)
+    try:
+        model = build_model(scene, comm)
+    except UserError as e:
+        if not helping:
+            raise
+        if comm.getRank() == 0:        # (the help above is what was asked for; PETSc's part needs a model)
+            print(f"(PETSc's solver options are listed once the scene runs on a mesh: {e})", flush=True)
+        return 0
     if restart is not None:
         collective(comm, lambda: _check_restart(restart, model, scene, restart_path))
     solver, ts = _solver(scene, model, comm)

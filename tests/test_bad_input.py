@@ -202,6 +202,11 @@ def test_mesh_without_a_volume_leaves_nothing_and_help_writes_nothing(tmp_path):
     (tmp_path / "s.opts").write_text("-material neohookean\n-quasistatic\n")
     p = hyperelastic(["run", "s.opts", "-help"], cwd=tmp_path)
     assert p.returncode == 0 and "-material" in p.stdout, p.stderr
+    # a scene naming surfaces of a mesh it does not name: the help still, and why PETSc's part is missing
+    (tmp_path / "t.opts").write_text("-fix clamp\n-loads L\n-L_faces top\n-L_traction 0,0,-1\n")
+    p = hyperelastic(["run", "t.opts", "-help"], cwd=tmp_path)
+    assert p.returncode == 0 and "-material" in p.stdout and "no surface 'clamp'" in p.stdout, p.stderr
+    (tmp_path / "t.opts").unlink()
     assert sorted(os.listdir(tmp_path)) == ["flat.geo", "s.opts"]
 
 
