@@ -206,8 +206,8 @@ def facet_sets(opts, name, default=None, components=False):
     [(name, components)]."""
     items = opts.names(name, default or "")
     if not items:
-        raise UserError(f"option -{name}: needs a list of surfaces (physical names or tags, or left, right, "
-                        "front, back, bottom, top)")
+        raise UserError(f"option -{name}: needs a list of surfaces (physical names or tags, left, right, "
+                        "front, back, bottom, top, or x=V, box=..., normal=...)")
     out = []
     for it in items:
         set_name, sep, comps = it.partition(":")

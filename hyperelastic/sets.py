@@ -4,10 +4,14 @@ A boundary facet is a triangle that belongs to exactly one tetrahedron; nothing 
 treated as a face. Sets of boundary facets come from the mesh's physical surfaces (gmsh physical groups
 of dimension 2, by name or tag; meshio cell sets or integer cell tags of other formats) or from the
 bounding box (left/right = x min/max, front/back = y, bottom/top = z: the boundary facets whose three
-vertices lie on that plane, to 1e-6 of the box diagonal). Regions are sets of tetrahedra (physical
+vertices lie on that plane, to 1e-6 of the box diagonal) or from the geometry (`x=V`, `y=V`, `z=V`: the boundary
+facets on that plane; `box=x0;y0;z0;x1;y1;z1`: those inside the box; `normal=+z` (or -x, ..., or a;b;c): those
+whose outward normal is within 1 degree of the direction; the same tolerance). Regions are sets of tetrahedra (physical
 volumes). Everything here works on the input mesh on rank 0; space.py carries the sets through
 distribution as DMPlex labels.
 """
+import math
+import re
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -19,6 +23,9 @@ from .errors import UserError
 BOX = {"left": (0, "min"), "right": (0, "max"), "front": (1, "min"), "back": (1, "max"),
        "bottom": (2, "min"), "top": (2, "max")}
 BOX_TOL = 1e-6                 # of the bounding box diagonal
+NORMAL_TOL_DEG = 1.0           # normal=DIR selects the facets whose outward normal is this close to DIR
+NUMBER = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
+SELECTORS = "x=V, y=V, z=V (a plane), box=x0;y0;z0;x1;y1;z1, normal=+x|-x|+y|-y|+z|-z|a;b;c"
 FACE_VERTICES = np.array([[1, 2, 3], [0, 2, 3], [0, 1, 3], [0, 1, 2]])   # face k: opposite vertex k
 VERTEX_VALUE = 16              # label value of a set's vertices (cells carry their faces' bitmask 1..15)
 # integer cell data other formats use for region / boundary tags (meshio names)
@@ -198,13 +205,41 @@ class Mesh:
                 return g
         if kind == "facets" and spec in BOX:
             return NamedSet(spec, None, "facets", self.box_facets(spec))
+        if kind == "facets" and "=" in spec:
+            return NamedSet(spec, None, "facets", self.select(spec, option))
         have = [f"{g.name}" + (f" ({g.tag})" if g.tag is not None and str(g.tag) != g.name else "")
                 for g in self.groups.values() if g.kind == kind]
         what = "surfaces" if kind == "facets" else "volumes"
         listed = ", ".join(have) if have else "none"
-        extra = f"; box faces: {', '.join(BOX)}" if kind == "facets" else ""
+        extra = f"; box faces: {', '.join(BOX)}; or by geometry: {SELECTORS}" if kind == "facets" else ""
         raise UserError(f"option -{option}: mesh '{self.path}' has no {what[:-1]} '{spec}' "
                         f"(physical {what}: {listed}{extra})")
+
+    def select(self, spec, option):
+        """The boundary facets a geometric selector picks (SELECTORS; sets' module docstring); UserError
+        for a malformed one or one that picks nothing (with the part's extent)."""
+        key, _, arg = spec.partition("=")
+        nums = [float(v) for v in re.findall(NUMBER, arg)] if re.fullmatch(f"{NUMBER}(;{NUMBER})*", arg) else None
+        lo, hi = self.points.min(axis=0), self.points.max(axis=0)
+        tol = BOX_TOL * float(np.linalg.norm(hi - lo))
+        corners = self.points[self.facets()]                                     # (n, 3, 3)
+        if key in ("x", "y", "z") and nums and len(nums) == 1:
+            on = np.abs(corners[:, :, "xyz".index(key)] - nums[0]) <= tol
+            picked = np.flatnonzero(on.all(axis=1))
+        elif key == "box" and nums and len(nums) == 6:
+            a, b = np.minimum(nums[:3], nums[3:]), np.maximum(nums[:3], nums[3:])
+            picked = np.flatnonzero(((corners >= a - tol) & (corners <= b + tol)).all(axis=(1, 2)))
+        elif key == "normal" and (re.fullmatch("[-+][xyz]", arg) or (nums and len(nums) == 3 and any(nums))):
+            d = np.eye(3)["xyz".index(arg[1])] * (1 if arg[0] == "+" else -1) if nums is None else np.array(nums)
+            n = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+            cos = n @ (d / np.linalg.norm(d)) / np.linalg.norm(n, axis=1)
+            picked = np.flatnonzero(cos >= math.cos(math.radians(NORMAL_TOL_DEG)))
+        else:
+            raise UserError(f"option -{option}: '{spec}' is not a surface selector ({SELECTORS})")
+        if not len(picked):
+            ext = ", ".join(f"{c} {lo[i]:.6g}..{hi[i]:.6g}" for i, c in enumerate("xyz"))
+            raise UserError(f"option -{option}: '{spec}' selects no boundary facet (the part spans {ext})")
+        return picked
 
     def describe(self, s):
         """One line about a set: name, size and area or volume."""

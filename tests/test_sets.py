@@ -127,6 +127,30 @@ def test_unknown_set_names_what_the_mesh_has(parts, tmp_path):
     assert not (tmp_path / "o.h5").exists()
 
 
+def test_geometric_selectors_pick_the_physical_groups_facets(parts, tmp_path):
+    """A part without usable names (a STEP file) is loaded by geometry: the bracket with its clamp as the plane
+    x=0 and its load as a box around the base's free end gives bitwise the run by physical names; normal=DIR
+    picks the cube's faces; selectors that pick nothing or are malformed are one line naming the part's extent."""
+    base = ["run", f"{ROOT}/examples/bracket.opts", "-mesh", parts["bracket"], "-dt", 0.5, "-quiet"]
+    run_ok([*base, "-output", tmp_path / "a.h5"])
+    p = run_ok([*base[:-1], "-output", tmp_path / "b.h5", "-fix", "x=0", "-traction_face", "box=0.1;0;0;0.1;0.06;0.01"])
+    a, b = read_h5(tmp_path / "a.h5"), read_h5(tmp_path / "b.h5")
+    assert np.array_equal(a["x"], b["x"]) and np.abs(a["x"][-1] - a["points"]).max() > 1e-6
+    assert "set x=0: " in p.stderr and "set box=0.1;0;0;0.1;0.06;0.01: " in p.stderr
+    scene = tmp_path / "c.opts"
+    scene.write_text("-effects elasticity,fixed,traction\n-quasistatic\n-dt 1\n-final_time 1\n-traction 0,0,1e4\n")
+    c = [["-fix", "xmin:x,ymin:y,zmin:z", "-traction_face", "zmax"],
+         ["-fix", "normal=-x:x,normal=0;-1;0:y,z=0:z", "-traction_face", "normal=+z"]]
+    for i, extra in enumerate(c):
+        run_ok(["run", scene, "-mesh", parts["cube"], "-output", tmp_path / f"c{i}.h5", "-quiet", *extra])
+    assert np.array_equal(read_h5(tmp_path / "c0.h5")["x"], read_h5(tmp_path / "c1.h5")["x"])
+    for spec, words in (("x=0.5", ["selects no boundary facet", "x 0..1"]), ("box=0;0;1", ["not a surface selector"]),
+                        ("normal=+w", ["not a surface selector"]), ("y=1e", ["not a surface selector"])):
+        one_line_error(hyperelastic(["run", scene, "-mesh", parts["cube"], "-fix", spec, "-output", tmp_path / "e.h5"]),
+                       "option -fix", f"'{spec}'", *words)
+    assert not (tmp_path / "e.h5").exists()
+
+
 def test_sets_printed_and_stored(parts, tmp_path):
     out = tmp_path / "o.h5"
     p = run_ok(["run", "bend", "-mesh", parts["plate_hole"], "-fix", "clamp", "-traction_face", "load",
