@@ -17,7 +17,7 @@ import traceback
 
 from .errors import ArgParser, Interrupted, SolveError, UserError
 from .files import option_lines, read_checkpoint
-from .mesh import generate
+from .mesh import format_normal, generate
 from .plot import render
 
 # petsc4py reads the command line when PETSc is first imported, and mpi4py initializes MPI when imported:
@@ -196,6 +196,14 @@ def mesh_cmd(argv):
         nodes = f" ({s['nodes']} nodes of 10-node tets)" if s["order"] == 2 else ""
         print(f"{s['file']}: level {a.level or '-'} target edge {s['target_size']:.4g}: {s['vertices']} vertices"
               f"{nodes}, {s['tets']} tets, min edge {s['min_edge']:.4g}")
+    first = st[0] if a.refine else st
+    if first["auto_named"]:
+        print("the geometry has no physical groups: each surface and volume is named by its tag; pick surfaces "
+              "by these names (-fix surface_3) or by geometry (-fix x=0, box=..., normal=+z)")
+        print(f"  {'surface':<14} {'facets':>7} {'area':>11}  {'centroid':<36} outward normal")
+        for name, nf, area, c, u in first["surfaces"]:
+            cen = "(" + ", ".join(f"{v:.4g}" for v in c) + ")"
+            print(f"  {name:<14} {nf:>7} {area:>11.4g}  {cen:<36} {format_normal(u)}")
     return 0
 
 

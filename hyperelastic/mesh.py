@@ -91,6 +91,7 @@ def generate(name, level, out, size=None, refine=0, order=1):
         except Exception as e:
             raise UserError(f"geometry '{name}': gmsh cannot read it ({str(e).strip()[:200]})") from None
         _check_size(name, size, refine)
+        auto_named = _name_entities()
         gmsh.option.setNumber("Mesh.MeshSizeMin", size)
         gmsh.option.setNumber("Mesh.MeshSizeMax", size)
         gmsh.option.setNumber("Mesh.MeshSizeExtendFromBoundary", 0)
@@ -133,8 +134,48 @@ def generate(name, level, out, size=None, refine=0, order=1):
         os.replace(tmp, o)
         stats.append(describe(m.points, m.tets) | {"level": level, "target_size": size / 2 ** i, "file": o,
                                                    "vertices": len(np.unique(m.tets)), "nodes": len(m.points),
-                                                   "order": m.order})
+                                                   "order": m.order, "auto_named": auto_named,
+                                                   "surfaces": surface_rows(m) if i == 0 else []})
     return stats if refine else stats[0]
+
+
+def _name_entities():
+    """A geometry without physical groups (a STEP file, a bare .geo): every surface and volume of it becomes
+    a physical group named by its tag (surface_12, volume_1), so the mesh keeps them and runs can use them.
+    Returns whether it did."""
+    import gmsh
+    if gmsh.model.getPhysicalGroups():
+        return False
+    for dim, kind in ((2, "surface"), (3, "volume")):
+        for _, tag in gmsh.model.getEntities(dim):
+            gmsh.model.setPhysicalName(dim, gmsh.model.addPhysicalGroup(dim, [tag], tag), f"{kind}_{tag}")
+    return True
+
+
+def surface_rows(m):
+    """[(name, facets, area, centroid, normal)] of a mesh's named surfaces (sets.Mesh): the outward unit
+    normal where the surface is planar (every facet's within 1e-6), else None."""
+    rows = []
+    for g in m.groups.values():
+        if g.kind != "facets" or not len(g.items):
+            continue
+        tri = m.points[m.facets(g.items)]
+        n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]) / 2
+        a = np.linalg.norm(n, axis=1)
+        centroid = (tri.mean(axis=1) * a[:, None]).sum(axis=0) / a.sum()
+        unit = n.sum(axis=0) / np.linalg.norm(n.sum(axis=0))
+        planar = np.all(n @ unit >= (1 - 1e-6) * a)
+        rows.append((g.name, len(g.items), m.area(g.items), centroid, unit if planar else None))
+    return rows
+
+
+def format_normal(u):
+    if u is None:
+        return "(not planar)"
+    k = int(np.argmax(np.abs(u)))
+    if abs(abs(u[k]) - 1) < 1e-9:
+        return f"{'+' if u[k] > 0 else '-'}{'xyz'[k]}"
+    return "(" + ", ".join(f"{c:.4g}" for c in u) + ")"
 
 
 MAX_TETS = 2e8      # beyond, gmsh would run for hours and the mesh would not fit this kind of machine

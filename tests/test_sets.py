@@ -151,6 +151,41 @@ def test_geometric_selectors_pick_the_physical_groups_facets(parts, tmp_path):
     assert not (tmp_path / "e.h5").exists()
 
 
+STEP_PART = """
+import sys, gmsh
+gmsh.initialize(); gmsh.option.setNumber("General.Terminal", 0)
+gmsh.model.occ.addBox(0, 0, 0, 0.1, 0.02, 0.03); gmsh.model.occ.addCylinder(0.05, 0.01, 0, 0, 0, 0.03, 0.005, 2)
+gmsh.model.occ.cut([(3, 1)], [(3, 2)]); gmsh.model.occ.synchronize(); gmsh.write(sys.argv[1]); gmsh.finalize()
+"""
+
+
+def test_step_part_gets_a_name_per_surface_and_a_table(tmp_path):
+    """A STEP part (no physical groups): `hyperelastic mesh` names every surface and volume by its tag, keeps
+    them in the .msh and prints name, facets, area, centroid and outward normal; a run by those names is the
+    run by geometric selectors, bitwise."""
+    import subprocess
+    import sys
+    subprocess.run([sys.executable, "-c", STEP_PART, str(tmp_path / "part.step")], check=True, capture_output=True)
+    p = run_ok(["mesh", tmp_path / "part.step", "--size", 0.005, "-o", tmp_path / "part.msh"])
+    rows = {ln.split()[0]: ln.split() for ln in p.stdout.splitlines() if ln.strip().startswith("surface_")}
+    assert len(rows) == 7 and "no physical groups" in p.stdout
+    normals = sorted(r[-1] for r in rows.values() if r[-1] != "planar)")
+    assert normals == ["+x", "+y", "+z", "-x", "-y", "-z"], normals
+    hole = [r for r in rows.values() if r[-1] == "planar)"][0]
+    assert abs(float(hole[2]) / (2 * np.pi * 0.005 * 0.03) - 1) < 0.03           # the faceted cylinder's area
+    end = [r for r in rows.values() if r[-1] == "+x"][0]
+    assert abs(float(end[2]) - 0.02 * 0.03) < 1e-12 and end[3] == "(0.1,"
+    clamp = [n for n, r in rows.items() if r[-1] == "-x"][0]
+    base = ["run", "bend", "-mesh", tmp_path / "part.msh", "-effects", "elasticity,fixed,traction", "-quasistatic",
+            "-dt", 1, "-final_time", 1, "-traction", "0,0,-1e5", "-quiet"]
+    run_ok([*base, "-fix", clamp, "-traction_face", end[0], "-output", tmp_path / "a.h5"])
+    run_ok([*base, "-fix", "x=0", "-traction_face", "x=0.1", "-output", tmp_path / "b.h5"])     # (normal=+x: also
+    # the 5 facets of the hole facing +x)
+    a, b = read_h5(tmp_path / "a.h5"), read_h5(tmp_path / "b.h5")
+    assert np.array_equal(a["x"], b["x"]) and np.abs(a["x"][-1] - a["points"]).max() > 0
+    assert json.loads(a["attrs"]["sets"])[-1]["name"] == "volume_1"
+
+
 def test_sets_printed_and_stored(parts, tmp_path):
     out = tmp_path / "o.h5"
     p = run_ok(["run", "bend", "-mesh", parts["plate_hole"], "-fix", "clamp", "-traction_face", "load",
