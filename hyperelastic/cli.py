@@ -5,6 +5,8 @@
   hyperelastic mesh bar --level N -o FILE.msh    generate a gmsh mesh of the thesis' bar
   hyperelastic mesh PART.geo --size H -o F.msh   mesh your own .geo/.step (physical groups kept; --refine N)
   hyperelastic plot FILE.h5 [-o FILE.png]        picture of a frame (default: the last)
+  hyperelastic report FILE.h5 [--at X,Y,Z] [--frame N] [--watch Q]
+                                                 the run, its forces, values at material points, again
   hyperelastic scenes                            list the built-in scenes
   hyperelastic study accuracy|refinement [-output_dir DIR] [--full] [--jobs N]
                                                  what accuracy costs in time: CSV, PNGs, markdown
@@ -230,12 +232,18 @@ def scenes_cmd(argv):
     return 0
 
 
+def report_cmd(argv):
+    from .report import main as report_main      # (imports the study package: only where it is needed)
+    return report_main(argv)
+
+
 def study_cmd(argv):
     from .study import main as study_main
     return study_main(argv)
 
 
-COMMANDS = {"run": run_cmd, "mesh": mesh_cmd, "plot": plot_cmd, "scenes": scenes_cmd, "study": study_cmd}
+COMMANDS = {"run": run_cmd, "mesh": mesh_cmd, "plot": plot_cmd, "report": report_cmd, "scenes": scenes_cmd,
+            "study": study_cmd}
 
 
 def main(argv=None):

@@ -388,7 +388,7 @@ def locate(points, tets, P):
         bary = np.column_stack([1.0 - lam.sum(axis=1), lam])
         c = int(np.argmax(bary.min(axis=1)))          # the cell the point is deepest inside
         if bary[c].min() < -1e-9:
-            raise UserError(f"material point {tuple(p)} lies outside the mesh")
+            raise UserError(f"material point ({', '.join(f'{v:g}' for v in p)}) lies outside the mesh")
         cells.append(c)
         weights.append(bary[c])
     return np.array(cells), np.array(weights)

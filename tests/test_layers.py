@@ -54,7 +54,7 @@ LAYERS = [
     ["kernels", "effects"],
     ["scene", "stats", "space", "system", "fields"],
     ["catalog", "model", "mixed", "aij", "jacobians", "solver", "output", "integrators", "forces"],
-    ["ts_integrator", "run", "stability", "study", "repro", "experiments"],
+    ["ts_integrator", "run", "stability", "study", "repro", "experiments", "report"],
     ["cli", "__main__"],
 ]
 

@@ -127,3 +127,36 @@ def test_default_output_unchanged_and_bad_names_refused(cube, tmp_path):
     lines = p.stderr.strip().splitlines()
     assert p.returncode == 2 and len(lines) == 1 and "-output_fields: unknown field 'stres'" in lines[0]
     assert not (tmp_path / "e.h5").exists()
+
+
+def test_report_prints_the_run_forces_and_material_points(cube, tmp_path):
+    """`hyperelastic report`: the run's line, the forces table the run printed, the displacement and the cell
+    fields at a material point (interpolated: exact for this affine state), the watch quantities; bad
+    input one line; it writes nothing."""
+    out = tmp_path / "u.h5"
+    f, g = uniaxial(cube, out)
+    with f:
+        forces = json.loads(f.attrs["forces"])
+        szz = g["stress"][0, 5]
+        X, x = f["mesh/points"][:], f["x"][-1]
+        lam = np.ptp(x, axis=0) / np.ptp(X, axis=0)
+    before = sorted(p.name for p in tmp_path.iterdir())
+    p = run_ok(["report", out, "--at", "0.5,0.5,1", "--watch", "u_z:0.5,0.5,1", "--watch", "reaction_z:zmax"])
+    lines = p.stdout.splitlines()
+    assert lines[0].startswith(f"{out}: scene plain") and "finished" in lines[0] and "3 frames to t = 1" in lines[0]
+    assert lines[1].startswith("forces at t = 1") and any(ln.startswith("  reaction zmax: F = (") for ln in lines)
+    at = [ln for ln in lines if ln.startswith("at (0.5, 0.5, 1), frame 2 (t = 1): u = (")][0]
+    u = [float(v) for v in at.split("u = (")[1].split(")")[0].split(",")]
+    assert np.allclose(u, [(lam[0] - 1) * 0.5, (lam[1] - 1) * 0.5, 0.1], rtol=1e-5, atol=1e-9), (u, lam)
+    assert "stress (" in at and f"{szz:.6g})" in at, at
+    Fz = [r["F"][2] for r in forces["forces"] if r["name"] == "zmax"][0]
+    assert float(lines[-2].split(" = ")[1]) == pytest.approx(0.1, rel=1e-12)
+    assert float(lines[-1].split(" = ")[1]) == pytest.approx(Fz, rel=1e-12)
+    for args, words in ((["report", tmp_path / "none.h5"], "no such file"),
+                        (["report", out, "--at", "3,0,0"], "lies outside the mesh"),
+                        (["report", out, "--at", "1,2"], "three finite coordinates"),
+                        (["report", out, "--at", "0,0,0", "--frame", 7], "out of range (0..2)"),
+                        (["report", out, "--watch", "u_w:0,0,0"], "unknown quantity")):
+        q = hyperelastic(args)
+        assert q.returncode == 2 and len(q.stderr.strip().splitlines()) == 1 and words in q.stderr, q.stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == before

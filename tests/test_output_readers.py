@@ -151,7 +151,7 @@ def test_readme_your_own_part_runs_as_written(tmp_path):
     text = open(os.path.join(ROOT, "README.md")).read()
     section = text.split("## Your own part", 1)[1].split("\n## ", 1)[0]
     cmds = [line.strip() for line in section.splitlines() if line.startswith("    .venv/bin/")]
-    assert len(cmds) == 7 and cmds[0].startswith(".venv/bin/hyperelastic mesh examples/")
+    assert len(cmds) == 8 and cmds[0].startswith(".venv/bin/hyperelastic mesh examples/")
     for d in ("examples", "scripts"):
         os.symlink(os.path.join(ROOT, d), tmp_path / d)
     os.symlink(os.path.dirname(BIN), tmp_path / ".venv")
@@ -161,6 +161,8 @@ def test_readme_your_own_part_runs_as_written(tmp_path):
     for c in cmds:
         p = subprocess.run(shlex.split(c), cwd=tmp_path, capture_output=True, text=True, timeout=300)
         assert p.returncode == 0, (c, p.stderr)
+        if " report " in c:
+            assert "forces at t = 1" in p.stdout and "at (0.1, 0.03, 0.005), frame" in p.stdout, p.stdout
         if " run " in c and "cook" not in c:
             for line in shown["bracket" if "bracket" in c else "bimaterial"]:
                 assert line in p.stderr, line                       # the set lines the README shows
