@@ -72,6 +72,13 @@ class Integrator:
         if not self.quiet and self.sp.mpi.rank == 0:
             print(line, file=sys.stderr, flush=True)
 
+    def _note(self, text):
+        """A note the run must leave: on stderr (rank 0; not with -quiet) and in the output's attribute `notes`."""
+        self._say(f"note: {text}")
+        self.run_notes = getattr(self, "run_notes", []) + [text]
+        if self.writer:
+            self.writer.set_attr("notes", "\n".join(self.run_notes))
+
     def _write_stats(self, stats):
         self.stages["Output"].push()
         if self.writer:
@@ -213,6 +220,11 @@ class BackwardEuler(Integrator):
                 self.rejections += 1
                 self.streak = 0
                 self.h_try = 0.5 * h
+                note = self.solver.escalate() if linear_only else ""
+                if note:                 # the same step again, with a preconditioner that fits a static stiffness
+                    self._note(note)
+                    self.h_try = h
+                    continue
                 if not sc.step_control or self.h_try < sc.dt_min or linear_only:
                     self._fail_step(stats, why, hint, halving=not linear_only)
                 continue

@@ -132,6 +132,8 @@ class Solver:
         self.merit = MERITS[0] if objective and system.conservative and snes is None else MERITS[1]
         if self.mixed:
             apply_mixed_defaults()
+        self.pc_chosen = PETSc.Options().hasName("pc_type")       # (by the user or a recipe: never changed)
+        self.reuse_mode = reuse_pc
         apply_defaults(self.merit, all(e.symmetric for e in system.effects))
         self.mf = matrix_free()
         self.R = system.unknown_vec()
@@ -215,6 +217,37 @@ class Solver:
         self.reuse = {"base": None, "pending": True, "setups": 0}
         lag_preconditioner_persists(self.snes)
         lag_preconditioner(self.snes, -2)
+
+    # what a quasi-static step whose CG + Jacobi solve ran out of iterations is retried with (options/gamg.opts)
+    ESCALATION = (("pc_gamg_type", "agg"), ("pc_gamg_agg_nsmooths", "1"), ("mg_levels_ksp_type", "chebyshev"),
+                  ("mg_levels_pc_type", "jacobi"))
+
+    def escalate(self):
+        """CG + Jacobi ran out of iterations on a quasi-static step: switch the preconditioner of the assembled
+        tangent to GAMG with the rigid-body near null space (its set-up kept across steps) and say so; the
+        caller retries the step. Only for the default Jacobi (no -pc_type given), not the mixed formulation's
+        field split, and once. Returns the note, or "" when it does not apply. Jacobi stays the default: it is
+        faster on dynamic and small runs and keeps its Krylov directions descent directions on indefinite
+        tangents, where GAMG's Chebyshev smoothing became an indefinite preconditioner (a soft cantilever at
+        full load: docs/design.md, "Solver defaults")."""
+        ksp = self.snes.getKSP()
+        pc = ksp.getPC()
+        if (self.pc_chosen or self.mixed or self.op is None or self.mf or pc.getType() != "jacobi"
+                or self.op.mat.getType() not in ("seqaij", "mpiaij")):
+            return ""
+        opts = PETSc.Options()
+        for k, v in self.ESCALATION:
+            if not opts.hasName(k):
+                opts.setValue(k, v)
+        opts.setValue("pc_type", "gamg")
+        its = ksp.getIterationNumber()
+        pc.setType("gamg")
+        pc.setFromOptions()
+        self._setup_reuse(self.reuse_mode)
+        self.notes.append("switched to GAMG")
+        return (f"{ksp.getType().upper()} + Jacobi ran out of iterations ({its}) on a quasi-static step: retrying "
+                "it with GAMG (rigid-body modes; -options_file options/gamg.opts from the start saves the failed "
+                "attempt)")
 
     def rebuild_preconditioner(self):
         """Set the preconditioner up again at the next Jacobian (also where a restart would begin, so
