@@ -7,7 +7,7 @@ import h5py
 import numpy as np
 import pytest
 
-from conftest import ROOT, hyperelastic, run_ok
+from conftest import ROOT, hyperelastic, read_h5, run_ok
 
 
 def forces(path):
@@ -94,13 +94,28 @@ def test_watch_quantities_by_name(tmp_path, bracket_mesh):
         watched(out, *parse_watch("reaction:load"))
 
 
+def test_quasi_static_jacobi_that_runs_out_switches_to_gamg(tmp_path, bracket_mesh):
+    """The default CG + Jacobi runs out of iterations on a quasi-static step: the step is retried with GAMG (not
+    halved), a note says so (stderr and the output's notes), and the run ends where a run with GAMG from the
+    start does."""
+    base = ["run", f"{ROOT}/examples/bracket.opts", "-mesh", bracket_mesh, "-ksp_max_it", 20, "-objective", 0]
+    p = run_ok([*base, "-output", tmp_path / "s.h5"])
+    assert "note: CG + Jacobi ran out of iterations (20) on a quasi-static step: retrying it with GAMG" in p.stderr
+    run_ok([*base, "-options_file", f"{ROOT}/options/gamg.opts", "-quiet", "-output", tmp_path / "g.h5"])
+    a, b = read_h5(tmp_path / "s.h5"), read_h5(tmp_path / "g.h5")
+    assert a["stats"]["rejected"].sum() == 1 and b["stats"]["rejected"].sum() == 0
+    assert "retrying it with GAMG" in a["attrs"]["notes"]
+    u = a["x"][-1] - a["points"]
+    assert np.abs(a["x"][-1] - b["x"][-1]).max() < 1e-6 * np.abs(u).max()
+
+
 def test_quasi_static_linear_failure_is_not_halved_and_names_the_fix(tmp_path, bracket_mesh):
     """A quasi-static step whose Krylov solve runs out of iterations fails at once (halving the load step
     would not change the tangent) with the option most likely to fix it; a dynamic one is still retried
     with smaller steps, and says the same (issue 34)."""
     out = tmp_path / "f.h5"
     p = hyperelastic(["run", f"{ROOT}/examples/bracket.opts", "-mesh", bracket_mesh, "-ksp_max_it", 20, "-objective",
-                      0, "-quiet", "-output", out])
+                      0, "-quiet", "-output", out, "-pc_type", "jacobi"])      # (chosen: never switched)
     lines = p.stderr.strip().splitlines()
     assert p.returncode == 3 and len(lines) == 1, p.stderr
     assert "not retried with a smaller load step" in lines[0] and "options/gamg.opts" in lines[0]
