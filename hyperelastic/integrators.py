@@ -272,6 +272,8 @@ class BackwardEuler(Integrator):
             stats["linear_only"] = self.scene.quasistatic and ksp in RAN_OUT
             hints = MIXED_KSP_HINTS if self.solver.mixed else KSP_HINTS
             stats["hint"] = hints.get(ksp, "") if ksp else SNES_HINTS.get(name, "")
+            if ksp in RAN_OUT and self.solver.snes.getKSP().getPC().getType() == "gamg":
+                stats["hint"] = "a larger -ksp_max_it"
             return self._rejected(stats, w0)
         sysm.solved(self.X)
         x1 = sysm.impose(sysm.local(self.X, sysm.xl).copy())

@@ -86,10 +86,11 @@ def _libhdf5():
     return _LIB[0]
 
 
-def room_for(path, nbytes, extra_files=()):
+def room_for(path, nbytes, extra_files=(), size=None):
     """None when `nbytes` more can be written to `path` with ROOM_MARGIN to spare — the disk's free space
     and the process's file size limit (ulimit -f, RLIMIT_FSIZE) — else why not. A write that fails half
-    way leaves an HDF5 file unreadable, so the writer asks before every frame and checkpoint."""
+    way leaves an HDF5 file unreadable, so the writer asks before every frame and checkpoint. size: the
+    file's size as its writer counts it (HDF5's end, without the sparse tail of Writer._reserve)."""
     need = int(1.5 * nbytes) + ROOM_MARGIN
     d = os.path.dirname(os.path.abspath(path)) or "."
     st = os.statvfs(d)
@@ -99,8 +100,8 @@ def room_for(path, nbytes, extra_files=()):
     soft = resource.getrlimit(resource.RLIMIT_FSIZE)[0]
     if soft != resource.RLIM_INFINITY:
         for p, nb in [(path, need)] + [(p, nb + ROOM_MARGIN) for p, nb in extra_files]:
-            size = os.path.getsize(p) if os.path.exists(p) else 0
-            if size + nb > soft:
+            now = size if p == path and size is not None else os.path.getsize(p) if os.path.exists(p) else 0
+            if now + nb > soft:
                 return f"the file size limit (ulimit -f) is {soft} bytes"
     return None
 
@@ -334,7 +335,7 @@ class Writer:
         why = None
         if self.root:
             xdmf = [(self.xdmf, XDMF_FRAME_BYTES)] if self.committed and os.path.exists(self.xdmf) else []
-            why = room_for(self.path, nbytes(), xdmf)
+            why = room_for(self.path, nbytes(), xdmf, self.f.id.get_filesize() if self.f is not None else None)
         why = self.space.mpi.bcast(why, root=0)
         if why:
             held = f"it holds frames 0..{self.nframes - 1}" if self.nframes else "it holds no frame"
@@ -420,8 +421,11 @@ class Writer:
         if not self._guard:
             return
         fd = self._fd()
-        end = os.fstat(fd).st_size + int(1.5 * nbytes) + ROOM_MARGIN     # what room_for checked
-        os.ftruncate(fd, end)
+        end = self.f.id.get_filesize() + int(1.5 * nbytes) + ROOM_MARGIN  # HDF5's own end + what room_for checked
+        try:
+            os.ftruncate(fd, end)        # (HDF5's writes go below `end`: a sparse tail left from the last one
+        except OSError:                  # is cut, and the apparent size grows only with the data)
+            return                       # (ulimit -f at the close: HDF5's own writes would fail the same way)
         os.pwrite(fd, end.to_bytes(8, "little"), SUPERBLOCK_EOA_AT)
 
     def close(self, keep=True):
