@@ -60,6 +60,22 @@ def missing_datasets(f, more=()):
     return [k for k in OUTPUT_DATASETS + tuple(more) if k not in f]
 
 
+def open_output(path, who):
+    """The output file `path` open for reading (h5py.File); UserError, worded for command `who`, when it is not
+    a regular file, not HDF5, or not an output of hyperelastic."""
+    if not os.path.isfile(path):
+        raise UserError(f"{who}: '{path}' " + ("is not a regular file" if os.path.exists(path) else "does not exist"))
+    try:
+        f = h5py.File(path, "r")
+    except OSError as e:
+        raise UserError(f"{who}: cannot open '{path}' as HDF5 ({str(e).split('(')[0].strip()})") from None
+    missing = missing_datasets(f)
+    if missing:
+        f.close()
+        raise UserError(f"{who}: '{path}' is not an output of hyperelastic (no {', '.join(missing)})")
+    return f
+
+
 def completed_frames(f):
     """The number of complete frames in an open output file. The writer writes a frame's time last, in a flush
     of its own, after the frame's positions and fields are in (output.Writer._write_frame): after a kill -9, x

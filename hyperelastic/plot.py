@@ -2,12 +2,11 @@
 over the reference shape's outline."""
 import os
 
-import h5py
 import numpy as np
 
 from .errors import UserError
 from .figures import pyplot
-from .files import check_output_path, completed_frames, missing_datasets
+from .files import check_output_path, completed_frames, open_output
 
 
 def boundary_faces(tets):
@@ -19,18 +18,9 @@ def boundary_faces(tets):
 
 def render(path, out, frame=-1):
     plt = pyplot()
-    if not os.path.isfile(path):
-        raise UserError(f"plot: '{path}' " + ("is not a regular file" if os.path.exists(path) else "does not exist"))
     if not out.lower().endswith(".png") or os.path.isdir(out):
         raise UserError(f"plot: -o '{out}' must be a .png file")
-    try:
-        f = h5py.File(path, "r")
-    except OSError as e:
-        raise UserError(f"plot: cannot open '{path}' as HDF5 ({str(e).split('(')[0].strip()})") from None
-    with f:
-        missing = missing_datasets(f)
-        if missing:
-            raise UserError(f"plot: '{path}' is not an output of hyperelastic (no {', '.join(missing)})")
+    with open_output(path, "plot") as f:
         n = completed_frames(f)
         if n == 0:
             raise UserError(f"plot: '{path}' has no frames")

@@ -2,17 +2,14 @@
 of its end (reactions, load resultants, their sum), and on request the displacement and the cell fields at
 material points of a frame and the quantities `study refinement --watch` takes. Reads only; writes nothing."""
 import json
-import math
-import os
 
-import h5py
 import numpy as np
 
 from .errors import ArgParser, UserError
-from .files import completed_frames, missing_datasets
+from .files import completed_frames, open_output
 from .forces import table
 from .mesh import interpolate, locate
-from .study.part import WATCH_HELP, parse_watch, watched
+from .study.part import WATCH_HELP, parse_watch, point3, watched
 
 
 def main(argv):
@@ -33,27 +30,15 @@ def main(argv):
 
 
 def _point(spec):
-    try:
-        p = [float(v) for v in spec.split(",")]
-    except ValueError:
-        p = []
-    if len(p) != 3 or not all(map(math.isfinite, p)):
+    p = point3(spec)
+    if p is None:
         raise UserError(f"report: --at {spec}: give three finite coordinates X,Y,Z")
-    return np.array(p)
+    return p
 
 
 def report(path, frame, points, watches):
     """The report's lines (UserError for a file that is not a readable output or a frame it lacks)."""
-    if not os.path.isfile(path):
-        raise UserError(f"report: '{path}': no such file")
-    try:
-        f = h5py.File(path, "r")
-    except OSError as e:
-        raise UserError(f"report: cannot open '{path}' as HDF5 ({str(e).split('(')[0].strip()})") from None
-    with f:
-        missing = missing_datasets(f)
-        if missing:
-            raise UserError(f"report: '{path}' is not an output of hyperelastic (no {', '.join(missing)})")
+    with open_output(path, "report") as f:
         n = completed_frames(f)
         lines = [_summary(path, f, n)]
         if "forces" in f.attrs:

@@ -152,7 +152,7 @@ def test_report_prints_the_run_forces_and_material_points(cube, tmp_path):
     Fz = [r["F"][2] for r in forces["forces"] if r["name"] == "zmax"][0]
     assert float(lines[-2].split(" = ")[1]) == pytest.approx(0.1, rel=1e-12)
     assert float(lines[-1].split(" = ")[1]) == pytest.approx(Fz, rel=1e-12)
-    for args, words in ((["report", tmp_path / "none.h5"], "no such file"),
+    for args, words in ((["report", tmp_path / "none.h5"], "does not exist"),
                         (["report", out, "--at", "3,0,0"], "lies outside the mesh"),
                         (["report", out, "--at", "1,2"], "three finite coordinates"),
                         (["report", out, "--at", "0,0,0", "--frame", 7], "out of range (0..2)"),

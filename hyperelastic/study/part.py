@@ -29,6 +29,15 @@ WATCH_HELP = ("max_displacement (largest |u| over the vertices), point:X,Y,Z (|u
 COMPONENTS = {"x": 0, "y": 1, "z": 2}
 
 
+def point3(text):
+    """The point X,Y,Z of `text` (an array), or None when it is not three finite numbers."""
+    try:
+        p = [float(v) for v in text.split(",")]
+    except ValueError:
+        return None
+    return np.array(p) if len(p) == 3 and all(map(math.isfinite, p)) else None
+
+
 def parse_watch(spec):
     """(kind, the material point (point, u_x/u_y/u_z), the surface (reaction, reaction_x/_y/_z) or None) of a
     --watch value; UserError for anything else."""
@@ -36,13 +45,10 @@ def parse_watch(spec):
         return spec, None
     head, _, arg = spec.partition(":")
     if head in ("point", "u_x", "u_y", "u_z") and arg:
-        try:
-            p = [float(v) for v in arg.split(",")]
-        except ValueError:
-            p = []
-        if len(p) != 3 or not all(map(math.isfinite, p)):
+        p = point3(arg)
+        if p is None:
             raise UserError(f"--watch {spec}: {head}:X,Y,Z needs three finite coordinates")
-        return head, np.array(p)
+        return head, p
     if head in ("reaction", "reaction_x", "reaction_y", "reaction_z") and arg:
         return head, arg
     raise UserError(f"--watch {spec}: unknown quantity (choose from {WATCH_HELP})")
