@@ -10,6 +10,8 @@
   hyperelastic scenes                            list the built-in scenes
   hyperelastic study accuracy|refinement [-output_dir DIR] [--full] [--jobs N]
                                                  what accuracy costs in time: CSV, PNGs, markdown
+  hyperelastic study price --part P --scene S --size H --watch Q --target ERR
+                                                 the cheapest setting for a target error on your part
 """
 import os
 import re

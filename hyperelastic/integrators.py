@@ -10,7 +10,8 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from .errors import Interrupted, SolveError
-from .stats import effect_column, energy_sum
+from .forces import surface_forces
+from .stats import effect_column, energy_sum, force_columns
 
 
 def step_count(final_time, dt):
@@ -284,6 +285,8 @@ class BackwardEuler(Integrator):
         self.x, self.v, self.t = x1, v1, t1
         sysm.accept(self.X)
         self.step += 1
+        if self.writer is not None:       # the reactions and the loads' resultants of the step (forces.py)
+            stats.update(force_columns(surface_forces(self.scene, sysm, x1)))
         stats.update({"rejected": 0, "wall_s": time.perf_counter() - w0})
         return stats
 

@@ -227,7 +227,8 @@ def read(path):
 def read_mesh(path, frame=-1):
     """The checked tetrahedral mesh of `path` with its boundary facets and named sets (sets.Mesh). An
     output file of this application (.h5, or the .xdmf beside it) gives the mesh in the configuration
-    of its frame `frame` (default: the last), with its regions."""
+    of its frame `frame` (default: the last; None: the reference configuration), with its regions."""
+    path = os.fspath(path)
     if os.path.exists(path) and not os.path.isfile(path) and not os.path.isdir(path):
         raise UserError(f"mesh '{path}': is not a regular file")
     if path.lower().endswith(".xdmf") and is_output(os.path.splitext(path)[0] + ".h5"):
@@ -243,7 +244,7 @@ def _read_output(path, frame):
     (mesh/region, named as the run's attribute `sets` names them) are kept."""
     with h5py.File(path, "r") as f:
         nf = completed_frames(f)
-        if nf == 0:
+        if nf == 0 or frame is None:
             points = f["mesh/points"][:]
         elif not -nf <= frame < nf:
             raise UserError(f"mesh '{path}': has no frame {frame} (it has {nf}: 0..{nf - 1})")

@@ -5,11 +5,13 @@ import json
 
 import numpy as np
 
+from . import stats
+
 from .errors import ArgParser, UserError
 from .files import completed_frames, open_output
 from .forces import table
 from .mesh import interpolate, locate
-from .study.part import WATCH_HELP, parse_watch, point3, watched
+from .study.watch import HELP as WATCH_HELP, parse_watch, point3, watched
 
 
 def main(argv):
@@ -20,11 +22,13 @@ def main(argv):
                     "before, ...)")
     ap.add_argument("--at", action="append", default=[], metavar="X,Y,Z",
                     help="a material point (reference coordinates): its displacement and its cell's fields")
-    ap.add_argument("--watch", action="append", default=[], metavar="Q", help=f"a quantity at the end: {WATCH_HELP}")
+    ap.add_argument("--watch", action="append", default=[], metavar="Q", help=f"a quantity: {WATCH_HELP}")
+    ap.add_argument("--forces", action="store_true", help="the forces table at the time of --frame (from the "
+                    "statistics: every step of backward-Euler and quasi-static runs records it)")
     a = ap.parse_args(argv)
     points = [_point(s) for s in a.at]
-    watches = [(w, parse_watch(w)) for w in a.watch]
-    for line in report(a.file, a.frame, points, watches):
+    watches = [parse_watch(w) for w in a.watch]
+    for line in report(a.file, a.frame, points, watches, a.forces):
         print(line)
     return 0
 
@@ -36,25 +40,38 @@ def _point(spec):
     return p
 
 
-def report(path, frame, points, watches):
+def report(path, frame, points, watches, forces=False):
     """The report's lines (UserError for a file that is not a readable output or a frame it lacks)."""
     with open_output(path, "report") as f:
         n = completed_frames(f)
         lines = [_summary(path, f, n)]
-        if "forces" in f.attrs:
+        if "forces" in f.attrs and not forces:
             rec = json.loads(f.attrs["forces"])
             lines += table([(r["kind"], r["name"], np.array(r["F"]), np.array(r["M"])) for r in rec["forces"]],
                            rec["t"])
-        if points:
+        if points or forces:
             if n == 0:
                 raise UserError(f"report: '{path}' has no frames")
             i = frame if frame >= 0 else n + frame
             if not 0 <= i < n:
                 raise UserError(f"report: --frame {frame} out of range (0..{n - 1})")
+            if forces:
+                lines += _forces_at(f, float(f["time"][i]), i)
             lines += [_at(f, i, p) for p in points]
-    for spec, (kind, where) in watches:
-        lines.append(f"{spec} = {watched(path, kind, where):.9g}")
+    for w in watches:
+        lines.append(f"{w.spec} = {watched(path, w):.9g}")
     return lines
+
+
+def _forces_at(f, t, i):
+    """The forces table of the accepted step that ends at frame i's time t (the statistics' columns)."""
+    st = stats.read(f)
+    acc = np.flatnonzero(stats.accepted(st) & (np.abs(st.get("time", np.zeros(0)) - t) <= 1e-9 * max(1.0, abs(t))))
+    rows = stats.forces_of(st, acc[-1]) if len(acc) else []
+    if not rows:
+        why = "its start (t = 0)" if i == 0 else f"t = {t:.6g} (a run without them: -integrator ts, or older)"
+        raise UserError(f"report: --forces: the statistics record no forces at frame {i}, {why}")
+    return table(rows, t)
 
 
 def _summary(path, f, n):

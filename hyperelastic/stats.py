@@ -41,6 +41,33 @@ EFFECT_COLUMNS = {
 }
 
 
+# <kind>_<name>_<component>: the forces on the body after each accepted step (forces.py: 'reaction' of each held
+# surface, 'load' of each other effect), NaN in rejected attempts' rows
+FORCE_KINDS = ("reaction", "load")
+FORCE_COMPONENTS = ("Fx", "Fy", "Fz", "Mx", "My", "Mz")
+
+
+def force_columns(rows):
+    """{column: value} of forces.surface_forces' rows."""
+    out = {}
+    for kind, name, F, M in rows:
+        for c, v in zip(FORCE_COMPONENTS, list(F) + list(M)):
+            out[f"{kind}_{name}_{c}"] = float(v)
+    return out
+
+
+def forces_of(st, i):
+    """[(kind, name, F (3,), M (3,))] of statistics row i (the columns force_columns made), in column order."""
+    import numpy as np
+    rows = {}
+    for col in st:
+        kind, _, rest = col.partition("_")
+        name, _, comp = rest.rpartition("_")
+        if kind in FORCE_KINDS and comp in FORCE_COMPONENTS and name:
+            rows.setdefault((kind, name), np.zeros(6))[FORCE_COMPONENTS.index(comp)] = st[col][i]
+    return [(k, n, v[:3], v[3:]) for (k, n), v in rows.items()]
+
+
 def effect_column(effect, kind):
     return f"effect_{effect}_{kind}"
 
@@ -53,6 +80,8 @@ def column_type(name):
         kind = name.rsplit("_", 1)[-1]
         if kind in EFFECT_COLUMNS:
             return EFFECT_COLUMNS[kind][0]
+    if name.partition("_")[0] in FORCE_KINDS and name.rpartition("_")[2] in FORCE_COMPONENTS:
+        return float
     raise KeyError(f"'{name}' is not a declared statistics column (hyperelastic/stats.py)")
 
 

@@ -73,25 +73,67 @@ def test_dynamic_balance_includes_inertia_and_damping(tmp_path):
 
 
 def test_watch_quantities_by_name(tmp_path, bracket_mesh):
-    """`study refinement --watch` quantities a user asks for by name: a displacement component at a material
-    point and a held surface's reaction (issue 34), read from a run's output."""
+    """Quantities a user asks for by name (issues 34, 35), read from a run's output: a displacement component at
+    a material point, a held surface's reaction, the maximum over a surface (physical, through the mesh the run
+    recorded, or geometric), von Mises at a point and its maximum, energies, at a time or over the run."""
     from hyperelastic.errors import UserError
-    from hyperelastic.study.part import parse_watch, watched
+    from hyperelastic.study.watch import parse_watch, watched
     out = tmp_path / "b.h5"
     run_ok(["run", f"{ROOT}/examples/bracket.opts", "-mesh", bracket_mesh, "-quiet", "-output", out])
     _, F = forces(out)
-    assert watched(out, *parse_watch("reaction_z:clamp")) == F[("reaction", "clamp")][0][2]
-    assert watched(out, *parse_watch("reaction:clamp")) == np.linalg.norm(F[("reaction", "clamp")][0])
+    assert watched(out, parse_watch("reaction_z:clamp")) == F[("reaction", "clamp")][0][2]
+    assert watched(out, parse_watch("reaction:clamp")) == np.linalg.norm(F[("reaction", "clamp")][0])
     with h5py.File(out, "r") as f:
-        X = f["mesh/points"][:]
+        X, x, t = f["mesh/points"][:], f["x"][:], f["time"][:]
+        vm = [f[f"frames/{i}/von_mises"][:] for i in range(len(t))]
+        elastic = f["stats/elastic"][:]
     P = ",".join(map(str, X[len(X) // 2]))
-    u = [watched(out, *parse_watch(f"u_{c}:{P}")) for c in "xyz"]
-    assert np.isclose(np.linalg.norm(u), watched(out, *parse_watch(f"point:{P}")), rtol=1e-12)
-    for bad in ("u_w:1,2,3", "u_x:1,2", "reaction", "reaction_q:clamp"):
+    u = [watched(out, parse_watch(f"u_{c}:{P}")) for c in "xyz"]
+    assert np.isclose(np.linalg.norm(u), watched(out, parse_watch(f"point:{P}")), rtol=1e-12)
+    # the load is ramped: |u| grows, so @max is the last frame, and @0.5 is the frame at t = 0.5 (half the load)
+    uz = watched(out, parse_watch(f"u_z:{P}"))
+    assert watched(out, parse_watch(f"u_z:{P}@max")) == uz
+    half = watched(out, parse_watch(f"u_z:{P}@0.5"))
+    assert 0.4 * abs(uz) < abs(half) < 0.6 * abs(uz)
+    d = np.linalg.norm(x[-1] - X, axis=1)
+    assert watched(out, parse_watch("max_displacement")) == d.max()
+    clamp = watched(out, parse_watch("max_displacement:clamp"))       # physical: the recorded -mesh
+    assert clamp == 0.0
+    lo = X[:, 0].min()
+    assert watched(out, parse_watch(f"max_displacement:x={lo}")) == 0.0   # the clamp by geometry
+    load = watched(out, parse_watch("max_displacement:load"))
+    assert 0 < load <= d.max()
+    assert watched(out, parse_watch("max_von_mises")) == vm[-1].max()
+    assert 0 < watched(out, parse_watch("max_von_mises:clamp")) <= vm[-1].max()
+    assert watched(out, parse_watch(f"von_mises:{P}")) in vm[-1]
+    assert watched(out, parse_watch("elastic_energy")) == elastic[-1]
+    assert watched(out, parse_watch("elastic_energy@max")) == elastic.max()
+    # reactions at a time come from the statistics: every accepted step records the forces (equilibrium each)
+    from hyperelastic import stats
+    with h5py.File(out, "r") as f:
+        st = stats.read(f)
+    assert watched(out, parse_watch("reaction_z:clamp@1")) == F[("reaction", "clamp")][0][2]
+    assert np.isclose(watched(out, parse_watch("reaction_z:clamp@0.5")), 0.5 * F[("reaction", "clamp")][0][2],
+                      rtol=1e-6)
+    for i in np.flatnonzero(stats.accepted(st)):
+        rows = stats.forces_of(st, i)
+        assert {(k, n) for k, n, _, _ in rows} == {("reaction", "clamp"), ("load", "traction")}
+        total = sum(Fi for _, _, Fi, _ in rows)
+        assert np.abs(total).max() <= 1e-6 * max(np.abs(Fi).max() for _, _, Fi, _ in rows)
+    rep = run_ok(["report", out, "--forces", "--frame", "2"]).stdout
+    assert "forces at t = 0.5" in rep and "reaction clamp" in rep and "load traction" in rep
+    p = hyperelastic(["report", out, "--forces", "--frame", "0"])
+    assert p.returncode == 2 and "no forces at frame 0" in p.stderr
+    for bad in ("u_w:1,2,3", "u_x:1,2", "reaction", "reaction_q:clamp", "reaction:clamp@x", "point:1,2,3@-1",
+                "max_displacement@soon", "elastic_energy:clamp"):
         with pytest.raises(UserError):
             parse_watch(bad)
     with pytest.raises(UserError, match="holds no surface 'load'"):
-        watched(out, *parse_watch("reaction:load"))
+        watched(out, parse_watch("reaction:load"))
+    with pytest.raises(UserError, match="no frame at t = 0.3"):
+        watched(out, parse_watch(f"u_z:{P}@0.3"))
+    with pytest.raises(UserError, match="no surface 'nowhere'"):
+        watched(out, parse_watch("max_displacement:nowhere"))
 
 
 def test_quasi_static_jacobi_that_runs_out_switches_to_gamg(tmp_path, bracket_mesh):

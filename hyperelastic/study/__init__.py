@@ -41,8 +41,9 @@ import time
 from ..errors import ArgParser, UserError
 from ..files import writable_dir
 from . import measure, part, plan, refinement, report
+from .watch import HELP
 
-STUDIES = ("accuracy", "refinement")
+STUDIES = ("accuracy", "refinement", "price")
 
 
 def _parser():
@@ -51,37 +52,46 @@ def _parser():
     ap.add_argument("-output_dir", "--output-dir", dest="output_dir", default=None)
     ap.add_argument("--full", action="store_true", help="the whole sweep (hours) instead of the quick default")
     ap.add_argument("--jobs", type=int, default=2, help="runs at a time (default 2)")
-    ap.add_argument("--budget", type=float, default=600.0, help="refinement: seconds for the finer levels")
+    ap.add_argument("--budget", type=float, default=600.0, help="refinement: seconds for the finer levels; price: seconds for the search (default 600)")
     ap.add_argument("--from-csv", action="store_true", help="accuracy: redo report and figures from accuracy.csv")
     ap.add_argument("--part", help="refinement: a .geo/.step of your own part (default: the thesis' bar)")
     ap.add_argument("--scene", help="refinement --part: the scene (options file) to run on each mesh")
     ap.add_argument("--size", type=float, help="refinement --part: edge length of the coarsest mesh")
     ap.add_argument("--refine", type=int, default=2, help="refinement --part: uniform refinements (default 2)")
-    ap.add_argument("--watch", default="max_displacement", help="refinement --part: the quantity, one of "
-                    "max_displacement, point:X,Y,Z, u_x:X,Y,Z (u_y, u_z), elastic_energy, reaction:SURFACE "
-                    "(reaction_x, _y, _z)")
+    ap.add_argument("--watch", default="max_displacement", help=f"refinement --part, price: the quantity: {HELP}")
     ap.add_argument("--run-args", default="", help="refinement --part: more options for every run (quoted)")
-    ap.add_argument("--order", default="1", help="refinement --part: element orders, e.g. 1,2 (default 1)")
+    ap.add_argument("--order", default=None, help="refinement --part: element orders, e.g. 1,2 (default 1); price: "
+                    "the orders searched (default 1,2)")
+    ap.add_argument("--target", type=float, help="price: the relative error wanted in --watch (e.g. 0.01)")
+    ap.add_argument("--max-runs", type=int, default=40, help="price: at most this many runs (default 40)")
+    ap.add_argument("--max-level", type=int, default=5, help="price: at most this many refinements (default 5)")
     return ap
 
 
 def _check(a):
-    part_opts = [o for o in ("scene", "size") if getattr(a, o) is not None]
+    part_opts = [o for o in ("scene", "size", "target") if getattr(a, o) is not None]
     if a.part is None and part_opts:
-        raise UserError(f"hyperelastic study: --{part_opts[0]} belongs to refinement --part PART")
-    if a.part is not None and (a.which != "refinement" or a.scene is None or a.size is None):
-        raise UserError("hyperelastic study: --part goes with refinement, --scene SCENE.opts and --size H")
+        raise UserError(f"hyperelastic study: --{part_opts[0]} belongs to refinement --part PART or price")
+    if a.which == "price" and (a.part is None or a.scene is None or a.size is None or a.target is None):
+        raise UserError("hyperelastic study price: needs --part PART, --scene SCENE.opts, --size H and --target ERR")
+    if a.part is not None and (a.which == "accuracy" or a.scene is None or a.size is None):
+        raise UserError("hyperelastic study: --part goes with refinement or price, --scene SCENE.opts and --size H")
+    if a.target is not None and a.which != "price":
+        raise UserError("hyperelastic study: --target belongs to price")
     if a.part is not None and not (a.size > 0 and a.size < float("inf")):
         raise UserError(f"hyperelastic study: --size {a.size} must be a positive number")
-    if a.jobs < 1:
-        raise UserError("hyperelastic study: --jobs must be >= 1")
+    if a.target is not None and not (a.target > 0 and math.isfinite(a.target)):
+        raise UserError(f"hyperelastic study: --target {a.target}: a relative error > 0 (e.g. 0.01 for 1%)")
+    if a.jobs < 1 or a.max_runs < 3 or not 1 <= a.max_level <= 8:
+        raise UserError("hyperelastic study: --jobs must be >= 1, --max-runs >= 3, --max-level 1..8")
     if not (a.budget > 0 and math.isfinite(a.budget)):
         raise UserError(f"hyperelastic study: --budget {a.budget}: seconds, a finite number > 0")
-    orders = [w.strip() for w in a.order.split(",")]
+    text = a.order if a.order is not None else ("1,2" if a.which == "price" else "1")
+    orders = [w.strip() for w in text.split(",")]
     if not orders or any(w not in ("1", "2") for w in orders) or len(set(orders)) != len(orders):
         raise UserError(f"hyperelastic study: --order {a.order}: element orders 1 and/or 2 (e.g. 1,2)")
-    if a.part is None and a.order != "1":
-        raise UserError("hyperelastic study: --order belongs to refinement --part PART")
+    if a.part is None and a.order is not None:
+        raise UserError("hyperelastic study: --order belongs to refinement --part PART or price")
     a.orders = tuple(int(w) for w in orders)
 
 
@@ -110,6 +120,8 @@ def main(argv):
         report.figures(rows, out)
         report.report(rows, p, out, command)
         print(os.path.join(out, "accuracy.md"))
+    elif a.which == "price":
+        return _price(a, out, command, t0)
     elif a.part is not None:
         rows = part.part_refinement(a.part, a.scene, a.watch, a.size, a.refine, out, a.jobs,
                                     shlex.split(a.run_args), log=log, orders=a.orders)
@@ -119,4 +131,20 @@ def main(argv):
         rows = refinement.refinement(out, a.full, a.jobs, a.budget, log=log)
         refinement.refinement_report(rows, out, command)
         print(os.path.join(out, "refinement.md"))
+    return 0
+
+
+def _price(a, out, command, t0):
+    from .price import Search
+    from .price_report import price_report
+
+    def log(r):
+        extra = f": {r['message']}" if r["outcome"] == "failed" else f": {r['quantity']:.6g}, {r['solve_s']:.3g} s"
+        print(f"[{time.perf_counter() - t0:6.1f} s] run {r['run']} {r['setting'].label()} ({r['why']}) "
+              f"{r['outcome']}{extra}", file=sys.stderr, flush=True)
+    s = Search(a.part, a.scene, a.watch, a.target, a.size, out, a.orders, shlex.split(a.run_args), a.budget,
+               a.max_runs, a.max_level, log=log)
+    s.search()
+    price_report(s, out, command)
+    print(os.path.join(out, "price.md"))
     return 0

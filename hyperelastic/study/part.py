@@ -7,75 +7,17 @@ three finest meshes (q_inf = q_N + (q_N - q_{N-1}) / (2^p - 1), p = log2 of the 
 changes; Roache, "Verification and Validation in Computational Science", 1998, ch. 5). With several element
 orders (--order 1,2) every mesh runs at each order (`-order`: the linear meshes elevated to straight-sided
 quadratic cells), and the convergence is analysed per order."""
-import json
 import math
 import os
 
-import h5py
-import numpy as np
-
-from .. import stats
 from ..errors import UserError
 from ..experiments.runner import last_line, parallel_map, run_hyperelastic
 from ..experiments.table import write_csv
 from ..figures import pyplot
-from ..mesh import generate, interpolate, locate
+from ..mesh import generate
 from ..stability import fmt
 from .measure import read_cost, slope
-
-WATCH_HELP = ("max_displacement (largest |u| over the vertices), point:X,Y,Z (|u| at that material point), "
-              "u_x:X,Y,Z / u_y / u_z (a component there), elastic_energy (at the end), reaction:SURFACE (|F| of "
-              "a held surface's reaction at the end) / reaction_x:SURFACE / _y / _z (a component)")
-COMPONENTS = {"x": 0, "y": 1, "z": 2}
-
-
-def point3(text):
-    """The point X,Y,Z of `text` (an array), or None when it is not three finite numbers."""
-    try:
-        p = [float(v) for v in text.split(",")]
-    except ValueError:
-        return None
-    return np.array(p) if len(p) == 3 and all(map(math.isfinite, p)) else None
-
-
-def parse_watch(spec):
-    """(kind, the material point (point, u_x/u_y/u_z), the surface (reaction, reaction_x/_y/_z) or None) of a
-    --watch value; UserError for anything else."""
-    if spec in ("max_displacement", "elastic_energy"):
-        return spec, None
-    head, _, arg = spec.partition(":")
-    if head in ("point", "u_x", "u_y", "u_z") and arg:
-        p = point3(arg)
-        if p is None:
-            raise UserError(f"--watch {spec}: {head}:X,Y,Z needs three finite coordinates")
-        return head, p
-    if head in ("reaction", "reaction_x", "reaction_y", "reaction_z") and arg:
-        return head, arg
-    raise UserError(f"--watch {spec}: unknown quantity (choose from {WATCH_HELP})")
-
-
-def watched(path, kind, where):
-    """The watched quantity of a finished run (last frame / last step); `where`: the material point, or
-    the surface of a reaction."""
-    with h5py.File(path, "r") as f:
-        x, X, tets = f["x"][-1], f["mesh/points"][:], f["mesh/tetra"][:]
-        if kind == "elastic_energy":
-            return float(stats.read(f)["elastic"][-1])
-        forces = json.loads(f.attrs["forces"])["forces"] if "forces" in f.attrs else []
-    if kind.startswith("reaction"):
-        F = [r["F"] for r in forces if r["kind"] == "reaction" and r["name"] == where]
-        if not F:
-            held = [r["name"] for r in forces if r["kind"] == "reaction"]
-            raise UserError(f"--watch {kind}:{where}: the scene holds no surface '{where}' (held: "
-                            f"{', '.join(held) or 'none'})")
-        return float(np.linalg.norm(F[0]) if kind == "reaction" else F[0][COMPONENTS[kind[-1]]])
-    u = x - X
-    if kind == "max_displacement":
-        return float(np.linalg.norm(u, axis=1).max())
-    cells, w = locate(X, tets, where)
-    ui = interpolate(tets, cells, w, u)[0]
-    return float(np.linalg.norm(ui) if kind == "point" else ui[COMPONENTS[kind[-1]]])
-
+from .watch import parse_watch, watched
 
 def meshes(part, size, refine, out_dir):
     """[(level, .msh path, tets, target h)] of the part at size and its N uniform refinements."""
@@ -89,7 +31,7 @@ def part_refinement(part, scene, watch, size, refine, out_dir, jobs=1, run_args=
                     orders=(1,)):
     """Rows, one per mesh and element order: tets, h, the watched quantity, its change against the finest
     mesh of that order, the run's cost; plus (in each row) the fitted order and the Richardson limit."""
-    kind, point = parse_watch(watch)
+    w = parse_watch(watch)
     if refine < 2:
         raise UserError(f"--refine {refine}: a convergence order needs at least 3 meshes (--refine 2)")
     if not os.path.isfile(scene):
@@ -109,13 +51,13 @@ def part_refinement(part, scene, watch, size, refine, out_dir, jobs=1, run_args=
                "message": last_line(err, rc) if rc else ""}
         row.update(read_cost(path))
         if rc == 0:
-            row["quantity"] = watched(path, kind, point)
+            row["quantity"] = watched(path, w, msh)
             row["s_per_step"] = row["solve_s"] / max(row["steps"], 1)
         return row
 
     rows = parallel_map(one, levels, jobs, log)
     for o in orders:
-        analyse([r for r in rows if r["element_order"] == o], expected_order(kind, o))
+        analyse([r for r in rows if r["element_order"] == o], expected_order(w.kind_of_error, o))
     return rows
 
 
@@ -124,7 +66,7 @@ def expected_order(kind, element_order):
     k + 1 for displacements (L2 / pointwise), 2k for the energy (the energy norm's square; Strang & Fix,
     "An Analysis of the Finite Element Method", 1973, ch. 3) and for reactions computed from the residual
     (a functional of the solution like the energy)."""
-    return 2 * element_order if kind == "elastic_energy" or kind.startswith("reaction") else element_order + 1
+    return 2 * element_order if kind in ("energy", "reaction") else element_order + 1
 
 
 ASYMPTOTIC = (0.6, 1.5)     # the observed order within these multiples of the expected one

@@ -1,0 +1,100 @@
+"""`hyperelastic study price` (issue 35): the quick version on the thesis' bar bent quasi-statically, its
+answer checked against a reference the search never sees; the error models on made-up sequences; bad
+arguments."""
+import math
+import os
+
+import h5py
+import numpy as np
+import pytest
+
+from conftest import ROOT, hyperelastic, run_ok
+from hyperelastic.experiments.table import read_csv
+from hyperelastic.study.price import DimModel, SolverModel, observed_order
+from hyperelastic.mesh import interpolate, locate
+
+BAR = ["--part", f"{ROOT}/meshes/bar.geo", "--scene", f"{ROOT}/options/scenes/bend2.opts", "--size", "2"]
+STATIC = "-quasistatic -dt 0.0625 -final_time 0.25 -material stvk"
+TIP = (5.0, 0.0, 0.0)
+
+
+@pytest.fixture(scope="module")
+def price(tmp_path_factory):
+    out = tmp_path_factory.mktemp("price")
+    p = run_ok(["study", "price", *BAR, "--watch", "u_y:5,0,0", "--target", "0.03", "--run-args", STATIC,
+                "--budget", "120", "-output_dir", out], timeout=600)
+    num = {k: float for k in ("quantity", "est_total", "solve_s")} | {k: int for k in ("order", "level", "tets",
+                                                                                       "meets_target")}
+    return out, p, read_csv(os.path.join(out, "price.csv"), num)
+
+
+def reference(tmp_path):
+    """u_y at the tip of P2 on the part's second refinement with tight tolerances (kept out of the search)."""
+    run_ok(["mesh", f"{ROOT}/meshes/bar.geo", "--size", "2", "--refine", "2", "--order", "2", "-o", tmp_path / "r.msh"])
+    out = tmp_path / "ref.h5"
+    run_ok(["run", f"{ROOT}/options/scenes/bend2.opts", *STATIC.split(), "-mesh", tmp_path / "r_r2.msh", "-order", "2",
+            "-snes_rtol", "1e-10", "-ksp_rtol", "1e-10", "-pc_type", "gamg", "-quiet", "-output", out], timeout=600)
+    with h5py.File(out, "r") as f:
+        X, tets, x = f["mesh/points"][:], f["mesh/tetra"][:], f["x"][-1]
+    cells, w = locate(X, tets, np.array(TIP))
+    return float(interpolate(tets, cells, w, x - X)[0][1])
+
+
+def test_price_answers_first_and_its_answer_meets_the_target(price, tmp_path):
+    out, p, rows = price
+    text = open(os.path.join(out, "price.md")).read()
+    first = text.split("\n\n")[1]
+    assert first.startswith("**For u_y:5,0,0 within 0.03 (relative), the cheapest setting found is P"), first
+    assert "estimated error" in first and "The defaults" in first and "x as much" in first
+    assert os.path.getsize(os.path.join(out, "price.png")) > 10000
+    for r in rows:
+        assert r["outcome"] in ("finished", "failed") and (r["outcome"] == "finished" or r["message"])
+    met = [r for r in rows if r["meets_target"] == 1]
+    best = min(met, key=lambda r: r["solve_s"])
+    assert best["est_total"] <= 0.03 and f"({best['tets']:,} tets)" in first
+    # both orders started coarse, the solver tolerances were probed, and the answer is P2 (P1 locks in bending)
+    assert {(r["order"], r["level"]) for r in rows} >= {(1, 0), (1, 1), (2, 0), (2, 1)}
+    assert {r["tolerances"] for r in rows} >= {"loose", "default"}
+    assert best["order"] == 2
+    q_ref = reference(tmp_path)
+    true = abs(best["quantity"] - q_ref) / abs(q_ref)
+    assert true <= 0.03, (best, q_ref, true)
+    # the estimates are honest on every finished run: within a factor of 3 of the true error, or both tiny
+    for r in rows:
+        if r["outcome"] == "finished" and r["order"] == 2:
+            t = abs(r["quantity"] - q_ref) / abs(q_ref)
+            assert t <= 3 * r["est_total"] + 2e-3, (r, t)
+
+
+def test_error_models_on_known_sequences():
+    """Richardson along a dimension: exact for q = 1 + 2^(-p k) at the expected order, the observed order from
+    three points (also with a gap), the smaller of observed and expected used, non-monotone changes taken
+    as the error; the solver model."""
+    seq = {k: (1 + 0.5 * 2 ** (-2 * k), 1.0) for k in (0, 1, 2)}
+    m = DimModel(seq, 2)
+    assert math.isclose(m.limit, 1.0) and math.isclose(m.error(2), 0.5 / 16) and math.isclose(m.error(3), 0.5 / 64)
+    assert math.isclose(m.error(0), 0.5)
+    gap = {k: (1 + 2 ** (-1.5 * k), 1.0) for k in (0, 1, 3)}
+    assert math.isclose(observed_order(0, 1, 3, gap[1][0] - gap[0][0], gap[3][0] - gap[1][0]), 1.5, rel_tol=1e-9)
+    slow = DimModel(gap, 3)               # observed 1.5 < expected 3: the observed order is used
+    assert math.isclose(slow.p, 1.5, rel_tol=1e-9) and math.isclose(slow.limit, 1.0) and "below" in slow.note
+    zigzag = DimModel({0: (1.0, 1), 1: (1.2, 1), 2: (1.1, 1)}, 2)
+    assert math.isnan(zigzag.p) and math.isclose(zigzag.error(2), 0.1) and "do not shrink" in zigzag.note
+    assert DimModel({0: (1.0, 1)}, 2).error(0) is None
+    s = SolverModel({0: (1.001, 1), 1: (1.0, 1), 2: (1.0, 1)})
+    assert math.isclose(s.error(0), 1e-3) and s.error(2) == 0.0
+
+
+@pytest.mark.parametrize("args, words", [
+    (["--watch", "u_y:5,0,0"], "--target"),
+    (["--watch", "u_y:5,0,0", "--target", "-0.1"], "--target"),
+    (["--watch", "u_y:5,0,0", "--target", "nan"], "--target"),
+    (["--watch", "u_q:5,0,0", "--target", "0.01"], "unknown quantity"),
+    (["--watch", "u_y:5,0,0", "--target", "0.01", "--order", "3"], "--order"),
+    (["--watch", "u_y:5,0,0", "--target", "0.01", "--max-runs", "1"], "--max-runs"),
+])
+def test_price_bad_arguments_are_one_line(tmp_path, args, words):
+    p = hyperelastic(["study", "price", *BAR, *args, "-output_dir", tmp_path / "o"])
+    lines = p.stderr.strip().splitlines()
+    assert p.returncode == 2 and len(lines) == 1 and words in lines[0], p.stderr
+    assert not (tmp_path / "o" / "price.md").exists()
