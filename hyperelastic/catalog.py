@@ -86,6 +86,9 @@ HEAD = (
 
 TAIL = (
     Row(("quasistatic",), "-quasistatic", "no inertia or damping: solve k(x) = f(t) per step", "off"),
+    Row(("step_forces",), "-step_forces [0|1]", "the reactions and load resultants of every accepted step in the "
+        "statistics (`reaction_NAME_Fx` ... `_Mz`, `load_NAME_...`; `report --forces --frame N`); a dynamic run "
+        "pays ~10% for them (one residual evaluation per effect and step)", "on for -quasistatic, else off"),
     Row(("dt", "final_time", "frames_per_second"), "-dt -final_time -frames_per_second",
         "time step, end time, output frames per second (at most 1e9 steps and 1e6 frames)",
         f"{_S.dt:g}, {_S.final_time:g}, {_S.fps:g}"),

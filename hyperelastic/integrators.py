@@ -285,7 +285,7 @@ class BackwardEuler(Integrator):
         self.x, self.v, self.t = x1, v1, t1
         sysm.accept(self.X)
         self.step += 1
-        if self.writer is not None:       # the reactions and the loads' resultants of the step (forces.py)
+        if self.writer is not None and self.scene.step_forces:   # the step's reactions and load resultants
             stats.update(force_columns(surface_forces(self.scene, sysm, x1)))
         stats.update({"rejected": 0, "wall_s": time.perf_counter() - w0})
         return stats

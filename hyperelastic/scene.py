@@ -36,6 +36,7 @@ class Scene:
     solid: materials.Solid = field(default_factory=lambda: materials.default_solid(DEFAULT_MATERIAL))
     lumped: bool = False
     quasistatic: bool = False
+    step_forces: bool = None      # the forces of every accepted step in the statistics (default: quasistatic)
     effects: dict = field(default_factory=dict)   # {effect name: its parameters (None: it has none)}, in order
     notes: list = field(default_factory=list)     # what the user should know (options ignored), one line each
     ignored: list = field(default_factory=list)   # the scene file's options a command-line -effects overrode
@@ -179,6 +180,7 @@ def _declaring(name):
 
 def _read_time(s, opts):
     s.quasistatic = opts.flag("quasistatic", s.quasistatic)
+    s.step_forces = opts.flag("step_forces", s.quasistatic if s.step_forces is None else s.step_forces)
     s.dt = opts.real("dt", s.dt, minimum=0)
     s.final_time = opts.real("final_time", s.final_time, minimum=0, exclusive=False)
     s.fps = opts.real("frames_per_second", s.fps, minimum=0)
