@@ -13,9 +13,11 @@ ratio (goal <= 2), and the search's time against the grid's (goal <= 1/5), where
 time of its runs.
 """
 import argparse
+import json
 import os
 import sys
 import time
+from dataclasses import astuple
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, ROOT)
@@ -67,14 +69,19 @@ def main():
 
     print("grid", flush=True)
     g = Search(part, scene, watch, a.target, size, os.path.join(out, "grid"), run_args=extra, budget=1e9, log=log)
-    for st in grid(a.case, g):
-        g.run(st, "grid")
-    grid_wall = sum(r["wall_s"] for r in g.rows)
-
-    print("reference", flush=True)
     ref_lv = max(levels.values()) + 1 if levels.get(2) is None else levels[2] + 1
     ref = Setting(2, ref_lv, halvings + 2 if g.dynamic else 0, "alpha2" if g.dynamic else "beuler", 2, "gamg")
-    rr = g.run(ref, "reference")
+    cache = os.path.join(out, "grid", "rows.json")
+    if os.path.exists(cache):            # the grid and the reference do not depend on the search: run once
+        with open(cache) as fh:
+            g.rows = [r | {"setting": Setting(*r["setting"])} for r in json.load(fh)]
+    else:
+        for st in list(grid(a.case, g)) + [ref]:
+            g.run(st, "grid" if st != ref else "reference")
+        with open(cache, "w") as fh:
+            json.dump([r | {"setting": list(astuple(r["setting"]))} for r in g.rows], fh)
+    rr = g.rows[-1]
+    grid_wall = sum(r["wall_s"] for r in g.rows)
     if "quantity" not in rr:
         sys.exit(f"the reference failed: {rr['message']}")
     q_ref = rr["quantity"]

@@ -324,27 +324,53 @@ class Search:
             m = self.models()
             best = self.best(m)
             plans = {o: self.plan(o, m) for o in self.orders if o not in exhausted}
-            open_ = [(pl[0], o, pl[1]) for o, pl in plans.items()
-                     if pl and self.ok(pl[1]) is None and (best is None or pl[0] < best["solve_s"])]
+            open_ = [(pl[0], o, pl[1]) for o, pl in plans.items() if pl and (best is None or pl[0] < best["solve_s"])
+                     and (self.ok(pl[1]) is None or not self.confirmed(pl[1], m))]
             if not open_ or len(self.rows) >= self.max_runs or self.elapsed() >= self.budget:
                 break
             cost, o, p = min(open_, key=lambda t: t[0])
-            nxt = self.step(cur[o], p, m)
-            if self.ok(nxt) is not None:
+            if self.ok(p) is None:
+                nxt, why = self.step(cur[o], p, m), f"toward {p.label()} (predicted {cost:.3g} s)"
+            else:
+                nxt, why = self.confirm_step(p, m), f"confirming the error estimate of {p.label()}"
+            if self.ok(nxt) is not None and why.startswith("toward"):
                 cur[o] = nxt
                 continue
-            if self.predict_cost(nxt, m) > self.budget - self.elapsed():
+            if (self.ok(nxt) is not None or self.failed(nxt) or self.predict_cost(nxt, m) > self.budget - self.elapsed()
+                    or self.predicted_tets(nxt.order, nxt.level) > self.max_tets):
                 exhausted.add(o)
                 continue
-            row = self.go(nxt, f"toward {p.label()} (predicted {cost:.3g} s)")
-            if row["outcome"] == "finished":
+            row = self.go(nxt, why)
+            if row["outcome"] == "finished" and why.startswith("toward"):
                 cur[o] = nxt
         self.compare_defaults()
         return self.rows
 
+    def confirmed(self, s, m):
+        """Whether s's error estimate rests on observed orders: three mesh levels of its order (and, for a dynamic
+        scene, three steps of its integrator). With two the element's order is only assumed: the P2 bar bends at
+        an observed 1.8, not 3, and its coarsest mesh missed 1% by a fifth with the assumed order."""
+        sp = m[("level", s.order)]
+        if sp is None or len(sp.q) < 3:
+            return False
+        tm = m.get(("dt", s.integrator))
+        return not self.dynamic or (tm is not None and len(tm.q) >= 3)
+
+    def confirm_step(self, s, m):
+        """The run that gives s's estimate its third point: the next mesh level at s's other settings, else (time)
+        the next step halving of its integrator on the coarsest mesh of the first order."""
+        sp = m[("level", s.order)]
+        if sp is None or len(sp.q) < 3:
+            return replace(s, level=(max(sp.q) if sp else s.level) + 1, solver="default")
+        tm = m.get(("dt", s.integrator))
+        return Setting(self.orders[0], 0, (max(tm.q) if tm else s.dt) + 1, s.integrator, s.tol)
+
+    def meets(self, s, m):
+        return self.total(s, m) <= self.target and self.confirmed(s, m)
+
     def best(self, m):
-        """The cheapest finished run whose estimated error meets the target (None if none does)."""
-        ok = [r for r in self.rows if "quantity" in r and self.total(r["setting"], m) <= self.target]
+        """The cheapest finished run whose estimated error meets the target, on observed orders (None if none)."""
+        ok = [r for r in self.rows if "quantity" in r and self.meets(r["setting"], m)]
         return min(ok, key=lambda r: r["solve_s"]) if ok else None
 
     def defaults(self, m):

@@ -26,7 +26,7 @@ def summarize(search):
             for name, v in zip(("est_space", "est_time", "est_solver"), parts):
                 r[name] = v / scale if v is not None else None
             r["est_total"] = search.total(r["setting"], m)
-            r["meets_target"] = int(r["est_total"] <= search.target)
+            r["meets_target"] = int(search.meets(r["setting"], m))
     best = search.best(m)
     out = {"best": best, "models": m, "scale": scale, "others": {}, "defaults": None}
     for o in search.orders:
