@@ -67,13 +67,18 @@ def _first_paragraph(search, s):
                      f"{c / b['solve_s']:.3g}x as much.")
     elif floor is not None and floor["solve_s"] > b["solve_s"]:
         pred = f"; predicted to need {s['defaults'][1].label()}, {s['defaults'][2]:.3g} s" if s["defaults"] else ""
-        words.append(f"The defaults cost more than {floor['solve_s']:.3g} s (their {floor['setting'].label()} still "
-                     f"has an estimated error of {floor['est_total']:.2g}{pred}): more than "
-                     f"{floor['solve_s'] / b['solve_s']:.3g}x as much.")
+        words.append(f"The defaults (P{floor['order']} refined) cost more than {floor['solve_s']:.3g} s: the "
+                     f"search's costliest P{floor['order']} run, {floor['setting'].label()}, still has an estimated "
+                     f"error of {floor['est_total']:.2g}{pred}; more than {floor['solve_s'] / b['solve_s']:.3g}x as much.")
     elif s["defaults"]:
         _, d, c = s["defaults"]
         words.append(f"The defaults refined until they meet it ({d.label()}) would cost {c:.3g} s (predicted): "
                      f"{c / b['solve_s']:.3g}x as much.")
+    else:
+        d = Setting(1 if 1 in search.orders else search.orders[0], 0, 0, search.integrator0, 1)
+        parts = search.estimate(d, s["models"])
+        tm = f" (time alone {parts[1] / s['scale']:.2g})" if search.dynamic and parts[1] is not None else ""
+        words.append(f"The defaults ({d.label()} refined) meet it on no mesh within the limits{tm}.")
     for o, (how, x) in s["others"].items():
         if how == "measured":
             words.append(f"The cheapest P{o} setting that meets it, {x['setting'].label()}, costs {x['solve_s']:.3g} s: "
