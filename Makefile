@@ -31,7 +31,7 @@ demo: setup
 	$(VENV)/bin/hyperelastic plot output/demo.h5 -o output/demo.png
 
 test: setup
-	PATH="$(abspath $(VENV))/bin:$$PATH" $(PY) -m pytest -q tests
+	PATH="$(abspath $(VENV))/bin:$$PATH" $(PY) -m pytest -q -n 2 --dist loadfile tests
 
 clean:
 	rm -rf output build hyperelastic/_kernels*.so
