@@ -63,7 +63,8 @@ def main():
     log = lambda r: print(f"  run {r['run']} {r['setting'].label()}: {r['outcome']} "  # noqa: E731
                           f"{r.get('quantity', r['message'])} {r.get('solve_s', float('nan')):.3g} s", flush=True)
     print(f"search ({a.case}, target {a.target})", flush=True)
-    s = Search(part, scene, watch, a.target, size, os.path.join(out, "search"), run_args=extra, budget=a.budget, log=log)
+    s = Search(part, scene, watch, a.target, size, os.path.join(out, "search"), run_args=extra, budget=a.budget,
+               log=log)
     s.search()
     summary = price_report(s, os.path.join(out, "search"), "verify_price.py")
     search_wall = sum(r["wall_s"] for r in s.rows)
@@ -103,7 +104,8 @@ def main():
                      f"{true(cheapest):.3g}, solve {cheapest['solve_s']:.3g} s")
     if b is not None and cheapest is not None:
         lines.append(f"cost ratio recommended / cheapest: {b['solve_s'] / cheapest['solve_s']:.3g} (goal <= 2)")
-    lines += [f"search: {len(s.rows)} runs, {search_wall:.1f} s wall; grid: {len(g.rows) - 1} runs, {grid_wall - rr['wall_s']:.1f} s "
+    lines += [f"search: {len(s.rows)} runs, {search_wall:.1f} s wall; grid: {len(g.rows) - 1} runs, "
+              f"{grid_wall - rr['wall_s']:.1f} s "
               f"wall; ratio {search_wall / (grid_wall - rr['wall_s']):.3g} (goal <= 0.2)", "",
               "| grid setting | tets | q | true error | solve s |", "|---|---|---|---|---|"]
     for r in g.rows:

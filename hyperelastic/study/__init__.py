@@ -52,7 +52,8 @@ def _parser():
     ap.add_argument("-output_dir", "--output-dir", dest="output_dir", default=None)
     ap.add_argument("--full", action="store_true", help="the whole sweep (hours) instead of the quick default")
     ap.add_argument("--jobs", type=int, default=2, help="runs at a time (default 2)")
-    ap.add_argument("--budget", type=float, default=600.0, help="refinement: seconds for the finer levels; price: seconds for the search (default 600)")
+    ap.add_argument("--budget", type=float, default=600.0, help="refinement: seconds for the finer levels; price: "
+                    "seconds for the search (default 600)")
     ap.add_argument("--from-csv", action="store_true", help="accuracy: redo report and figures from accuracy.csv")
     ap.add_argument("--part", help="refinement: a .geo/.step of your own part (default: the thesis' bar)")
     ap.add_argument("--scene", help="refinement --part: the scene (options file) to run on each mesh")

@@ -69,7 +69,8 @@ def _first_paragraph(search, s):
         pred = f"; predicted to need {s['defaults'][1].label()}, {s['defaults'][2]:.3g} s" if s["defaults"] else ""
         words.append(f"The defaults (P{floor['order']} refined) cost more than {floor['solve_s']:.3g} s: the "
                      f"search's costliest P{floor['order']} run, {floor['setting'].label()}, still has an estimated "
-                     f"error of {floor['est_total']:.2g}{pred}; more than {floor['solve_s'] / b['solve_s']:.3g}x as much.")
+                     f"error of {floor['est_total']:.2g}{pred}; more than "
+                     f"{floor['solve_s'] / b['solve_s']:.3g}x as much.")
     elif s["defaults"]:
         _, d, c = s["defaults"]
         words.append(f"The defaults refined until they meet it ({d.label()}) would cost {c:.3g} s (predicted): "
@@ -81,10 +82,12 @@ def _first_paragraph(search, s):
         words.append(f"The defaults ({d.label()} refined) meet it on no mesh within the limits{tm}.")
     for o, (how, x) in s["others"].items():
         if how == "measured":
-            words.append(f"The cheapest P{o} setting that meets it, {x['setting'].label()}, costs {x['solve_s']:.3g} s: "
+            words.append(f"The cheapest P{o} setting that meets it, {x['setting'].label()}, costs "
+                         f"{x['solve_s']:.3g} s: "
                          f"{x['solve_s'] / b['solve_s']:.3g}x.")
         elif how == "predicted":
-            words.append(f"P{o} would need {x[1].label()}, predicted {x[0]:.3g} s ({x[0] / b['solve_s']:.3g}x; not run).")
+            words.append(f"P{o} would need {x[1].label()}, predicted {x[0]:.3g} s "
+                         f"({x[0] / b['solve_s']:.3g}x; not run).")
         else:
             words.append(f"P{o} meets it on no mesh within the limits (--max-level {search.max_level}, "
                          f"{search.max_tets:.3g} tets), as far as its runs show.")
@@ -127,7 +130,8 @@ def price_report(search, out_dir, command):
         est = (f"{fmt(r.get('est_total'), '.2g')} ({fmt(r.get('est_space'), '.2g')} / {fmt(r.get('est_time'), '.2g')}"
                f" / {fmt(r.get('est_solver'), '.2g')})") if "quantity" in r else "-"
         out = r["outcome"] if r["outcome"] != "failed" else f"failed: {r['message'][:80]}"
-        L.append(f"| {r['run']} | {r['why']} | {r['setting'].label()} | {fmt(r['tets'])} | {fmt(r.get('quantity'), '.6g')} "
+        L.append(f"| {r['run']} | {r['why']} | {r['setting'].label()} | {fmt(r['tets'])} | "
+                 f"{fmt(r.get('quantity'), '.6g')} "
                  f"| {est} | {'yes' if r.get('meets_target') else ''} | {fmt(r.get('solve_s'))} | {out} |")
     with open(os.path.join(out_dir, "price.md"), "w") as fh:
         fh.write("\n".join(L) + "\n")
