@@ -39,7 +39,7 @@ CASES = {
 }
 
 
-REF_LEVEL = {"bend2": 2}   # bend2's reference: P2 r2 at dt/16 (its grid reaches P2 r2 at dt/4; P2's change r1 -> r2 is 2e-4)
+REF_LEVEL = {"bend2": 2}   # bend2's reference: P2 r2 at dt/16 (its grid reaches P2 r2 at dt/4; P2's change r1 -> r2 is 1e-4)
 
 
 def grid(case, search):
