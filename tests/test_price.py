@@ -98,3 +98,11 @@ def test_price_bad_arguments_are_one_line(tmp_path, args, words):
     lines = p.stderr.strip().splitlines()
     assert p.returncode == 2 and len(lines) == 1 and words in lines[0], p.stderr
     assert not (tmp_path / "o" / "price.md").exists()
+
+
+def test_price_on_a_surface_the_part_lacks_leaves_nothing(tmp_path):
+    """The watch fails on the first run's output (no such surface): one line, and the study's runs are removed."""
+    p = hyperelastic(["study", "price", *BAR, "--watch", "max_displacement:nowhere", "--target", "0.01",
+                      "--run-args", STATIC, "-output_dir", tmp_path / "o"])
+    assert p.returncode == 2 and "no surface 'nowhere'" in p.stderr and len(p.stderr.strip().splitlines()) == 1
+    assert not os.path.exists(tmp_path / "o" / "runs")

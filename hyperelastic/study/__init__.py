@@ -145,7 +145,11 @@ def _price(a, out, command, t0):
               f"{r['outcome']}{extra}", file=sys.stderr, flush=True)
     s = Search(a.part, a.scene, a.watch, a.target, a.size, out, a.orders, shlex.split(a.run_args), a.budget,
                a.max_runs, a.max_level, log=log)
-    s.search()
+    try:
+        s.search()
+    except UserError:
+        s.remove_files()
+        raise
     price_report(s, out, command)
     print(os.path.join(out, "price.md"))
     return 0

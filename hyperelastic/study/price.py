@@ -111,7 +111,7 @@ class Search:
         self.dynamic, self.integrator0, self.dt0 = scene_facts(scene, self.run_args)
         self.fps = 1.0 / self.dt0       # frames at the multiples of the scene's step in every run (@T, @max)
         self.integrators = tuple(INTEGRATORS) if self.dynamic else ("beuler",)
-        self.rows, self.by_key, self.meshes, self.tets = [], {}, {}, {}
+        self.rows, self.by_key, self.meshes, self.tets, self.written = [], {}, {}, {}, []
         self.solver = {o: None for o in orders}     # the preconditioner kept per order (None: not tried yet)
         self.t0 = time.perf_counter()
         os.makedirs(os.path.join(out_dir, "runs"), exist_ok=True)
@@ -140,6 +140,7 @@ class Search:
             return self.by_key[s.key()][s]
         path = os.path.join(self.out, "runs", f"p{s.order}_r{s.level}_dt{s.dt}_{s.integrator}_t{s.tol}_{s.solver}.h5")
         args = self.args(s, path)
+        self.written += [path, os.path.splitext(path)[0] + ".xdmf"]
         remaining = max(60.0, self.budget - self.elapsed())
         rc, err, wall = run_hyperelastic(args, path, nprocs=1, timeout=min(3600, 3 * remaining))
         row = {"run": len(self.rows) + 1, "why": why, "order": s.order, "level": s.level, "dt_halvings": s.dt,
@@ -267,6 +268,15 @@ class Search:
                             best = (c, s)
         return best
 
+    def remove_files(self):
+        """Remove what this search wrote (its runs' outputs and meshes, then the runs folder if empty): a study
+        that fails on the user's error leaves nothing behind."""
+        for p in self.written + list(self.meshes.values()):
+            if os.path.exists(p):
+                os.remove(p)
+        d = os.path.join(self.out, "runs")
+        if os.path.isdir(d) and not os.listdir(d):
+            os.rmdir(d)
 
     # ---- the search ---------------------------------------------------------------------------------------
     def go(self, s, why):
