@@ -6,7 +6,6 @@ import json
 import numpy as np
 
 from . import stats
-
 from .errors import ArgParser, UserError
 from .files import completed_frames, open_output
 from .forces import table
@@ -66,7 +65,7 @@ def report(path, frame, points, watches, forces=False):
 def _forces_at(f, t, i):
     """The forces table of the accepted step that ends at frame i's time t (the statistics' columns)."""
     st = stats.read(f)
-    acc = np.flatnonzero(stats.accepted(st) & (np.abs(st.get("time", np.zeros(0)) - t) <= 1e-9 * max(1.0, abs(t))))
+    acc = stats.accepted_at(st, t)
     rows = stats.forces_of(st, acc[-1]) if len(acc) else []
     if not rows:
         why = "its start (t = 0)" if i == 0 else f"t = {t:.6g} (a run without them: -integrator ts, or older)"

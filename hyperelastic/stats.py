@@ -58,7 +58,6 @@ def force_columns(rows):
 
 def forces_of(st, i):
     """[(kind, name, F (3,), M (3,))] of statistics row i (the columns force_columns made), in column order."""
-    import numpy as np
     rows = {}
     for col in st:
         kind, _, rest = col.partition("_")
@@ -88,6 +87,17 @@ def column_type(name):
 def read(f):
     """{column: array} of an open output file (h5py.File)."""
     return {k: f["stats"][k][:] for k in f["stats"]}
+
+
+def at_time(times, t):
+    """Indices of `times` equal to t (to 1e-9 relative): the frames or steps that end there."""
+    return np.flatnonzero(np.abs(np.asarray(times) - t) <= 1e-9 * max(1.0, abs(t)))
+
+
+def accepted_at(st, t):
+    """Indices of the accepted attempts that end at time t (none in a file without statistics)."""
+    acc = np.flatnonzero(accepted(st))
+    return acc[at_time(st["time"][acc], t)] if len(acc) else acc
 
 
 def accepted(st):

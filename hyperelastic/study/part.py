@@ -19,6 +19,7 @@ from ..stability import fmt
 from .measure import read_cost, slope
 from .watch import parse_watch, watched
 
+
 def meshes(part, size, refine, out_dir):
     """[(level, .msh path, tets, target h)] of the part at size and its N uniform refinements."""
     path = os.path.join(out_dir, os.path.splitext(os.path.basename(part))[0] + ".msh")

@@ -133,7 +133,7 @@ def _frames(f, w, n):
     if w.when == "max":
         return list(range(n))
     t = f["time"][:n]
-    hit = np.flatnonzero(np.abs(t - w.when) <= 1e-9 * max(1.0, abs(w.when)))
+    hit = stats.at_time(t, w.when)
     if not len(hit):
         raise UserError(f"--watch {w.spec}: the run has no frame at t = {w.when:g} (frames at "
                         f"{', '.join(f'{v:g}' for v in t[:8])}{', ...' if n > 8 else ''})")
@@ -190,16 +190,18 @@ def _energy(f, w):
     col = ENERGIES[w.kind]
     if col not in st or not len(st[col]):
         raise UserError(f"--watch {w.spec}: the run recorded no '{col}' statistics")
-    acc = stats.accepted(st)
-    e, t = st[col][acc], st["time"][acc]
-    if w.when is None:
-        return float(e[-1])
-    if w.when == "max":
-        return _pick(e, w)
-    hit = np.flatnonzero(np.abs(t - w.when) <= 1e-9 * max(1.0, abs(w.when)))
-    if not len(hit):
+    return _pick(st[col][_steps(st, w)], w)
+
+
+def _steps(st, w):
+    """The accepted steps a Watch reads from the statistics: every one (the last read, or the largest with
+    @max), or those ending at its time @T (UserError when none does)."""
+    if w.when is None or w.when == "max":
+        return np.flatnonzero(stats.accepted(st))
+    acc = stats.accepted_at(st, w.when)
+    if not len(acc):
         raise UserError(f"--watch {w.spec}: no step of the run ends at t = {w.when:g}")
-    return float(e[hit[-1]])
+    return acc
 
 
 def _reaction(f, w):
@@ -210,12 +212,7 @@ def _reaction(f, w):
         vals = [held.get(w.where)]
     else:
         st = stats.read(f)
-        acc = np.flatnonzero(stats.accepted(st))
-        if w.when != "max":
-            acc = acc[np.abs(st["time"][acc] - w.when) <= 1e-9 * max(1.0, abs(w.when))]
-            if not len(acc):
-                raise UserError(f"--watch {w.spec}: no step of the run ends at t = {w.when:g}")
-        per = [{n: F for k, n, F, _ in stats.forces_of(st, i) if k == "reaction"} for i in acc]
+        per = [{n: F for k, n, F, _ in stats.forces_of(st, i) if k == "reaction"} for i in _steps(st, w)]
         held = per[-1] if per else {}
         vals = [p.get(w.where) for p in per]
     if not held or w.where not in held:
