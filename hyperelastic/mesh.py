@@ -117,11 +117,13 @@ def generate(name, level, out, size=None, refine=0, order=1):
             gmsh.write(tmps[-1])
         gmsh.finalize()
         meshes = []       # every mesh read back and checked before any is renamed into place
-        for o, tmp in zip(outs, tmps):
+        for i, (o, tmp) in enumerate(zip(outs, tmps)):
             try:
                 meshes.append(read_mesh(tmp))
             except UserError as e:
-                raise UserError(str(e).replace(tmp, o)) from None
+                why = (f" (gmsh's refinement moves the new nodes of curved surfaces onto the geometry, which crosses "
+                       f"tets this coarse: give a --size below {size:g})") if i else ""
+                raise UserError(str(e).replace(tmp, o) + why) from None
     except BaseException:  # nothing of a failed run stays behind
         if gmsh.isInitialized():
             gmsh.finalize()

@@ -51,6 +51,11 @@ def test_mesh_command_keeps_physical_groups(parts, tmp_path):
     assert n1 == 8 * n0 and set(m1.field_data) == set(m0.field_data)
     one_line_error(hyperelastic(["mesh", tmp_path / "nosuch.geo", "--size", 1, "-o", tmp_path / "x.msh"]),
                    "no such file")
+    # a part too coarse for gmsh's refinement (the bracket's 1 cm hole in a 1 cm plate at 2 cm): one line that
+    # says why and what to do, and none of the meshes written
+    one_line_error(hyperelastic(["mesh", f"{ROOT}/examples/bracket.geo", "--size", 0.02, "--refine", 1, "-o",
+                                 tmp_path / "b.msh"]), "b_r1.msh", "overlap", "give a --size below 0.02")
+    assert not list(tmp_path.glob("b*"))
 
 
 def test_second_order_meshes(tmp_path):
