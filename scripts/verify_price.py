@@ -4,14 +4,15 @@ an exhaustive grid over the same dimensions and an overkill reference kept out o
     .venv/bin/python scripts/verify_price.py OUT --case bar|bracket|bend2|swing [--target 0.01]
 
 For the case it runs (1) the price search as `study price` does, (2) every setting of the grid (orders x mesh
-levels x, for dynamic scenes, time-step halvings x integrators, x tolerances x, for static scenes, preconditioners:
-dynamic grids keep the default one, which changes the cost and not the answer, and the loose and default
-tolerances), (3) the
-reference: P2 one level finer than the grid's finest, tight tolerances, and for dynamic scenes generalized-alpha
-at a quarter of the grid's smallest step. It prints and writes OUT/CASE/verify.md: the recommended setting's true
+levels x, for dynamic scenes, time-step halvings x integrators, x tolerances x preconditioners: the bend2 grid keeps
+the default one, which changes the cost and not the answer, and the loose and default tolerances; the swing grid
+is pruned, PRUNE), (3) the reference: P2 one level finer than the grid's finest, tight tolerances, and for dynamic
+scenes generalized-alpha at a quarter of the grid's smallest step; for parts with singular edges (GRADED) P2 on
+meshes graded toward them instead. It prints and writes OUT/CASE/verify.md: the recommended setting's true
 error (against the reference) and cost, the cheapest grid setting whose true error meets the target, their cost
 ratio (goal <= 2), and the search's time against the grid's (goal <= 1/5), where each side's time is the wall
-time of its runs.
+time of its runs. Grid rows and references are cached in OUT/CASE (grid/rows.json, graded.json): a second call
+runs only the search.
 """
 import argparse
 import json

@@ -103,8 +103,7 @@ def _models_lines(search, s):
             L.append(f"- solver tolerances: change against the tightest run at each; tightest's own error taken as "
                      f"{fmt(mod.err_max, '.2g')} (absolute)")
             continue
-        dim, which = key
-        name = f"space, P{which}" if dim == "level" else f"time, {which}"
+        name = f"space, P{key[1]}" if key[0] == "level" else f"time, P{key[1]} {key[2]}"
         L.append(f"- {name}: points at notches {sorted(mod.q)}; order used {fmt(mod.p, '.2f')} (expected "
                  f"{mod.expected}); limit {fmt(mod.limit, '.6g')}; finest point's error {fmt(mod.err_max, '.2g')}"
                  + (f" ({mod.note})" if mod.note else ""))
