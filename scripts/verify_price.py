@@ -179,8 +179,8 @@ def main():
             g.rows.append(done[astuple(st)])
         else:
             g.run(st, "grid" if st != ref else "reference")
-    with open(cache, "w") as fh:
-        json.dump([r | {"setting": list(astuple(r["setting"]))} for r in g.rows], fh)
+            with open(cache, "w") as fh:          # after every run: an interrupted grid resumes where it stopped
+                json.dump([r | {"setting": list(astuple(r["setting"]))} for r in g.rows], fh)
     rr = g.rows[-1] if uniform_ref else {"wall_s": 0.0, "quantity": None, "tets": 0}
     grid_wall = sum(r["wall_s"] for r in g.rows)
     if "quantity" not in rr:
