@@ -24,9 +24,11 @@ integrator on each order's coarsest; one tighter tolerance) and then repeats: fo
 cheapest setting the models predict to meet the target (cost predicted from the runs' measured growth per
 dimension); the order with the cheapest plan moves one notch toward it, in the dimension whose error falls
 most per second of the next run; every run updates the models. It stops when no order's plan is predicted
-cheaper than the cheapest run already meeting the target, or at --budget / --max-runs. The preconditioner
-is a cost-only dimension: on each order's first run over PC_TRIAL seconds the other one runs at the same
-setting and the faster is kept.
+cheaper than the cheapest run already meeting the target, or at --budget / --max-runs. The linear solver (the
+Jacobian mode and the preconditioner: the assembled tangent with the default preconditioner or GAMG, the
+matrix-free exact tangent with Jacobi) is a cost-only dimension: on each order's first run over PC_TRIAL seconds
+the other solvers run at the same setting and the fastest is kept. (PETSc's MFFD, -snes_mf_operator, is not
+tried: it costs a residual per Krylov iteration and is never faster than the exact tangent, BENCHMARKS.md.)
 """
 import math
 import os
@@ -49,8 +51,10 @@ INTEGRATORS = {   # name: (options, order of accuracy in time)
 }
 TOLERANCES = (("loose", ["-snes_rtol", "1e-4", "-ksp_rtol", "1e-3"]), ("default", []),
               ("tight", ["-snes_rtol", "1e-10", "-ksp_rtol", "1e-9"]))
-SOLVERS = {"default": [], "gamg": ["-pc_type", "gamg"]}
-PC_TRIAL = 0.5          # s: an order's first run at least this long also runs with the other preconditioner
+# the linear solver: the Jacobian mode and the preconditioner (cost-only: the answer is the same to the tolerances)
+SOLVERS = {"default": [], "gamg": ["-pc_type", "gamg"], "shell": ["-jacobian", "shell"]}
+SOLVER_NAMES = {"default": "assembled, default PC", "gamg": "assembled, GAMG", "shell": "matrix-free tangent, Jacobi"}
+PC_TRIAL = 0.5          # s: an order's first run at least this long also runs with the other solvers
 MAX_DT_HALVINGS = 6
 DEFAULT_GROWTH = {"level": 8.0, "dt": 2.0, "tol": 1.3}
 
@@ -70,7 +74,7 @@ class Setting:
 
     def label(self):
         return (f"P{self.order} r{self.level}, {self.integrator} dt/{2 ** self.dt}, {TOLERANCES[self.tol][0]} "
-                f"tolerances, {self.solver} PC")
+                f"tolerances, {SOLVER_NAMES[self.solver]}")
 
 
 def scene_facts(scene, run_args):
@@ -112,7 +116,7 @@ class Search:
         self.fps = 1.0 / self.dt0       # frames at the multiples of the scene's step in every run (@T, @max)
         self.integrators = tuple(INTEGRATORS) if self.dynamic else ("beuler",)
         self.rows, self.by_key, self.meshes, self.tets, self.written = [], {}, {}, {}, []
-        self.solver = {o: None for o in orders}     # the preconditioner kept per order (None: not tried yet)
+        self.solver = {o: None for o in orders}     # the linear solver kept per order (None: not tried yet)
         self.t0 = time.perf_counter()
         os.makedirs(os.path.join(out_dir, "runs"), exist_ok=True)
 
@@ -286,17 +290,18 @@ class Search:
 
     # ---- the search ---------------------------------------------------------------------------------------
     def go(self, s, why):
-        """Run setting s with its order's preconditioner; an order's first run over PC_TRIAL seconds also runs
-        with the other one, and the faster is kept for that order."""
+        """Run setting s with its order's linear solver; an order's first run over PC_TRIAL seconds also runs
+        with the others, and the fastest is kept for that order."""
         s = replace(s, solver=self.solver[s.order] or "default")
         row = self.run(s, why)
         if self.solver[s.order] is None and row["outcome"] == "finished" and row.get("solve_s", 0) >= PC_TRIAL:
             if _formulation(row["path"]) == "mixed":
                 self.solver[s.order] = "default"       # its Schur field split (GAMG inside): nothing to try
             else:
-                other = self.run(replace(s, solver="gamg"), "preconditioner trial")
-                fast = other["outcome"] == "finished" and other["solve_s"] < row["solve_s"]
-                self.solver[s.order] = "gamg" if fast else "default"
+                trials = [row] + [self.run(replace(s, solver=k), "linear solver trial")
+                                  for k in SOLVERS if k != s.solver]
+                done = [r for r in trials if r["outcome"] == "finished"]
+                self.solver[s.order] = min(done, key=lambda r: r["solve_s"])["setting"].solver
         return row
 
     def probes(self):
