@@ -68,8 +68,12 @@ GRADED = {
 PRUNE = {"bracket": 2.0, "bend2": 2.0, "swing": 2.0}
 
 
-def pruned(st, rows, cap):
-    """Whether setting st is pruned (PRUNE) by the finished rows at the cost bound cap."""
+def pruned(st, rows, cap, skipped):
+    """Whether setting st is pruned (PRUNE) by the finished rows at the cost bound cap, or by a pruned setting
+    (`skipped`) that it refines."""
+    for o, lv, j, i, t, pc in map(astuple, skipped):
+        if (o, i, pc) == (st.order, st.integrator, st.solver) and lv <= st.level and j <= st.dt and t <= st.tol:
+            return True
     for r in rows:
         o, lv, j, i, t, pc = astuple(r["setting"])
         if r["outcome"] != "finished" or (o, i, pc) != (st.order, st.integrator, st.solver):
@@ -179,12 +183,12 @@ def main():
     if os.path.exists(cache):            # the grid and the reference do not depend on the search: each runs once
         with open(cache) as fh:
             done = {tuple(r["setting"]): r | {"setting": Setting(*r["setting"])} for r in json.load(fh)}
-    skipped = 0
+    skipped = []
     for st in list(grid(a.case, g)) + ([ref] if uniform_ref else []):
         if astuple(st) in done:
             g.rows.append(done[astuple(st)])
-        elif st != ref and pruned(st, g.rows, cap):
-            skipped += 1
+        elif st != ref and pruned(st, g.rows, cap, skipped):
+            skipped.append(st)
         else:
             g.run(st, "grid" if st != ref else "reference")
             with open(cache, "w") as fh:          # after every run: an interrupted grid resumes where it stopped
@@ -207,7 +211,7 @@ def main():
             ref_lines.append(f"uniform {ref.label()} ({rr['tets']:,} tets): {rr['quantity']:.9g} "
                              f"({abs(rr['quantity'] - q_ref) / abs(q_ref):.2g} from the finest graded)")
     if skipped:
-        ref_lines.append(f"grid: {skipped} settings not run (pruned: above {PRUNE[a.case]:g}x the recommended "
+        ref_lines.append(f"grid: {len(skipped)} settings not run (pruned: above {PRUNE[a.case]:g}x the recommended "
                          f"setting's {summary['best']['solve_s']:.3g} s, measured or one level coarser x 8)")
     true = lambda r: abs(r["quantity"] - q_ref) / abs(q_ref)  # noqa: E731
     ok = [r for r in g.rows if "quantity" in r and r is not rr and true(r) <= a.target]
