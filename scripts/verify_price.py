@@ -39,7 +39,7 @@ CASES = {
     "bend2": (f"{ROOT}/meshes/bar.geo", f"{ROOT}/options/scenes/bend2.opts", 2.0, "u_y:5,0,0@max",
               ["-final_time", "0.3", "-dt", "0.02", "-material", "stvk"], {1: 2, 2: 2}, 2),
     "swing": (f"{ROOT}/examples/lbracket.geo", f"{ROOT}/examples/swing.opts", 0.03, "u_z:0.1,0.03,0.005@max",
-              ["-final_time", "0.12"], {1: 3, 2: 2}, 2),
+              ["-final_time", "0.12"], {1: 2, 2: 2}, 2),     # (P1 r3, 65k tets, is 12-30% off: P1 locks here)
 }
 
 
@@ -190,9 +190,9 @@ def main():
         elif st != ref and pruned(st, g.rows, cap, skipped):
             skipped.append(st)
         else:
-            g.run(st, "grid" if st != ref else "reference")
+            done[astuple(st)] = g.run(st, "grid" if st != ref else "reference")
             with open(cache, "w") as fh:          # after every run: an interrupted grid resumes where it stopped
-                json.dump([r | {"setting": list(astuple(r["setting"]))} for r in g.rows], fh)
+                json.dump([r | {"setting": list(astuple(r["setting"]))} for r in done.values()], fh)
     rr = g.rows[-1] if uniform_ref else {"wall_s": 0.0, "quantity": None, "tets": 0}
     grid_wall = sum(r["wall_s"] for r in g.rows)
     if "quantity" not in rr:
