@@ -23,7 +23,7 @@ TIP = (5.0, 0.0, 0.0)
 def price(tmp_path_factory):
     out = tmp_path_factory.mktemp("price")
     p = run_ok(["study", "price", *BAR, "--watch", "u_y:5,0,0", "--target", "0.03", "--run-args", STATIC,
-                "--budget", "120", "-output_dir", out], timeout=600)
+                "--budget", "600", "-output_dir", out], timeout=1200)
     num = {k: float for k in ("quantity", "est_total", "solve_s")} | {k: int for k in ("order", "level", "tets",
                                                                                        "meets_target")}
     return out, p, read_csv(os.path.join(out, "price.csv"), num)
