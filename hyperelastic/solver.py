@@ -20,14 +20,31 @@ MIXED_DEFAULTS = (("ksp_type", "gmres"), ("pc_type", "fieldsplit"), ("pc_fieldsp
                   ("fieldsplit_p_pc_type", "jacobi"))
 
 
+# the mixed formulation's Newton: full steps (the load step halved where a solve fails), GMRES restarted every 100
+# iterations, not PETSc's 30, and stopped at 1000, not 10,000. Measured on a rubber L-bracket (docs/mixed.md, "Thin
+# parts"): a rotation's linearization changes the volume by ~theta^2, so a full step raises the residual norm ~10x
+# before Newton converges quadratically, and the residual-norm backtracking takes lambda = 0.1 for ten steps;
+# GMRES(30) stagnates there where GMRES(100) needs 60-150; a solve at a wild iterate that fails anyway fails at a
+# tenth of the cost. Where full steps are accepted (Cook's membrane) both line searches cost alike.
+MIXED_NEWTON = (("snes_linesearch_type", "basic"), ("ksp_gmres_restart", "100"), ("ksp_max_it", "1000"))
+MIXED_MERITS = {"basic": "none (full Newton steps)", "nleqerr": "Newton correction (NLEQ-ERR)"}
+
+
 def apply_mixed_defaults():
     """The mixed formulation's solver defaults where the options database does not set them: the field split's
-    when no -pc_type or -pc_type fieldsplit is given (a user's -pc_type lu, say, replaces all of it)."""
+    when no -pc_type or -pc_type fieldsplit is given (a user's -pc_type lu, say, replaces all of it); full Newton
+    steps, GMRES(100), at most 1000 Krylov iterations (MIXED_NEWTON). Returns the line search merit."""
     opts = PETSc.Options()
     split = not opts.getBool("snes_mf", False) and opts.getString("pc_type", "fieldsplit") == "fieldsplit"
     for k, v in MIXED_DEFAULTS:
         if (k == "ksp_type" or split) and not opts.hasName(k):
             opts.setValue(k, v)
+    if opts.getString("snes_type", "newtonls") == "newtonls":
+        gmres = opts.getString("ksp_type", "") in ("gmres", "fgmres")
+        for k, v in MIXED_NEWTON:
+            if not opts.hasName(k) and (gmres or not k.startswith("ksp_")):   # (preonly reads neither)
+                opts.setValue(k, v)
+    return MIXED_MERITS.get(opts.getString("snes_linesearch_type", "bt"), MERITS[1])
 
 
 def apply_defaults(merit="residual norm", symmetric=True):
@@ -126,12 +143,13 @@ class Solver:
             self.merit_note = (f"{', '.join(system.nonconservative())} has no potential: the line search "
                                "merit is the residual norm")
         self.mixed = getattr(system, "mixed", False)
-        if self.mixed and objective:
-            self.merit_note = ("the mixed formulation's solution is a saddle point, not a minimum: the line search "
-                               "merit is the residual norm")
         self.merit = MERITS[0] if objective and system.conservative and snes is None else MERITS[1]
         if self.mixed:
-            apply_mixed_defaults()
+            self.merit = apply_mixed_defaults()
+            if objective:
+                self.merit_note = ("the mixed formulation's solution is a saddle point, not a minimum: no energy "
+                                   "merit; " + ("full Newton steps, a smaller load step where a solve fails"
+                                      if self.merit == MIXED_MERITS["basic"] else f"the line search merit is the {self.merit}"))
         self.pc_chosen = PETSc.Options().hasName("pc_type")       # (by the user or a recipe: never changed)
         self.reuse_mode = reuse_pc
         apply_defaults(self.merit, all(e.symmetric for e in system.effects))

@@ -285,6 +285,28 @@ def test_cooks_membrane(tmp_path):
     assert tip_uy(tmp_path / "d.h5") < 0.55 * COOK_TIP, tip_uy(tmp_path / "d.h5")
 
 
+def test_rotating_rubber_takes_full_newton_steps(tmp_path):
+    """A rubber L-bracket (nu = 0.4995: mixed P2-P1 by default) bent by a small tip load. The linearized rotation
+    changes the volume by ~theta^2, so a full Newton step first raises the residual norm; the residual-norm
+    backtracking (bt, the default before) then crawls at lambda ~ 0.1, where the default full steps converge in a
+    few Newton iterations per load step, to the same answer. The run's note and the output say which merit."""
+    import h5py
+    m = tmp_path / "b.msh"
+    run_ok(["mesh", f"{ROOT}/examples/bracket.geo", "--size", 0.01, "--order", 2, "-o", m])
+    common = ["run", f"{ROOT}/examples/bracket.opts", "-mesh", m, "-material", "neohookean_split", "-preset", "rubber",
+              "-traction", "0,0,-2e3", "-final_time", 0.25]
+    p = run_ok(common + ["-output", tmp_path / "f.h5"])
+    assert "full Newton steps, a smaller load step where a solve fails" in p.stderr
+    run_ok(common + ["-snes_linesearch_type", "bt", "-quiet", "-output", tmp_path / "b.h5"])
+    with h5py.File(tmp_path / "f.h5", "r") as f, h5py.File(tmp_path / "b.h5", "r") as g:
+        assert f.attrs["formulation"] == "mixed" and f.attrs["line_search_merit"].startswith("none (full Newton")
+        assert g.attrs["line_search_merit"].startswith("residual norm")
+        nf, nb = int(f["stats/newton_its"][-1]), int(g["stats/newton_its"][-1])
+        assert nf <= 6 and nb >= 2 * nf, (nf, nb)
+        u, v = f["frames/1/displacement"][:], g["frames/1/displacement"][:]
+        assert np.abs(u - v).max() <= 1e-6 * np.abs(u).max()
+
+
 def local_oscillation(out):
     """Per vertex |p - the mean of its edge neighbours'| over the pressure's range: a smooth field gives O(h^2) and a
     checkerboard (an unstable pair's spurious pressure mode) O(1)."""
