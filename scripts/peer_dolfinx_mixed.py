@@ -11,9 +11,9 @@ U*(p) = p (J_p - 1) - U(J_p), J_p = p/kappa + sqrt(1 + (p/kappa)^2), U(J) = kapp
 Taylor 1991): U* is the Legendre transform of U, so eliminating p gives back the split Neo-Hookean material.
 Clamped at x = 0, u_z = 0 on z = 0 and z = 10 (plane strain by rollers), a dead traction (0, T, 0) on x = 48;
 one load step; Newton with full steps (newtonls, basic) to a relative residual RTOL; the quadrature rule of
-degree 2 (the 4-point rule ours uses for P2) in cells and on faces. Solver: GMRES + PCFIELDSPLIT Schur (full
-factorization), the displacement block by one GAMG V-cycle with the six rigid-body modes as near null space,
-the Schur complement by Jacobi on -(1/mu + 1/kappa) M_p: ours' default options, set alike.
+degree 2 (the 4-point rule ours uses for P2) in cells and on faces. Solver: GMRES(100) (at most 1000 iterations) +
+PCFIELDSPLIT Schur (full factorization), the displacement block by one GAMG V-cycle with the six rigid-body modes
+as near null space, the Schur complement by Jacobi on -(1/mu + 1/kappa) M_p: ours' default options, set alike.
 Phases per Newton step from PETSc's log events, as for ours (SNESJacobianEval, SNESFunctionEval, PCSetUp,
 KSPSolve, SNESSolve). OUT.npz: every owned displacement dof's (coordinates, value) and every vertex's
 (coordinates, pressure) on rank 0, the residual history, the events' times.
@@ -88,6 +88,7 @@ def main():
 
     opts = {"snes_type": "newtonls", "snes_linesearch_type": "basic", "snes_rtol": a.rtol, "snes_atol": 1e-14,
             "snes_stol": 0, "snes_max_it": 50, "ksp_type": "gmres", "ksp_rtol": a.ksp_rtol, "pc_type": "fieldsplit",
+            "ksp_gmres_restart": 100, "ksp_max_it": 1000,    # ours' defaults (solver.MIXED_NEWTON)
             "pc_fieldsplit_type": "schur", "pc_fieldsplit_schur_fact_type": "full",
             "fieldsplit_u_ksp_type": "preonly", "fieldsplit_u_pc_type": "gamg", "fieldsplit_p_ksp_type": "preonly",
             "fieldsplit_p_pc_type": "jacobi", "snes_error_if_not_converged": True}
