@@ -147,9 +147,10 @@ class Solver:
         if self.mixed:
             self.merit = apply_mixed_defaults()
             if objective:
+                how = ("full Newton steps, a smaller load step where a solve fails"
+                       if self.merit == MIXED_MERITS["basic"] else f"the line search merit is the {self.merit}")
                 self.merit_note = ("the mixed formulation's solution is a saddle point, not a minimum: no energy "
-                                   "merit; " + ("full Newton steps, a smaller load step where a solve fails"
-                                      if self.merit == MIXED_MERITS["basic"] else f"the line search merit is the {self.merit}"))
+                                   f"merit; {how}")
         self.pc_chosen = PETSc.Options().hasName("pc_type")       # (by the user or a recipe: never changed)
         self.reuse_mode = reuse_pc
         apply_defaults(self.merit, all(e.symmetric for e in system.effects))
