@@ -214,7 +214,10 @@ class BackwardEuler(Integrator):
             stats = self.advance(h, t_end if last else self.t + h)
             why = stats.pop("why", None)
             linear_only, hint = stats.pop("linear_only", False), stats.pop("hint", "")
-            no_halving = stats.pop("no_halving", False)
+            # at the step's first Newton iteration the load step's size does not change the tangent, so halving
+            # the step would not help (issue 34); at a later one the tangent is taken at an iterate that a smaller
+            # step changes (a rubber part's Newton iterates under rotation)
+            no_halving = linear_only and stats["newton_its"] == 0
             if stats["rejected"]:
                 self._say(f"t={self.t:.4g}: step of h={h:.3g} rejected: {why}")
             self._write_stats(stats)
@@ -269,12 +272,9 @@ class BackwardEuler(Integrator):
             ksp = self.solver.ksp_reason_name() if name == "DIVERGED_LINEAR_SOLVE" else ""
             stats["why"] = (f"SNES did not converge ({name}{': KSP ' + ksp if ksp else ''}) after "
                             f"{stats['newton_its']} Newton iterations")
-            # a Krylov solve that ran out of iterations on a quasi-static step (a preconditioner for a static
-            # stiffness may fix it); at the step's first Newton iteration the load step's size does not change
-            # the tangent, so halving the step would not help (issue 34); at a later one the tangent is taken
-            # at an iterate that a smaller step changes (a rubber part's Newton iterates under rotation)
+            # a Krylov solve that ran out of iterations on a quasi-static step: a preconditioner for a static
+            # stiffness may fix it (Solver.escalate); halving the step may not (the caller)
             stats["linear_only"] = self.scene.quasistatic and ksp in RAN_OUT
-            stats["no_halving"] = stats["linear_only"] and stats["newton_its"] == 0
             hints = MIXED_KSP_HINTS if self.solver.mixed else KSP_HINTS
             stats["hint"] = hints.get(ksp, "") if ksp else SNES_HINTS.get(name, "")
             if ksp in RAN_OUT and self.solver.snes.getKSP().getPC().getType() == "gamg":
