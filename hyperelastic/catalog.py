@@ -148,7 +148,7 @@ CHOICES = {"material": materials.REGISTRY, "jacobian": JACOBIANS, "formulation":
 PETSC_FAMILIES = frozenset(
     "snes ksp pc ts tao mat vec dm dmplex petscpartitioner petscsection sf is ao log options malloc memory info "
     "help version viewer draw sub mg fieldsplit fp on start stop debugger no check objects history use device "
-    "petsc skip error display nox saws python bv characteristic pf random".split())
+    "matptap petsc skip error display nox saws python bv characteristic pf random".split())
 # the solver families whose options PETSc has read once SNES/TS read the database (checked then) ...
 SOLVER_FAMILIES = ("snes_", "ksp_", "pc_", "ts_")
 # ... except those read only later: viewers at the end of a solve, MFFD and matrix options at set-up

@@ -112,8 +112,10 @@ def run_attributes(model, scene_file, solver):
     sc, space = model.scene, model.space
     built = model.system.built()
     # the options of the run, less the scene file's that a command-line -effects overrode: a restart replays
-    # these on its command line, where they would switch their effects on (scene.EFFECTS_RULE)
-    return {"options": "\n".join(f"-{k} {v}".rstrip() for k, v in all_options() if k not in sc.ignored),
+    # these on its command line, where they would switch their effects on (scene.EFFECTS_RULE); and less the
+    # defaults chosen by the rank count (solver.GALERKIN_KERNELS), which a restart on other ranks chooses anew
+    left = set(sc.ignored) | set(solver.unrecorded)
+    return {"options": "\n".join(f"-{k} {v}".rstrip() for k, v in all_options() if k not in left),
             "scene": sc.name, "scene_file": os.path.abspath(scene_file), "effects": ",".join(sc.effects),
             "effects_built": json.dumps(built, sort_keys=True), "hyperelastic_version": __version__,
             "petsc_version": ".".join(map(str, PETSc.Sys.getVersion())), "mpi_ranks": space.comm.getSize(),

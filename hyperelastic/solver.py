@@ -28,17 +28,25 @@ MIXED_DEFAULTS = (("ksp_type", "gmres"), ("pc_type", "fieldsplit"), ("pc_fieldsp
 # tenth of the cost. Where full steps are accepted (Cook's membrane) both line searches cost alike.
 MIXED_NEWTON = (("snes_linesearch_type", "basic"), ("ksp_gmres_restart", "100"), ("ksp_max_it", "1000"))
 MIXED_MERITS = {"basic": "none (full Newton steps)", "nleqerr": "Newton correction (NLEQ-ERR)"}
+# PETSc's kernel for the Galerkin products P^T A P of the field split's GAMG, which it forms at every Newton step:
+# PETSc's default (`scalable`) took 1.6-2.3x as long as `rap` on one rank and 2.3-4x as long as `nonscalable` on
+# two for the same products (Cook's membrane, docs/mixed.md "Where the time goes"); the sequential and the parallel
+# matrices offer different kernels
+GALERKIN_KERNELS = ("rap", "nonscalable")      # (one rank, several)
 
 
-def apply_mixed_defaults():
+def apply_mixed_defaults(ranks=1):
     """The mixed formulation's solver defaults where the options database does not set them: the field split's
-    when no -pc_type or -pc_type fieldsplit is given (a user's -pc_type lu, say, replaces all of it); full Newton
-    steps, GMRES(100), at most 1000 Krylov iterations (MIXED_NEWTON). Returns the line search merit."""
+    when no -pc_type or -pc_type fieldsplit is given (a user's -pc_type lu, say, replaces all of it), with the
+    faster kernel for its GAMG's Galerkin products on this many ranks (GALERKIN_KERNELS); full Newton steps,
+    GMRES(100), at most 1000 Krylov iterations (MIXED_NEWTON). Returns the line search merit."""
     opts = PETSc.Options()
     split = not opts.getBool("snes_mf", False) and opts.getString("pc_type", "fieldsplit") == "fieldsplit"
     for k, v in MIXED_DEFAULTS:
         if (k == "ksp_type" or split) and not opts.hasName(k):
             opts.setValue(k, v)
+    if split and opts.getString("fieldsplit_u_pc_type", "") == "gamg" and not opts.hasName("matptap_via"):
+        opts.setValue("matptap_via", GALERKIN_KERNELS[ranks > 1])
     if opts.getString("snes_type", "newtonls") == "newtonls":
         gmres = opts.getString("ksp_type", "") in ("gmres", "fgmres")
         for k, v in MIXED_NEWTON:
@@ -122,6 +130,7 @@ def matrix_free():
 class Solver:
     mixed = False        # the system is the mixed formulation's (mixed.py): its field split
     schur_pre = None     # its Schur complement's preconditioning matrix (MixedSystem.pressure_mass)
+    unrecorded = ()      # options this application set by the rank count (a restart on other ranks sets its own)
     def __init__(self, system, jacobian, assembly="setvalues", guard=False, objective=True, snes=None,
                  reuse_pc="auto", storage="auto"):
         """SNES on the system's residual with Jacobian mode `jacobian` (scene.JACOBIANS; filled by
@@ -145,7 +154,10 @@ class Solver:
         self.mixed = getattr(system, "mixed", False)
         self.merit = MERITS[0] if objective and system.conservative and snes is None else MERITS[1]
         if self.mixed:
-            self.merit = apply_mixed_defaults()
+            had = PETSc.Options().hasName("matptap_via")
+            self.merit = apply_mixed_defaults(sp.comm.getSize())
+            if not had and PETSc.Options().hasName("matptap_via"):
+                self.unrecorded = ("matptap_via",)
             if objective:
                 how = ("full Newton steps, a smaller load step where a solve fails"
                        if self.merit == MIXED_MERITS["basic"] else f"the line search merit is the {self.merit}")

@@ -4,7 +4,8 @@ split Neo-Hookean, nu = 0.4999), Taylor-Hood P2-P1, solved by hyperelastic (`-fo
 (scripts/peer_dolfinx_mixed.py, the same energy written in UFL) on the same mesh, one load step, Newton with full
 steps to a relative residual of 1e-10, GMRES (rtol 1e-10) + the Schur field split (full factorization, GAMG with
 the rigid-body modes on the displacement block, Jacobi on -(1/mu + 1/kappa) M_p): ours' defaults, set alike in
-DOLFINx; the 4-point rule of degree 2 in both. Phases per Newton step from PETSc's log events in both codes
+DOLFINx, also the kernel of GAMG's Galerkin products (-matptap_via; --peer-kernel petsc leaves the peer PETSc's
+default); the 4-point rule of degree 2 in both. Phases per Newton step from PETSc's log events in both codes
 (SNESSolve, SNESJacobianEval, SNESFunctionEval, PCSetUp, KSPSolve less the PCSetUp inside it).
 
 The runs alternate (DOLFINx, ours, ...); each phase is the minimum of --repeat runs, and the step ratio is also
@@ -13,6 +14,7 @@ displacement, and the largest pressure difference at the vertices over the large
 coordinates). Rows whose displacements differ by more than AGREE make the script exit 1.
 
     .venv/bin/python scripts/bench_peer_mixed.py OUT [--sizes 4,2] [--ranks 1,2] [--repeat 3]
+        [--peer-kernel ours|petsc] [--ours '-matptap_via scalable']
 """
 import argparse
 import os
@@ -28,6 +30,7 @@ sys.path.insert(0, os.path.join(ROOT, "scripts"))
 from bench_peer import DOLFINX_VENV, dolfinx_python, matched, parse_log_view  # noqa: E402
 from hyperelastic.experiments.runner import last_line, run_hyperelastic  # noqa: E402
 from hyperelastic.mesh import read  # noqa: E402
+from hyperelastic.solver import GALERKIN_KERNELS  # noqa: E402
 
 RTOL = 1e-10
 AGREE = 1e-8
@@ -57,12 +60,12 @@ def per_step(ev, its):
     return out
 
 
-def ours(path, out, ranks, tag):
+def ours(path, out, ranks, tag, extra=()):
     h5, log = os.path.join(out, f"ours_{tag}.h5"), os.path.join(out, f"ours_{tag}.log")
     args = ["run", os.path.join(ROOT, "examples", "cook.opts"), "-mesh", path, "-order", 2, "-formulation", "mixed",
             "-dt", 1, "-final_time", 1, "-snes_linesearch_type", "basic", "-snes_rtol", RTOL, "-snes_atol", "1e-14",
             "-snes_stol", "0", "-ksp_rtol", RTOL, "-step_control", "0", "-quiet", "-output", h5,
-            "-log_view", f":{log}"]
+            "-log_view", f":{log}"] + list(extra)
     rc, err, _ = run_hyperelastic(args, h5, nprocs=ranks, timeout=3600)
     if rc != 0:
         raise RuntimeError(f"hyperelastic failed: {last_line(err, rc)}")
@@ -77,10 +80,12 @@ def ours(path, out, ranks, tag):
     return nodes, disp, corners, pres, its, kits, per_step(ev, its)
 
 
-def peer(npz, out, ranks, tag):
+def peer(npz, out, ranks, tag, kernel):
     res = os.path.join(out, f"dolfinx_{tag}.npz")
     cmd = [dolfinx_python(), os.path.join(ROOT, "scripts", "peer_dolfinx_mixed.py"), npz, res, "--rtol", str(RTOL),
            "--ksp-rtol", str(RTOL)]
+    if kernel == "ours":
+        cmd += ["--matptap-via", GALERKIN_KERNELS[ranks > 1]]
     if ranks > 1:
         cmd = [os.path.join(DOLFINX_VENV, "bin", "mpiexec"), "-n", str(ranks)] + cmd
     env = dict(os.environ, LD_LIBRARY_PATH=os.path.join(DOLFINX_VENV, "lib"), OMP_NUM_THREADS="1",
@@ -98,13 +103,13 @@ def peer(npz, out, ranks, tag):
     return d["disp"], d["pressure"], its, int(d["ksp_its"]), per_step(ev, its), version
 
 
-def row(size, out, ranks, repeat):
+def row(size, out, ranks, repeat, kernel, extra):
     path, npz, nc = mesh(size, out)
     mine, theirs, pairs = [], [], []
     for k in range(repeat):
         tag = f"{size}_n{ranks}_{k}"
-        theirs.append(peer(npz, out, ranks, tag))
-        mine.append(ours(path, out, ranks, tag))
+        theirs.append(peer(npz, out, ranks, tag, kernel))
+        mine.append(ours(path, out, ranks, tag, extra))
         pairs.append(mine[-1][6]["step"] / theirs[-1][4]["step"])
     nodes, disp, corners, pres, its, kits, _ = mine[0]
     tdisp, tpres, tits, tkits, _, version = theirs[0]
@@ -125,6 +130,10 @@ def main():
     ap.add_argument("--sizes", default="4,2", help="Cook mesh sizes in mm (comma list)")
     ap.add_argument("--ranks", default="1", help="rank counts, e.g. 1,2")
     ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--peer-kernel", choices=("ours", "petsc"), default="ours",
+                    help="the peer's kernel for GAMG's Galerkin products: ours (solver.GALERKIN_KERNELS, like for "
+                    "like) or PETSc's default")
+    ap.add_argument("--ours", default="", help="more options for ours, e.g. '-matptap_via scalable' (PETSc's default)")
     a = ap.parse_args()
     os.makedirs(a.out, exist_ok=True)
     head = " | ".join(f"{ph} ours | peer | ratio" for ph in PHASES)
@@ -135,7 +144,8 @@ def main():
     worst, version = 0.0, ""
     for size in a.sizes.split(","):
         for ranks in map(int, a.ranks.split(",")):
-            du, version = row(float(size) if "." in size else int(size), a.out, ranks, a.repeat)
+            du, version = row(float(size) if "." in size else int(size), a.out, ranks, a.repeat, a.peer_kernel,
+                              a.ours.split())
             worst = max(worst, du)
     print(f"\npeer: {version}", flush=True)
     if worst > AGREE:

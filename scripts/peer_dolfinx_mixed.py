@@ -3,6 +3,7 @@ Taylor-Hood P2-P1 mixed formulation of hyperelastic's `-formulation mixed` (docs
 with the Python of .venv-dolfinx (DOLFINx and its own PETSc never mix with ours).
 
     .venv-dolfinx/bin/python scripts/peer_dolfinx_mixed.py MESH.npz OUT.npz [--mu M] [--kappa K] [--traction T]
+        [--matptap-via KERNEL]
 
 MESH.npz: `points` (nv, 3) and `tets` (nc, 4), the corners of the P2 mesh ours solves (rank 0 reads it; DOLFINx
 distributes it; Cook's panel has flat faces, so its P2 nodes are the edges' midpoints in both codes).
@@ -53,6 +54,8 @@ def main():
     ap.add_argument("--traction", type=float, default=6.25)
     ap.add_argument("--rtol", type=float, default=1e-10)
     ap.add_argument("--ksp-rtol", type=float, default=1e-10)
+    ap.add_argument("--matptap-via", default="", help="PETSc's kernel for GAMG's Galerkin products (-matptap_via; "
+                    "ours sets rap on one rank, nonscalable on several: solver.GALERKIN_KERNELS); default PETSc's")
     a = ap.parse_args()
     comm = MPI.COMM_WORLD
     mesh, _ = read_mesh(a.mesh)
@@ -97,6 +100,8 @@ def main():
     db = PETSc.Options()
     for k, val in opts.items():              # kept in the database: the field split reads its blocks' at set-up
         db[f"peer_{k}"] = val
+    if a.matptap_via:
+        db["matptap_via"] = a.matptap_via      # (read when GAMG forms its first Galerkin product)
     snes.setFromOptions()
     A = problem.A
     nu_own = 3 * V.dofmap.index_map.size_local
@@ -123,6 +128,8 @@ def main():
         info = PETSc.Log.Event(name).getPerfInfo()
         ev[name] = comm.allreduce(float(info["time"]), op=MPI.MAX)
         ev[name + "_count"] = int(info["count"])
+    if a.matptap_via and not db.used("matptap_via"):
+        raise SystemExit("DOLFINx: -matptap_via was not read")
     if snes.getConvergedReason() <= 0:
         raise SystemExit(f"DOLFINx: SNES did not converge ({snes.getConvergedReason()})")
 

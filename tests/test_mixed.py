@@ -433,6 +433,32 @@ def test_direct_recipe_agrees_with_the_field_split(tmp_path):
     assert np.abs(u - v).max() <= 1e-8 * np.abs(u).max() and np.abs(p - q).max() <= 1e-7 * np.abs(p).max()
 
 
+def test_galerkin_kernel_by_rank_count(tmp_path):
+    """The field split's GAMG forms its Galerkin products with the faster kernel for the rank count (`rap` on one,
+    `nonscalable` on two: solver.GALERKIN_KERNELS), to the same solution as PETSc's default; a user's -matptap_via
+    wins and is recorded; the chosen one is not recorded, so a one-rank run restarts on two ranks; a kernel PETSc
+    does not have is one line."""
+    import h5py
+    msh = tmp_path / "c.msh"
+    run_ok(["mesh", f"{ROOT}/examples/cook.geo", "--size", 8, "--order", 2, "-o", msh])
+    base = ["run", f"{ROOT}/examples/cook.opts", "-mesh", msh, "-order", 2, "-final_time", 0.5, "-snes_rtol", 1e-10,
+            "-quiet"]
+    a, b = tmp_path / "a.h5", tmp_path / "b.h5"
+    run_ok(base + ["-output", a, "-checkpoint_every", 1, "-log_view", f":{tmp_path / 'a.log'}"])
+    run_ok(base + ["-output", b, "-matptap_via", "scalable"])
+    assert "-matptap_via rap" in (tmp_path / "a.log").read_text()
+    with h5py.File(a, "r") as f, h5py.File(b, "r") as g:
+        assert "matptap_via" not in f.attrs["options"] and "-matptap_via scalable" in g.attrs["options"]
+        u, v = f["frames/2/displacement"][:], g["frames/2/displacement"][:]
+    assert np.abs(u - v).max() <= 1e-8 * np.abs(u).max()
+    run_ok(["run", "--restart", a, "-final_time", 1, "-quiet", "-log_view", f":{tmp_path / 'c.log'}"], nprocs=2)
+    assert "-matptap_via nonscalable" in (tmp_path / "c.log").read_text()
+    assert read_h5(a)["time"][-1] == pytest.approx(1.0)
+    p = hyperelastic(base + ["-output", tmp_path / "x.h5", "-matptap_via", "fast"])
+    err = p.stderr.strip().splitlines()
+    assert p.returncode != 0 and len(err) == 1 and "matptap_via" in err[0], p.stderr
+
+
 @pytest.mark.parametrize("nprocs", [1, 2])
 def test_incompressible_with_the_whole_boundary_prescribed(tmp_path, nprocs):
     """Incompressible, every face moved as prescribed (a volume-preserving simple shear of the cube): the pressure is
