@@ -30,8 +30,8 @@ MIXED_NEWTON = (("snes_linesearch_type", "basic"), ("ksp_gmres_restart", "100"),
 MIXED_MERITS = {"basic": "none (full Newton steps)", "nleqerr": "Newton correction (NLEQ-ERR)"}
 # PETSc's kernel for the Galerkin products P^T A P of the field split's GAMG, which it forms at every Newton step:
 # PETSc's default (`scalable`) took 1.6-2.3x as long as `rap` on one rank and 2.3-4x as long as `nonscalable` on
-# two for the same products (Cook's membrane, docs/mixed.md "Where the time goes"); the sequential and the parallel
-# matrices offer different kernels
+# two for the same products (Cook's membrane, BENCHMARKS.md "The Galerkin products' kernel"); the sequential and
+# the parallel matrices offer different kernels
 GALERKIN_KERNELS = ("rap", "nonscalable")      # (one rank, several)
 
 
