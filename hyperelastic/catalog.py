@@ -110,7 +110,9 @@ TAIL = (
     Row(("reuse_preconditioner",), "-reuse_preconditioner auto|never", "`auto`: a GAMG set-up is kept across "
         "Newton iterations and time steps (SNESSetLagPreconditioner, persisting) until a Krylov solve needs more "
         "than 1.5× the iterations of the first solve after it, or fails; then it is rebuilt at the next Jacobian "
-        "(and at every checkpoint). `never`: a set-up per Jacobian. An explicit `-snes_lag_preconditioner` wins",
+        "(and at every checkpoint). With `-formulation mixed` the same holds for the field split's displacement "
+        "GAMG (PCSetReusePreconditioner on that split). `never`: a set-up per Jacobian. An explicit "
+        "`-snes_lag_preconditioner` wins",
         _S.reuse_preconditioner),
     Row(("output",), "-output FILE.h5", "output file (an `.xdmf` is written beside it); it may not be an input",
         "output/SCENE.h5"),

@@ -238,14 +238,22 @@ class Solver:
         """-reuse_preconditioner auto: where the PC's set-up is expensive (GAMG), keep it across Newton
         iterations and steps (SNESSetLagPreconditioner -1, persisting) until a Krylov solve needs more
         than REBUILD_RATIO x the iterations of the first solve after the last set-up, or fails; then
-        rebuild at the next Jacobian (lag -2). `never`: PETSc's default, a set-up per Jacobian."""
-        if mode == "never" or self.op is None:
-            return
+        rebuild at the next Jacobian (lag -2). The mixed formulation's field split is set up again at every
+        Jacobian (cheap: its blocks are the MatNest's), and its displacement split's GAMG is kept the same way
+        (PCSetReusePreconditioner on that split: `split` in self.reuse). `never`: PETSc's default, a set-up per
+        Jacobian."""
+        opts = PETSc.Options()
+        if mode == "never" or self.op is None or opts.hasName("snes_lag_preconditioner"):
+            return                          # (or the user chose a lag)
         pc = self.snes.getKSP().getPC()
-        ptype = pc.getType() or PETSc.Options().getString("pc_type", "")
-        if ptype not in self.REUSED_PCS or PETSc.Options().hasName("snes_lag_preconditioner"):
-            return                          # cheap set-up, or the user chose a lag
-        self.reuse = {"base": None, "pending": True, "setups": 0}
+        ptype = pc.getType() or opts.getString("pc_type", "")
+        if self.mixed:
+            if ptype == "fieldsplit" and opts.getString("fieldsplit_u_pc_type", "") in self.REUSED_PCS:
+                self.reuse = {"base": None, "pending": True, "setups": 0, "split": True}
+            return
+        if ptype not in self.REUSED_PCS:
+            return                          # cheap set-up
+        self.reuse = {"base": None, "pending": True, "setups": 0, "split": False}
         lag_preconditioner_persists(self.snes)
         lag_preconditioner(self.snes, -2)
 
@@ -285,10 +293,12 @@ class Solver:
         that a restarted run and the uninterrupted one build it at the same point)."""
         if self.reuse is not None:
             self.reuse["pending"] = True
-            lag_preconditioner(self.snes, -2)
+            if not self.reuse["split"]:
+                lag_preconditioner(self.snes, -2)
         if self.mixed and self.snes.getKSP().getPC().getType() == "fieldsplit":
             # the field split's GAMG keeps state from one set-up to the next (a ILU split does not): a new KSP
-            # where a restart begins, so that both runs continue bitwise alike
+            # where a restart begins, so that both runs continue bitwise alike (and its splits, new, are set up
+            # at the next solve whether or not the old ones were kept)
             old = self.snes.getKSP()
             ksp = PETSc.KSP().create(comm=old.getComm())
             ksp.setOptionsPrefix(old.getOptionsPrefix())
@@ -304,10 +314,17 @@ class Solver:
         r = self.reuse
         if r is None:
             return
+        split = ksp.getPC().getFieldSplitSubKSP()[0].getPC() if r["split"] else None
         if r["pending"]:
             r.update(base=max(its, 1), pending=False, setups=r["setups"] + 1)
+            if split:                       # keep the displacement split's set-up from now on
+                split.setReusePreconditioner(True)
         elif ksp.getConvergedReason() < 0 or its > self.REBUILD_RATIO * r["base"]:
-            self.rebuild_preconditioner()
+            if split:                       # set it up at the next solve (not a new KSP: this one is still solving)
+                r["pending"] = True
+                split.setReusePreconditioner(False)
+            else:
+                self.rebuild_preconditioner()
 
     # CG + Jacobi iterations per Newton step above which CG + GAMG, its set-up kept across steps, was
     # faster end to end (bend, 60k-521k tets, four regimes: BENCHMARKS.md, bench_solvers.py --only crossover)
