@@ -317,10 +317,10 @@ class Solver:
         split = ksp.getPC().getFieldSplitSubKSP()[0].getPC() if r["split"] else None
         if r["pending"]:
             r.update(base=max(its, 1), pending=False, setups=r["setups"] + 1)
-            if split:                       # keep the displacement split's set-up from now on
+            if split is not None:           # keep the displacement split's set-up from now on
                 split.setReusePreconditioner(True)
         elif ksp.getConvergedReason() < 0 or its > self.REBUILD_RATIO * r["base"]:
-            if split:                       # set it up at the next solve (not a new KSP: this one is still solving)
+            if split is not None:           # set it up at the next solve (not a new KSP: this one is still solving)
                 r["pending"] = True
                 split.setReusePreconditioner(False)
             else:

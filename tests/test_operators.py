@@ -315,15 +315,45 @@ def test_preconditioner_rebuild_rule(monkeypatch):
             return self.reason
 
     s = S.Solver.__new__(S.Solver)
-    s.snes, s.reuse = None, {"base": None, "pending": True, "setups": 0}
+    s.snes, s.reuse = None, {"base": None, "pending": True, "setups": 0, "split": False}
     s.linear_solves = s.linear_its = 0
-    for its, reason, rebuild in ((20, 2, False), (25, 2, False), (30, 2, False), (31, 2, True), (40, 2, False),
-                                 (41, 2, False), (5, -3, True)):
+    solves = ((20, 2, False), (25, 2, False), (30, 2, False), (31, 2, True), (40, 2, False), (41, 2, False),
+              (5, -3, True))
+    for its, reason, rebuild in solves:
         asked.clear()
         s._after_linear_solve(Ksp(its, reason), None, None)
         assert (asked == [-2]) == rebuild, (its, reason, asked)
     assert s.reuse["setups"] == 2 and s.reuse["base"] == 40
     assert s.linear_solves == 7 and s.linear_its == 20 + 25 + 30 + 31 + 40 + 41 + 5
+
+    # the mixed formulation's field split: the same rule on its displacement split's PC (PCSetReusePreconditioner:
+    # kept after the first solve that follows a set-up, cleared for the next solve), never SNES's lag
+    reused = []
+
+    class SplitPc:
+        def setReusePreconditioner(self, flag):
+            reused.append(flag)
+
+    class Split:
+        def getPC(self):
+            return SplitPc()
+
+    class Pc:
+        def getFieldSplitSubKSP(self):
+            return [Split(), Split()]
+
+    class SplitKsp(Ksp):
+        def getPC(self):
+            return Pc()
+
+    s.reuse = {"base": None, "pending": True, "setups": 0, "split": True}
+    want = {20: [True], 31: [False], 40: [True], 5: [False]}
+    for its, reason, _ in solves:
+        asked.clear()
+        reused.clear()
+        s._after_linear_solve(SplitKsp(its, reason), None, None)
+        assert asked == [] and reused == want.get(its, []), (its, reused)
+    assert s.reuse["setups"] == 2 and s.reuse["pending"]
 
 
 def test_advice_on_the_preconditioner(tmp_path):
