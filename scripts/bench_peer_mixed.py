@@ -6,8 +6,8 @@ steps to a relative residual of 1e-10, GMRES (rtol 1e-10) + the Schur field spli
 the rigid-body modes on the displacement block, Jacobi on -(1/mu + 1/kappa) M_p): ours' defaults, set alike in
 DOLFINx, also the kernel of GAMG's Galerkin products (-matptap_via; --peer-kernel petsc leaves the peer PETSc's
 default); GAMG set up at every Newton step in both (ours `-reuse_preconditioner never`: keeping it is an algorithmic
-advantage, not compared here); the 4-point rule of degree 2 in both. Phases per Newton step from PETSc's log events in both codes
-(SNESSolve, SNESJacobianEval, SNESFunctionEval, PCSetUp, KSPSolve less the PCSetUp inside it).
+advantage, not compared here); the 4-point rule of degree 2 in both. Phases per Newton step from PETSc's log
+events in both codes (SNESSolve, SNESJacobianEval, SNESFunctionEval, PCSetUp, KSPSolve less the PCSetUp inside it).
 
 The runs alternate (DOLFINx, ours, ...); each phase is the minimum of --repeat runs, and the step ratio is also
 given per pair of runs (median and range). Agreement: the largest displacement difference over the largest
