@@ -240,7 +240,7 @@ class Solver:
         than REBUILD_RATIO x the iterations of the first solve after the last set-up, or fails; then
         rebuild at the next Jacobian (lag -2). The mixed formulation's field split is set up again at every
         Jacobian (cheap: its blocks are the MatNest's), and its displacement split's GAMG is kept the same way
-        (PCSetReusePreconditioner on that split: `split` in self.reuse). `never`: PETSc's default, a set-up per
+        (PCSetReusePreconditioner on that split, not SNES's lag). `never`: PETSc's default, a set-up per
         Jacobian."""
         opts = PETSc.Options()
         if mode == "never" or self.op is None or opts.hasName("snes_lag_preconditioner"):
@@ -249,11 +249,11 @@ class Solver:
         ptype = pc.getType() or opts.getString("pc_type", "")
         if self.mixed:
             if ptype == "fieldsplit" and opts.getString("fieldsplit_u_pc_type", "") in self.REUSED_PCS:
-                self.reuse = {"base": None, "pending": True, "setups": 0, "split": True}
+                self.reuse = {"base": None, "pending": True, "setups": 0}
             return
         if ptype not in self.REUSED_PCS:
             return                          # cheap set-up
-        self.reuse = {"base": None, "pending": True, "setups": 0, "split": False}
+        self.reuse = {"base": None, "pending": True, "setups": 0}
         lag_preconditioner_persists(self.snes)
         lag_preconditioner(self.snes, -2)
 
@@ -293,7 +293,7 @@ class Solver:
         that a restarted run and the uninterrupted one build it at the same point)."""
         if self.reuse is not None:
             self.reuse["pending"] = True
-            if not self.reuse["split"]:
+            if not self.mixed:
                 lag_preconditioner(self.snes, -2)
         if self.mixed and self.snes.getKSP().getPC().getType() == "fieldsplit":
             # the field split's GAMG keeps state from one set-up to the next (a ILU split does not): a new KSP
@@ -314,7 +314,7 @@ class Solver:
         r = self.reuse
         if r is None:
             return
-        split = ksp.getPC().getFieldSplitSubKSP()[0].getPC() if r["split"] else None
+        split = ksp.getPC().getFieldSplitSubKSP()[0].getPC() if self.mixed else None   # (kept only under the split)
         if r["pending"]:
             r.update(base=max(its, 1), pending=False, setups=r["setups"] + 1)
             if split is not None:           # keep the displacement split's set-up from now on

@@ -127,6 +127,14 @@ def cylinder(tmp_path_factory):
     return str(d / "cyl.msh")
 
 
+@pytest.fixture(scope="module")
+def cook8(tmp_path_factory):
+    """Cook's membrane (examples/cook.geo), quadratic, size 8 mm."""
+    d = tmp_path_factory.mktemp("cook8")
+    run_ok(["mesh", f"{ROOT}/examples/cook.geo", "--size", 8, "--order", 2, "-o", d / "c.msh"])
+    return str(d / "c.msh")
+
+
 LAME = ["-quasistatic", "-dt", 1, "-final_time", 1, "-material", "linear", "-E", E,
         "-effects", "elasticity,fixed,pressure", "-fix", "xsym:x,ysym:y,bottom:z,top:z",
         "-pressure", P, "-pressure_faces", "inner", "-quiet"]
@@ -387,14 +395,13 @@ def test_mfd_operator_matches_assembled(cylinder, tmp_path):
     assert np.abs(a - m).max() < 1e-6 * np.abs(a).max()
 
 
-def test_auto_formulation_rule(tmp_path):
+def test_auto_formulation_rule(cook8, tmp_path):
     """-formulation auto (the default): mixed for a nearly incompressible split material on quadratic tetrahedra (a
     note says so, the output records it), displacements alone for a compressible one, and for the paths the mixed
     formulation does not take, with a note saying why (linear tetrahedra lock; a material without a split); the
     rubber preset is nearly incompressible."""
     import h5py
-    msh = tmp_path / "c.msh"
-    run_ok(["mesh", f"{ROOT}/examples/cook.geo", "--size", 8, "--order", 2, "-o", msh])
+    msh = cook8
     keep = [ln for ln in open(f"{ROOT}/examples/cook.opts").read().splitlines()
             if ln.split()[:1] not in (["-E"], ["-nu"], ["-mu"], ["-kappa"], ["-material"])]
     split = ["-material", "neohookean_split", "-mu", 80.194]
@@ -416,12 +423,11 @@ def test_auto_formulation_rule(tmp_path):
         assert (note is None and not notes) or (note is not None and len(notes) == 1 and note in notes[0]), notes
 
 
-def test_direct_recipe_agrees_with_the_field_split(tmp_path):
+def test_direct_recipe_agrees_with_the_field_split(cook8, tmp_path):
     """options/mixed_direct.opts (LU of the whole saddle point: the tangent as one AIJ) and the default field split
     (the tangent by blocks, MixedNest) reach the same solution."""
     import h5py
-    msh = tmp_path / "c.msh"
-    run_ok(["mesh", f"{ROOT}/examples/cook.geo", "--size", 8, "--order", 2, "-o", msh])
+    msh = cook8
     base = ["run", f"{ROOT}/examples/cook.opts", "-mesh", msh, "-order", 2, "-final_time", 0.5, "-snes_rtol", 1e-10,
             "-quiet"]
     run_ok(base + ["-output", tmp_path / "a.h5"])
@@ -438,13 +444,12 @@ def gamg_setups(log):
     return int(next(ln.split()[1] for ln in log.read_text().splitlines() if ln.startswith("PCSetUp_GAMG+")))
 
 
-def test_displacement_split_gamg_is_kept_across_newton_steps(tmp_path):
+def test_displacement_split_gamg_is_kept_across_newton_steps(cook8, tmp_path):
     """-reuse_preconditioner auto (the default): the displacement split's GAMG set-up is kept across Newton steps and
     load steps while the Krylov iterations stay within 1.5x of the first solve's (Cook's membrane: once for its 16
     Newton steps, PETSc's default `never` once per Newton step), to the same solution."""
     import h5py
-    msh = tmp_path / "c.msh"
-    run_ok(["mesh", f"{ROOT}/examples/cook.geo", "--size", 8, "--order", 2, "-o", msh])
+    msh = cook8
     base = ["run", f"{ROOT}/examples/cook.opts", "-mesh", msh, "-order", 2, "-snes_rtol", 1e-10, "-quiet"]
     a, b = tmp_path / "a.h5", tmp_path / "b.h5"
     run_ok(base + ["-output", a, "-log_view", f":{tmp_path / 'a.log'}"])
@@ -458,14 +463,13 @@ def test_displacement_split_gamg_is_kept_across_newton_steps(tmp_path):
     assert gamg_setups(tmp_path / "a.log") == 1 and gamg_setups(tmp_path / "b.log") == n
 
 
-def test_galerkin_kernel_by_rank_count(tmp_path):
+def test_galerkin_kernel_by_rank_count(cook8, tmp_path):
     """The field split's GAMG forms its Galerkin products with the faster kernel for the rank count (`rap` on one,
     `nonscalable` on two: solver.GALERKIN_KERNELS), to the same solution as PETSc's default; a user's -matptap_via
     wins and is recorded; the chosen one is not recorded, so a one-rank run restarts on two ranks; a kernel PETSc
     does not have is one line."""
     import h5py
-    msh = tmp_path / "c.msh"
-    run_ok(["mesh", f"{ROOT}/examples/cook.geo", "--size", 8, "--order", 2, "-o", msh])
+    msh = cook8
     base = ["run", f"{ROOT}/examples/cook.opts", "-mesh", msh, "-order", 2, "-final_time", 0.5, "-snes_rtol", 1e-10,
             "-quiet"]
     a, b = tmp_path / "a.h5", tmp_path / "b.h5"

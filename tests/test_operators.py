@@ -315,7 +315,7 @@ def test_preconditioner_rebuild_rule(monkeypatch):
             return self.reason
 
     s = S.Solver.__new__(S.Solver)
-    s.snes, s.reuse = None, {"base": None, "pending": True, "setups": 0, "split": False}
+    s.snes, s.reuse = None, {"base": None, "pending": True, "setups": 0}
     s.linear_solves = s.linear_its = 0
     solves = ((20, 2, False), (25, 2, False), (30, 2, False), (31, 2, True), (40, 2, False), (41, 2, False),
               (5, -3, True))
@@ -346,7 +346,7 @@ def test_preconditioner_rebuild_rule(monkeypatch):
         def getPC(self):
             return Pc()
 
-    s.reuse = {"base": None, "pending": True, "setups": 0, "split": True}
+    s.mixed, s.reuse = True, {"base": None, "pending": True, "setups": 0}
     want = {20: [True], 31: [False], 40: [True], 5: [False]}
     for its, reason, _ in solves:
         asked.clear()
