@@ -17,16 +17,15 @@ $(STAMP): requirements.txt setup.py scripts/bootstrap.sh
 	bash scripts/bootstrap.sh
 
 # rebuild the compiled kernels when their source changes (no PETSc rebuild): the loops, and each
-# material's header (setup.py instantiates the loops once per hyperelastic/materials/NAME.h)
-KERNEL_SOURCES := hyperelastic/_kernels.c hyperelastic/_material_loops.h hyperelastic/_element_loops.h \
-                  $(wildcard hyperelastic/materials/*.h)
+# material's header (setup.py instantiates the loops once per hyperelastic/physics/materials/NAME.h)
+KERNEL_SOURCES := hyperelastic/discretization/_kernels.c $(wildcard hyperelastic/discretization/*.h) \
+                  $(wildcard hyperelastic/physics/materials/*.h)
 $(KERNELS_STAMP): $(STAMP) setup.py $(KERNEL_SOURCES)
 	$(PY) setup.py -q build_ext --inplace -f >/dev/null
 	touch $@
 
 demo: setup
 	mkdir -p output
-	$(VENV)/bin/hyperelastic mesh bar --level $(DEMO_LEVEL) -o meshes/cache/bar_L$(DEMO_LEVEL).msh
 	$(VENV)/bin/hyperelastic run $(DEMO_SCENE) -level $(DEMO_LEVEL) -output output/demo.h5
 	$(VENV)/bin/hyperelastic plot output/demo.h5 -o output/demo.png
 
@@ -34,4 +33,4 @@ test: setup
 	PATH="$(abspath $(VENV))/bin:$$PATH" $(PY) -m pytest -q -n 2 --dist loadfile tests
 
 clean:
-	rm -rf output build hyperelastic/_kernels*.so
+	rm -rf output build hyperelastic/discretization/_kernels*.so

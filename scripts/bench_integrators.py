@@ -18,7 +18,7 @@ import sys
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-from hyperelastic.experiments.runner import run_hyperelastic  # noqa: E402
+from hyperelastic.studies.experiments.runner import run_hyperelastic  # noqa: E402
 
 BASE = ["bend2", "-level", "1", "-final_time", "0.3", "-frames_per_second", "10", "-quiet"]
 TIGHT = ["-snes_rtol", "1e-12", "-snes_atol", "1e-9", "-ksp_rtol", "1e-12"]

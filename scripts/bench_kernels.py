@@ -48,9 +48,9 @@ def numpy_residual(prob, x):
 def bench(mesh_arg, material, reps):
     import numpy as np
     from petsc4py import PETSc
-    from hyperelastic import jacobians
-    from hyperelastic.model import build_model
-    from hyperelastic.catalog import load_scene
+    from hyperelastic.solving import jacobians
+    from hyperelastic.app.model import build_model
+    from hyperelastic.app.catalog import load_scene
     o = PETSc.Options()
     for k in list(o.getAll()):
         o.delValue(k)
@@ -108,7 +108,7 @@ def main():
     a = ap.parse_args()
     import petsc4py
     petsc4py.init([sys.argv[0]])
-    from hyperelastic.mesh import cached_bar, size_for_tets
+    from hyperelastic.mesh.generate import cached_bar, size_for_tets
     meshes = [("L8", cached_bar(8))]
     for n in (a.tets or []) + ([700000] if a.full else []):
         meshes.append((f"~{n // 1000}k", cached_bar(size=round(size_for_tets(n), 4))))

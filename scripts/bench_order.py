@@ -24,10 +24,11 @@ import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
-from hyperelastic.experiments.runner import last_line, run_hyperelastic  # noqa: E402
-from hyperelastic.experiments.table import write_csv  # noqa: E402
-from hyperelastic.mesh import generate, interpolate, level_size, locate  # noqa: E402
-from hyperelastic.study.measure import read_cost  # noqa: E402
+from hyperelastic.studies.experiments.runner import last_line, run_hyperelastic  # noqa: E402
+from hyperelastic.studies.experiments.table import write_csv  # noqa: E402
+from hyperelastic.mesh.read import interpolate, locate  # noqa: E402
+from hyperelastic.mesh.generate import generate, level_size  # noqa: E402
+from hyperelastic.studies.measure import read_cost  # noqa: E402
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 GAMG = ["-options_file", os.path.join(ROOT, "options", "gamg.opts")]

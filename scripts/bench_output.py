@@ -15,7 +15,7 @@ import sys
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
-from hyperelastic.experiments.runner import last_line, run_hyperelastic  # noqa: E402
+from hyperelastic.studies.experiments.runner import last_line, run_hyperelastic  # noqa: E402
 
 
 def stages(log):

@@ -35,11 +35,12 @@ import numpy as np
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, ROOT)
-from hyperelastic.materials import lame  # noqa: E402
-from hyperelastic.mesh import cached_bar, read  # noqa: E402
-from hyperelastic.experiments.runner import last_line, run_hyperelastic  # noqa: E402
-from hyperelastic.study.measure import read_cost  # noqa: E402
-from hyperelastic.study.plan import PCS  # noqa: E402
+from hyperelastic.physics.materials import lame  # noqa: E402
+from hyperelastic.mesh.read import read  # noqa: E402
+from hyperelastic.mesh.generate import cached_bar  # noqa: E402
+from hyperelastic.studies.experiments.runner import last_line, run_hyperelastic  # noqa: E402
+from hyperelastic.studies.measure import read_cost  # noqa: E402
+from hyperelastic.studies.plan import PCS  # noqa: E402
 
 E, NU, T = 1e6, 0.3, 5000.0
 T_SKFEM = 1000.0          # the scikit-fem comparison's load (earlier figures)
@@ -261,7 +262,7 @@ def main():
         for L in levels:
             skfem_row(L, a.out)
         return
-    from hyperelastic.mesh import size_for_tets
+    from hyperelastic.mesh.generate import size_for_tets
     meshes = [(f"L{L}", cached_bar(L)) for L in levels]
     for n in (a.tets or []) + ([250000] if a.full else []):
         meshes.append((f"~{n // 1000}k", cached_bar(size=round(size_for_tets(n), 4))))

@@ -29,9 +29,9 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, ROOT)
 sys.path.insert(0, os.path.join(ROOT, "scripts"))
 from bench_peer import DOLFINX_VENV, dolfinx_python, matched, parse_log_view  # noqa: E402
-from hyperelastic.experiments.runner import last_line, run_hyperelastic  # noqa: E402
-from hyperelastic.mesh import read  # noqa: E402
-from hyperelastic.solver import GALERKIN_KERNELS  # noqa: E402
+from hyperelastic.studies.experiments.runner import last_line, run_hyperelastic  # noqa: E402
+from hyperelastic.mesh.read import read  # noqa: E402
+from hyperelastic.formulations.mixed.solver import GALERKIN_KERNELS  # noqa: E402
 
 RTOL = 1e-10
 AGREE = 1e-8

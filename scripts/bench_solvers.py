@@ -24,11 +24,12 @@ import platform
 import sys
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-from hyperelastic.mesh import cached_bar, read, size_for_tets  # noqa: E402
-from hyperelastic.experiments.recipes import MODES as JACOBIAN_MODES  # noqa: E402
-from hyperelastic.experiments.runner import last_line, run_hyperelastic  # noqa: E402
-from hyperelastic.study.measure import read_cost, slope  # noqa: E402
-from hyperelastic.study.plan import PCS  # noqa: E402
+from hyperelastic.mesh.read import read  # noqa: E402
+from hyperelastic.mesh.generate import cached_bar, size_for_tets  # noqa: E402
+from hyperelastic.studies.experiments.recipes import MODES as JACOBIAN_MODES  # noqa: E402
+from hyperelastic.studies.experiments.runner import last_line, run_hyperelastic  # noqa: E402
+from hyperelastic.studies.measure import read_cost, slope  # noqa: E402
+from hyperelastic.studies.plan import PCS  # noqa: E402
 
 MODES = {m: JACOBIAN_MODES[m] for m in ("assembled", "shell", "snes_mf", "snes_mf_operator")}
 

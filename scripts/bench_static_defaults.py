@@ -22,7 +22,7 @@ import numpy as np
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, ROOT)
-from hyperelastic.study.measure import read_cost  # noqa: E402
+from hyperelastic.studies.measure import read_cost  # noqa: E402
 
 BIN = os.path.dirname(sys.executable)
 LBRACKET = """// an L-bracket in metres: arm x 0..0.2 (z 0..0.02), upright x 0..0.02 (z 0..0.2), 0.05 thick in y

@@ -45,6 +45,13 @@ CASES.update({
     "bend_projection_2ranks": (["-np2", "bend", "-material", "snh", "-hessian_projection", "-final_time", "0.1"],
                                1e-14),
     "bimaterial": (["MESH:bimaterial.geo:0.125", EXAMPLES + "/bimaterial.opts"], 1e-14),
+    "bend_p2": (["bend", "-order", "2", "-final_time", "0.1"], 1e-14),
+    "bend2_p2_quasistatic_gamg": (["bend2", "-order", "2", "-quasistatic", "-dt", "0.25", "-material", "neohookean"]
+                                  + GAMG, 1e-12),
+    "cook_mixed": (["MESH:cook.geo:8", EXAMPLES + "/cook.opts", "-order", "2", "-formulation", "mixed", "-final_time",
+                    "0.5"], 1e-12),
+    "bend2_mixed_2ranks": (["-np2", "bend2", "-order", "2", "-formulation", "mixed", "-material", "neohookean_split",
+                            "-nu", "0.49", "-quasistatic", "-dt", "0.5"], 1e-12),
 })
 
 
@@ -59,7 +66,7 @@ def worktree(rev, where):
 def run(code, args, out, mesh_dir):
     """Run `hyperelastic run ARGS` with the package at `code`; (returncode, stderr's last line)."""
     env = dict(os.environ, PYTHONPATH=code)
-    cmd, extra = [sys.executable, "-m", "hyperelastic.cli", "run"], []
+    cmd, extra = [sys.executable, "-m", "hyperelastic", "run"], []
     if args[0] == "-np2":
         mpiexec = shutil.which("mpiexec", path=os.path.dirname(sys.executable)) or "mpiexec"
         cmd, args = [mpiexec, "-n", "2"] + cmd, args[1:]
@@ -67,7 +74,7 @@ def run(code, args, out, mesh_dir):
         _, geo, size = args[0].split(":")
         mesh = os.path.join(mesh_dir, geo.replace(".geo", ".msh"))
         if not os.path.exists(mesh):
-            subprocess.run([sys.executable, "-m", "hyperelastic.cli", "mesh", os.path.join(EXAMPLES, geo),
+            subprocess.run([sys.executable, "-m", "hyperelastic", "mesh", os.path.join(EXAMPLES, geo),
                             "--size", size, "-o", mesh], check=True, capture_output=True, env=env)
         args, extra = args[1:], ["-mesh", mesh]
     p = subprocess.run(cmd + list(args) + extra + ["-quiet", "-output", out], capture_output=True, text=True,

@@ -22,7 +22,7 @@ import h5py
 import numpy as np
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
-from hyperelastic.files import completed_frames  # noqa: E402
+from hyperelastic.core.files import completed_frames  # noqa: E402
 
 BIN = os.path.dirname(sys.executable)
 RUN = ["bend", "-level", "1", "-final_time", "0.6", "-checkpoint_every", "7", "-quiet"]

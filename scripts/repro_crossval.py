@@ -4,8 +4,8 @@ level L, with the thesis' seed formulas and with PETSc's MFFD (wp, ds); absolute
 
     python scripts/repro_crossval.py OUT [--param E|nu|L|all] [--full]
 """
-from hyperelastic.repro.common import parser
-from hyperelastic.repro.crossval import main_crossval
+from hyperelastic.studies.repro.common import parser
+from hyperelastic.studies.repro.crossval import main_crossval
 
 if __name__ == "__main__":
     main_crossval(parser(__doc__.splitlines()[1],

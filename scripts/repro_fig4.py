@@ -5,8 +5,8 @@ then MFFD-Newton against the exact tangent for E from 1e2 to 1e15 (steel include
 
     python scripts/repro_fig4.py OUT [--full]
 """
-from hyperelastic.repro.common import parser
-from hyperelastic.repro.simulation import main
+from hyperelastic.studies.repro.common import parser
+from hyperelastic.studies.repro.simulation import main
 
 if __name__ == "__main__":
     main(parser(__doc__.splitlines()[1],

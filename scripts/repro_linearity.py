@@ -4,8 +4,8 @@ eqs. 7.5-7.6, for St.VK and the linear material; the fit's residual says how lin
 
     python scripts/repro_linearity.py OUT [--full]
 """
-from hyperelastic.repro.common import parser
-from hyperelastic.repro.linearity import main
+from hyperelastic.studies.repro.common import parser
+from hyperelastic.studies.repro.linearity import main
 
 if __name__ == "__main__":
     main(parser(__doc__.splitlines()[1],

@@ -4,8 +4,8 @@ mesh L3, for the eight curves of Table 5 plus PETSc's MFFD.
 
     python scripts/repro_slices.py OUT [--full]
 """
-from hyperelastic.repro.common import parser
-from hyperelastic.repro.crossval import main_slices
+from hyperelastic.studies.repro.common import parser
+from hyperelastic.studies.repro.crossval import main_slices
 
 if __name__ == "__main__":
     main_slices(parser(__doc__.splitlines()[1],

@@ -4,8 +4,8 @@ operator and PETSc's MFFD, unit / N(0,1) / "real" vectors, h in {1e-2, 1e-3, 1e-
 
     python scripts/repro_symmetry.py OUT [--full]
 """
-from hyperelastic.repro.common import parser
-from hyperelastic.repro.symmetry import main
+from hyperelastic.studies.repro.common import parser
+from hyperelastic.studies.repro.symmetry import main
 
 if __name__ == "__main__":
     main(parser(__doc__.splitlines()[1],

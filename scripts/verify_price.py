@@ -25,10 +25,10 @@ from dataclasses import astuple
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, ROOT)
 
-from hyperelastic.experiments.runner import last_line, run_hyperelastic  # noqa: E402
-from hyperelastic.study.price import INTEGRATORS, SOLVERS, TOLERANCES, Search, Setting  # noqa: E402
-from hyperelastic.study.price_report import price_report  # noqa: E402
-from hyperelastic.study.watch import watched  # noqa: E402
+from hyperelastic.studies.experiments.runner import last_line, run_hyperelastic  # noqa: E402
+from hyperelastic.studies.price import INTEGRATORS, SOLVERS, TOLERANCES, Search, Setting  # noqa: E402
+from hyperelastic.studies.price_report import price_report  # noqa: E402
+from hyperelastic.output.watch import watched  # noqa: E402
 
 # case: (part, scene, --size, watch, extra run options, grid levels per order, grid dt halvings)
 CASES = {
@@ -91,7 +91,7 @@ def pruned(st, rows, cap, skipped):
 def graded_mesh(part, out, boxes, hmax, hmin, dist):
     """A P2 .msh of the part graded toward the curves inside `boxes`; returns its tet count."""
     import gmsh
-    from hyperelastic.mesh import read_mesh
+    from hyperelastic.mesh.read import read_mesh
     gmsh.initialize(["gmsh", "-v", "0"], readConfigFiles=False)
     try:
         gmsh.option.setNumber("General.NumThreads", 1)

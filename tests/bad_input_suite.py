@@ -93,7 +93,7 @@ lim = int(sys.argv[1])
 sys.argv[0] = "hyperelastic"
 signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
 resource.setrlimit(resource.RLIMIT_FSIZE, (lim, lim))
-from hyperelastic.cli import main
+from hyperelastic.cli.main import main
 sys.exit(main(sys.argv[2:]))
 """
 
@@ -215,7 +215,7 @@ def option_value_cases(rng):
 
 
 def unknown_option_cases(rng):
-    from hyperelastic.catalog import COMMON_PETSC, option_names
+    from hyperelastic.app.catalog import COMMON_PETSC, option_names
     out = []
     for name in option_names():
         if len(name) < 4:

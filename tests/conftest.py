@@ -37,7 +37,7 @@ def run_ok(args, nprocs=1, **kw):
 
 def read_h5(path):
     import h5py
-    from hyperelastic.files import completed_frames
+    from hyperelastic.core.files import completed_frames
     with h5py.File(path, "r") as f:
         n = completed_frames(f)          # (a killed run's file may hold one row of x more)
         out = {"x": f["x"][:n], "time": f["time"][:n], "points": f["mesh/points"][:], "tetra": f["mesh/tetra"][:],
@@ -48,7 +48,7 @@ def read_h5(path):
 @pytest.fixture(scope="session")
 def l1_mesh():
     """Path of the cached L1 bar mesh (generated once)."""
-    from hyperelastic.mesh import cached_bar
+    from hyperelastic.mesh.generate import cached_bar
     return cached_bar(1)
 
 
@@ -62,8 +62,8 @@ def petsc():
 
 def make_model(petsc, scene_name="bend", options=()):
     """In-process set-up of a scene on COMM_WORLD, as `hyperelastic run` builds it: a model.Model."""
-    from hyperelastic.model import build_model
-    from hyperelastic.catalog import load_scene
+    from hyperelastic.app.model import build_model
+    from hyperelastic.app.catalog import load_scene
     o = petsc.Options()
     for k in list(o.getAll()):
         o.delValue(k)

@@ -14,7 +14,7 @@ from petsc4py import PETSc  # noqa: E402
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from conftest import make_model  # noqa: E402
 
-from hyperelastic import jacobians  # noqa: E402
+from hyperelastic.solving import jacobians  # noqa: E402
 
 
 def main(scene):

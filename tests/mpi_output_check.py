@@ -9,7 +9,8 @@ import petsc4py
 ARGS = ["-level", "1", "-dt", "0.01", "-final_time", "0.03", "-checkpoint_every", "1", "-quiet"]
 petsc4py.init([sys.argv[0]] + ARGS)    # as cli.main would: output imports petsc4py, which reads its options once
 
-from hyperelastic import cli, output  # noqa: E402
+from hyperelastic.cli import main as cli
+from hyperelastic.output import writer as output  # noqa: E402
 
 SLOW = 0.3
 

@@ -1,4 +1,4 @@
-"""The option catalog (hyperelastic/catalog.py) is the one list of the application's options: the
+"""The option catalog (hyperelastic/app/catalog.py) is the one list of the application's options: the
 README's table is generated from it, `run --help` prints it, and every option the source reads is in it."""
 import os
 import re
@@ -6,23 +6,25 @@ import re
 import pytest
 
 from conftest import ROOT, hyperelastic, run_ok
-from hyperelastic import catalog, materials
-from hyperelastic.scene import ASSEMBLIES, EFFECTS, FORMULATIONS, INTEGRATORS, JACOBIANS, STORAGES
+from hyperelastic.app import catalog
+from hyperelastic.physics import materials
+from hyperelastic.app.scene import ASSEMBLIES, EFFECTS, INTEGRATORS, JACOBIANS, STORAGES
+from hyperelastic.formulations import NAMES as FORMULATIONS
 
 
 def test_readme_table_is_the_catalog():
     text = open(os.path.join(ROOT, "README.md"), encoding="utf-8").read()
     m = re.search(r"<!-- options: generated[^\n]*-->\n(.*?)\n<!-- options: end -->", text, re.S)
     assert m, "README has no generated option table"
-    assert m.group(1) == catalog.markdown_table(), "README table drifted: python -m hyperelastic.catalog --markdown"
+    assert m.group(1) == catalog.markdown_table(), "README table drifted: python -m hyperelastic.app.catalog --markdown"
 
 
 def source_option_names():
     """Every option name the application reads through Options (literal names, and the f-string
     templates of prefixed ones with their placeholder)."""
     names = set()
-    mods = ["scene.py", "cli.py", "run.py", "materials/__init__.py"] + [
-        "effects/" + f for f in os.listdir(os.path.join(ROOT, "hyperelastic", "effects")) if f.endswith(".py")]
+    pkg = os.path.join(ROOT, "hyperelastic")
+    mods = [os.path.relpath(os.path.join(r, f), pkg) for r, _, fs in os.walk(pkg) for f in fs if f.endswith(".py")]
     for mod in mods:
         src = open(os.path.join(ROOT, "hyperelastic", mod), encoding="utf-8").read()
         for m in re.finditer(r'opts\.(?:string|real|integer|flag|choice|vector|names|has)\((f?)"([^"]+)"', src):
@@ -58,7 +60,7 @@ def test_help_lists_every_option_and_runs_nothing(tmp_path):
         if not name.startswith(("REGION", "LOAD")):
             assert f"-{name}" in p.stdout, name
     assert "<1e+06, 0.3, 1000>" in p.stdout and "<stvk>" in p.stdout
-    from hyperelastic.scene import EFFECTS_RULE
+    from hyperelastic.app.scene import EFFECTS_RULE
     assert "replaces the scene file's effects" in EFFECTS_RULE and EFFECTS_RULE.replace("`", "")[:40] in " ".join(p.stdout.split())
     out = tmp_path / "o.h5"
     p = run_ok(["run", "bend", "-help", "-dt", "0.02", "-output", out])

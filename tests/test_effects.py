@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from conftest import ROOT, hyperelastic, make_model, read_h5, run_ok
-from hyperelastic.plot import boundary_faces
+from hyperelastic.output.plot import boundary_faces
 
 # a bar [-5,5] x [-2,2] x [-2,2], linear, quasi-static: every answer is a linear solve
 QUASI = ["-material", "linear", "-quasistatic", "-dt", 0.5, "-final_time", 1, "-snes_rtol", 1e-12, "-snes_atol",

@@ -9,7 +9,7 @@ VARS = ("t", "X", "Y", "Z", "A")
 
 
 def test_expression_values_vectorized():
-    from hyperelastic.expressions import Expression, TimeFunction
+    from hyperelastic.core.expressions import Expression, TimeFunction
     X = np.linspace(0, 1, 5)
     e = Expression("cos(A*min(t, 1))*X - sin(A*min(t, 1))*Y", VARS)
     assert np.array_equal(e(t=0.3, X=X, Y=2 * X, Z=X, A=2.0), np.cos(0.6) * X - np.sin(0.6) * (2 * X))
@@ -29,8 +29,8 @@ def test_expression_values_vectorized():
     ("(" * 300 + "t" + ")" * 300, []), ("-" * 5000 + "t", ["longer than"]), ("t; 1", ["not an expression"]),
 ])
 def test_expression_refuses_anything_else(text, words):
-    from hyperelastic.errors import UserError
-    from hyperelastic.expressions import Expression
+    from hyperelastic.core.errors import UserError
+    from hyperelastic.core.expressions import Expression
     with pytest.raises(UserError) as e:
         Expression(text, VARS, "option -prescribe_ux")(t=0.5, X=np.ones(2), Y=np.ones(2), Z=np.ones(2), A=1.0)
     msg = str(e.value)
@@ -39,8 +39,8 @@ def test_expression_refuses_anything_else(text, words):
 
 
 def test_non_finite_value_names_the_time():
-    from hyperelastic.errors import UserError
-    from hyperelastic.expressions import Expression
+    from hyperelastic.core.errors import UserError
+    from hyperelastic.core.expressions import Expression
     with pytest.raises(UserError, match="not finite at t=0.5"):
         Expression("1/(0.5 - t) * X", VARS, "f")(t=0.5, X=np.ones(3), Y=0, Z=0, A=1)
 

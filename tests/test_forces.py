@@ -76,8 +76,8 @@ def test_watch_quantities_by_name(tmp_path, bracket_mesh):
     """Quantities a user asks for by name (issues 34, 35), read from a run's output: a displacement component at
     a material point, a held surface's reaction, the maximum over a surface (physical, through the mesh the run
     recorded, or geometric), von Mises at a point and its maximum, energies, at a time or over the run."""
-    from hyperelastic.errors import UserError
-    from hyperelastic.study.watch import parse_watch, watched
+    from hyperelastic.core.errors import UserError
+    from hyperelastic.output.watch import parse_watch, watched
     out = tmp_path / "b.h5"
     run_ok(["run", f"{ROOT}/examples/bracket.opts", "-mesh", bracket_mesh, "-quiet", "-output", out])
     _, F = forces(out)
@@ -109,7 +109,7 @@ def test_watch_quantities_by_name(tmp_path, bracket_mesh):
     assert watched(out, parse_watch("elastic_energy")) == elastic[-1]
     assert watched(out, parse_watch("elastic_energy@max")) == elastic.max()
     # reactions at a time come from the statistics: every accepted step records the forces (equilibrium each)
-    from hyperelastic import stats
+    from hyperelastic.solving import stats
     with h5py.File(out, "r") as f:
         st = stats.read(f)
     assert watched(out, parse_watch("reaction_z:clamp@1")) == F[("reaction", "clamp")][0][2]

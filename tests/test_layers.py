@@ -2,12 +2,13 @@
 statistics columns, the solver recipes read from options/*.opts, the CSV tables."""
 import ast
 import os
+import re
 
 import numpy as np
 import pytest
 
-from hyperelastic import stats
-from hyperelastic.experiments import recipes, table
+from hyperelastic.solving import stats
+from hyperelastic.studies.experiments import recipes, table
 
 
 def test_recipes_split_into_mode_and_pc():
@@ -18,7 +19,7 @@ def test_recipes_split_into_mode_and_pc():
                                                    "wp", "-ksp_type", "gmres"]
     assert recipes.without_pc("reference") == ["-jacobian", "assembled", "-ksp_type", "gmres", "-ksp_gmres_restart",
                                                "100"]
-    from hyperelastic.study.plan import MODES, PCS
+    from hyperelastic.studies.plan import MODES, PCS
     assert MODES["seed_fd"][-2:] == ["-step_control", "0"] and PCS["none"] == ["-pc_type", "none"]
 
 
@@ -44,65 +45,195 @@ def test_csv_round_trip(tmp_path):
     assert not (tmp_path / "t.csv.part").exists()
 
 
-# The layers of docs/design.md ("Map of the code"), lowest first: a module imports only modules of its own
-# layer or below. Sub-packages count as one module (their inside is their own business).
-LAYERS = [
-    ["errors", "libpetsc", "__init__", "element"],
-    ["expressions", "sets", "files", "faces"],
-    ["options", "mesh", "plot", "figures"],
-    ["materials"],
-    ["kernels", "effects"],
-    ["scene", "stats", "space", "system", "fields"],
-    ["catalog", "model", "mixed", "aij", "jacobians", "solver", "output", "integrators", "forces"],
-    ["ts_integrator", "run", "stability", "study", "repro", "experiments", "report"],
-    ["cli", "__main__"],
-]
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+PKG = os.path.join(ROOT, "hyperelastic")
+DATA = ("data",)                  # package data, not code: hyperelastic/data
+ROOT_MODULES = {"__init__": 0, "__main__": None}     # the package's own (lowest) and `python -m` (the cli's layer)
 
 
-def imports_of_package():
-    """{module: {modules of the package it imports}} from every import statement, inside functions too."""
-    pkg = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "hyperelastic")
-    graph = {}
-    for root, _, files in os.walk(pkg):
+def design_layers():
+    """The layer folders of docs/design.md's table ("| N | `folder/` | ... |"), lowest first."""
+    rows = []
+    for line in open(os.path.join(ROOT, "docs", "design.md"), encoding="utf-8"):
+        m = re.match(r"\|\s*(\d+)\s*\|\s*`([a-z_]+)/`\s*\|", line)
+        if m:
+            rows.append((int(m.group(1)), m.group(2)))
+    assert [n for n, _ in rows] == list(range(1, len(rows) + 1)), rows
+    return [f for _, f in rows]
+
+
+def layer_of(rel, layers):
+    """The layer index (1-based) of a package file given relative to hyperelastic/ (a module path list)."""
+    if len(rel) == 1:
+        return ROOT_MODULES[rel[0]] if ROOT_MODULES[rel[0]] is not None else len(layers)
+    return layers.index(rel[0]) + 1
+
+
+def python_modules():
+    """{module path (tuple, relative to hyperelastic/, packages as their __init__): file}."""
+    out = {}
+    for root, dirs, files in os.walk(PKG):
+        dirs[:] = [d for d in dirs if d != "__pycache__" and d not in DATA]
         for f in files:
-            if not f.endswith(".py"):
+            if f.endswith(".py"):
+                out[tuple(os.path.relpath(os.path.join(root, f), PKG)[:-3].split(os.sep))] = os.path.join(root, f)
+    return out
+
+
+def resolve(mods, path):
+    """The module file a dotted path (tuple) names: a module, or a package's __init__; None when neither."""
+    if path in mods:
+        return path
+    if path + ("__init__",) in mods:
+        return path + ("__init__",)
+    return None
+
+
+def python_imports():
+    """{module: {modules of the package it imports}}, from every import statement, inside functions too; an
+    import of names from a package counts as an import of those that are its modules, else of its __init__."""
+    mods = python_modules()
+    graph = {}
+    for mod, path in mods.items():
+        pkg = mod[:-1]
+        edges = graph.setdefault(mod, set())
+        for node in ast.walk(ast.parse(open(path, encoding="utf-8").read())):
+            if isinstance(node, ast.ImportFrom) and node.level:
+                base = pkg[:len(pkg) - (node.level - 1)]
+                target = base + tuple(node.module.split(".") if node.module else ())
+            elif isinstance(node, ast.ImportFrom) and (node.module or "").split(".")[0] == "hyperelastic":
+                target = tuple(node.module.split(".")[1:])
+            elif isinstance(node, ast.Import):
+                for a in node.names:
+                    if a.name.split(".")[0] == "hyperelastic" and resolve(mods, tuple(a.name.split(".")[1:])):
+                        edges.add(resolve(mods, tuple(a.name.split(".")[1:])))
                 continue
-            rel = os.path.relpath(os.path.join(root, f), pkg)[:-3].split(os.sep)
-            name = rel[0]
-            level_base = rel[:-1]                             # the package the file is in, relative to pkg
-            tree = ast.parse(open(os.path.join(root, f), encoding="utf-8").read())
-            for node in ast.walk(tree):
-                targets = []
-                if isinstance(node, ast.ImportFrom) and node.level:
-                    base = level_base[:len(level_base) - (node.level - 1)] if node.level > 1 else level_base
-                    mod = base + (node.module.split(".") if node.module else [])
-                    targets = [mod + [a.name] for a in node.names] if not node.module else [mod]
-                elif isinstance(node, ast.ImportFrom) and (node.module or "").startswith("hyperelastic"):
-                    targets = [node.module.split(".")[1:]]
-                for t in targets:
-                    if t and t[0] != name and os.path.exists(os.path.join(pkg, t[0])) or \
-                            t and t[0] != name and os.path.exists(os.path.join(pkg, t[0] + ".py")):
-                        graph.setdefault(name, set()).add(t[0])
-            graph.setdefault(name, set())
+            else:
+                continue
+            for a in node.names:
+                sub = resolve(mods, target + (a.name,))
+                hit = sub or resolve(mods, target)
+                if hit and hit != mod:
+                    edges.add(hit)
     return graph
 
 
-def test_no_import_circles_and_no_import_upward():
-    graph = imports_of_package()
-    layer = {m: i for i, ms in enumerate(LAYERS) for m in ms}
-    assert set(graph) <= set(layer), f"modules missing from LAYERS (docs/design.md): {set(graph) - set(layer)}"
-    up = [(a, b) for a, bs in graph.items() for b in bs if layer[b] > layer[a]]
-    assert not up, f"imports from a lower layer to a higher one: {up}"
+def circle(graph):
+    """A circle of the graph as a list of nodes, or None."""
     state = {}
 
     def visit(m, path):
         state[m] = 1
-        for n in graph.get(m, ()):
+        for n in sorted(graph.get(m, ())):
             if state.get(n) == 1:
-                raise AssertionError(f"import circle: {' -> '.join(path[path.index(n):] + [n])}")
+                return path[path.index(n):] + [n]
             if n not in state:
-                visit(n, path + [n])
+                found = visit(n, path + [n])
+                if found:
+                    return found
         state[m] = 2
-    for m in graph:
+        return None
+    for m in sorted(graph):
         if m not in state:
-            visit(m, [m])
+            found = visit(m, [m])
+            if found:
+                return found
+    return None
+
+
+def test_the_folders_are_the_layers_of_the_design():
+    """docs/design.md's layer table lists exactly the package's folders; its root holds only the package's own
+    modules."""
+    layers = design_layers()
+    folders = sorted(d for d in os.listdir(PKG) if os.path.isfile(os.path.join(PKG, d, "__init__.py")))
+    assert sorted(layers) == folders, (layers, folders)
+    loose = sorted(f[:-3] for f in os.listdir(PKG) if f.endswith(".py"))
+    assert loose == sorted(ROOT_MODULES), loose
+    for d in folders:                          # each layer says what it is
+        doc = ast.get_docstring(ast.parse(open(os.path.join(PKG, d, "__init__.py"), encoding="utf-8").read()))
+        assert doc and doc.startswith(f"Layer {layers.index(d) + 1}, {d}:"), (d, doc)
+
+
+def test_no_import_circles_and_no_import_upward():
+    layers = design_layers()
+    graph = python_imports()
+    up = [("/".join(a), "/".join(b)) for a, bs in graph.items() for b in bs
+          if layer_of(b, layers) > layer_of(a, layers)]
+    assert not up, f"imports from a lower layer to a higher one: {up}"
+    found = circle(graph)
+    assert found is None, "import circle: " + " -> ".join("/".join(m) for m in found)
+
+
+def c_files():
+    out = {}
+    for root, _, files in os.walk(PKG):
+        for f in files:
+            if f.endswith((".c", ".h")):
+                out[os.path.relpath(os.path.join(root, f), PKG)] = os.path.join(root, f)
+    return out
+
+
+GENERATED = ("he_materials.h",)     # setup.py's: each material's header, then the two loops (per material)
+
+
+def c_includes(files):
+    """{file: {files of the package it includes}}: a quoted include resolved from the file's folder, then from the
+    build's include directories (discretization/, physics/); the generated header stands for what it includes."""
+    graph = {}
+    dirs = ["discretization", "physics"]
+    materials = [f for f in files if f.startswith(os.path.join("physics", "materials")) and f.endswith(".h")
+                 and not os.path.basename(f).startswith("_")]
+    for f, path in files.items():
+        edges = graph.setdefault(f, set())
+        for inc in re.findall(r'^\s*#\s*include\s+"([^"]+)"', open(path, encoding="utf-8").read(), re.M):
+            if inc in GENERATED:
+                edges.update(materials + [os.path.join("discretization", "_material_loops.h"),
+                                          os.path.join("discretization", "_element_loops.h")])
+                continue
+            for d in [os.path.dirname(f)] + dirs:
+                cand = os.path.normpath(os.path.join(d, inc))
+                if cand in files:
+                    edges.add(cand)
+                    break
+            else:
+                raise AssertionError(f"{f}: #include \"{inc}\" is not a file of the package")
+    return graph
+
+
+def closure(graph, f):
+    seen, todo = set(), [f]
+    while todo:
+        for n in graph.get(todo.pop(), ()):
+            if n not in seen:
+                seen.add(n)
+                todo.append(n)
+    return seen
+
+
+C_DEFINITION = re.compile(r"^\s*#\s*define\s+(\w+)|^(?:HE_INLINE|static inline)[^(=;]*?\b(\w+)\s*\(|"
+                          r"^\}\s*(\w+)\s*;|^typedef\s+[^;{]*?\b(\w+)\s*;", re.M)
+
+
+def test_c_headers_include_what_they_use_and_no_circle():
+    """The kernels' C files in layers like the Python (discretization's loops include physics' material headers,
+    never the other way), no include circle, and every helper a file uses defined in itself or in a file it
+    includes (the loops once used helpers only _kernels.c defined: _kernels.c -> loops -> _kernels.c)."""
+    layers = design_layers()
+    files = c_files()
+    graph = c_includes(files)
+    found = circle(graph)
+    assert found is None, "include circle: " + " -> ".join(found)
+    up = [(a, b) for a, bs in graph.items() for b in bs
+          if layers.index(b.split(os.sep)[0]) > layers.index(a.split(os.sep)[0])]
+    assert not up, f"includes from a lower layer to a higher one: {up}"
+    defined = {}
+    for f, path in files.items():
+        for m in C_DEFINITION.finditer(open(path, encoding="utf-8").read()):
+            name = next(g for g in m.groups() if g)
+            defined.setdefault(name, set()).add(f)
+    for f, path in files.items():
+        text = re.sub(r"/\*.*?\*/|//[^\n]*", "", open(path, encoding="utf-8").read(), flags=re.S)
+        visible = closure(graph, f) | {f}
+        for name in set(re.findall(r"\b[A-Za-z_]\w*\b", text)) & set(defined):
+            if not defined[name] & visible and "MATERIAL" not in name:
+                raise AssertionError(f"{f} uses {name}, defined in {sorted(defined[name])}, which it does not include")

@@ -3,7 +3,7 @@ the numpy reference path."""
 import numpy as np
 import pytest
 
-from hyperelastic.materials import MATERIALS, default_solid, lame
+from hyperelastic.physics.materials import MATERIALS, default_solid, get, lame
 
 rng = np.random.default_rng(1234)
 MU, LAM = lame(1e6, 0.3)[1], lame(1e6, 0.3)[0]
@@ -58,7 +58,7 @@ def tet_problem(n=50, amp=0.2):
 
 @pytest.mark.parametrize("name", sorted(MATERIALS))
 def test_kernels_match_reference(name):
-    from hyperelastic.kernels import CellKernels
+    from hyperelastic.discretization.kernels import CellKernels
     m = MATERIALS[name]
     X, D, cells, x = tet_problem()
     Dminv = np.linalg.inv(D)
@@ -70,7 +70,7 @@ def test_kernels_match_reference(name):
     X, D, Dminv, vol, F, xs = X[ok], D[ok], Dminv[ok], vol[ok], F[ok], xs[ok]
     cells = np.arange(4 * len(X), dtype=np.int32).reshape(-1, 4)
     x = xs.reshape(-1).copy()
-    k = CellKernels(cells, Dminv, vol, m.name, C[name])
+    k = CellKernels(cells, Dminv, vol, m, C[name])
     # forces: k_a = V P grad N_a (thesis 4.41), grad N_a rows of Dminv, grad N_0 = -sum
     G = np.concatenate([-Dminv.sum(axis=1, keepdims=True), Dminv], axis=1)        # (n,4,3)
     P = m.P(F, C[name])
@@ -111,9 +111,9 @@ def test_discrete_gradient_force(name):
     midpoint: its work over the step is exactly the change of the elastic energy (the midpoint force's is
     not), it is the ordinary force when the step is zero, and (objective materials) it has no net torque
     about the midpoint configuration's origin."""
-    from hyperelastic.kernels import CellKernels
+    from hyperelastic.discretization.kernels import CellKernels
     X, D, cells, xn = tet_problem(amp=0.3)        # some cells inverted
-    k = CellKernels(cells, np.linalg.inv(D), np.linalg.det(D) / 6, name, C[name])
+    k = CellKernels(cells, np.linalg.inv(D), np.linalg.det(D) / 6, get(name), C[name])
     f0, fx = np.zeros_like(xn), np.zeros_like(xn)
     assert k.forces_discrete_gradient(xn, xn, f0) == k.forces(xn, fx)
     assert np.abs(f0 - fx).max() <= 1e-12 * np.abs(fx).max()
@@ -123,7 +123,7 @@ def test_discrete_gradient_force(name):
     ok = (np.linalg.det(Dn) > 0) & (np.linalg.det(D1) > 0)    # the step keeps every cell's orientation
     cells = np.arange(4 * ok.sum(), dtype=np.int32).reshape(-1, 4)
     xn, x1 = (y.reshape(-1, 4, 3)[ok].reshape(-1) for y in (xn, x1))
-    k = CellKernels(cells, np.linalg.inv(D[ok]), np.linalg.det(D[ok]) / 6, name, C[name])
+    k = CellKernels(cells, np.linalg.inv(D[ok]), np.linalg.det(D[ok]) / 6, get(name), C[name])
     xm = 0.5 * (xn + x1)
     f, fm = np.zeros_like(xn), np.zeros_like(xn)
     assert k.forces_discrete_gradient(xm, xn, f) == 0
@@ -137,7 +137,7 @@ def test_discrete_gradient_force(name):
 
 
 def test_consistent_mass_kernel():
-    from hyperelastic.kernels import Cells
+    from hyperelastic.discretization.kernels import Cells
     X, D, cells, x = tet_problem(10)
     vol = np.linalg.det(D) / 6
     k = Cells(cells, np.linalg.inv(D), vol)                  # the mass kernels need only the geometry
@@ -162,13 +162,13 @@ def test_kernels_cell_independent_of_block(name):
     Either way a cell's force (and K v) does not depend on where it sits in a block: all cells at once
     equal two parts split anywhere, bitwise, with the same count of undefined (inverted) cells, and an inverted
     cell in a block leaves the others' forces and energies as the numpy reference has them."""
-    from hyperelastic.kernels import CellKernels
+    from hyperelastic.discretization.kernels import CellKernels
     m = MATERIALS[name]
     X, D, cells, x = tet_problem(300, amp=0.35)             # 2-3 hundred cells, some inverted
     n = len(D) - (len(D) % 32 == 0)                         # and a partial last block
     D, cells, x = D[:n], cells[:n], x[:12 * n]
     Dminv, vol = np.linalg.inv(D), np.linalg.det(D) / 6
-    k = CellKernels(cells, Dminv, vol, m.name, C[name])
+    k = CellKernels(cells, Dminv, vol, m, C[name])
     f_all = np.zeros_like(x)
     bad_all = k.forces(x, f_all)
     w = rng.standard_normal(x.shape)
@@ -196,11 +196,11 @@ def test_kernels_cell_independent_of_block(name):
 
 
 def test_neohookean_undefined_when_inverted():
-    from hyperelastic.kernels import CellKernels
+    from hyperelastic.discretization.kernels import CellKernels
     X, D, cells, x = tet_problem(5, amp=0.0)
     xs = x.reshape(-1, 4, 3).copy()
     xs[0, 0], xs[0, 1] = xs[0, 1].copy(), xs[0, 0].copy()    # swap two vertices: J < 0
-    k = CellKernels(cells, np.linalg.inv(D), np.linalg.det(D) / 6, "neohookean", C["neohookean"])
+    k = CellKernels(cells, np.linalg.inv(D), np.linalg.det(D) / 6, get("neohookean"), C["neohookean"])
     f = np.zeros(xs.size)
     assert k.forces(xs.reshape(-1), f) == 1
     assert np.isfinite(f).all()
@@ -211,8 +211,8 @@ def test_registry_one_home_per_material():
     and its C kernel (materials/NAME.h, compiled into he_*_NAME); every material header is registered."""
     import glob
     import os
-    from hyperelastic import materials
-    from hyperelastic.kernels import material_kernels
+    from hyperelastic.physics import materials
+    from hyperelastic.discretization.kernels import material_kernels
     here = os.path.dirname(materials.__file__)
     headers = {os.path.basename(p)[:-2] for p in glob.glob(os.path.join(here, "*.h"))
                if not os.path.basename(p).startswith("_")}

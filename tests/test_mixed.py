@@ -28,7 +28,7 @@ def lame_mean_stress(nu):
 def test_volumetric_law_is_the_legendre_transform():
     """U*'(p) and U*''(p) are the derivatives of U*(p); at p = U'(G) the transform gives G = U*'(p) and
     U*(p) = p G - U(G) (for U = kappa/4 (J^2 - 1 - 2 ln J), G = J - 1, and U = kappa/2 G^2); kappa = inf: 0."""
-    from hyperelastic.mixed import Volumetric
+    from hyperelastic.formulations.mixed.fields import Volumetric
     kappa = 3.7e6
     rng = np.random.default_rng(7)
     for kind, U, dU in (("J", lambda G: 0.25 * kappa * ((1 + G) ** 2 - 1 - 2 * np.log1p(G)),
@@ -54,7 +54,7 @@ def test_volumetric_law_is_the_legendre_transform():
 def test_mixed_tangent_is_the_residuals_derivative(petsc, material, extra):
     """The assembled mixed tangent (displacement, coupling and pressure blocks, Dirichlet rows) times random
     directions equals central differences of the residual, at a deformed state with a random pressure."""
-    from hyperelastic.mixed import MixedAssembled
+    from hyperelastic.formulations.mixed.operators import MixedAssembled
     m = make_model(petsc, "bend", [("order", "2"), ("formulation", "mixed"), ("material", material),
                                    ("nu", "0.45"), *extra])
     check_tangent(m)
@@ -63,7 +63,7 @@ def test_mixed_tangent_is_the_residuals_derivative(petsc, material, extra):
 def check_tangent(m, amplitude=0.02):
     """The assembled mixed tangent of model m against central differences of its residual (see above), at the
     reference positions moved by `amplitude` times random normal numbers."""
-    from hyperelastic.mixed import MixedAssembled
+    from hyperelastic.formulations.mixed.operators import MixedAssembled
     s = m.system
     rng = np.random.default_rng(11)
     x = m.x0 + amplitude * rng.standard_normal(len(m.x0))
@@ -89,7 +89,7 @@ def check_tangent(m, amplitude=0.02):
     jv = JV.getArray()
     assert np.abs(fd - jv).max() < 1e-6 * np.abs(jv).max()
     # the block form (MatNest of K_uu, its SBAIJ copy and the COO coupling blocks) multiplies alike
-    from hyperelastic.mixed import MixedNest
+    from hyperelastic.formulations.mixed.operators import MixedNest
     s.linearize(X)
     nest = MixedNest(s)
     nest.update()

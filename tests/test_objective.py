@@ -79,7 +79,7 @@ def test_energy_decreases_along_newton_iterates(petsc):
     """Quasi-static bend at the full load in one step: the line search cuts steps (lambda < 1), and
     every Newton iterate lowers the energy: the objective at iterate k, measured from iterate k-1,
     is negative, down to the last iterate (where E itself cannot resolve the change)."""
-    from hyperelastic.solver import Solver
+    from hyperelastic.solving.solver import Solver
     m = make_model(petsc, "bend", [("quasistatic", ""), ("dt", "1"), ("final_time", "1"), ("snes_rtol", "1e-12")])
     solver = Solver(m.system, "assembled", objective=True)
     assert solver.merit == "energy"
@@ -102,7 +102,7 @@ def test_energy_decreases_along_newton_iterates(petsc):
 def test_objective_difference_resolves_below_rounding(petsc):
     """At a converged state Z (R ~ 0), a small step d changes E by 1/2 d.J d, far below E's rounding
     error; the objective measured from Z still gives it to 1e-6 (Neo-Hookean: not a polynomial)."""
-    from hyperelastic.solver import Solver
+    from hyperelastic.solving.solver import Solver
     m = make_model(petsc, "bend", [("material", "neohookean"), ("quasistatic", ""), ("snes_rtol", "1e-12")])
     solver = Solver(m.system, "assembled", objective=True)
     system = m.system
@@ -159,7 +159,7 @@ def test_recipes_agree_with_default(tmp_path, recipe):
     """Projected Newton and the trust region reach the default's answer (to solver tolerance) on a
     St. Venant-Kirchhoff twist, and reject no step."""
     import os
-    from hyperelastic.options import OPTIONS_DIR
+    from hyperelastic.core.data import OPTIONS_DIR
     base = ["run", "twist3", "-level", "1", "-final_time", "0.1", "-material", "stvk", "-E", "2.1e11",
             "-snes_rtol", "1e-10", "-quiet"]
     run_ok(base + ["-output", tmp_path / "d.h5"])

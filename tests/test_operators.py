@@ -33,7 +33,7 @@ def apply(mat, V):
 
 def check_shell_equals_assembled(system, X):
     """Shell and assembled apply the same J to a random vector (1e-12); returns (V, J V)."""
-    from hyperelastic import jacobians
+    from hyperelastic.solving import jacobians
     a = jacobians.make(system, "assembled")
     a.update()
     A, S = a.mat, jacobians.make(system, "shell").mat
@@ -87,7 +87,7 @@ def test_new_effects_and_materials_tangents(petsc, options):
 
 @pytest.mark.parametrize("scene_name", SCENES)
 def test_tangent_is_derivative_of_residual(petsc, scene_name):
-    from hyperelastic import jacobians
+    from hyperelastic.solving import jacobians
     scene, space, system, X = state(petsc, scene_name)
     S = jacobians.make(system, "shell").mat
     V = X.duplicate()
@@ -97,7 +97,7 @@ def test_tangent_is_derivative_of_residual(petsc, scene_name):
 
 def petsc_mffd(system, X, mffd_type="wp"):
     """PETSc's own MFFD operator (what -snes_mf builds) for our residual, with base point X."""
-    from hyperelastic.jacobians import PetscMFFD
+    from hyperelastic.solving.jacobians import PetscMFFD
     m = PetscMFFD(system.residual, X.copy(), mffd_type, prefix="mffdtest_")
     assert "mffd" in m.mat.getType()
     return m.mat, m.snes
@@ -108,7 +108,7 @@ def petsc_mffd(system, X, mffd_type="wp"):
 def test_petsc_mffd_matches_exact(petsc, scene_name, mffd_type):
     """PETSc's MFFD ((R(x + e a) - R(x))/e with its scaled e) applied to our residual matches the
     exact tangent to 1e-5 relative: the thesis' formula has no differencing step, PETSc's does."""
-    from hyperelastic import jacobians
+    from hyperelastic.solving import jacobians
     scene, space, system, X = state(petsc, scene_name)
     S = jacobians.make(system, "shell").mat
     M, snes = petsc_mffd(system, X, mffd_type)
@@ -120,7 +120,7 @@ def test_petsc_mffd_matches_exact(petsc, scene_name, mffd_type):
 
 
 def test_shell_operator_is_symmetric(petsc):
-    from hyperelastic import jacobians
+    from hyperelastic.solving import jacobians
     scene, space, system, X = state(petsc, "bend")
     S = jacobians.make(system, "shell").mat
     U, V = X.duplicate(), X.duplicate()
@@ -181,7 +181,7 @@ def test_lumped_and_consistent_mass_have_the_same_total(petsc):
 def test_chunked_assembly_equals_coo(petsc, scene_name, options, monkeypatch):
     """-assembly setvalues (chunks of cells into a preallocated AIJ) gives the COO path's matrix,
     with exact preallocation on one rank; refilling it (zeroEntries) gives it again."""
-    from hyperelastic import jacobians
+    from hyperelastic.solving import jacobians
     scene, space, system, X = state(petsc, scene_name, options)
     monkeypatch.setattr(jacobians.AssembledChunked, "CHUNK", 97)     # many chunks, a ragged last one
     a = jacobians.AssembledChunked(system)
@@ -202,8 +202,8 @@ def test_sbaij_operator_is_the_assembled_tangent(petsc, scene_name):
     """-operator_storage sbaij: the SBAIJ copy (upper block triangle, refreshed after every fill by the
     gather map) multiplies like the AIJ it came from, after a second fill at another state too; SNES
     gets it as the operator (Amat) and the AIJ as the preconditioning matrix."""
-    from hyperelastic import jacobians
-    from hyperelastic.solver import Solver
+    from hyperelastic.solving import jacobians
+    from hyperelastic.solving.solver import Solver
     scene, space, system, X = state(petsc, scene_name)
     a = jacobians.AssembledChunked(system, storage="sbaij")
     assert a.operator.getType() == "seqsbaij" and a.copy.sb_o is None
@@ -227,7 +227,7 @@ def test_sbaij_operator_is_the_assembled_tangent(petsc, scene_name):
 def test_operator_storage_auto(petsc):
     """-operator_storage auto (the default): sbaij for a symmetric tangent assembled by setvalues; aij
     for a follower load (twist), the COO fill, the shell and under -snes_mf_operator."""
-    from hyperelastic.solver import resolve_storage
+    from hyperelastic.solving.solver import resolve_storage
     sym, unsym = state(petsc, "bend")[2], state(petsc, "twist")[2]
     assert resolve_storage("auto", sym, "assembled", "setvalues", "") == "sbaij"
     assert resolve_storage("auto", unsym, "assembled", "setvalues", "") == "aij"
@@ -300,7 +300,7 @@ def test_gamg_setup_reused_until_the_iterations_grow(tmp_path):
 def test_preconditioner_rebuild_rule(monkeypatch):
     """The rule of -reuse_preconditioner auto: the first solve after a set-up sets the base; a solve
     that needs more than 1.5x the base's iterations, or fails, asks for a set-up at the next Jacobian."""
-    from hyperelastic import solver as S
+    from hyperelastic.solving import solver as S
     asked = []
     monkeypatch.setattr(S, "lag_preconditioner", lambda snes, lag: asked.append(lag))
 
@@ -315,7 +315,7 @@ def test_preconditioner_rebuild_rule(monkeypatch):
             return self.reason
 
     s = S.Solver.__new__(S.Solver)
-    s.snes, s.reuse = None, {"base": None, "pending": True, "setups": 0}
+    s.snes, s.reuse, s.plan = None, {"base": None, "pending": True, "setups": 0}, S.SolverPlan()
     s.linear_solves = s.linear_its = 0
     solves = ((20, 2, False), (25, 2, False), (30, 2, False), (31, 2, True), (40, 2, False), (41, 2, False),
               (5, -3, True))
@@ -346,7 +346,8 @@ def test_preconditioner_rebuild_rule(monkeypatch):
         def getPC(self):
             return Pc()
 
-    s.mixed, s.reuse = True, {"base": None, "pending": True, "setups": 0}
+    from hyperelastic.formulations.mixed.solver import FieldSplitPlan
+    s.plan, s.reuse = FieldSplitPlan(), {"base": None, "pending": True, "setups": 0}
     want = {20: [True], 31: [False], 40: [True], 5: [False]}
     for its, reason, _ in solves:
         asked.clear()

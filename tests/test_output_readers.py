@@ -41,8 +41,8 @@ def test_meshio_reads_every_frame_and_field(bend_out):
 
 def test_cell_fields_match_the_material(bend_out):
     """J and the strain-energy density of the last frame recomputed from the positions."""
-    from hyperelastic.materials import get, lame
-    from hyperelastic.sets import signed_volumes
+    from hyperelastic.physics.materials import get, lame
+    from hyperelastic.mesh.sets import signed_volumes
     import h5py
     r = read_h5(bend_out)
     X, x, T = r["points"], r["x"][-1], r["tetra"]

@@ -2,9 +2,9 @@
 import numpy as np
 import pytest
 
-from hyperelastic.kernels import CellKernels
-from hyperelastic.materials import MATERIALS, default_solid
-from hyperelastic.mesh import read
+from hyperelastic.discretization.kernels import CellKernels
+from hyperelastic.physics.materials import MATERIALS, default_solid
+from hyperelastic.mesh.read import read
 
 
 @pytest.fixture(scope="module")
@@ -19,7 +19,7 @@ def bar(l1_mesh):
 
 def forces(bar, name, x):
     X, tets, Dminv, vol, _ = bar
-    k = CellKernels(tets, Dminv, vol, name, default_solid(name).constants)
+    k = CellKernels(tets, Dminv, vol, default_solid(name).material, default_solid(name).constants)
     f = np.zeros(x.size)
     k.forces(np.ascontiguousarray(x.ravel()), f)
     return f.reshape(-1, 3)

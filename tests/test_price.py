@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 
 from conftest import ROOT, hyperelastic, run_ok
-from hyperelastic.experiments.table import read_csv
-from hyperelastic.study.price import DimModel, SolverModel, observed_order
-from hyperelastic.mesh import interpolate, locate
+from hyperelastic.studies.experiments.table import read_csv
+from hyperelastic.studies.price import DimModel, SolverModel, observed_order
+from hyperelastic.mesh.read import interpolate, locate
 
 BAR = ["--part", f"{ROOT}/meshes/bar.geo", "--scene", f"{ROOT}/options/scenes/bend2.opts", "--size", "2"]
 STATIC = "-quasistatic -dt 0.0625 -final_time 0.25 -material stvk"

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from conftest import ROOT, hyperelastic, make_model, read_h5, run_ok
-from hyperelastic.element import EDGES, TET_RULES, TRI_RULES, tet_shapes, tri_shapes
+from hyperelastic.element.reference import EDGES, TET_RULES, TRI_RULES, tet_shapes, tri_shapes
 
 REF_NODES = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]] + [[0.0] * 3] * 6, float)
 REF_NODES[4:] = [0.5 * (REF_NODES[i] + REF_NODES[j]) for i, j in EDGES]
@@ -92,7 +92,7 @@ def test_curved_part_has_the_geometry_volume(tmp_path):
     """The plate with a hole meshed at order 2: its cells' curved volume (the degree-5 rule) is the geometry's
     to 1e-6, and its error falls as h^4 (the hole's arcs are quadratic); its corners alone (P1) miss by
     3.5e-4, as h^2."""
-    from hyperelastic.mesh import corners, read_mesh
+    from hyperelastic.mesh.read import corners, read_mesh
     run_ok(["mesh", f"{ROOT}/examples/plate_hole.geo", "--size", 0.004, "--order", 2, "--refine", 1,
             "-o", tmp_path / "p.msh"])
     V = 0.2 * 0.1 * 0.01 - math.pi * 0.02 ** 2 * 0.01
@@ -110,9 +110,9 @@ def test_curved_part_has_the_geometry_volume(tmp_path):
 def test_p1_quadrature_path_agrees_with_the_closed_form(petsc):
     """The element loops (quadrature, dstress columns) on P1 cells with the one-point rule give the closed-
     form P1 loops' forces, energy, K v, tangent blocks and diagonal to round-off, for every material."""
-    from hyperelastic.element import Element
-    from hyperelastic.kernels import Cells, ElementCells
-    from hyperelastic.materials import MATERIALS, default_solid
+    from hyperelastic.element.reference import Element
+    from hyperelastic.discretization.kernels import Cells, ElementCells
+    from hyperelastic.physics.materials import MATERIALS, default_solid, get
     rng = np.random.default_rng(11)
     X = rng.standard_normal((60, 4, 3))
     D = np.stack([X[:, a] - X[:, 0] for a in (1, 2, 3)], axis=-1)
@@ -126,7 +126,7 @@ def test_p1_quadrature_path_agrees_with_the_closed_form(petsc):
     pq = ElementCells(cells, Xf, Element(1, 1))
     for name in MATERIALS:
         c = default_solid(name).constants
-        a, b = p1.kernels(name, c), pq.kernels(name, c)
+        a, b = p1.kernels(get(name), c), pq.kernels(get(name), c)
         fa, fb = np.zeros_like(x), np.zeros_like(x)
         assert a.forces(x, fa) == b.forces(x, fb)
         assert np.abs(fa - fb).max() <= 1e-12 * np.abs(fa).max(), name
@@ -210,11 +210,11 @@ def kuhn_cube(n, path):
 def mms_errors(petsc, mesh, order, material="neohookean"):
     """(L2 norm of u_h - u, H1 seminorm of it) of the quasi-static solution with u's body force and u on the
     whole boundary, on `mesh` at `order` (Newton to 1e-12, CG + GAMG)."""
-    from hyperelastic.effects.base import DeadLoad
-    from hyperelastic.element import Element
-    from hyperelastic.integrators import BackwardEuler
-    from hyperelastic.solver import Solver
-    from hyperelastic.system import System
+    from hyperelastic.physics.effects.base import DeadLoad
+    from hyperelastic.element.reference import Element
+    from hyperelastic.solving.integrators import BackwardEuler
+    from hyperelastic.solving.solver import Solver
+    from hyperelastic.solving.system import System
     # the boundary values and the body force ramped over 4 load steps (P2's edge nodes moved by the full
     # boundary displacement at once fold the cells beside them on the finer meshes)
     ramp = [f"min(t, 1)*{e}" for e in U_MMS]

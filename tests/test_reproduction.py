@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from conftest import ROOT
-from hyperelastic.repro.common import read_csv
+from hyperelastic.studies.repro.common import read_csv
 
 
 def script(name, out, *args):
@@ -84,8 +84,8 @@ def test_linear_material_seed_fd2_equals_seed_fd(crossval):
 
 
 def test_linear_seed_fd2_equals_seed_fd_directly(petsc, l1_mesh):
-    from hyperelastic.mesh import read
-    from hyperelastic.repro.common import Bench
+    from hyperelastic.mesh.read import read
+    from hyperelastic.studies.repro.common import Bench
     pts, tets = read(l1_mesh)
     rng = np.random.default_rng(1)
     b = Bench(pts, tets, pts + 0.05 * rng.standard_normal(pts.shape))

@@ -88,7 +88,7 @@ def test_output_layout(tmp_path):
                 "effect_elasticity_evals", "effect_elasticity_seconds"):
         assert col in r["stats"], col
         assert len(r["stats"][col]) == 10
-    from hyperelastic.stats import column_type
+    from hyperelastic.solving.stats import column_type
     for col in r["stats"]:                                       # every column is declared in stats.py
         column_type(col)
     assert "-jacobian" in r["attrs"]["options"] or "-final_time 0.1" in r["attrs"]["options"]

@@ -1,12 +1,12 @@
 """Issue 5: snh and corotational materials, Hessian projection, the inversion guard, step control, the
-NaN/Inf guard, and the quick subset of the hard-case matrix (hyperelastic/stability.py)."""
+NaN/Inf guard, and the quick subset of the hard-case matrix (hyperelastic/studies/stability.py)."""
 
 import numpy as np
 import pytest
 
 from conftest import hyperelastic, read_h5, run_ok
-from hyperelastic import stability as S
-from hyperelastic.materials import MATERIALS, lame
+from hyperelastic.studies import stability as S
+from hyperelastic.physics.materials import MATERIALS, get, lame
 
 LAM, MU = lame(1e6, 0.3)
 rng = np.random.default_rng(55)
@@ -50,12 +50,12 @@ def test_rotation_invariance(name):
 def unit_tets(m, F):
     """One independent unit tetrahedron per F (Dm = I, V = 1/6) deformed by F: the kernels bound to
     them, the positions, and the reference forces V P(F) grad N_a from the numpy material."""
-    from hyperelastic.kernels import CellKernels
+    from hyperelastic.discretization.kernels import CellKernels
     n = len(F)
     X = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], float)
     x = np.einsum("nij,aj->nai", F, X).reshape(-1).copy()
     k = CellKernels(np.arange(4 * n, dtype=np.int32).reshape(-1, 4), np.broadcast_to(np.eye(3), (n, 3, 3)).copy(),
-                    np.full(n, 1 / 6), m.name, (MU, LAM))
+                    np.full(n, 1 / 6), m, (MU, LAM))
     G = np.concatenate([-np.ones((1, 3)), np.eye(3)])
     return k, x, np.einsum("nij,aj->nai", m.P(F, (MU, LAM)) / 6, G).reshape(-1)
 
@@ -85,7 +85,7 @@ def test_defined_and_exact_when_inverted(name):
 def test_corotational_polar_decomposition():
     """The C polar decomposition (Jacobi eigen-solver on F^T F) against numpy's SVD, through the
     forces P(F): also for nearly degenerate, repeated-singular-value and inverted F."""
-    from hyperelastic.materials.corotational import polar
+    from hyperelastic.physics.materials.corotational import polar
     m = MATERIALS["corotational"]
     F = np.concatenate([np.eye(3) + 0.5 * rng.standard_normal((20, 3, 3)),
                         np.diag([1.0, 1.0, 1e-9])[None], np.diag([2.0, -0.5, 1.0])[None],
@@ -99,7 +99,7 @@ def test_corotational_polar_decomposition():
 
 
 def test_hessian_projection_is_psd_and_exact_where_psd():
-    from hyperelastic.effects.elasticity import project_psd
+    from hyperelastic.physics.effects.elasticity import project_psd
     A = rng.standard_normal((30, 12, 12))
     K = A + A.transpose(0, 2, 1)
     K[:10] = A[:10] @ A[:10].transpose(0, 2, 1)        # already PSD: unchanged
@@ -111,9 +111,9 @@ def test_hessian_projection_is_psd_and_exact_where_psd():
 
 def test_max_step_stops_before_inversion():
     """he_max_step: the largest fraction of an update that keeps every element's det F > 0."""
-    from hyperelastic.kernels import CellKernels
+    from hyperelastic.discretization.kernels import CellKernels
     X = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], float)
-    k = CellKernels(np.arange(4, dtype=np.int32)[None], np.eye(3)[None], np.array([1 / 6]), "stvk", (MU, LAM))
+    k = CellKernels(np.arange(4, dtype=np.int32)[None], np.eye(3)[None], np.array([1 / 6]), get("stvk"), (MU, LAM))
     d = np.zeros(12)
     d[11] = -3.0                                 # vertex 3 moves through the opposite face: det F = 1 - 3 t
     assert np.isclose(k.max_step(X.ravel(), d, 0.9), 0.9 / 3, rtol=1e-12)
@@ -223,9 +223,9 @@ def test_quick_matrix_reports_what_it_must(quick):
 
 
 def test_matrix_script_writes_report(tmp_path, quick):
-    """The matrix's writers (scripts/stability_matrix.py calls hyperelastic.stability.main): CSV, markdown
+    """The matrix's writers (scripts/stability_matrix.py calls hyperelastic.studies.stability.main): CSV, markdown
     table and heatmap from the same rows; the CSV reads back to the same rows."""
-    from hyperelastic import stability as sm
+    from hyperelastic.studies import stability as sm
     sm.write_csv(quick, tmp_path / "s.csv")
     back = sm.read_rows(tmp_path / "s.csv")
     assert [r["id"] for r in back] == [r["id"] for r in quick]

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from conftest import hyperelastic, run_ok
-from hyperelastic.experiments.table import read_csv
-from hyperelastic.study import measure, plan, report
+from hyperelastic.studies.experiments.table import read_csv
+from hyperelastic.studies.command import measure, plan, report
 
 
 @pytest.fixture(scope="module")
@@ -184,7 +184,7 @@ def test_refinement_says_when_the_meshes_are_not_asymptotic():
     """The report's verdict: q = 1 - h^2 on P1 (expected order 2) is asymptotic and gets Richardson's limit;
     a sequence with p = 0.36 (the bracket of issue 34) or non-monotone changes is not, and no limit is
     presented as the answer; both say what the next refinement would cost."""
-    from hyperelastic.study.part import _verdict, analyse
+    from hyperelastic.studies.part import _verdict, analyse
 
     def rows(qs):
         return [{"outcome": "finished", "h": 0.5 / 2 ** i, "tets": 100 * 8 ** i, "quantity": q, "solve_s": 0.1 * 9 ** i}
@@ -207,7 +207,7 @@ def test_refinement_says_when_the_meshes_are_not_asymptotic():
 def test_refinement_of_a_mesh_independent_quantity():
     """A quantity that does not change with the mesh (a reaction balancing a dead load) is said to be so,
     not 'refine further'."""
-    from hyperelastic.study.part import _verdict, analyse
+    from hyperelastic.studies.part import _verdict, analyse
     rows = [{"outcome": "finished", "h": 0.5 / 2 ** i, "tets": 100 * 8 ** i, "quantity": 120 * (1 + d),
              "solve_s": 0.1 * 9 ** i} for i, d in enumerate((3e-9, -2e-9, 4e-9, 1e-9))]
     analyse(rows, expected=2)

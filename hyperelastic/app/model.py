@@ -1,0 +1,213 @@
+"""The discrete model of a scene, built in one direction: Scene -> mesh -> Element (decided once) -> Space ->
+formulation -> effects -> the formulation's System, with the initial state the System is calibrated at. Shared by
+the command line, the tests and the scripts (PETSc must already be initialized). The solver, the integrator and the
+output build on it (app/run.py)."""
+from dataclasses import dataclass
+
+import numpy as np
+from mpi4py import MPI
+
+from ..core.errors import UserError
+from ..discretization.kernels import RegionKernels
+from ..discretization.space import Space, make_space
+from ..element.reference import Element
+from ..formulations import choose
+from ..formulations.base import Problem
+from ..mesh.generate import cached_bar
+from ..mesh.read import corners, elevate, read_mesh
+from ..mesh.sets import MATERIAL_LABEL, REGION_LABEL, VERTEX_VALUE, cell_label, facet_label
+from ..physics import effects as effects_pkg
+from ..solving.system import System
+
+
+def collective(comm, fn):
+    """fn() run on rank 0: its result there (None on the other ranks), its UserError raised on every rank."""
+    mpi = comm.tompi4py()
+    res = err = None
+    if mpi.rank == 0:
+        try:
+            res = fn()
+        except UserError as e:
+            err = str(e)
+    err = mpi.bcast(err, root=0)
+    if err is not None:
+        raise UserError(err)
+    return res
+
+
+def rotation_matrix(r):
+    """Rodrigues' formula: the rotation by |r| radians about r."""
+    r = np.asarray(r, float)
+    th = np.linalg.norm(r)
+    if th == 0:
+        return np.eye(3)
+    k = r / th
+    K = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
+    return np.eye(3) + np.sin(th) * K + (1 - np.cos(th)) * K @ K
+
+
+def centroid(space):
+    """Mean of the mesh vertices (the same on every rank)."""
+    own = space.X[space.lvid_of_owned]
+    tot = space.mpi.allreduce(np.append(own.sum(axis=0), len(own)), op=MPI.SUM)
+    return tot[:3] / tot[3]
+
+
+def initial_state(scene, space):
+    """Local positions and velocities at t = 0: the reference configuration at rest, unless
+    -initial_scale (x = c + diag(s)(X - c)), -initial_rotation (x = c + R (x - c), R = exp([r]x)) or
+    -initial_spin (v = w x (x - c)) ask otherwise; c is the centroid."""
+    x, v = space.X.copy(), np.zeros_like(space.X)
+    sc = scene
+    if any(a is not None for a in (sc.initial_scale, sc.initial_rotation, sc.initial_spin)):
+        c = centroid(space)
+        if sc.initial_scale is not None:
+            x = c + (x - c) * np.asarray(sc.initial_scale)
+        if sc.initial_rotation is not None:
+            x = c + (x - c) @ rotation_matrix(sc.initial_rotation).T
+        if sc.initial_spin is not None:
+            v = np.cross(np.asarray(sc.initial_spin), x - c)
+    return x.ravel().copy(), v.ravel().copy()
+
+
+@dataclass
+class Model:
+    """Everything of a run except the solver, the integrator and the output."""
+    scene: object
+    element: Element            # the run's element (its order and stiffness rule), decided once
+    formulation: object         # the formulation's spec (formulations.REGISTRY) that runs the scene
+    points: np.ndarray          # the checked input mesh's nodes (rank 0; None elsewhere) ...
+    tets: np.ndarray            # ... and its cells: (nc, 4) corners, or (nc, 10) nodes of quadratic cells
+    space: Space
+    kernels: object             # the material(s)' cell kernels on the space's cells (kernels.py)
+    system: System
+    x0: np.ndarray              # initial local positions and velocities
+    v0: np.ndarray
+    sets: list = None           # [{name, kind, count, measure, ...}] of the sets the run uses (all ranks)
+    notes: list = None          # what the start-up report says of the model's choices, one line each
+
+    def set_lines(self):
+        """One line per set: name, facets or tets, area or volume."""
+        return [s["line"] for s in self.sets]
+
+
+def load_mesh(scene):
+    """(sets.Mesh, Element, DMPlex labels, set report) of the scene's mesh, on rank 0: the run's element, decided
+    here once (-order, else the mesh's own; -quadrature_degree), and the mesh at its order (a linear mesh elevated
+    to straight-sided quadratic cells, a quadratic one reduced to its corners where the order asks); the facet and
+    cell sets its effects name (an unknown name is a UserError listing the mesh's) and its regions."""
+    mesh = read_mesh(scene.mesh, scene.mesh_frame) if scene.mesh else read_mesh(cached_bar(scene.level))
+    ranks = MPI.COMM_WORLD.size
+    if len(mesh.tets) < ranks:
+        name = scene.mesh or f"bar L{scene.level}"
+        raise UserError(f"mesh '{name}': {len(mesh.tets)} tetrahedra for {ranks} MPI ranks (each rank needs "
+                        "cells: run on fewer ranks or refine the mesh)")
+    element = Element.decide(scene.order, scene.quadrature, mesh.order)
+    if element.order == 2 and mesh.order == 1:
+        mesh = elevate(mesh)
+    elif element.order == 1 and mesh.order == 2:
+        mesh = corners(mesh)
+    labels, report = {}, []
+    for option, name, kind in scene.set_uses():
+        label = facet_label(name) if kind == "facets" else cell_label(name)
+        if label in labels:
+            continue
+        s = mesh.find(name, kind, option)
+        if kind == "facets":
+            labels[label] = {v: ("vertices" if v == VERTEX_VALUE else "cells", idx)
+                             for v, idx in mesh.label_strata(s).items()}
+            report.append(_set_line(mesh, s, "facets", mesh.area(s.items)))
+        else:
+            labels[label] = {1: ("cells", s.items)}
+    regions = [g for g in mesh.groups.values() if g.kind == "tets"]
+    if regions:
+        labels[REGION_LABEL] = {}
+        for i, g in enumerate(regions):
+            value = g.tag if g.tag is not None else i + 1
+            labels[REGION_LABEL][value] = ("cells", g.items)
+    material_regions(scene, mesh, labels, report)
+    for i, g in enumerate(regions):
+        if not any(r.get("group") == g.name for r in report):
+            report.append({"name": g.name, "kind": "tets", "tag": int(g.tag if g.tag is not None else i + 1),
+                           "count": len(g.items), "measure": mesh.volume(g.items), "line": mesh.describe(g)})
+    return mesh, element, labels, report
+
+
+def _set_line(mesh, s, kind, measure):
+    return {"name": s.name, "kind": kind, "tag": None if s.tag is None else int(s.tag), "count": len(s.items),
+            "measure": measure, "line": mesh.describe(s)}
+
+
+def material_regions(scene, mesh, labels, report):
+    """The MATERIAL_LABEL of -regions (value i+1 on the cells of the i-th region; a cell in two of them
+    is an error) and a report line per region with its material, and for the cells in none."""
+    if not scene.regions:
+        return
+    owner = np.zeros(len(mesh.tets), np.int64)
+    labels[MATERIAL_LABEL] = {}
+    for i, r in enumerate(scene.regions):
+        g = mesh.find(r.name, "tets", "regions")
+        twice = owner[g.items] != 0
+        if twice.any():
+            other = scene.regions[owner[g.items][twice][0] - 1].name
+            raise UserError(f"option -regions: regions '{other}' and '{r.name}' share {int(twice.sum())} tets; "
+                            "a tet can have one material")
+        owner[g.items] = i + 1
+        labels[MATERIAL_LABEL][i + 1] = ("cells", g.items)
+        report.append({"name": r.name, "group": g.name, "kind": "tets", "tag": None if g.tag is None else int(g.tag),
+                       "count": len(g.items), "measure": mesh.volume(g.items), "material": r.describe(),
+                       "line": f"{mesh.describe(g)}; {r.describe()}"})
+    rest = np.flatnonzero(owner == 0)
+    if len(rest):
+        own = scene.solid.describe()
+        report.append({"name": "(other cells)", "kind": "tets", "tag": None, "count": len(rest),
+                       "measure": mesh.volume(rest), "material": own,
+                       "line": f"(other cells): {len(rest)} tets, volume {mesh.volume(rest):.6g}; the scene's {own}"})
+
+
+def solids_in_use(scene, space):
+    """[(where, solid)] of the scene's solids that some cell has, on any rank (the scene's own first, where some cell
+    is in no listed region; then each listed region's)."""
+    solids = [("the scene's", scene.solid)] + [(f"region '{r.name}'", r.solid) for r in scene.regions]
+    if not scene.regions:
+        return tuple(solids)
+    which = space.cell_values(MATERIAL_LABEL)
+    counts = space.mpi.allreduce(np.bincount(which, minlength=len(solids)))
+    return tuple(s for s, n in zip(solids, counts) if n)
+
+
+def cell_kernels(scene, space, constants):
+    """(elastic cell kernels, density: a scalar, or per local cell with -regions) of the scene's material(s) on the
+    space's cells (its cell_geometry: the element's); constants: solid -> its parameter block (the formulation's:
+    the mixed formulation's isochoric parts)."""
+    sc = scene
+    cells = space.cell_geometry()
+    if not sc.regions:
+        return cells.kernels(sc.solid.material, constants(sc.solid)), sc.solid.rho
+    which = space.cell_values(MATERIAL_LABEL)
+    solids = [sc.solid] + [r.solid for r in sc.regions]
+    unused = space.mpi.allreduce(int((which == 0).sum())) == 0     # every cell is in a listed region
+    parts = [(np.flatnonzero(which == i), m.material, constants(m)) for i, m in enumerate(solids) if i or not unused]
+    density = np.array([m.rho for m in solids])[which]
+    return RegionKernels(cells, parts), density
+
+
+def build_model(scene, comm):
+    """Read the scene's mesh (rank 0) and decide its element, distribute it with the sets the scene uses, choose
+    the formulation, build the effects the scene names and the formulation's System, calibrated at the initial
+    state. The scene is read, never written."""
+    loaded = collective(comm, lambda: load_mesh(scene))
+    mesh, element, labels, report = loaded if loaded is not None else (None, None, None, None)
+    mpi = comm.tompi4py()
+    element = mpi.bcast(element, root=0)
+    space = make_space(comm, element, mesh, labels)
+    report = mpi.bcast(report, root=0)
+    problem = Problem(scene, element, solids_in_use(scene, space))
+    formulation, notes = choose(problem)
+    k, density = cell_kernels(scene, space, formulation.cell_constants)
+    ctx = effects_pkg.Context(space, k, k.geometry, density, scene.lumped, scene.hessian_projection)
+    effects, constraints = effects_pkg.build(scene, ctx)
+    x0, v0 = initial_state(scene, space)
+    system = formulation.system(problem, space, k, effects, constraints, x0, v0)
+    points, cells = (mesh.points, mesh.cell_nodes) if mesh is not None else (None, None)
+    return Model(scene, element, formulation, points, cells, space, k, system, x0, v0, report, notes)

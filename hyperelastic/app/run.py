@@ -1,0 +1,153 @@
+"""`hyperelastic run`: Scene -> Model (mesh, space, effects, system) -> Solver -> Writer -> integrator.
+Imported by the command line only after PETSc has been initialized with the run's arguments (cli.py)."""
+import json
+import os
+import resource
+import signal
+import sys
+
+from mpi4py import MPI
+from petsc4py import PETSc
+
+from .catalog import check_solver_options, check_viewer_files, help_text, load_scene, scene_option_names
+from ..core.errors import Interrupted, UserError
+from ..core.files import check_output_path, output_names
+from ..solving.forces import record, surface_forces, table
+from ..solving.integrators import BackwardEuler
+from .model import build_model, collective
+from ..core.options import Options
+from ..output.writer import Writer, run_attributes
+from ..mesh.sets import REGION_LABEL
+from ..solving.solver import Solver
+from ..solving.ts_integrator import GeneralizedAlpha, check_energy_momentum, make_ts
+
+
+def run_scene(scene_arg, options_files, restart=None, restart_path=None):
+    """Set up and run a scene (a built-in name or an options file) with the options database as it is;
+    restart: the checkpoint state of `restart_path` to continue from (files.read_checkpoint)."""
+    comm = PETSc.COMM_WORLD
+    stage = PETSc.Log.Stage("Setup")
+    stage.push()
+    scene, scene_file = load_scene(scene_arg)
+    opts = Options()
+    helping = opts.has("help")
+    if helping and comm.getRank() == 0:
+        print(help_text({n: opts.o.getString(n, "") for n in scene_option_names(scene) if opts.has(n)}), flush=True)
+    out = opts.string("output", os.path.join("output", f"{scene.name}.h5"))
+    quiet = opts.flag("quiet")
+    inputs = [scene_file, scene.mesh] + list(options_files)
+    if restart is not None:
+        inputs = [i for i in inputs if i and os.path.realpath(i) != os.path.realpath(out)]
+    if not helping:               # (-help writes nothing: not even the output's directory)
+        collective(comm, lambda: check_output_path(out, inputs))      # before any expensive work
+    collective(comm, lambda: check_viewer_files(PETSc.Options(), inputs + output_names(out)))
+    try:
+        model = build_model(scene, comm)
+    except UserError as e:
+        if not helping:
+            raise
+        if comm.getRank() == 0:        # (the help above is what was asked for; PETSc's part needs a model)
+            print(f"(PETSc's solver options are listed once the scene runs on a mesh: {e})", flush=True)
+        return 0
+    if restart is not None:
+        collective(comm, lambda: _check_restart(restart, model, scene, restart_path))
+    solver, ts = _solver(scene, model, comm)
+    check_solver_options(PETSc.Options())
+    if helping:                  # PETSc printed its own options as its solvers read them
+        return 0
+    if not quiet and comm.getRank() == 0:
+        lines = part_lines(model, scene) + [f"set {line}" for line in model.set_lines()]
+        notes = scene.notes + model.notes + ([solver.merit_note] if solver.merit_note else []) + solver.notes
+        lines += [f"note: {n}" for n in notes]
+        print("\n".join(lines), file=sys.stderr)
+    attrs = run_attributes(model, scene_file, solver)
+    stage.pop()
+    writer = Writer(out, model.space, model.points, model.tets, attrs, resume=restart, kernels=model.kernels,
+                    region=model.space.cell_values(REGION_LABEL), fields=scene.output_fields)
+    writer.point_scalars = model.formulation.point_values(model.system)
+    if ts is not None:
+        integ = GeneralizedAlpha(scene, model.system, solver, writer, model.x0, model.v0, ts, checkpoint=restart,
+                                 quiet=quiet)
+    else:
+        integ = BackwardEuler(scene, model.system, solver, writer, model.x0, model.v0, checkpoint=restart,
+                              quiet=quiet)
+    forces = _integrate(integ, writer, comm, scene)
+    if not quiet and comm.getRank() == 0:
+        if forces:
+            print("\n".join(table(forces, integ.t)), file=sys.stderr)
+        print(f"wrote {out} ({integ.step} steps, {writer.nframes} frames)", file=sys.stderr)
+        advice = solver.advice()
+        if advice:
+            print(f"note: {advice}", file=sys.stderr)
+    return 0
+
+
+MM_LIKE = (20.0, 1e8)      # a part longer than this in mesh units with a modulus above this (Pa) looks like mm
+
+
+def part_lines(model, scene):
+    """The start-up line with the part's size (the mesh's units are read as metres), and a note when the
+    size and the stiffest modulus look like mixed units: a part tens of metres long with a metal's or a
+    plastic's modulus in pascals is, far more often, a part drawn in millimetres."""
+    lo, hi = model.space.bbox
+    ext = hi - lo
+    line = f"part: {ext[0]:.3g} x {ext[1]:.3g} x {ext[2]:.3g} (bounding box; the mesh's units are read as metres)"
+    E = max([scene.solid.values["E"]] + [r.solid.values["E"] for r in scene.regions])
+    if ext.max() > MM_LIKE[0] and E > MM_LIKE[1]:
+        return [line, f"note: a part {ext.max():.3g} m long with E = {E:g} Pa: if it is drawn in millimetres, "
+                      "scale the mesh to metres (or give E, pressures and tractions in MPa and forces in N: then "
+                      "stresses come out in MPa and densities must be in t/mm^3)"]
+    return [line]
+
+
+def _solver(scene, model, comm):
+    """(Solver, PETSc TS or None) of the scene: under -integrator ts the TS's own SNES."""
+    ts = make_ts(comm) if scene.integrator == "ts" else None
+    solver = Solver(model.system, scene.jacobian, scene.assembly, guard=scene.inversion_guard,
+                    objective=scene.objective and ts is None, snes=ts.getSNES() if ts else None,
+                    reuse_pc=scene.reuse_preconditioner, storage=scene.operator_storage,
+                    plan=model.formulation.solver_plan(model.system))
+    if ts is not None:
+        ts.setFromOptions()      # (again when the integrator is set up) so that its options count as used
+        check_energy_momentum(ts, scene)
+    return solver, ts
+
+
+def _integrate(integ, writer, comm, scene):
+    """Run the integrator with SIGINT/SIGTERM honoured at the next frame; the file is closed whatever
+    happens, kept when the run ended or stopped on request with a checkpoint. Returns the forces on the
+    body at the end (forces.py; backward Euler and quasi-static runs), also recorded in the file."""
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, lambda signum, frame: integ.request_stop(signum))
+    ended = False
+    forces = None
+    try:
+        integ.run()
+        ended = True
+        if isinstance(integ, BackwardEuler):
+            forces = surface_forces(scene, integ.system, integ.x)
+            writer.set_attr("forces", json.dumps({"t": integ.t, "forces": record(forces)}))
+        return forces
+    except Interrupted:
+        ended = True          # stopped on request with a checkpoint: keep it, even before a first step
+        raise
+    finally:
+        writer.set_attr("steps_completed", integ.step)
+        writer.set_attr("peak_rss_mb", peak_rss_mb(comm))
+        writer.close(keep=ended)
+
+
+def _check_restart(state, model, scene, path):
+    """The checkpoint fits the run it continues: the same mesh, and time left before -final_time."""
+    if len(state["x"]) != len(model.points):
+        raise UserError(f"--restart '{path}': the checkpoint has {len(state['x'])} vertices, the mesh of this run "
+                        f"{len(model.points)} (a restart continues on the mesh it was written with)")
+    if state["t"] >= scene.final_time * (1 - 1e-12):
+        raise UserError(f"--restart '{path}': the checkpoint is at t = {state['t']:g}, the end of the run "
+                        f"(-final_time {scene.final_time:g}); give a later -final_time to continue")
+
+
+def peak_rss_mb(comm):
+    """Peak resident memory [MB] of the most loaded rank so far (getrusage: KiB on Linux)."""
+    kib = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    return comm.tompi4py().allreduce(kib, op=MPI.MAX) / 1024.0

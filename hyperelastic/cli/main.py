@@ -1,0 +1,362 @@
+"""hyperelastic: implicit FEM for stiff hyperelastic solids on PETSc.
+
+  hyperelastic run SCENE [PETSc options]         simulate a scene (built-in name or options file)
+  hyperelastic run --restart FILE.h5 [options]   continue a run from the last checkpoint in FILE.h5
+  hyperelastic mesh bar --level N -o FILE.msh    generate a gmsh mesh of the thesis' bar
+  hyperelastic mesh PART.geo --size H -o F.msh   mesh your own .geo/.step (physical groups kept; --refine N)
+  hyperelastic plot FILE.h5 [-o FILE.png]        picture of a frame (default: the last)
+  hyperelastic report FILE.h5 [--at X,Y,Z] [--frame N] [--watch Q]
+                                                 the run, its forces, values at material points, again
+  hyperelastic scenes                            list the built-in scenes
+  hyperelastic study accuracy|refinement [-output_dir DIR] [--full] [--jobs N]
+                                                 what accuracy costs in time: CSV, PNGs, markdown
+  hyperelastic study price --part P --scene S --size H --watch Q --target ERR
+                                                 the cheapest setting for a target error on your part
+"""
+import os
+import re
+import sys
+import tempfile
+import time
+import traceback
+
+from ..core.data import recipe_path, recipes
+from ..core.errors import ArgParser, Interrupted, SolveError, UserError
+from ..core.files import option_lines, read_checkpoint
+from ..mesh.generate import format_normal, generate
+from ..output.plot import render
+
+# petsc4py reads the command line when PETSc is first imported, and mpi4py initializes MPI when imported:
+# every module that imports either (options, catalog, run, study, libpetsc) is imported only where a
+# command needs it, after _petsc for `run`.
+
+EXIT_USER, EXIT_SOLVE, EXIT_INTERNAL = 2, 3, 1
+
+
+def _petsc(argv):
+    """(petsc4py.PETSc initialized with argv, the options files argv reads)."""
+    files = _check_options_files(argv)
+    import petsc4py
+    petsc4py.init([sys.argv[0]] + list(argv))
+
+    def initialize():
+        from petsc4py import PETSc
+        PETSc.COMM_WORLD.getSize()       # (the import initializes PETSc)
+        return PETSc
+    return _held_stderr(initialize), files
+
+
+def _recipes(argv):
+    """The arguments with every `-options_file NAME` that names no file here but one of the package's recipes
+    (`gamg`, `gamg.opts` or the README's `options/gamg.opts`) pointing at that recipe: recipes work from any
+    directory, an installed package included."""
+    out = list(argv)
+    for i, a in enumerate(out[:-1]):
+        if a == "-options_file":
+            found = recipe_path(out[i + 1])
+            if found:
+                out[i + 1] = found
+    return out
+
+
+def _check_options_files(argv, chain=()):
+    """Every `-options_file F` of the arguments, and those the files include in turn, must be a
+    readable regular UTF-8 file that does not include itself: PETSc itself would print a multi-line
+    error and leave no communicator (missing file), wait forever (a FIFO), or recurse until SIGSEGV
+    (a file that includes itself, or two that include each other). Returns their paths (the inputs an
+    output must not overwrite)."""
+    files = []
+    for i, a in enumerate(argv):
+        if a != "-options_file":
+            continue
+        if i + 1 >= len(argv):
+            raise UserError("option -options_file: needs a file")
+        path = argv[i + 1]
+        real = os.path.realpath(path)
+        files.append(path)
+        if real in chain:
+            names = " -> ".join([os.path.basename(c) for c in chain] + [os.path.basename(real)])
+            raise UserError(f"options file '{path}' includes itself ({names})")
+        if not os.path.isfile(path):
+            why = "does not exist" if not os.path.exists(path) else "is not a regular file"
+            raise UserError(f"options file '{path}' {why} (the package's recipes, by name from any directory: "
+                            f"{', '.join(recipes())})")
+        try:
+            with open(path, encoding="utf-8") as fh:
+                text = fh.read()
+        except OSError as e:
+            raise UserError(f"options file '{path}': cannot be read ({e.strerror})") from None
+        except UnicodeDecodeError:
+            raise UserError(f"options file '{path}': not UTF-8 text") from None
+        if "\0" in text:
+            raise UserError(f"options file '{path}': holds NUL bytes (not a text file)")
+        lines = option_lines(text, f"options file '{path}'")
+        if not lines:
+            raise UserError(f"options file '{path}': holds no options")
+        inner = [w for _, key, value in lines for w in ["-" + key] + ([] if value is None else [value])]
+        files += _check_options_files(inner, chain + (real,))
+    return files
+
+
+NUMBER = re.compile(r"-[0-9.]")      # a negative number (or a list starting with one) is a value, not an option
+
+
+def _check_words(args):
+    """PETSc reads `-option [value]` pairs and skips any other word, and `--name` is an option of its own
+    that nothing reads: each is one error line here."""
+    value_ok = False
+    for a in args:
+        if a.startswith("-") and not NUMBER.match(a):
+            if a == "-" or a.startswith("--"):
+                raise UserError(f"argument '{a[:40]}': options are -name [value] (one '-')")
+            value_ok = True
+        elif value_ok:
+            value_ok = False
+        else:
+            raise UserError(f"argument '{a[:40]}': neither an option nor an option's value (options are "
+                            "-name [value]; the scene comes first)")
+
+
+def _held_stderr(fn):
+    """fn() with file descriptor 2 sent to a temporary file: PETSc prints its own multi-line error report
+    when its initialization fails (a malformed option value); the caller prints the one line. On success
+    what was written is passed on to stderr."""
+    sys.stderr.flush()
+    saved = os.dup(2)
+    with tempfile.TemporaryFile() as tmp:
+        os.dup2(tmp.fileno(), 2)
+        try:
+            out = fn()
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+        tmp.seek(0)
+        text = tmp.read()
+    if text:
+        sys.stderr.buffer.write(text)
+        sys.stderr.flush()
+    return out
+
+
+def _restart_args(argv):
+    """(scene file, PETSc arguments, checkpoint state) for `run --restart FILE [options]`: the options
+    recorded in FILE, then the command line's (which win), writing on into FILE."""
+    from mpi4py import MPI
+    if len(argv) < 2 or argv[1].startswith("-"):
+        raise UserError("run --restart: needs the FILE.h5 of an earlier run")
+    path = argv[1]
+    rest = list(argv[2:])
+    for i, a in enumerate(rest[:-1]):
+        if a == "-output" and os.path.realpath(rest[i + 1]) != os.path.realpath(path):
+            raise UserError(f"run --restart: continues '{path}' in place; -output {rest[i + 1]} cannot name another "
+                            f"file (copy '{path}' there first and restart the copy)")
+    res = err = None
+    if MPI.COMM_WORLD.rank == 0:
+        try:
+            state, attrs = read_checkpoint(path)
+            args = []
+            for line in str(attrs.get("options", "")).splitlines():
+                key, _, val = line.partition(" ")
+                if key.lstrip("-") != "output":
+                    args += [key] + ([val] if val else [])
+            res = (attrs["scene_file"], args + ["-output", path] + list(argv[2:]), state)
+        except UserError as e:
+            err = str(e)
+        except Exception as e:     # any other defect must not leave the other ranks waiting
+            err = f"--restart '{path}': not a hyperelastic output file with a checkpoint ({type(e).__name__}: {e})"
+    err = MPI.COMM_WORLD.bcast(err, root=0)
+    if err:
+        raise UserError(err)
+    scene, args, state = MPI.COMM_WORLD.bcast(res, root=0)
+    return scene, args, state
+
+
+def run_cmd(argv):
+    """`hyperelastic run SCENE [options]` or `run --restart FILE.h5 [options]` (run.py does the work)."""
+    restart = None
+    if argv and argv[0] in ("--help", "-help", "-h"):
+        print(catalog_help())
+        return 0
+    if argv and argv[0] == "--restart":
+        scene_arg, petsc_args, restart = _restart_args(argv)
+    elif not argv or argv[0].startswith("-"):
+        raise UserError("run: needs a SCENE (a built-in name or an options file); see `hyperelastic scenes`")
+    else:
+        scene_arg, petsc_args = argv[0], argv[1:]
+    petsc_args = _recipes(petsc_args)
+    _check_words(petsc_args)
+    _, options_files = _petsc(petsc_args)
+    # deferred on purpose: petsc4py reads the command line when PETSc is first imported, so every module
+    # that imports it comes after _petsc
+    from ..app.run import run_scene
+    return run_scene(scene_arg, options_files, restart, argv[1] if restart is not None else None)
+
+
+def catalog_help():
+    """`run --help`: every option with its default (needs PETSc for the options module; nothing is read)."""
+    from ..app.catalog import help_text     # deferred: imports petsc4py (see run_cmd)
+    return help_text()
+
+
+def mesh_cmd(argv):
+    ap = ArgParser(prog="hyperelastic mesh", description="Generate a tetrahedral mesh with gmsh, keeping the "
+                   "geometry's physical groups.")
+    ap.add_argument("geometry", help="a .geo or .step file, or the name of a .geo file under meshes/ (e.g. bar)")
+    ap.add_argument("--level", type=int, help="refinement level: 1..8 = thesis L1..L8, 9.. finer (~2x tets each)")
+    ap.add_argument("--size", type=float, help="target edge length instead of a level")
+    ap.add_argument("--refine", type=int, default=0, help="also write N uniformly refined meshes OUT_r1 .. OUT_rN")
+    ap.add_argument("--order", type=int, default=1, help="2: 10-node tetrahedra, edge nodes on curved geometry")
+    ap.add_argument("-o", "--output", required=True, help="output .msh file")
+    a = ap.parse_args(argv)
+    if (a.level is None) == (a.size is None):
+        raise UserError("hyperelastic mesh: give exactly one of --level N or --size H")
+    if a.refine < 0:
+        raise UserError(f"hyperelastic mesh: --refine {a.refine} must be >= 0")
+    st = generate(a.geometry, a.level, a.output, a.size, a.refine, a.order)
+    for s in (st if a.refine else [st]):
+        nodes = f" ({s['nodes']} nodes of 10-node tets)" if s["order"] == 2 else ""
+        print(f"{s['file']}: level {a.level or '-'} target edge {s['target_size']:.4g}: {s['vertices']} vertices"
+              f"{nodes}, {s['tets']} tets, min edge {s['min_edge']:.4g}")
+    first = st[0] if a.refine else st
+    if first["auto_named"]:
+        print("the geometry has no physical groups: each surface and volume is named by its tag; pick surfaces "
+              "by these names (-fix surface_3) or by geometry (-fix x=0, box=..., normal=+z)")
+        print(f"  {'surface':<14} {'facets':>7} {'area':>11}  {'centroid':<36} outward normal")
+        for name, nf, area, c, u in first["surfaces"]:
+            cen = "(" + ", ".join(f"{v:.4g}" for v in c) + ")"
+            print(f"  {name:<14} {nf:>7} {area:>11.4g}  {cen:<36} {format_normal(u)}")
+    return 0
+
+
+def plot_cmd(argv):
+    ap = ArgParser(prog="hyperelastic plot", description="Render a frame of an output file to PNG.")
+    ap.add_argument("file")
+    ap.add_argument("-o", "--output", default=None)
+    ap.add_argument("--frame", type=int, default=-1)
+    a = ap.parse_args(argv)
+    out = a.output if a.output is not None else os.path.splitext(a.file)[0] + ".png"
+    render(a.file, out, a.frame)
+    print(out)
+    return 0
+
+
+def scenes_cmd(argv):
+    if argv:
+        raise UserError(f"hyperelastic scenes: takes no arguments (got '{argv[0][:40]}')")
+    from ..core.data import SCENES_DIR, builtin_scenes
+    for s in builtin_scenes():
+        with open(os.path.join(SCENES_DIR, s + ".opts")) as fh:
+            first = fh.readline().lstrip("# ").strip()
+        print(f"{s:10s} {first}")
+    return 0
+
+
+def report_cmd(argv):
+    from ..output.report import main as report_main      # (imports the study package: only where it is needed)
+    return report_main(argv)
+
+
+def study_cmd(argv):
+    from ..studies.command import main as study_main
+    return study_main(argv)
+
+
+COMMANDS = {"run": run_cmd, "mesh": mesh_cmd, "plot": plot_cmd, "report": report_cmd, "scenes": scenes_cmd,
+            "study": study_cmd}
+
+
+def main(argv=None):
+    argv = list(sys.argv[1:] if argv is None else argv)
+    debug = "-debug" in argv
+    if debug:
+        argv.remove("-debug")
+    if not argv or argv[0] in ("-h", "--help", "help"):
+        print(__doc__)
+        return 0
+    for a in argv:
+        try:
+            a.encode("utf-8")
+        except UnicodeEncodeError:
+            _error(f"argument '{a.encode('utf-8', 'replace').decode()}': not valid UTF-8 (file names and options "
+                   "must be: PETSc, HDF5 and gmsh read them as UTF-8)")
+            return EXIT_USER
+    cmd = COMMANDS.get(argv[0])
+    if cmd is None:
+        _error(f"unknown command '{argv[0]}' (choose from {', '.join(COMMANDS)})")
+        return EXIT_USER
+    try:
+        return cmd(argv[1:])
+    except UserError as e:
+        _error(str(e))
+        return EXIT_USER
+    except SolveError as e:
+        _error(str(e))
+        return EXIT_SOLVE
+    except Interrupted as e:
+        _error(str(e))
+        return 128 + int(e.signum)
+    except KeyboardInterrupt:
+        _error("interrupted")
+        return 130
+    except Exception as e:
+        if type(e).__name__ == "Error" and hasattr(e, "ierr"):   # petsc4py.PETSc.Error
+            from ..core.libpetsc import error_message     # deferred: imports petsc4py (see run_cmd)
+            _error(f"PETSc: {error_message(e.ierr)}")
+            return EXIT_USER
+        if debug:
+            traceback.print_exc()
+        else:
+            msg = " ".join(str(e).split())[:300] or type(e).__name__
+            _error(f"internal error: {type(e).__name__}: {msg} (rerun with -debug for a traceback)", any_rank=True)
+        _abort_if_parallel(EXIT_INTERNAL)
+        return EXIT_INTERNAL
+
+
+def _comm():
+    if "petsc4py.PETSc" in sys.modules:
+        from petsc4py import PETSc
+        return PETSc.COMM_WORLD
+    return None
+
+
+def _abort_if_parallel(code):
+    """An error raised on some ranks only would leave the others waiting in a collective call."""
+    comm = _comm()
+    try:
+        mpi = comm.tompi4py() if comm is not None else None
+    except ValueError:          # PETSc was not (successfully) initialized
+        mpi = None
+    if mpi is None:             # (a command without PETSc: MPI's own world)
+        from mpi4py import MPI
+        mpi = MPI.COMM_WORLD
+    if mpi.size > 1:
+        sys.stderr.flush()
+        mpi.Abort(code)
+
+
+# An error that only some ranks may have (an internal one) is printed by rank 0 at once and by any other rank after
+# this grace: where rank 0 has it too, its abort ends the job first, so that N ranks print it once.
+ANY_RANK_GRACE_S = 2.0
+
+
+def _error(msg, any_rank=False):
+    """The one error line: printed by rank 0 (errors of the user and of the solver are raised on every rank alike);
+    with any_rank (an internal error, maybe on some ranks only) by the others too, after ANY_RANK_GRACE_S."""
+    comm = _comm()
+    if comm is not None:   # no 'unused options' report after an error: the one line says what is wrong
+        from petsc4py import PETSc
+        PETSc.Options().setValue("options_left", "0")
+    try:
+        rank, size = comm.getRank(), comm.getSize()
+    except (AttributeError, ValueError):   # PETSc not (or not successfully) initialized: ask MPI
+        from mpi4py import MPI
+        rank, size = MPI.COMM_WORLD.rank, MPI.COMM_WORLD.size
+    if any_rank and rank != 0 and size > 1:
+        sys.stderr.flush()
+        time.sleep(ANY_RANK_GRACE_S)
+    if any_rank or rank == 0:
+        print(f"hyperelastic: error: {msg}", file=sys.stderr, flush=True)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

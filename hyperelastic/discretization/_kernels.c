@@ -1,0 +1,343 @@
+/* Element kernels for linear tetrahedra (P1), vectorized over cells in plain C.
+ *
+ * Geometry per cell: Dminv = Dm^{-1} (3x3, row-major), Dm = [X1-X0 | X2-X0 | X3-X0],
+ * so grad N_a = row (a-1) of Dminv for a = 1..3 and grad N_0 = -(sum of the rows);
+ * F = Ds Dminv with Ds = [x1-x0 | x2-x0 | x3-x0] (thesis eq. 3.3 / 4.29; Sifakis & Barbic,
+ * SIGGRAPH 2012 course notes, sec. 4). Element force k_a = V P grad N_a (thesis eq. 4.41).
+ *
+ * Materials: each one is a header materials/NAME.h (its stress P = dPsi/dF, the preparation of a
+ * cell's derivative data, and the directional derivative dP), beside its numpy reference
+ * materials/NAME.py. setup.py generates he_materials.h, which instantiates the cell loops of
+ * _material_loops.h once per material header: he_forces_NAME, he_energy_NAME, he_kv_NAME,
+ * he_tangent_NAME, he_tangent_diag_NAME, he_forces_dg_NAME, each taking the material's parameter block
+ * (HE_NPARAM below). The kernels below do not depend on the material.
+ * All arrays are C-contiguous; vertex indices index a local vector with 3 dofs per vertex.
+ */
+#include "_cells.h"
+#include "he_materials.h"
+
+/* y += coef * M_e v over cells, with the consistent P1 matrix int N_a N_b dV = V (1 + delta_ab) / 20
+ * (thesis eq. 4.39/4.40), applied per vector component. */
+void he_mass_apply(int64_t nc, const idx_t *cells, const double *vol, double coef, const double *v, double *y) {
+  for (int64_t e = 0; e < nc; e++) {
+    const idx_t *c = cells + 4 * e;
+    double w = coef * vol[e] / 20.0;
+    for (int i = 0; i < 3; i++) {
+      double s = v[3 * (int64_t)c[0] + i] + v[3 * (int64_t)c[1] + i] + v[3 * (int64_t)c[2] + i] +
+                 v[3 * (int64_t)c[3] + i];
+      for (int a = 0; a < 4; a++) y[3 * (int64_t)c[a] + i] += w * (v[3 * (int64_t)c[a] + i] + s);
+    }
+  }
+}
+
+/* vals (nc,12,12) += coef * V/20 (1 + delta_ab) I3: the consistent P1 mass pattern, in place. */
+void he_add_mass_blocks(int64_t nc, const double *vol, double coef, double *vals) {
+  for (int64_t e = 0; e < nc; e++) {
+    double w = coef * vol[e] / 20.0;
+    double *K = vals + 144 * e;
+    for (int a = 0; a < 4; a++)
+      for (int b = 0; b < 4; b++) {
+        double m = (a == b) ? 2.0 * w : w;
+        for (int i = 0; i < 3; i++) K[12 * (3 * a + i) + 3 * b + i] += m;
+      }
+  }
+}
+
+/* y += B v with per-cell 12x12 blocks B (row-major over local dofs 3a+i), scattered by cells; used
+ * for projected element Hessians (-hessian_projection), which are stored rather than recomputed. */
+void he_apply_blocks(int64_t nc, const idx_t *cells, const double *B, const double *v, double *y) {
+  for (int64_t e = 0; e < nc; e++) {
+    const idx_t *c = cells + 4 * e;
+    const double *K = B + 144 * e;
+    double ve[12];
+    for (int a = 0; a < 4; a++)
+      for (int i = 0; i < 3; i++) ve[3 * a + i] = v[3 * (int64_t)c[a] + i];
+    for (int a = 0; a < 4; a++)
+      for (int i = 0; i < 3; i++) {
+        const double *row = K + 12 * (3 * a + i);
+        double s = 0;
+        for (int k = 0; k < 12; k++) s += row[k] * ve[k];
+        y[3 * (int64_t)c[a] + i] += s;
+      }
+  }
+}
+
+/* Largest t in (0, 1] such that every cell keeps det F > 0 along x + s d for s in [0, t], times frac
+ * when a cell would reach det F = 0 within the unit step. det F(x + s d) = det(A + s B) is the cubic
+ * det A + s cof(A):B + s^2 cof(B):A + s^3 det B (A = F(x), B = F(d), F linear in positions). Its first
+ * root in (0, 1] is found by splitting at the critical points (roots of the derivative) and bisecting
+ * the first monotone piece whose end is <= 0. Cells already inverted at x are skipped. */
+/* The largest t in (0, 1] keeping det(A + s B) > 0 for s in [0, t] (A = F(x), B = F(d)), times frac when
+ * det reaches 0 within the unit step; 1 when it does not, or when det A <= 0 already (the cell is skipped). */
+HE_INLINE double det_step(const double *A, const double *B, double frac) {
+  double cA[9], cB[9];
+  double c0 = det3(A);
+  if (!(c0 > 0)) return 1.0;
+  cof_mixed(A, A, cA);
+  cof_mixed(B, B, cB);
+  double c1 = 0, c2 = 0, c3 = det3(B);
+  for (int k = 0; k < 9; k++) { c1 += cA[k] * B[k]; c2 += cB[k] * A[k]; }
+#define CUBIC(s) (c0 + (s) * (c1 + (s) * (c2 + (s) * c3)))
+  double pts[4] = {0, 1, 1, 1};
+  int np = 1;
+  /* critical points: c1 + 2 c2 s + 3 c3 s^2 = 0 */
+  double qa = 3 * c3, qb = 2 * c2, qc = c1, r[2];
+  int nr = 0;
+  if (qa != 0) {
+    double disc = qb * qb - 4 * qa * qc;
+    if (disc >= 0) {
+      double sq = sqrt(disc), q = -0.5 * (qb + (qb >= 0 ? sq : -sq));
+      if (q != 0) { r[nr++] = q / qa; r[nr++] = qc / q; }
+      else r[nr++] = 0;
+    }
+  } else if (qb != 0) r[nr++] = -qc / qb;
+  if (nr == 2 && r[0] > r[1]) { double t = r[0]; r[0] = r[1]; r[1] = t; }
+  for (int i = 0; i < nr; i++)
+    if (r[i] > 0 && r[i] < 1) pts[np++] = r[i];
+  pts[np++] = 1;
+  for (int i = 1; i < np; i++) {
+    if (CUBIC(pts[i]) > 0) continue;
+    double lo = pts[i - 1], hi = pts[i]; /* CUBIC(lo) > 0 >= CUBIC(hi) */
+    for (int it = 0; it < 60; it++) {
+      double mid = 0.5 * (lo + hi);
+      if (CUBIC(mid) > 0) lo = mid; else hi = mid;
+    }
+    return frac * lo < 1.0 ? frac * lo : 1.0;
+  }
+#undef CUBIC
+  return 1.0;
+}
+
+/* Largest t in (0, 1] such that every cell keeps det F > 0 along x + s d for s in [0, t], times frac
+ * when a cell would reach det F = 0 within the unit step. det F(x + s d) = det(A + s B) is the cubic
+ * det A + s cof(A):B + s^2 cof(B):A + s^3 det B (A = F(x), B = F(d), F linear in positions). Its first
+ * root in (0, 1] is found by splitting at the critical points (roots of the derivative) and bisecting
+ * the first monotone piece whose end is <= 0. Cells already inverted at x are skipped. */
+double he_max_step(int64_t nc, const idx_t *cells, const double *Dminv, const double *x, const double *d,
+                   double frac) {
+  double tmin = 1.0;
+  for (int64_t e = 0; e < nc; e++) {
+    double A[9], B[9];
+    gather_F(cells + 4 * e, Dminv + 9 * e, x, A);
+    if (!(det3(A) > 0)) continue;
+    gather_F(cells + 4 * e, Dminv + 9 * e, d, B);
+    double t = det_step(A, B, frac);
+    if (t < tmin) tmin = t;
+  }
+  return tmin;
+}
+
+/* dst block k (9 values) = the 3x3 block of a CSR value array src whose row r starts at p0[k] + r L[k]:
+   dst[9k + 3c + r] (column-major, as (S)BAIJ stores blocks) when colmajor, else dst[9k + 3r + c]. */
+void he_gather_blocks(int64_t nb, const int32_t *p0, const int32_t *L, const double *src, double *dst,
+                      int colmajor) {
+  for (int64_t k = 0; k < nb; k++) {
+    const double *s = src + p0[k];
+    double *d = dst + 9 * k;
+    const int64_t l = L[k];
+    for (int r = 0; r < 3; r++)
+      for (int c = 0; c < 3; c++)
+        d[colmajor ? 3 * c + r : 3 * r + c] = s[r * l + c];
+  }
+}
+
+/* dst[p0[k] + r L[k] + c] += vals[9k + 3r + c]: 3x3 blocks (row-major) added into CSR values, in order
+   (blocks at the same place accumulate). */
+void he_add_blocks(int64_t nb, const int32_t *p0, const int32_t *L, const double *vals, double *dst) {
+  for (int64_t k = 0; k < nb; k++) {
+    double *d = dst + p0[k];
+    const double *v = vals + 9 * k;
+    const int64_t l = L[k];
+    for (int r = 0; r < 3; r++)
+      for (int c = 0; c < 3; c++)
+        d[r * l + c] += v[3 * r + c];
+  }
+}
+
+/* dst += the 12x12 blocks vals (nc x 144, dof order 3a+i) of the cells with base[16 e] >= 0, into CSR
+ * values: the 3x3 block of vertices (a, b) starts at base[16 e + 4 a + b] and its row i at + i * len[4 e + a]
+ * (the three rows of a vertex have the same columns, the three columns of a vertex are consecutive); the
+ * map is computed once (jacobians.AssembledChunked). */
+void he_scatter_blocks(int64_t nc, const int32_t *base, const int32_t *len, const double *vals, double *dst) {
+  for (int64_t e = 0; e < nc; e++) {
+    const int32_t *p = base + 16 * e, *L = len + 4 * e;
+    if (p[0] < 0) continue;
+    const double *v = vals + 144 * e;
+    for (int a = 0; a < 4; a++)
+      for (int i = 0; i < 3; i++) {
+        const double *row = v + 12 * (3 * a + i);
+        int64_t off = (int64_t)i * L[a];
+        for (int b = 0; b < 4; b++) {
+          double *d = dst + p[4 * a + b] + off;
+          d[0] += row[3 * b];
+          d[1] += row[3 * b + 1];
+          d[2] += row[3 * b + 2];
+        }
+      }
+  }
+}
+
+/* ---- elements with quadrature (P2 tetrahedra; _element_loops.h has the material loops and the helpers) ---- */
+
+/* y += coef * M v per vector component, M_ab = sum_q w_q N_a(q) N_b(q) (N: nq x nn at the mass rule's points,
+ * w: nc x nq, |det J| times the rule's weights). */
+void he_emass_apply(int64_t nc, int nn, int nq, const idx_t *cells, const double *N, const double *w, double coef,
+                    const double *v, double *y) {
+  for (int64_t e = 0; e < nc; e++) {
+    const idx_t *c = cells + (int64_t)nn * e;
+    double ve[HE_MAXN][3], ye[HE_MAXN][3] = {{0}};
+    e_gather(c, nn, v, ve);
+    for (int q = 0; q < nq; q++) {
+      const double *Nq = N + nn * q, wq = coef * w[(int64_t)nq * e + q];
+      double s[3] = {0, 0, 0};
+      for (int b = 0; b < nn; b++)
+        for (int i = 0; i < 3; i++) s[i] += Nq[b] * ve[b][i];
+      for (int a = 0; a < nn; a++)
+        for (int i = 0; i < 3; i++) ye[a][i] += wq * Nq[a] * s[i];
+    }
+    e_scatter(c, nn, ye, y);
+  }
+}
+
+/* vals (nc, 3nn, 3nn) += coef * M_ab I3 of each cell (the consistent mass blocks), in place. */
+void he_emass_blocks(int64_t nc, int nn, int nq, const double *N, const double *w, double coef, double *vals) {
+  const int n3 = 3 * nn;
+  for (int64_t e = 0; e < nc; e++) {
+    double *K = vals + (int64_t)n3 * n3 * e;
+    for (int a = 0; a < nn; a++)
+      for (int b = 0; b < nn; b++) {
+        double m = 0;
+        for (int q = 0; q < nq; q++) m += w[(int64_t)nq * e + q] * N[nn * q + a] * N[nn * q + b];
+        for (int i = 0; i < 3; i++) K[n3 * (3 * a + i) + 3 * b + i] += coef * m;
+      }
+  }
+}
+
+/* y += B v with per-cell (3nn x 3nn) blocks B (row-major), scattered by cells. */
+void he_eapply_blocks(int64_t nc, int nn, const idx_t *cells, const double *B, const double *v, double *y) {
+  const int n3 = 3 * nn;
+  for (int64_t e = 0; e < nc; e++) {
+    const idx_t *c = cells + (int64_t)nn * e;
+    const double *K = B + (int64_t)n3 * n3 * e;
+    double ve[HE_MAXN][3], ye[HE_MAXN][3];
+    e_gather(c, nn, v, ve);
+    for (int r = 0; r < n3; r++) {
+      double s = 0;
+      for (int k = 0; k < n3; k++) s += K[n3 * r + k] * ve[k / 3][k % 3];
+      ye[r / 3][r % 3] = s;
+    }
+    e_scatter(c, nn, ye, y);
+  }
+}
+
+/* he_max_step on elements: det F > 0 at every quadrature point along x + s d (F is linear in the positions at
+ * each point, so det_step applies point by point); cells with a point already inverted at x are skipped. */
+double he_emax_step(int64_t nc, int nn, int nq, const idx_t *cells, const double *dN, const double *geo,
+                    const double *x, const double *d, double frac) {
+  double tmin = 1.0;
+  for (int64_t e = 0; e < nc; e++) {
+    const idx_t *c = cells + (int64_t)nn * e;
+    double xe[HE_MAXN][3], de[HE_MAXN][3], t = 1.0;
+    int skip = 0;
+    e_gather(c, nn, x, xe);
+    e_gather(c, nn, d, de);
+    for (int q = 0; q < nq && !skip; q++) {
+      const double *g = geo + 10 * ((int64_t)nq * e + q);
+      double G[HE_MAXN][3], A[9], B[9];
+      e_grads(g, dN + 3 * nn * q, nn, G);
+      e_deformation(xe, G, nn, A);
+      if (!(det3(A) > 0)) { skip = 1; break; }
+      e_deformation(de, G, nn, B);
+      double tq = det_step(A, B, frac);
+      if (tq < t) t = tq;
+    }
+    if (!skip && t < tmin) tmin = t;
+  }
+  return tmin;
+}
+
+/* he_scatter_blocks for cells of nn nodes: dst += vals (nc x 3nn x 3nn), the 3x3 block of nodes (a, b) at
+ * base[nn^2 e + nn a + b] + i len[nn e + a] + j for entry (3a+i, 3b+j); cells with base[nn^2 e] < 0 skipped. */
+void he_scatter_blocks_n(int64_t nc, int nn, const int32_t *base, const int32_t *len, const double *vals,
+                         double *dst) {
+  const int n3 = 3 * nn;
+  for (int64_t e = 0; e < nc; e++) {
+    const int32_t *p = base + (int64_t)nn * nn * e, *L = len + (int64_t)nn * e;
+    if (p[0] < 0) continue;
+    const double *v = vals + (int64_t)n3 * n3 * e;
+    for (int a = 0; a < nn; a++)
+      for (int i = 0; i < 3; i++) {
+        const double *row = v + n3 * (3 * a + i);
+        int64_t off = (int64_t)i * L[a];
+        for (int b = 0; b < nn; b++) {
+          double *d = dst + p[nn * a + b] + off;
+          d[0] += row[3 * b];
+          d[1] += row[3 * b + 1];
+          d[2] += row[3 * b + 2];
+        }
+      }
+  }
+}
+
+/* The mixed formulation's pressure terms (mixed.PressureCoupling, volumetric kind "J": G = J - 1, docs/design.md)
+ * on nc cells of nn nodes with nq quadrature points: g (nc, nq, nn, 3) the physical shape-function gradients,
+ * w (nc, nq) |det J| w_q, pq (nc, nq) the pressure at the points, M (nq, 4) the pressure's shape functions. With
+ * H_a = cof(F) g_a = dJ/dx_a (cof(F) = J F^-T): Jq (nc, nq) = J; where not NULL, f (nc, 3nn) = sum_q w p H_a (the
+ * pressure's force), up (nc, 3nn, 4) = sum_q w H_a M_b (the coupling block) and blocks (nc, 3nn, 3nn) =
+ * sum_q (w p / J) (H_ai H_bk - H_ak H_bi) (p d2J/dx_a dx_b, the geometric block). */
+void he_pressure_terms(int64_t nc, int nn, int nq, const idx_t *cells, const double *g, const double *w,
+                       const double *x, const double *pq, const double *M, double *Jq, double *f, double *up,
+                       double *blocks) {
+  const int nd = 3 * nn;
+  double H[3 * 10];
+  for (int64_t e = 0; e < nc; e++) {
+    const idx_t *c = cells + (int64_t)nn * e;
+    if (f) memset(f + nd * e, 0, sizeof(double) * nd);
+    if (up) memset(up + 4 * nd * e, 0, sizeof(double) * 4 * nd);
+    if (blocks) memset(blocks + (int64_t)nd * nd * e, 0, sizeof(double) * nd * nd);
+    for (int q = 0; q < nq; q++) {
+      const double *gq = g + ((e * nq + q) * nn) * 3;
+      double F[9] = {0}, C[9];
+      for (int a = 0; a < nn; a++) {
+        const double *xa = x + 3 * (int64_t)c[a];
+        for (int i = 0; i < 3; i++)
+          for (int j = 0; j < 3; j++) F[3 * i + j] += xa[i] * gq[3 * a + j];
+      }
+      const double J = det3(F);
+      Jq[e * nq + q] = J;
+      cof_mixed(F, F, C);
+      for (int a = 0; a < nn; a++) mv3(C, gq + 3 * a, H + 3 * a);
+      const double wq = w[e * nq + q], p = pq[e * nq + q];
+      if (f) {
+        double *fe = f + nd * e;
+        for (int k = 0; k < nd; k++) fe[k] += wq * p * H[k];
+      }
+      if (up) {
+        double *ue = up + 4 * nd * e;
+        const double *Mq = M + 4 * q;
+        for (int k = 0; k < nd; k++)
+          for (int b = 0; b < 4; b++) ue[4 * k + b] += wq * H[k] * Mq[b];
+      }
+      if (blocks) {                           /* K1 += s H H^T here; blocks = K1 - its swap of i and k below */
+        double *be = blocks + (int64_t)nd * nd * e;
+        const double s = wq * p / J;
+        for (int m = 0; m < nd; m++) {
+          const double hm = s * H[m];
+          double *row = be + (int64_t)m * nd;
+          for (int k = 0; k < nd; k++) row[k] += hm * H[k];
+        }
+      }
+    }
+    if (blocks) {                             /* [a,i,b,k] = K1[a,i,b,k] - K1[a,k,b,i], for each pair of nodes */
+      double *be = blocks + (int64_t)nd * nd * e;
+      for (int a = 0; a < nn; a++)
+        for (int b = 0; b < nn; b++) {
+          double K[9], *B = be + (int64_t)3 * a * nd + 3 * b;
+          for (int i = 0; i < 3; i++)
+            for (int k = 0; k < 3; k++) K[3 * i + k] = B[(int64_t)i * nd + k];
+          for (int i = 0; i < 3; i++)
+            for (int k = 0; k < 3; k++) B[(int64_t)i * nd + k] = K[3 * i + k] - K[3 * k + i];
+        }
+    }
+  }
+}

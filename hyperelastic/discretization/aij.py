@@ -1,0 +1,258 @@
+"""The assembled tangent filled by `-assembly setvalues` (jacobians.AssembledChunked), by responsibility:
+its exact pattern (exact_pattern, on any number of ranks), the map of the interior cells' 12x12 blocks into
+the diagonal part's CSR values (CellMap), the partition-boundary cells' blocks placed once and sent to
+their rows' owners (BoundaryExchange), and the SBAIJ copy the Krylov method multiplies by where the tangent
+is symmetric (SBAIJCopy). docs/design.md ("The assembled tangent's fill") has the measurements."""
+import numpy as np
+from petsc4py import PETSc
+
+from .kernels import add_blocks, gather_blocks, scatter_blocks
+from ..core.libpetsc import SeqAIJRowIJ, SeqAIJValues, mpiaij_off_diagonal
+
+
+def _row_search(ia, ja, rows, cols):
+    """Per query, the position in ja of column cols[q] within row rows[q] of a CSR pattern whose rows'
+    columns are sorted (vectorized bisection, no index array of the whole pattern); where a column is
+    absent, the position it would take (callers check ja there)."""
+    lo, hi = ia[rows], ia[rows + 1]
+    while True:
+        open_ = lo < hi
+        if not open_.any():
+            return np.minimum(lo, len(ja) - 1)
+        mid = (lo + hi) // 2
+        right = open_ & (ja[np.minimum(mid, len(ja) - 1)] < cols)
+        lo = np.where(right, mid + 1, lo)
+        hi = np.where(open_ & ~right, mid, hi)
+
+
+def owned_index(sp):
+    """Per local vertex, its index among this rank's owned vertices (the global numbering less the
+    rank's first row), -1 for a vertex owned by another rank."""
+    own = np.full(sp.nlv, -1, np.int64)
+    own[sp.lvid_of_owned] = np.arange(len(sp.lvid_of_owned))
+    return own
+
+
+def exact_pattern(sp):
+    """(row pointers, global columns) of the tangent's exact pattern in this rank's owned rows: dof
+    (3v + a, 3w + b) for every pair of vertices v, w sharing a cell, columns sorted in each row. On
+    several ranks a vertex at a partition boundary also has pairs from cells another rank holds: each
+    rank sends the pairs of its cells whose row vertex another rank owns to that rank (one alltoall of
+    sorted int64 keys), so every rank's pattern is complete before the first fill."""
+    mpi = sp.mpi
+    g = sp.lgmap.getBlockIndices().astype(np.int64)       # global vertex of each local vertex
+    N = int(sp.nv_total)
+    c = g[sp.cells.astype(np.int64)]
+    keys = np.unique((c[:, :, None] * N + c[:, None, :]).ravel())       # sorted by row vertex, column
+    del c
+    starts = np.zeros(mpi.size + 1, np.int64)
+    starts[1:] = np.cumsum(mpi.allgather(sp.n_owned))
+    if mpi.size > 1:
+        cut = np.searchsorted(keys, starts * N)                          # the rows' owners, in rank order
+        recv = mpi.alltoall([keys[cut[r]:cut[r + 1]] for r in range(mpi.size)])
+        keys = np.unique(np.concatenate(recv))
+        del recv
+    row, col = keys // N - starts[mpi.rank], keys % N
+    del keys
+    n = sp.n_owned
+    deg = np.bincount(row, minlength=n)                                  # neighbour vertices per vertex
+    cols_v = (3 * col[:, None] + np.arange(3)).ravel()                   # vertex v's 3 deg dof columns
+    first = np.repeat(3 * (np.cumsum(deg) - deg), 3)                     # where dof row 3v + a's are
+    lens = np.repeat(3 * deg, 3)                                         # in cols_v (the same for a = 0..2)
+    ia = np.zeros(3 * n + 1, np.int64)
+    ia[1:] = np.cumsum(lens)
+    ja = cols_v[np.repeat(first - ia[:-1], lens) + np.arange(ia[-1])]
+    return ia.astype(PETSc.IntType), ja.astype(PETSc.IntType)
+
+
+class CellMap:
+    """For every cell whose four vertices this rank owns (all of them on one rank), where each of its 16
+    vertex-pair 3x3 blocks starts in the CSR value array of the diagonal block (int32 `base`, -1 for the
+    other cells, whose rows or columns are partly another rank's: `boundary`, see BoundaryExchange), and
+    the length of each of its vertices' rows (`rowlen`): the three rows of a vertex have the same columns,
+    and a vertex's three columns are consecutive, so entry (3a+i, 3b+j) is at base[4a+b] + i rowlen[a] + j.
+    A Newton step adds the cell blocks straight into the values (kernels.scatter_blocks) instead of
+    searching each row per block: 80 bytes per tet. Every entry's column is checked when the map is made (a
+    missing one is an error, not a drop)."""
+
+    def __init__(self, sp, blocks, ia, ja, chunk):
+        if len(ja) >= 2 ** 31:
+            raise RuntimeError(f"the tangent's diagonal block has {len(ja)} entries on one rank (the direct map "
+                               "holds int32 positions): use more ranks or -assembly coo")
+        own = owned_index(sp)
+        nc, nn = blocks.shape
+        base = np.full((nc, nn * nn), -1, np.int32)
+        rowlen = np.zeros((nc, nn), np.int32)
+        interior = (own[blocks] >= 0).all(axis=1)
+        ia64 = ia.astype(np.int64)
+        i3, j3 = np.arange(3)[:, None], np.arange(3)[None, :]
+        for lo in range(0, nc, chunk):
+            hi = min(lo + chunk, nc)
+            sel = np.flatnonzero(interior[lo:hi])
+            r = 3 * own[blocks[lo:hi][sel]]                           # first dof row of each node (m, nn)
+            L = ia64[r + 1] - ia64[r]
+            # each (a, b): the position of column 3 w_b in row 3 v_a
+            p = _row_search(ia64, ja, np.repeat(r, nn, axis=1).ravel(), np.tile(r, (1, nn)).ravel())
+            pos = (p.reshape(-1, nn, nn)[:, :, :, None, None] + i3[None, None, None] * L[:, :, None, None, None]
+                   + j3[None, None, None])                                   # (m, a, b, i, j)
+            cols = r[:, None, :, None, None] + j3[None, None, None]     # column 3 w_b + j
+            if not np.array_equal(ja[pos], np.broadcast_to(cols, pos.shape)):
+                raise RuntimeError("a cell entry is missing from the assembled pattern")
+            base[lo + sel] = p.reshape(-1, nn * nn)
+            rowlen[lo + sel] = L
+        self.nnz, self.base, self.rowlen = len(ja), base, rowlen
+        self.boundary = np.flatnonzero(~interior)
+
+    def scatter(self, vals, lo, hi, arr):
+        """arr (the diagonal part's values) += the interior cells' blocks of cells lo..hi-1 (vals)."""
+        scatter_blocks(self.base[lo:hi], self.rowlen[lo:hi], vals, arr)
+
+
+class BoundaryExchange:
+    """Several ranks: the 16 blocks of each cell with a vertex another rank owns (CellMap.boundary) are not
+    added through MatSetValues and PETSc's stash but directly: blocks in this rank's rows into the diagonal
+    or off-diagonal part's values (positions found once), the others sent to their row's owner in one
+    Alltoallv per fill, in an order agreed once (each rank sends the global (row, column) vertex pairs of
+    what it will send; the owner finds their positions)."""
+
+    def __init__(self, sp, A, blocks, boundary, row0, ia, ja):
+        mpi = sp.mpi
+        self.mpi, self.A, self.row0, self.n_owned = mpi, A, row0, sp.n_owned
+        starts = np.asarray(A.getOwnershipRanges(), np.int64) // 3              # each rank's first vertex
+        g = sp.lgmap.getBlockIndices().astype(np.int64)
+        nn = blocks.shape[1]
+        self.nn = nn
+        c = g[blocks[boundary].astype(np.int64)]                               # (nb, nn) global nodes
+        gr, gc = np.repeat(c, nn, axis=1).ravel(), np.tile(c, (1, nn)).ravel()  # block (cell, a, b)
+        owner = np.searchsorted(starts, gr, side="right") - 1
+        send = np.flatnonzero(owner != mpi.rank)
+        send = send[np.argsort(owner[send], kind="stable")]
+        scount = np.bincount(owner[send], minlength=mpi.size)
+        cut = np.concatenate([[0], np.cumsum(scount)])
+        got = mpi.alltoall([np.stack([gr[send[cut[q]:cut[q + 1]]], gc[send[cut[q]:cut[q + 1]]]])
+                            for q in range(mpi.size)])
+        rcount = np.array([x.shape[1] for x in got])
+        rr, rc = np.concatenate([x[0] for x in got]), np.concatenate([x[1] for x in got])
+        mine = np.flatnonzero(owner == mpi.rank)
+        ao_handle, colmap = mpiaij_off_diagonal(A)
+        with SeqAIJRowIJ(ao_handle) as (ia_o, ja_o):
+            self.nnz_o = len(ja_o)
+            ao = (ia_o, ja_o, colmap.astype(np.int64))
+            own = self._places(ia, ja, ao, gr[mine] - row0, gc[mine])
+            recv = self._places(ia, ja, ao, rr - row0, rc)
+        # (which blocks, p0, L) into the diagonal and the off-diagonal part, from this rank's cells and received
+        split = lambda idx, pl: [(idx[k], pl[1][k], pl[2][k]) for k in (~pl[0], pl[0])]    # noqa: E731
+        self.own, self.recv = split(mine, own), split(np.arange(len(rr)), recv)
+        self.send, self.scount, self.rcount = send, 9 * scount, 9 * rcount
+
+    def _places(self, ia, ja, ao, vrow, gcol):
+        """For 3x3 blocks (owned row vertex vrow, by index among this rank's; global column vertex gcol):
+        (in_off, p0, L) — in the diagonal or the off-diagonal part of the MPIAIJ, where the block's first
+        entry is in that part's values and its rows' length. Checked entry by entry."""
+        ia_o, ja_o, colmap = ao
+        off = (gcol < self.row0) | (gcol >= self.row0 + self.n_owned)
+        p0, L = np.empty(len(vrow), np.int64), np.empty(len(vrow), np.int64)
+        for sel, (pi, pj), col in ((~off, (ia, ja), 3 * (gcol - self.row0)),
+                                   (off, (ia_o, ja_o), np.searchsorted(colmap, 3 * gcol))):
+            r, c = 3 * vrow[sel], col[sel]
+            pi = pi.astype(np.int64)
+            p = _row_search(pi, pj, r, c)
+            last = np.minimum(p + 2, len(pj) - 1)
+            want = 3 * gcol[sel] if pj is ja_o else c
+            got = (colmap[pj[p]], colmap[pj[last]]) if pj is ja_o else (pj[p], pj[last])
+            if not (np.array_equal(got[0], want) and np.array_equal(got[1], want + 2)):
+                raise RuntimeError("a partition-boundary block is missing from the assembled pattern")
+            p0[sel], L[sel] = p, pi[r + 1] - pi[r]
+        return off, p0.astype(np.int32), L.astype(np.int32)
+
+    def add(self, bvals, Ad, nnz_d):
+        """Add the boundary cells' blocks bvals (nb, 3nn, 3nn) (their order: CellMap.boundary's)."""
+        nn = self.nn
+        blocks = np.ascontiguousarray(bvals.reshape(-1, nn, 3, nn, 3).transpose(0, 1, 3, 2, 4)).reshape(-1, 9)
+        sbuf = np.ascontiguousarray(blocks[self.send])
+        rbuf = np.empty((self.rcount.sum() // 9, 9))
+        self.mpi.Alltoallv([sbuf, self.scount], [rbuf, self.rcount])
+        ao = mpiaij_off_diagonal(self.A, columns=False)
+        with SeqAIJValues(Ad, nnz_d) as d, SeqAIJValues(ao, self.nnz_o) as o:
+            for src, parts in ((blocks, self.own), (rbuf, self.recv)):
+                for (idx, p0, L), dst in zip(parts, (d, o)):
+                    if len(idx):
+                        add_blocks(p0, L, np.ascontiguousarray(src[idx]), dst)
+
+
+class SBAIJCopy:
+    """The SBAIJ copy of a symmetric AIJ tangent (`S`, what the Krylov method multiplies by): the AIJ's
+    upper block triangle, preallocated from the AIJ's own pattern, and per block where its first row starts
+    in the AIJ's values and that row's length (p0, L: 8 bytes per block). A refresh gathers the blocks of
+    the SBAIJ's diagonal part straight into its values (kernels.gather_blocks); on several ranks the blocks
+    whose column another rank owns (the SBAIJ's off-diagonal part, which PETSc does not expose) go through
+    MatSetValuesBlocked, all rows owned here (no stash)."""
+
+    def __init__(self, sp, A, Ad, row0, chunk):
+        n, several = sp.n_owned, sp.mpi.size > 1
+        self.A, self.Ad, self.row0 = A, Ad, row0
+        r0 = 3 * row0
+        d, o = [], []
+        with SeqAIJRowIJ(Ad) as pd:
+            for lo in range(0, n, chunk):
+                d.append(self._upper_blocks(pd, lambda c: c + r0, lo, min(lo + chunk, n)))
+        if several:
+            ao, colmap = mpiaij_off_diagonal(A)
+            with SeqAIJRowIJ(ao) as po:
+                self.nnz_o = len(po[1])
+                for lo in range(0, n, chunk):
+                    o.append(self._upper_blocks(po, lambda c: colmap[c].astype(np.int64), lo, min(lo + chunk, n)))
+        d = [np.concatenate(x) for x in zip(*d)]
+        if several:
+            o = [np.concatenate(x) for x in zip(*o)]
+        else:
+            o = [np.zeros(0, np.int64)] * 2 + [np.zeros(0, np.int32)] * 2
+        rows = np.concatenate([d[0], o[0]])                     # (diagonal part, then off-diagonal: its columns
+        order = np.argsort(rows, kind="stable")                 #  are all beyond this rank's: sorted per row)
+        bi = np.zeros(n + 1, np.int64)
+        bi[1:] = np.cumsum(np.bincount(rows, minlength=n))
+        bj = np.concatenate([d[1], o[1]])[order]
+        del rows, order
+        S = PETSc.Mat().create(comm=sp.comm)
+        S.setSizes(A.getSizes(), bsize=3)
+        S.setType(PETSc.Mat.Type.SBAIJ)
+        S.setPreallocationCSR((bi.astype(PETSc.IntType), bj.astype(PETSc.IntType)))
+        S.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, True)
+        if several:
+            S.setOption(PETSc.Mat.Option.NO_OFF_PROC_ENTRIES, True)
+        self.S, self.Sd = S, (S.getDiagonalBlock() if several else S)
+        with SeqAIJRowIJ(self.Sd, blocks=True) as (si, sj):     # the diagonal part as PETSc stores it
+            if not (np.array_equal(si, np.concatenate([[0], np.cumsum(np.bincount(d[0], minlength=n))]))
+                    and np.array_equal(sj, d[1] - row0)):
+                raise RuntimeError("the SBAIJ copy's diagonal part is not the AIJ's upper block triangle")
+        self.sb_d = (d[2], d[3])
+        self.sb_o = ((o[0] + row0).astype(PETSc.IntType)[:, None], o[1].astype(PETSc.IntType)[:, None],
+                     o[2], o[3]) if several and len(o[0]) else None
+
+    def _upper_blocks(self, part, global_col, lo, hi):
+        """Of one CSR part of the AIJ (its diagonal block, or on several ranks its off-diagonal block), the
+        3x3 blocks of owned block rows lo..hi-1 in the upper block triangle (global block column >= global
+        block row): (row, global column, p0, L) with p0 the position of the block's first entry in the part's
+        values and L the length of its rows (a vertex's three rows have the same columns)."""
+        ia, ja = part
+        rows = 3 * np.arange(lo, hi)
+        start, L = ia[rows].astype(np.int64), (ia[rows + 1] - ia[rows]).astype(np.int64)
+        pos = np.repeat(start, L) + np.arange(L.sum()) - np.repeat(np.cumsum(L) - L, L)
+        I = np.repeat(np.arange(lo, hi), L)
+        g = global_col(ja[pos].astype(np.int64))
+        keep = (g % 3 == 0) & (g // 3 >= self.row0 + I)
+        I, pos = I[keep], pos[keep]
+        return I, g[keep] // 3, pos.astype(np.int32), L[I - lo].astype(np.int32)
+
+    def refresh(self, nnz_d):
+        """The SBAIJ copy from the AIJ just filled."""
+        p0, L = self.sb_d
+        with SeqAIJValues(self.Ad, nnz_d) as a, SeqAIJValues(self.Sd, 9 * len(p0), "SBAIJ") as v:
+            gather_blocks(p0, L, a, v, colmajor=True)
+        if self.sb_o is not None:
+            rows, cols, p0, L = self.sb_o
+            vals = np.empty((len(p0), 9))
+            with SeqAIJValues(mpiaij_off_diagonal(self.A, columns=False), self.nnz_o) as a:
+                gather_blocks(p0, L, a, vals, colmajor=False)
+            self.S.setValuesBlockedRCV(rows, cols, vals, PETSc.InsertMode.INSERT_VALUES)
+        self.S.assemble()

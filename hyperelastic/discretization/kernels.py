@@ -1,0 +1,553 @@
+"""ctypes bindings to the compiled element kernels (_kernels.c, built by setup.py): `Cells` (the local
+cells' geometry and the kernels that need nothing else: mass matrix, inversion step bound, stored blocks),
+`CellKernels` (a material on cells: force, energy, K v, tangent blocks and diagonal) and `RegionKernels`
+(a material per region, the same interface)."""
+import ctypes
+import glob
+import os
+
+import numpy as np
+
+_here = os.path.dirname(os.path.abspath(__file__))
+IDX = np.int32  # vertex index type used by the kernels
+
+
+_materials = os.path.join(os.path.dirname(_here), "physics", "materials")
+
+
+def _sources():
+    """The C sources the compiled kernels are built from (setup.py): a newer one means a stale build (an installed
+    package may hold none of them)."""
+    return ([os.path.join(_here, "_kernels.c")] + glob.glob(os.path.join(_here, "*.h"))
+            + glob.glob(os.path.join(_materials, "*.h")))
+
+
+def _load():
+    libs = sorted(glob.glob(os.path.join(_here, "_kernels*.so")))
+    if not libs:
+        raise ImportError("hyperelastic: compiled kernels not found; run `make` (pip install -e .) to build them")
+    lib = libs[0]
+    sources = [p for p in _sources() if os.path.exists(p)]
+    newest = max(sources, key=os.path.getmtime) if sources else lib
+    if os.path.getmtime(newest) > os.path.getmtime(lib):
+        raise ImportError(f"hyperelastic: {lib} is older than {os.path.basename(newest)}; run `make` to rebuild it")
+    return ctypes.CDLL(lib)
+
+
+_lib = _load()
+_P = ctypes.c_void_p
+_I = ctypes.c_int64
+_D = ctypes.c_double
+# per material NAME (materials/NAME.h): he_KIND_NAME(nc, cells, Dminv, vol, x, prm, ...), prm the material's
+# parameter block (NPARAM doubles: its constants, zero-padded; see _kernels.c, HE_NPARAM)
+_MATERIAL_KERNELS = {"forces": [_P], "energy": [_P], "kv": [_P, _P], "tangent": [_P, ctypes.c_int],
+                     "tangent_diag": [_P], "forces_dg": [_P, _P]}
+NPARAM = 8
+_lib.he_mass_apply.restype = None
+_lib.he_mass_apply.argtypes = [_I, _P, _P, _D, _P, _P]
+_lib.he_max_step.restype = _D
+_lib.he_max_step.argtypes = [_I, _P, _P, _P, _P, _D]
+_lib.he_apply_blocks.restype = None
+_lib.he_apply_blocks.argtypes = [_I, _P, _P, _P, _P]
+_lib.he_add_mass_blocks.restype = None
+_lib.he_add_mass_blocks.argtypes = [_I, _P, _D, _P]
+_lib.he_scatter_blocks.restype = None
+_lib.he_scatter_blocks.argtypes = [_I, _P, _P, _P, _P]
+_lib.he_scatter_blocks_n.restype = None
+_lib.he_scatter_blocks_n.argtypes = [_I, ctypes.c_int, _P, _P, _P, _P]
+_lib.he_add_blocks.restype = None
+_lib.he_add_blocks.argtypes = [_I, _P, _P, _P, _P]
+_lib.he_gather_blocks.restype = None
+_lib.he_gather_blocks.argtypes = [_I, _P, _P, _P, _P, ctypes.c_int]
+_lib.he_pressure_terms.restype = None
+_lib.he_pressure_terms.argtypes = [_I, ctypes.c_int, ctypes.c_int, _P, _P, _P, _P, _P, _P, _P, _P, _P, _P]
+
+
+def pressure_terms(cells, g, w, x, pq, M, force=False, tangent=False, out=None):
+    """The mixed formulation's pressure terms of volumetric kind "J" (_kernels.c, he_pressure_terms) on cells
+    (nc, nn) int32 with gradients g (nc, nq, nn, 3), weights w (nc, nq), pressures pq (nc, nq) at the points, the
+    pressure's shape functions M (nq, 4), local positions x: {"J": (nc, nq)}, with force: "f" (nc, 3nn), with
+    tangent: "up" (nc, 3nn, 4) and "blocks" (nc, 3nn, 3nn); into the arrays of `out` where it has them (kept
+    between calls: a new (nc, 30, 30) array costs more in page faults than the loop)."""
+    nc, nq, nn = g.shape[:3]
+    assert nn <= 10 and cells.dtype == IDX and cells.shape == (nc, nn) and M.shape == (nq, 4)
+    arrays = [np.ascontiguousarray(a, dtype=np.float64) for a in (g, w, x, pq, M)]
+    cells = np.ascontiguousarray(cells)
+    out = {} if out is None else out
+    shapes = {"J": (nc, nq)}
+    if force:
+        shapes["f"] = (nc, 3 * nn)
+    if tangent:
+        shapes.update(up=(nc, 3 * nn, 4), blocks=(nc, 3 * nn, 3 * nn))
+    for k, shape in shapes.items():
+        if k not in out:
+            out[k] = np.empty(shape)
+        assert out[k].shape == shape and out[k].dtype == np.float64 and out[k].flags.c_contiguous
+    ptr = lambda k: out[k].ctypes.data if k in shapes else None     # noqa: E731
+    _lib.he_pressure_terms(nc, nn, nq, cells.ctypes.data, *(a.ctypes.data for a in arrays), out["J"].ctypes.data,
+                           ptr("f"), ptr("up"), ptr("blocks"))
+    return out
+
+
+def scatter_blocks(base, rowlen, vals, dst):
+    """dst += the cells' blocks vals (nc, 3nn, 3nn) at CSR value positions base[e, nn a + b] + i rowlen[e, a]
+    + j for dof (3a+i, 3b+j); cells with base[e, 0] < 0 are skipped (base (nc, nn^2), rowlen (nc, nn) int32)."""
+    nc, nn = len(vals), rowlen.shape[1]
+    if nn != 4:
+        assert base.shape == (nc, nn * nn) and vals.shape == (nc, 3 * nn, 3 * nn)
+        assert base.dtype == rowlen.dtype == np.int32 and vals.dtype == dst.dtype == np.float64
+        assert base.flags.c_contiguous and rowlen.flags.c_contiguous and vals.flags.c_contiguous
+        _lib.he_scatter_blocks_n(nc, nn, base.ctypes.data, rowlen.ctypes.data, vals.ctypes.data, dst.ctypes.data)
+        return
+    assert base.shape == (nc, 16) and rowlen.shape == (nc, 4) and vals.shape == (nc, 12, 12)
+    assert base.dtype == rowlen.dtype == np.int32 and vals.dtype == dst.dtype == np.float64
+    assert base.flags.c_contiguous and rowlen.flags.c_contiguous and vals.flags.c_contiguous
+    _lib.he_scatter_blocks(nc, base.ctypes.data, rowlen.ctypes.data, vals.ctypes.data, dst.ctypes.data)
+
+
+def gather_blocks(p0, L, src, dst, colmajor):
+    """dst (nb*9) = the 3x3 blocks of the CSR values src whose row r starts at p0[k] + r L[k], each block
+    column-major (as (S)BAIJ stores them) or row-major (p0, L int32)."""
+    nb = len(p0)
+    assert p0.dtype == L.dtype == np.int32 and len(L) == nb and dst.size == 9 * nb
+    assert src.dtype == dst.dtype == np.float64 and dst.flags.c_contiguous
+    _lib.he_gather_blocks(nb, p0.ctypes.data, L.ctypes.data, src.ctypes.data, dst.ctypes.data, int(colmajor))
+
+
+def add_blocks(p0, L, vals, dst):
+    """dst[p0[k] + r L[k] + c] += vals[k, 3r + c] for the 3x3 blocks vals (nb, 9) (p0, L int32), in order."""
+    nb = len(p0)
+    assert p0.dtype == L.dtype == np.int32 and len(L) == nb and vals.shape == (nb, 9)
+    assert vals.dtype == dst.dtype == np.float64 and vals.flags.c_contiguous
+    _lib.he_add_blocks(nb, p0.ctypes.data, L.ctypes.data, vals.ctypes.data, dst.ctypes.data)
+
+
+_bound = {}
+
+
+def material_kernels(name):
+    """{kind: C function} of material `name`, from its header materials/NAME.h."""
+    if name not in _bound:
+        fns = {}
+        for kind, extra in _MATERIAL_KERNELS.items():
+            try:
+                fn = getattr(_lib, f"he_{kind}_{name}")
+            except AttributeError:
+                raise ImportError(f"hyperelastic: no compiled kernels for material '{name}' (is there a "
+                                  f"materials/{name}.h? run `make` to rebuild)") from None
+            fn.restype = _I
+            fn.argtypes = [_I, _P, _P, _P, _P, _P] + extra
+            fns[kind] = fn
+        _bound[name] = fns
+    return _bound[name]
+
+
+def _ptr(a, dtype):
+    assert a.dtype == dtype and a.flags.c_contiguous, (a.dtype, a.flags)
+    return a.ctypes.data
+
+
+def parameter_block(constants):
+    """The C kernels' parameter block of a material's constants (NPARAM doubles, zero-padded)."""
+    c = np.asarray(constants, np.float64).ravel()
+    if len(c) > NPARAM:
+        raise ValueError(f"a material has at most {NPARAM} constants (HE_NPARAM in _kernels.c), not {len(c)}")
+    out = np.zeros(NPARAM)
+    out[:len(c)] = c
+    return out
+
+
+class Cells:
+    """Local cells (vertex indices into a local vector, 3 dofs per vertex), their Dm^-1 and volumes, and
+    the kernels that need nothing else: the consistent mass matrix, the inversion guard's step bound and
+    stored 12x12 blocks."""
+
+    nn = 4          # nodes per cell
+
+    def __init__(self, cells, Dminv, vol):
+        self.cells = np.ascontiguousarray(cells, dtype=IDX)
+        self.Dminv = np.ascontiguousarray(Dminv, dtype=np.float64).reshape(-1, 9)
+        self.vol = np.ascontiguousarray(vol, dtype=np.float64)
+        self.nc = len(self.vol)
+        self._args = (self.nc, _ptr(self.cells, IDX), _ptr(self.Dminv, np.float64), _ptr(self.vol, np.float64))
+        self._parts = {}
+
+    def part(self, lo, hi):
+        """The same cells lo..hi-1 (views, no copies; cached)."""
+        if (lo, hi) not in self._parts:
+            self._parts[(lo, hi)] = Cells(self.cells[lo:hi], self.Dminv[lo:hi], self.vol[lo:hi])
+        return self._parts[(lo, hi)]
+
+    def weighted(self, w):
+        """The same cells with volumes w V (a coefficient per cell, e.g. each region's density)."""
+        return Cells(self.cells, self.Dminv, np.asarray(w, np.float64) * self.vol)
+
+    def subset(self, idx):
+        """The cells idx (copies)."""
+        return Cells(self.cells[idx], self.Dminv[idx], self.vol[idx])
+
+    def kernels(self, material, constants):
+        """A material's loops on these cells."""
+        return CellKernels(self, material=material, constants=constants)
+
+    def load_shares(self, coef=1.0, which=None):
+        """(n, 4): int coef N_a dV = coef V/4 of the cells `which` (default all), coef a scalar or one per cell."""
+        sel = slice(None) if which is None else which
+        c = np.asarray(coef, float)
+        per_cell = (c if c.ndim == 0 else c[sel]) * self.vol[sel] / 4.0
+        return np.repeat(per_cell, 4).reshape(-1, 4)
+
+    def mass_diagonal(self, lumped, nlv):
+        """(nlv,) the mass matrix's diagonal per node (density 1): lumped V/4 (the row sums), consistent
+        2V/20 = V/10 per vertex."""
+        vertex_share = np.zeros(nlv)
+        np.add.at(vertex_share, self.cells.ravel(), np.repeat(self.vol, 4))
+        return vertex_share * (0.25 if lumped else 0.1)
+
+    def max_step(self, x, d, frac=0.9):
+        """Largest t <= 1 keeping every (not already inverted) cell's det F > 0 on x + [0, t] d, times
+        frac when a cell would invert within the unit step."""
+        return _lib.he_max_step(*self._args[:3], _ptr(x, np.float64), _ptr(d, np.float64), float(frac))
+
+    def apply_blocks(self, blocks, v, y):
+        """y += sum over cells of blocks[e] v_e (blocks: (nc,12,12), e.g. projected tangents)."""
+        assert blocks.shape == (self.nc, 12, 12) and blocks.flags.c_contiguous
+        _lib.he_apply_blocks(self.nc, _ptr(self.cells, IDX), _ptr(blocks, np.float64), _ptr(v, np.float64),
+                             _ptr(y, np.float64))
+
+    def add_mass_blocks(self, coef, vals):
+        """vals (nc,12,12) += coef * consistent P1 mass blocks, in place."""
+        assert vals.shape == (self.nc, 12, 12)
+        _lib.he_add_mass_blocks(self.nc, _ptr(self.vol, np.float64), float(coef), _ptr(vals, np.float64))
+
+    def mass_apply(self, coef, v, y):
+        """y += coef * (consistent P1 mass pattern) v."""
+        _lib.he_mass_apply(self.nc, _ptr(self.cells, IDX), _ptr(self.vol, np.float64), float(coef),
+                           _ptr(v, np.float64), _ptr(y, np.float64))
+
+
+class CellKernels:
+    """A material (a Material, e.g. materials.get('stvk'), with its constants: materials/NAME.py `constants`) on
+    cells (a Cells, or its arrays: local vertex indices, Dm^-1, volumes), bound to the C kernels. `materials` and
+    `parts` are declared as RegionKernels declares them, so callers need not know which they hold."""
+    nn = 4
+
+    def __init__(self, cells, Dminv=None, vol=None, material=None, constants=()):
+        self.geometry = cells if isinstance(cells, Cells) else Cells(cells, Dminv, vol)
+        g = self.geometry
+        self.cells, self.Dminv, self.vol, self.nc = g.cells, g.Dminv, g.vol, g.nc
+        self._args = g._args
+        self.set_material(material, constants)
+        self._parts = {}
+
+    def set_material(self, material, constants):
+        """Switch to `material` (a physics.materials Material: its `name` picks the compiled loops, its `quadratic`
+        the discrete gradient) with its constants."""
+        self.material = material
+        self.materials = (material,)
+        self.fn = material_kernels(material.name)
+        self.constants = tuple(float(c) for c in constants)
+        self.prm = parameter_block(self.constants)
+        self._prm = _ptr(self.prm, np.float64)
+        self.parts = [(slice(None), self)]
+
+    def part(self, lo, hi):
+        """The same kernels on cells lo..hi-1 (views, no copies; cached)."""
+        if (lo, hi) not in self._parts:
+            self._parts[(lo, hi)] = CellKernels(self.geometry.part(lo, hi), material=self.material,
+                                                constants=self.constants)
+        return self._parts[(lo, hi)]
+
+    def _x(self, x):
+        return _ptr(x, np.float64)
+
+    def forces(self, x, f):
+        """f += k(x); returns the number of cells where the material is undefined."""
+        return self.fn["forces"](*self._args, self._x(x), self._prm, _ptr(f, np.float64))
+
+    def forces_discrete_gradient(self, x, xn, f):
+        """f += the energy-momentum force of the midpoint step from xn to x1 = 2 x - xn (x the midpoint):
+        per cell V (F S) : grad N with F = F(x) = (F_n + F_1)/2 and the algorithmic stress
+        S = S(C_bar) + (dW - S(C_bar) : dE) dE / (dE : dE), C_bar = (C_n + C_1)/2, dE = (C_1 - C_n)/2,
+        dW = Psi(F_1) - Psi(F_n) (Simo & Tarnow, ZAMP 43, 1992; Gonzalez, CMAME 190, 2000, eq. 4.4).
+        Since sym(F^T (F_1 - F_n)) = dE, the work of these forces over the step is exactly
+        sum_e V (Psi(F_1) - Psi(F_n)): with the midpoint rule's inertia the step conserves energy, and S
+        symmetric conserves angular momentum. For St.VK, S(C_bar) alone has that property (S is linear in
+        E); the correction is then rounding. S(C) = Ft^-1 P(Ft) for any Ft^T Ft = C with det Ft of the sign
+        of det F (objective materials; Ft from the Cholesky factor). A material whose energy is quadratic
+        in F (`quadratic`: `linear`, which is not objective): the midpoint force, which is already exact.
+        Returns the number of cells where the material is undefined at x_n or x_1 (their force is
+        skipped)."""
+        if self.material.quadratic:
+            return self.forces(x, f)
+        return self.fn["forces_dg"](*self._args, self._x(x), self._prm, _ptr(xn, np.float64), _ptr(f, np.float64))
+
+    def energy(self, x):
+        out = np.zeros(3)
+        bad = self.fn["energy"](*self._args, self._x(x), self._prm, _ptr(out, np.float64))
+        return out[0], out[1], out[2], bad
+
+    def kv(self, x, v, y):
+        """y += K(x) v."""
+        return self.fn["kv"](*self._args, self._x(x), self._prm, _ptr(v, np.float64), _ptr(y, np.float64))
+
+    def tangent(self, x, vals=None, accumulate=False):
+        """12x12 cell tangents, shape (nc, 12, 12), dof order 3a+i; added to vals if accumulate."""
+        if vals is None:
+            vals = np.zeros((self.nc, 12, 12))
+        assert vals.shape == (self.nc, 12, 12)
+        bad = self.fn["tangent"](*self._args, self._x(x), self._prm, _ptr(vals, np.float64), int(accumulate))
+        return vals, bad
+
+    def tangent_diag(self, x, diag):
+        return self.fn["tangent_diag"](*self._args, self._x(x), self._prm, _ptr(diag, np.float64))
+
+    def max_step(self, x, d, frac=0.9):
+        return self.geometry.max_step(x, d, frac)
+
+    def apply_blocks(self, blocks, v, y):
+        self.geometry.apply_blocks(blocks, v, y)
+
+
+class RegionKernels:
+    """Cell kernels of several materials, each on a subset of the local cells (a material per region,
+    -regions), with CellKernels' interface: sums over all cells, per-cell arrays in the local cell
+    order. `materials`: every material of the scene, also those without cells on this rank (what
+    depends on them must be the same on every rank)."""
+
+    def __init__(self, cells, parts):
+        """cells: a Cells; parts: [(local cell indices, Material, constants)]; each cell in exactly one."""
+        self.geometry = cells
+        self.cells, self.nc, self.nn = cells.cells, cells.nc, cells.nn
+        self.spec = [(np.asarray(idx, np.int64), m, tuple(c)) for idx, m, c in parts]
+        self.materials = tuple(m for _, m, _ in self.spec)
+        self.parts = [(idx, cells.subset(idx).kernels(m, c)) for idx, m, c in self.spec if len(idx)]
+        self._parts = {}
+
+    def part(self, lo, hi):
+        """The same kernels on cells lo..hi-1 (cached)."""
+        if (lo, hi) not in self._parts:
+            sub = [(idx[(idx >= lo) & (idx < hi)] - lo, m, c) for idx, m, c in self.spec]
+            self._parts[(lo, hi)] = RegionKernels(self.geometry.part(lo, hi), sub)
+        return self._parts[(lo, hi)]
+
+    def forces(self, x, f):
+        return sum(k.forces(x, f) for _, k in self.parts)
+
+    def forces_discrete_gradient(self, x, xn, f):
+        return sum(k.forces_discrete_gradient(x, xn, f) for _, k in self.parts)
+
+    def energy(self, x):
+        W, jmin, jmax, bad = 0.0, np.inf, -np.inf, 0
+        for _, k in self.parts:
+            w, lo, hi, b = k.energy(x)
+            W, jmin, jmax, bad = W + w, min(jmin, lo), max(jmax, hi), bad + b
+        return W, jmin, jmax, bad
+
+    def kv(self, x, v, y):
+        return sum(k.kv(x, v, y) for _, k in self.parts)
+
+    def tangent(self, x, vals=None, accumulate=False):
+        n3 = 3 * self.nn
+        if vals is None:
+            vals = np.zeros((self.nc, n3, n3))
+        assert vals.shape == (self.nc, n3, n3)
+        bad = 0
+        for idx, k in self.parts:
+            K, b = k.tangent(x)
+            bad += b
+            if accumulate:
+                vals[idx] += K
+            else:
+                vals[idx] = K
+        return vals, bad
+
+    def tangent_diag(self, x, diag):
+        return sum(k.tangent_diag(x, diag) for _, k in self.parts)
+
+    def max_step(self, x, d, frac=0.9):
+        return self.geometry.max_step(x, d, frac)
+
+    def apply_blocks(self, blocks, v, y):
+        self.geometry.apply_blocks(blocks, v, y)
+
+
+# ---- elements with quadrature (P2 tetrahedra) ----------------------------------------------------------
+# per material NAME: he_eKIND_NAME(nc, nn, nq, cells, dN, geo, x, prm, ...) (_element_loops.h)
+_ELEMENT_KERNELS = {"forces": [_P], "energy": [_P], "kv": [_P, _P], "tangent": [_P, ctypes.c_int],
+                    "tangent_diag": [_P], "forces_dg": [_P, _P]}
+_C = ctypes.c_int
+_lib.he_emass_apply.restype = None
+_lib.he_emass_apply.argtypes = [_I, _C, _C, _P, _P, _P, _D, _P, _P]
+_lib.he_emass_blocks.restype = None
+_lib.he_emass_blocks.argtypes = [_I, _C, _C, _P, _P, _D, _P]
+_lib.he_eapply_blocks.restype = None
+_lib.he_eapply_blocks.argtypes = [_I, _C, _P, _P, _P, _P]
+_lib.he_emax_step.restype = _D
+_lib.he_emax_step.argtypes = [_I, _C, _C, _P, _P, _P, _P, _P, _D]
+_ebound = {}
+
+
+def element_kernels(name):
+    """{kind: C function} of material `name`'s element loops."""
+    if name not in _ebound:
+        fns = {}
+        for kind, extra in _ELEMENT_KERNELS.items():
+            fn = getattr(_lib, f"he_e{kind}_{name}")
+            fn.restype = _I
+            fn.argtypes = [_I, _C, _C, _P, _P, _P, _P, _P] + extra
+            fns[kind] = fn
+        _ebound[name] = fns
+    return _ebound[name]
+
+
+class ElementCells:
+    """Local cells of an element with quadrature (element.Element): their nodes (nc, nn), per (cell, point)
+    of the stiffness rule J^-1 and the weight |det J| w_q (`geo`, nc x nq x 10), the mass rule's weights, and
+    the kernels needing nothing else — Cells' interface for P2: the consistent mass matrix, the nodal
+    integrals of a body load, the inversion guard's step bound, stored blocks."""
+
+    def __init__(self, nodes, X, element, geo=None, mass_w=None):
+        from ..element.reference import geometry
+        self.element = element
+        self.cells = np.ascontiguousarray(nodes, dtype=IDX)
+        self.nc, self.nn = self.cells.shape
+        pts, w = element.rule()
+        self.N, dN = element.tabulate()
+        self.dN = np.ascontiguousarray(dN, dtype=np.float64)
+        self.nq = len(w)
+        if geo is None:
+            Jinv, wq, _ = geometry(X, self.cells, self.dN, w)
+            geo = np.concatenate([Jinv.reshape(self.nc, self.nq, 9), wq[:, :, None]], axis=2)
+        self.geo = np.ascontiguousarray(geo, dtype=np.float64)
+        mp, mw = element.mass_rule()
+        from ..element.reference import tet_shapes
+        self.Nm = np.ascontiguousarray(tet_shapes(element.order, mp)[0])
+        if mass_w is None:
+            _, mass_w, _ = geometry(X, self.cells, np.ascontiguousarray(tet_shapes(element.order, mp)[1]), mw)
+        self.mass_w = np.ascontiguousarray(mass_w, dtype=np.float64)
+        self.nqm = len(mw)
+        self.vol = self.mass_w.sum(axis=1)
+        self._args = (self.nc, self.nn, self.nq, _ptr(self.cells, IDX), _ptr(self.dN, np.float64),
+                      _ptr(self.geo, np.float64))
+        self._parts = {}
+
+    def part(self, lo, hi):
+        """The same cells lo..hi-1 (cached)."""
+        if (lo, hi) not in self._parts:
+            self._parts[(lo, hi)] = ElementCells(self.cells[lo:hi], None, self.element, self.geo[lo:hi],
+                                                 self.mass_w[lo:hi])
+        return self._parts[(lo, hi)]
+
+    def weighted(self, w):
+        """The same cells with their mass weights times w (a coefficient per cell: each region's density)."""
+        return ElementCells(self.cells, None, self.element, self.geo,
+                            np.asarray(w, np.float64)[:, None] * self.mass_w)
+
+    def node_integrals(self, coef=1.0, which=None):
+        """(n, nn): int coef N_a dV of the cells `which` (default all; the mass rule), coef a scalar or one
+        per cell."""
+        sel = slice(None) if which is None else which
+        c = np.asarray(coef, float)
+        return (self.mass_w[sel] * (c if c.ndim == 0 else c[sel][:, None])) @ self.Nm
+
+    def subset(self, idx):
+        """The cells idx (copies)."""
+        return ElementCells(self.cells[idx], None, self.element, self.geo[idx], self.mass_w[idx])
+
+    def kernels(self, material, constants):
+        """A material's loops on these cells."""
+        return ElementKernels(self, material, constants)
+
+    load_shares = node_integrals
+
+    def mass_diagonal(self, lumped, nlv):
+        """(nlv,) the mass matrix's diagonal per node (density 1): consistent, or lumped by HRZ diagonal
+        scaling (Hinton, Rock & Zienkiewicz, "A note on mass lumping and related processes in the finite
+        element method", Earthquake Eng. Struct. Dyn. 4, 1976): each element's consistent diagonal scaled to
+        the element's mass, which stays positive for P2, where the row sums give the vertices zero or
+        negative mass (-V/20 on a straight tetrahedron)."""
+        d = self.mass_w @ (self.Nm * self.Nm)                            # (nc, nn) consistent diagonals
+        if lumped:
+            d = d * (self.vol / d.sum(axis=1))[:, None]
+        out = np.zeros(nlv)
+        np.add.at(out, self.cells.ravel(), d.ravel())
+        return out
+
+    def max_step(self, x, d, frac=0.9):
+        return _lib.he_emax_step(*self._args, _ptr(x, np.float64), _ptr(d, np.float64), float(frac))
+
+    def apply_blocks(self, blocks, v, y):
+        n3 = 3 * self.nn
+        assert blocks.shape == (self.nc, n3, n3) and blocks.flags.c_contiguous
+        _lib.he_eapply_blocks(self.nc, self.nn, _ptr(self.cells, IDX), _ptr(blocks, np.float64),
+                              _ptr(v, np.float64), _ptr(y, np.float64))
+
+    def add_mass_blocks(self, coef, vals):
+        n3 = 3 * self.nn
+        assert vals.shape == (self.nc, n3, n3)
+        _lib.he_emass_blocks(self.nc, self.nn, self.nqm, _ptr(self.Nm, np.float64), _ptr(self.mass_w, np.float64),
+                             float(coef), _ptr(vals, np.float64))
+
+    def mass_apply(self, coef, v, y):
+        _lib.he_emass_apply(self.nc, self.nn, self.nqm, _ptr(self.cells, IDX), _ptr(self.Nm, np.float64),
+                            _ptr(self.mass_w, np.float64), float(coef), _ptr(v, np.float64), _ptr(y, np.float64))
+
+
+class ElementKernels:
+    """A material on ElementCells: CellKernels' interface (forces, energy, kv, tangent blocks (nc, 3nn, 3nn),
+    tangent_diag, forces_discrete_gradient, max_step, apply_blocks, part, materials, parts, geometry)."""
+
+    def __init__(self, cells, material, constants):
+        self.geometry = cells
+        self.cells, self.nc, self.nn = cells.cells, cells.nc, cells.nn
+        self.material = material
+        self.materials = (material,)
+        self.fn = element_kernels(material.name)
+        self.constants = tuple(float(c) for c in constants)
+        self.prm = parameter_block(self.constants)
+        self._prm = _ptr(self.prm, np.float64)
+        self._args = cells._args
+        self.parts = [(slice(None), self)]
+        self._parts = {}
+
+    def part(self, lo, hi):
+        if (lo, hi) not in self._parts:
+            self._parts[(lo, hi)] = ElementKernels(self.geometry.part(lo, hi), self.material, self.constants)
+        return self._parts[(lo, hi)]
+
+    def forces(self, x, f):
+        return self.fn["forces"](*self._args, _ptr(x, np.float64), self._prm, _ptr(f, np.float64))
+
+    def forces_discrete_gradient(self, x, xn, f):
+        """The energy-momentum force, point by point (CellKernels.forces_discrete_gradient has the formulas)."""
+        if self.material.quadratic:
+            return self.forces(x, f)
+        return self.fn["forces_dg"](*self._args, _ptr(x, np.float64), self._prm, _ptr(xn, np.float64),
+                                    _ptr(f, np.float64))
+
+    def energy(self, x):
+        out = np.zeros(3)
+        bad = self.fn["energy"](*self._args, _ptr(x, np.float64), self._prm, _ptr(out, np.float64))
+        return out[0], out[1], out[2], bad
+
+    def kv(self, x, v, y):
+        return self.fn["kv"](*self._args, _ptr(x, np.float64), self._prm, _ptr(v, np.float64), _ptr(y, np.float64))
+
+    def tangent(self, x, vals=None, accumulate=False):
+        n3 = 3 * self.nn
+        if vals is None:
+            vals = np.zeros((self.nc, n3, n3))
+        assert vals.shape == (self.nc, n3, n3)
+        bad = self.fn["tangent"](*self._args, _ptr(x, np.float64), self._prm, _ptr(vals, np.float64),
+                                 int(accumulate))
+        return vals, bad
+
+    def tangent_diag(self, x, diag):
+        return self.fn["tangent_diag"](*self._args, _ptr(x, np.float64), self._prm, _ptr(diag, np.float64))
+
+    def max_step(self, x, d, frac=0.9):
+        return self.geometry.max_step(x, d, frac)
+
+    def apply_blocks(self, blocks, v, y):
+        self.geometry.apply_blocks(blocks, v, y)

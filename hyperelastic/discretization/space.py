@@ -1,0 +1,479 @@
+"""P1 vector field (3 dofs per vertex) on a distributed, uninterpolated DMPlex of tetrahedra.
+
+Rank 0 reads the mesh, orders it spatially and builds the serial DMPlex; `distribute` with the
+`simple` partitioner hands each rank a contiguous range of (spatially ordered) cells. Every rank
+then knows, for its local vertices (owned + ghosts): the local dof offsets, reference coordinates,
+the index of the vertex in the input mesh, and ownership. Per-cell Dm^-1 and volumes are computed
+once here.
+"""
+import numpy as np
+from petsc4py import PETSc
+
+from mpi4py import MPI
+
+from ..element.reference import EDGES
+from .kernels import IDX, Cells, ElementCells
+from ..core.libpetsc import plex_cones
+from ..mesh.read import spatial_order
+from ..mesh.sets import FACE_VERTICES, VERTEX_VALUE, cell_label, facet_label, orient_outward
+
+
+def reference_geometry(X, cells):
+    """Per cell, computed once: Dm^-1 (thesis eq. 4.29 in matrix form) and the volume |det Dm|/6
+    (F = Ds Dm^-1 does not depend on vertex order; the volume must be > 0)."""
+    Xc = X[cells]
+    Dm = np.stack([Xc[:, 1] - Xc[:, 0], Xc[:, 2] - Xc[:, 0], Xc[:, 3] - Xc[:, 0]], axis=-1)
+    return np.ascontiguousarray(np.linalg.inv(Dm)), np.abs(np.linalg.det(Dm)) / 6.0
+
+
+def set_labels(dm, labels, corder, point_of_input):
+    """The labels {name: {value: ("cells" | "vertices", input indices)}} on a serial DMPlex whose cell i is
+    input cell corder[i] and whose point for input node k is point_of_input[k]."""
+    cpos = np.empty(len(corder), np.int64)
+    cpos[corder] = np.arange(len(corder))
+    for name, strata in labels.items():
+        dm.createLabel(name)
+        lab = dm.getLabel(name)
+        for value, (kind, idx) in strata.items():
+            idx = np.asarray(idx, np.int64)
+            pts = cpos[idx] if kind == "cells" else point_of_input[idx]
+            lab.setStratumIS(int(value), PETSc.IS().createGeneral(np.sort(pts).astype(PETSc.IntType),
+                                                                  comm=PETSc.COMM_SELF))
+
+
+def make_space(comm, element, mesh=None, labels=None):
+    """The distributed space of the element (element.reference.Element: its order picks P1 or P2) on the checked
+    input mesh of rank 0 (a mesh.sets.Mesh at that order; None on the other ranks) with its labels."""
+    points, tets, nodes = (mesh.points, mesh.tets, mesh.nodes) if mesh is not None else (None, None, None)
+    if element.order == 1:
+        return Space(comm, element, points, tets, labels)
+    return QuadraticSpace(comm, element, points, tets, labels, nodes)
+
+
+class Space:
+    """P1: 3 dofs per vertex (make_space builds the space of the run's element)."""
+
+    def __init__(self, comm, element, points=None, tets=None, labels=None):
+        """element: the run's (order 1); points/tets: the checked input mesh on rank 0 (ignored on other ranks);
+        labels (rank 0): {label name: {value: ("cells" | "vertices", input indices)}}, set on the serial DMPlex and
+        carried through distribution (see sets.py for the facet sets' values)."""
+        self.element = element
+        self.comm = comm
+        self.mpi = comm.tompi4py()
+        vperm, sf = self._distribute(points, tets, labels or {})
+        dm = self.dm
+        vStart, vEnd = dm.getDepthStratum(0)
+        self.nlv = nlv = vEnd - vStart
+        self.section = self._dof_section(vStart, vEnd)
+        # local vertex index of each point (vertices are numbered by their dof offset / 3)
+        lvid = np.array([self.section.getOffset(v) // 3 for v in range(vStart, vEnd)], dtype=np.int64)
+        self._lvid, self._vStart = lvid, vStart
+        cStart, cEnd = dm.getHeightStratum(0)
+        self._cStart = cStart
+        self.cells = np.empty((cEnd - cStart, 4), dtype=IDX)
+        for c in range(cStart, cEnd):
+            self.cells[c - cStart] = lvid[dm.getCone(c) - vStart]
+        # reference coordinates of local vertices
+        csec = dm.getCoordinateSection()
+        carr = dm.getCoordinatesLocal().getArray(readonly=True)
+        X = np.empty((nlv, 3))
+        for v in range(vStart, vEnd):
+            o = csec.getOffset(v)
+            X[lvid[v - vStart]] = carr[o:o + 3]
+        self.X = X
+        self.orig = self._input_indices(lvid, vStart, vEnd, vperm, sf)
+        self.owned = self._ownership(lvid, vStart, vEnd)
+        self.Dminv, self.vol = reference_geometry(X, self.cells)
+        self.nc = len(self.cells)
+        self._finish(comm)
+
+    def cell_geometry(self):
+        """The local cells' geometry the kernels run on: P1's closed form (Dm^-1 and volumes, kernels.Cells)."""
+        return Cells(self.cells, self.Dminv, self.vol)
+
+    def _finish(self, comm):
+        """What every space computes once its nodes are known: the local-to-global map, the bounding box,
+        the output's gather plan (input node order on rank 0), whether local and global vectors coincide (one
+        rank, the same order: System.residual uses it)."""
+        self.n_owned = int(self.owned.sum())
+        self.lgmap = self.dm.getLGMap()
+        self.bbox = self._bounding_box()
+        ids = self.orig[self.owned]
+        self._counts = self.mpi.gather(len(ids), root=0)
+        allids = self.mpi.gather(ids, root=0)
+        self._gorder = np.concatenate(allids) if self.mpi.rank == 0 else None
+        self.lvid_of_owned = np.flatnonzero(self.owned)
+        g = self.lgmap.getIndices()
+        self.local_is_global = bool(comm.getSize() == 1 and len(g) == 3 * self.nlv
+                                    and (g == np.arange(3 * self.nlv)).all())
+
+    def _distribute(self, points, tets, labels):
+        """The serial DMPlex of the spatially ordered mesh (rank 0) with its labels, distributed with
+        the `simple` partitioner; returns (vertex permutation of the ordering on rank 0, migration SF
+        or None). -dm_view shows the distributed DMPlex and its labels."""
+        comm = self.comm
+        if comm.getRank() == 0:
+            p, t, vperm, corder = spatial_order(points, tets)
+            nv_total, nc_total = len(p), len(t)
+        else:
+            p, t = np.zeros((0, 3)), np.zeros((0, 4), np.int64)
+            vperm = corder = None
+            nv_total = nc_total = 0
+        self.nv_total, self.nc_total = self.mpi.bcast((nv_total, nc_total), root=0)
+        dm = PETSc.DMPlex().createFromCellList(3, t.astype(PETSc.IntType), p, interpolate=False, comm=comm)
+        if comm.getRank() == 0 and labels:
+            self._set_labels(dm, labels, corder, vperm)
+        self.label_names = self.mpi.bcast(list(labels) if comm.getRank() == 0 else None, root=0)
+        self._corder = corder
+        part = dm.getPartitioner()
+        part.setType(PETSc.Partitioner.Type.SIMPLE)
+        sf = dm.distribute(overlap=0) if comm.getSize() > 1 else None
+        self.dm = dm
+        dm.viewFromOptions("-dm_view")
+        return vperm, sf
+
+    @staticmethod
+    def _set_labels(dm, labels, corder, vperm):
+        """Labels on the serial DMPlex (cells first, then vertices, in the spatial order)."""
+        nc = len(corder)
+        vpos = np.empty(len(vperm), np.int64)
+        vpos[vperm] = nc + np.arange(len(vperm))
+        set_labels(dm, labels, corder, vpos)
+
+    def _dof_section(self, vStart, vEnd):
+        """3 dofs on each vertex."""
+        sec = PETSc.Section().create(comm=PETSc.COMM_SELF)
+        sec.setNumFields(1)
+        sec.setFieldComponents(0, 3)
+        sec.setChart(*self.dm.getChart())
+        for v in range(vStart, vEnd):
+            sec.setDof(v, 3)
+            sec.setFieldDof(v, 0, 3)
+        sec.setUp()
+        self.dm.setLocalSection(sec)
+        return sec
+
+    def _input_indices(self, lvid, vStart, vEnd, vperm, sf):
+        """The input-mesh index of each local vertex (through the migration SF on several ranks)."""
+        cStart, cEnd = self.dm.getHeightStratum(0)
+        if sf is None:
+            serial_vertex = np.arange(vStart, vEnd) - vStart
+            serial_cell = np.arange(cStart, cEnd)
+        else:
+            nroots, ilocal, iremote = sf.getGraph()
+            leaves = np.arange(len(iremote)) if ilocal is None else np.asarray(ilocal)
+            orig_point = np.full(self.dm.getChart()[1], -1, np.int64)
+            orig_point[leaves] = np.asarray(iremote).reshape(-1, 2)[:, 1]
+            serial_vertex = orig_point[vStart:vEnd] - self.nc_total  # serial DM: cells first, then vertices
+            serial_cell = orig_point[cStart:cEnd]
+        corder = self.mpi.bcast(self._corder, root=0)
+        self.cell_orig = np.asarray(corder, np.int64)[serial_cell]     # input-mesh index of each local cell
+        cids = self.mpi.gather(self.cell_orig, root=0)
+        self._corder_gather = np.concatenate(cids) if self.mpi.rank == 0 else None
+        vperm = self.mpi.bcast(vperm, root=0)
+        orig = np.empty(self.nlv, np.int64)
+        orig[lvid] = vperm[serial_vertex]
+        return orig
+
+    def _ownership(self, lvid, vStart, vEnd):
+        """Owned local vertices: a vertex is a ghost when it is a leaf of the point SF."""
+        owned_pt = np.ones(self.nlv, bool)
+        _, ilocal, _ = self.dm.getPointSF().getGraph()
+        if ilocal is not None and len(ilocal):
+            il = np.asarray(ilocal)
+            il = il[(il >= vStart) & (il < vEnd)]
+            owned_pt[lvid[il - vStart]] = False
+        return owned_pt
+
+    def _bounding_box(self):
+        """Global min/max of the reference coordinates, for face selection."""
+        X = self.X
+        lo = X.min(axis=0) if self.nlv else np.full(3, np.inf)
+        hi = X.max(axis=0) if self.nlv else np.full(3, -np.inf)
+        glo, ghi = np.empty(3), np.empty(3)
+        self.mpi.Allreduce(np.ascontiguousarray(lo, float), glo, op=MPI.MIN)
+        self.mpi.Allreduce(np.ascontiguousarray(hi, float), ghi, op=MPI.MAX)
+        return (glo, ghi)
+
+    # --- vectors -----------------------------------------------------------------------------
+    def global_vec(self):
+        v = self.dm.createGlobalVec()
+        v.setBlockSize(3)
+        return v
+
+    def local_vec(self):
+        v = self.dm.createLocalVec()
+        v.setBlockSize(3)
+        return v
+
+    def to_local(self, g, l):
+        self.dm.globalToLocal(g, l, addv=PETSc.InsertMode.INSERT_VALUES)
+
+    def add_to_global(self, l, g):
+        """g = sum over ranks of local contributions l (g is zeroed first)."""
+        g.zeroEntries()
+        self.dm.localToGlobal(l, g, addv=PETSc.InsertMode.ADD_VALUES)
+
+    def owned_array(self, local_array):
+        """The owned part of a local array, in global-vector order."""
+        return local_array.reshape(-1, 3)[self.lvid_of_owned].reshape(-1)
+
+    def scatter(self, full):
+        """Local array (nlv*3) from an (nv, 3) array in the input vertex order given on rank 0."""
+        full = self.mpi.bcast(full if self.mpi.rank == 0 else None, root=0)
+        return np.ascontiguousarray(np.asarray(full, np.float64)[self.orig]).reshape(-1)
+
+    def gather(self, local_array):
+        """(nv, 3) array in the input mesh's vertex order on rank 0; None elsewhere."""
+        mine = np.ascontiguousarray(local_array.reshape(-1, 3)[self.owned])
+        parts = self.mpi.gather(mine, root=0)
+        if self.mpi.rank != 0:
+            return None
+        out = np.empty((self.nv_total, 3))
+        out[self._gorder] = np.concatenate(parts)
+        return out
+
+    def gather_nodal(self, local_array):
+        """(nv,) array of a scalar per node in the input mesh's node order on rank 0; None elsewhere."""
+        parts = self.mpi.gather(np.ascontiguousarray(local_array[self.owned]), root=0)
+        if self.mpi.rank != 0:
+            return None
+        out = np.empty(self.nv_total)
+        out[self._gorder] = np.concatenate(parts)
+        return out
+
+    def gather_cells(self, local_array):
+        """(nc_total, ...) array of per-cell values in the input mesh's cell order on rank 0; None elsewhere."""
+        parts = self.mpi.gather(np.ascontiguousarray(local_array), root=0)
+        if self.mpi.rank != 0:
+            return None
+        cat = np.concatenate(parts)
+        out = np.empty_like(cat)
+        out[self._corder_gather] = cat
+        return out
+
+    # --- labelled sets -------------------------------------------------------------------------
+    def label_strata(self, name):
+        """{value: local points} of label `name` on this rank ({} when it has none of its points)."""
+        if name not in self.label_names or not self.dm.hasLabel(name):
+            return {}
+        lab = self.dm.getLabel(name)
+        out = {}
+        for v in lab.getValueIS().getIndices():
+            pts = lab.getStratumIS(int(v)).getIndices()
+            if len(pts):
+                out[int(v)] = np.asarray(pts, np.int64)
+        return out
+
+    def cell_values(self, name):
+        """(nc,) value of label `name` on each local cell (0: none)."""
+        out = np.zeros(len(self.cells), np.int64)
+        for v, pts in self.label_strata(name).items():
+            pts = pts[pts < self._cStart + len(self.cells)]
+            out[pts - self._cStart] = v
+        return out
+
+    def set_vertices(self, name):
+        """Local vertices (owned and ghost) of the facet set labelled `name`."""
+        pts = self.label_strata(facet_label(name)).get(VERTEX_VALUE, np.zeros(0, np.int64))
+        return np.sort(self._lvid[pts - self._vStart])
+
+    def set_cells(self, name):
+        """Local cells of the volume set labelled `name` (sets.cell_label)."""
+        return np.flatnonzero(self.cell_values(cell_label(name)) == 1)
+
+    def set_triangles(self, names):
+        """(ntri, 3) local vertex ids of the boundary facets of the named sets (a facet in several of
+        them once) held by this rank's cells, ordered so that (b - a) x (c - a) points outward."""
+        mask = np.zeros(len(self.cells), np.int64)
+        for name in names:
+            for v, pts in self.label_strata(facet_label(name)).items():
+                if v != VERTEX_VALUE:
+                    mask[pts - self._cStart] |= v
+        cells = np.flatnonzero(mask)
+        order = np.argsort(self.orig[self.cells[cells]], axis=1, kind="stable")   # by input vertex id
+        tris, opp = [], []
+        for j in range(4):
+            sel = (mask[cells] >> j) & 1 == 1
+            k = order[sel, j]                              # the local corner without the face
+            c = self.cells[cells[sel]].astype(np.int64)
+            tris.append(c[np.arange(len(k))[:, None], FACE_VERTICES[k]])
+            opp.append(c[np.arange(len(k)), k])
+        if not tris or not sum(map(len, tris)):
+            return np.zeros((0, 3), np.int64)
+        return orient_outward(self.X, np.concatenate(tris), np.concatenate(opp))
+
+
+# edge index (element.EDGES) of a pair of corner positions i < j: EDGE_OF[4 i + j]
+EDGE_OF = np.full(16, -1)
+for _e, (_i, _j) in enumerate(EDGES):
+    EDGE_OF[4 * _i + _j] = EDGE_OF[4 * _j + _i] = _e
+
+
+class QuadraticSpace(Space):
+    """P2 vector field (3 dofs per node: every vertex and every edge) on a distributed interpolated DMPlex:
+    the same interface as Space, with `cells` (nc, 10) the nodes of each cell in element.py's order (its
+    corners by ascending input index, then the nodes of its edges), `X` every local node's reference
+    position and `orig` its index among the input mesh's points (mesh.nodes: a quadratic mesh's nodes, or
+    a linear mesh's with a node at every edge midpoint, mesh.elevate)."""
+
+    def __init__(self, comm, element, points=None, tets=None, labels=None, nodes=None):
+        """element: the run's (order 2, its stiffness rule); points, tets (corners), nodes (nc, 10): the checked
+        quadratic input mesh on rank 0; labels as Space's, the sets' nodes ("vertices" kind) being vertices and
+        edge nodes."""
+        self.element = element
+        self.comm = comm
+        self.mpi = comm.tompi4py()
+        serial = self._distribute_quadratic(points, tets, nodes, labels or {})
+        dm = self.dm
+        cf, fe, ev = plex_cones(dm)
+        (c0, c1), (f0, f1), (e0, e1), (v0, v1) = (dm.getHeightStratum(h) for h in range(4))
+        nv, ne = v1 - v0, e1 - e0
+        self.nlv = nv + ne
+        self.section = self._node_section(v0, v1, e0, e1)
+        node_of_point = np.full(dm.getChart()[1], -1, np.int64)
+        node_of_point[v0:v1] = np.arange(nv)
+        node_of_point[e0:e1] = nv + np.arange(ne)
+        self._node_of_point, self._cStart = node_of_point, c0
+        orig_point = self._serial_points(serial["sf"])
+        self.orig = np.empty(self.nlv, np.int64)
+        self.orig[:nv] = serial["vertex_input"][orig_point[v0:v1] - serial["v0"]]
+        self.orig[nv:] = serial["edge_node"][orig_point[e0:e1] - serial["e0"]]
+        self.cell_orig = serial["corder"][orig_point[c0:c1]]
+        self.X = serial["points"][self.orig]
+        self.cells = self._cell_nodes(cf - f0, fe - e0, ev - v0, node_of_point[v0:v1], nv)
+        self.nc = len(self.cells)
+        cids = self.mpi.gather(self.cell_orig, root=0)
+        self._corder_gather = np.concatenate(cids) if self.mpi.rank == 0 else None
+        self.owned = np.ones(self.nlv, bool)
+        _, ilocal, _ = dm.getPointSF().getGraph()
+        if ilocal is not None and len(ilocal):
+            il = np.asarray(ilocal)
+            il = il[((il >= v0) & (il < v1)) | ((il >= e0) & (il < e1))]
+            self.owned[node_of_point[il]] = False
+        self._finish(comm)
+
+    def cell_geometry(self):
+        """The local cells' geometry the kernels run on: per quadrature point of the element's rule
+        (kernels.ElementCells)."""
+        return ElementCells(self.cells, self.X, self.element)
+
+    def _distribute_quadratic(self, points, tets, nodes, labels):
+        """The serial interpolated DMPlex of the spatially ordered corners (rank 0), its labels (facet sets'
+        nodes: vertices and edges), distributed with the `simple` partitioner; returns what every rank
+        needs to find the input node of its points: the serial vertices' and edges' input points, the
+        serial strata, the cell order, the input points, the migration SF."""
+        comm, rank0 = self.comm, self.comm.getRank() == 0
+        out = {}
+        if rank0:
+            used, compact = np.unique(tets, return_inverse=True)
+            p, t, vperm, corder = spatial_order(points[used], compact.reshape(tets.shape))
+            out.update(vertex_input=used[vperm], corder=corder, points=np.asarray(points, float))
+        else:
+            p, t = np.zeros((0, 3)), np.zeros((0, 4), np.int64)
+        dm = PETSc.DMPlex().createFromCellList(3, t.astype(PETSc.IntType), p, interpolate=True, comm=comm)
+        if rank0:
+            _, _, ev = plex_cones(dm)
+            (v0, _), (e0, _) = dm.getDepthStratum(0), dm.getDepthStratum(1)
+            ends = out["vertex_input"][ev - v0]                                   # (ne, 2) input points
+            out.update(v0=v0, e0=e0, edge_node=edge_nodes(nodes, ends, len(points)))
+            point_of_input = np.full(len(points), -1, np.int64)
+            point_of_input[out["vertex_input"]] = v0 + np.arange(len(out["vertex_input"]))
+            point_of_input[out["edge_node"]] = e0 + np.arange(len(ends))
+            set_labels(dm, labels, corder, point_of_input)
+        out = self.mpi.bcast(out if rank0 else None, root=0)
+        self.nv_total, self.nc_total = len(out["points"]), len(out["corder"])
+        self.label_names = self.mpi.bcast(list(labels) if rank0 else None, root=0)
+        dm.getPartitioner().setType(PETSc.Partitioner.Type.SIMPLE)
+        out["sf"] = dm.distribute(overlap=0) if comm.getSize() > 1 else None
+        self.dm = dm
+        dm.viewFromOptions("-dm_view")
+        return out
+
+    def _node_section(self, v0, v1, e0, e1):
+        """3 dofs on each vertex and each edge; their offsets follow the chart (vertices, then edges)."""
+        sec = PETSc.Section().create(comm=PETSc.COMM_SELF)
+        sec.setNumFields(1)
+        sec.setFieldComponents(0, 3)
+        sec.setChart(*self.dm.getChart())
+        for lo, hi in ((v0, v1), (e0, e1)):
+            for pt in range(lo, hi):
+                sec.setDof(pt, 3)
+                sec.setFieldDof(pt, 0, 3)
+        sec.setUp()
+        self.dm.setLocalSection(sec)
+        for pt, node in ((v0, 0), (v1 - 1, v1 - 1 - v0), (e0, v1 - v0), (e1 - 1, v1 - v0 + e1 - 1 - e0)):
+            if v0 <= pt < v1 or e0 <= pt < e1:
+                if sec.getOffset(pt) != 3 * node:
+                    raise RuntimeError("the node section's offsets do not follow the chart")
+        return sec
+
+    def _serial_points(self, sf):
+        """The serial DM's point of each local point (the migration SF's roots; itself on one rank)."""
+        n = self.dm.getChart()[1]
+        if sf is None:
+            return np.arange(n)
+        _, ilocal, iremote = sf.getGraph()
+        leaves = np.arange(len(iremote)) if ilocal is None else np.asarray(ilocal)
+        orig_point = np.full(n, -1, np.int64)
+        orig_point[leaves] = np.asarray(iremote).reshape(-1, 2)[:, 1]
+        return orig_point
+
+    def _cell_nodes(self, cf, fe, ev, vnode, nv):
+        """(nc, 10) nodes of each cell: its 4 vertices by ascending input index, then its edges in
+        element.EDGES order (cf, fe, ev: cones relative to the face, edge and vertex strata)."""
+        nc = len(cf)
+        edges = np.sort(fe[cf].reshape(nc, 12), axis=1)[:, ::2]                  # each edge twice among faces
+        verts = np.sort(ev[edges].reshape(nc, 12), axis=1)[:, ::3]               # each vertex thrice
+        order = np.argsort(self.orig[vnode[verts]], axis=1, kind="stable")
+        verts = np.take_along_axis(verts, order, axis=1)
+        ends = ev[edges]                                                         # (nc, 6, 2)
+        pos = np.argmax(ends[:, :, :, None] == verts[:, None, None, :], axis=3)   # corner positions
+        ref = EDGE_OF[4 * pos[:, :, 0] + pos[:, :, 1]]
+        out = np.empty((nc, 10), IDX)
+        out[:, :4] = vnode[verts]
+        rows = np.arange(nc)[:, None]
+        out[rows, 4 + ref] = nv + edges
+        return out
+
+
+    def set_vertices(self, name):
+        """Local nodes (owned and ghost: vertices and edge nodes) of the facet set labelled `name`."""
+        pts = self.label_strata(facet_label(name)).get(VERTEX_VALUE, np.zeros(0, np.int64))
+        return np.sort(self._node_of_point[pts])
+
+    def set_triangles(self, names):
+        """(ntri, 6) local nodes of the boundary facets of the named sets held by this rank's cells: the
+        corners ordered so that (b - a) x (c - a) points outward, then the nodes of edges (0,1), (1,2), (0,2)."""
+        mask = np.zeros(len(self.cells), np.int64)
+        for name in names:
+            for v, pts in self.label_strata(facet_label(name)).items():
+                if v != VERTEX_VALUE:
+                    mask[pts - self._cStart] |= v
+        out = []
+        for j in range(4):                             # bit j: the face without corner j (ascending input index)
+            sel = np.flatnonzero((mask >> j) & 1 == 1)
+            if not len(sel):
+                continue
+            f = FACE_VERTICES[j]
+            c = self.cells[sel].astype(np.int64)
+            tri = c[:, f]
+            mids = c[:, [4 + EDGE_OF[4 * f[a] + f[b]] for a, b in ((0, 1), (1, 2), (0, 2))]]
+            oriented = orient_outward(self.X, tri, c[:, j])
+            flip = oriented[:, 1] != tri[:, 1]
+            mids[flip] = mids[flip][:, ::-1]
+            out.append(np.concatenate([oriented, mids], axis=1))
+        return np.concatenate(out) if out else np.zeros((0, 6), np.int64)
+
+
+def edge_nodes(nodes, ends, n_points):
+    """The input node of each edge given by its two end points (ne, 2), from the quadratic cells' nodes."""
+    pairs = np.sort(np.stack([nodes[:, [i, j]] for i, j in EDGES], axis=1), axis=2).reshape(-1, 2)
+    keys = pairs[:, 0] * n_points + pairs[:, 1]
+    ukeys, first = np.unique(keys, return_index=True)
+    e = np.sort(ends, axis=1)
+    want = e[:, 0] * n_points + e[:, 1]
+    pos = np.searchsorted(ukeys, want)
+    if not np.array_equal(ukeys[np.minimum(pos, len(ukeys) - 1)], want):
+        raise RuntimeError("an edge of the DMPlex is not an edge of the quadratic mesh")
+    return nodes[:, 4:].reshape(-1)[first[pos]]

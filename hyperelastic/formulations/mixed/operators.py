@@ -1,0 +1,132 @@
+"""The mixed formulation's tangent: one AIJ matrix filled by COO (MixedAssembled: any preconditioner of the whole), or
+by blocks under the field split (MixedNest: K_uu the displacement formulation's assembled tangent, K_up, K_pu, K_pp
+by COO)."""
+import numpy as np
+from petsc4py import PETSc
+
+from ...solving import jacobians
+from ...solving.jacobians import effect_patterns, rigid_body_nullspace
+from .system import coo_aij, coupling_patterns
+
+
+class MixedAssembled:
+    """The mixed tangent [[K_uu, K_up], [K_pu, K_pp]] as one AIJ matrix, filled by COO: the displacement
+    effects' cell blocks and their extra entries, each coupling's blocks, the constrained rows' s I (zero in
+    their columns, as in jacobians.Assembled), the dead pressures' c. The displacement block gets the rigid-body
+    near null space through is_u (PCFIELDSPLIT hands it to the split's matrix). Any preconditioner (LU of the
+    whole, the field split); the default under the field split is MixedNest."""
+
+    def __init__(self, system):
+        self.system = s = system
+        sp = s.space
+        nlu = 3 * sp.nlv
+        self.cell_effects = [e for e in s.effects if e.cell_blocks]
+        cd, patterns = coupling_patterns(s)
+        rows, cols = [np.repeat(cd, 30, axis=1).ravel()], [np.tile(cd, (1, 30)).ravel()]
+        for (ur, pc), (pr, pcc) in patterns:            # K_up, K_pu (K_up's pairs swapped), K_pp; pressures after nlu
+            rows += [ur, nlu + pc, nlu + pr]
+            cols += [nlu + pc, ur, nlu + pcc]
+        self.other, n = effect_patterns(s.effects, rows, cols)
+        c_owned_local = (3 * sp.lvid_of_owned[:, None] + np.arange(3)).ravel()[s.c_owned_pos]
+        dead = nlu + s.dead_local.astype(np.int64)
+        self.diag_slice = slice(n, n + len(c_owned_local))
+        self.dead_slice = slice(n + len(c_owned_local), n + len(c_owned_local) + len(dead))
+        rows += [c_owned_local, dead]
+        cols += [c_owned_local, dead]
+        rows, cols = np.concatenate(rows), np.concatenate(cols)
+        cm = np.concatenate([s.cmask, np.zeros(s.pspace.nlp, bool)])
+        zero = cm[rows] | cm[cols]
+        zero[self.diag_slice] = False
+        self.zero = np.flatnonzero(zero)
+        self.nc = len(cd)
+        self.vals = np.zeros(len(rows))
+        nloc, lg = s.nu_owned + s.pspace.n_owned, s.combined_lgmap()
+        self.mat = self.operator = coo_aij(sp.comm, nloc, nloc, lg, lg, rows, cols)
+        self.nullspace = rigid_body_nullspace(sp)
+        s.is_u.compose("nearnullspace", self.nullspace)
+
+    def update(self):
+        s, n = self.system, self.nc
+        v = self.vals
+        uu = v[:n * 900].reshape(n, 30, 30)
+        uu[:] = 0.0
+        for e in self.cell_effects:
+            e.add_cell_blocks(uu)
+        o = n * 900
+        for c in s.couplings:
+            k = len(c.idx) * 120
+            v[o:o + k] = c.up.ravel()
+            v[o + k:o + 2 * k] = v[o:o + k]                        # (K_pu's entries: K_up's, row and column swapped)
+            v[o + 2 * k:o + 2 * k + len(c.idx) * 16] = c.pp.ravel()
+            o += 2 * k + len(c.idx) * 16
+        for e, sl in self.other:
+            e.coo_values(v[sl])
+        v[self.diag_slice] = s.scale
+        v[self.dead_slice] = s.dead_scale
+        v[self.zero] = 0.0
+        self.mat.setValuesCOO(v, addv=PETSc.InsertMode.INSERT_VALUES)
+        self.mat.assemble()
+
+
+class MixedNest:
+    """The mixed tangent by blocks (under the field split): `mat` (what the preconditioner is built from) is a
+    MatNest [[K_uu, K_up], [K_pu, K_pp]] over is_u and is_p; with storage `sbaij` (the default where K_uu is
+    symmetric) `operator` (what the Krylov method multiplies by) has the same blocks with K_uu's SBAIJ copy. K_uu is
+    the displacement formulation's assembled tangent (jacobians.AssembledChunked: cell blocks straight into the CSR
+    values, with the rigid-body near null space), the couplings' geometric blocks among its cell effects; K_up, K_pu
+    and K_pp (with the dead pressures' c) are filled by COO, zero in the constrained displacement rows. PCFIELDSPLIT
+    takes the blocks without copies (-pc_fieldsplit_diag_use_amat: the displacement split's GAMG smooths with the
+    SBAIJ copy)."""
+
+    def __init__(self, system, storage="sbaij"):
+        self.system = s = system
+        sp, ps = s.space, s.pspace
+        self.uu = jacobians.AssembledChunked(s, storage=storage)
+        _, patterns = coupling_patterns(s)
+        dead = s.dead_local.astype(np.int64)
+        up_r, up_c = (np.concatenate(x) for x in zip(*(up for up, _ in patterns)))
+        pp_r, pp_c = (np.concatenate(list(x) + [dead]) for x in zip(*(pp for _, pp in patterns)))
+        self.up_zero = np.flatnonzero(s.cmask[up_r])              # constrained displacement rows (columns of K_pu)
+        self.up_vals = np.zeros(len(up_r))
+        self.pp_vals = np.zeros(len(pp_r))
+        self.n_pp = len(pp_r) - len(dead)
+        nu, npo = s.nu_owned, ps.n_owned
+        self.K_up = coo_aij(sp.comm, nu, npo, sp.lgmap, ps.lgmap, up_r, up_c)
+        self.K_pu = coo_aij(sp.comm, npo, nu, ps.lgmap, sp.lgmap, up_c, up_r)
+        self.K_pp = coo_aij(sp.comm, npo, npo, ps.lgmap, ps.lgmap, pp_r, pp_c)
+        self._fill_coupling()                                     # (the nests want assembled blocks)
+        self.uu.mat.assemble()
+        if self.uu.copy is not None:
+            self.uu.copy.refresh(self.uu.map.nnz)
+        fields = [s.is_u, s.is_p]
+        self.mat = self.operator = PETSc.Mat().createNest([[self.uu.mat, self.K_up], [self.K_pu, self.K_pp]],
+                                                          isrows=fields, iscols=fields, comm=sp.comm)
+        if self.uu.operator is not self.uu.mat:
+            self.operator = PETSc.Mat().createNest([[self.uu.operator, self.K_up], [self.K_pu, self.K_pp]],
+                                                   isrows=fields, iscols=fields, comm=sp.comm)
+        self.nullspace = self.uu.nullspace
+        s.is_u.compose("nearnullspace", self.nullspace)
+
+    def _fill_coupling(self):
+        s, o, q = self.system, 0, 0
+        for c in s.couplings:
+            k, m = len(c.idx) * 120, len(c.idx) * 16
+            if getattr(c, "up", None) is not None:             # (linearized)
+                self.up_vals[o:o + k] = c.up.ravel()
+                self.pp_vals[q:q + m] = c.pp.ravel()
+            o, q = o + k, q + m
+        self.up_vals[self.up_zero] = 0.0
+        self.pp_vals[self.n_pp:] = s.dead_scale
+        INSERT = PETSc.InsertMode.INSERT_VALUES
+        self.K_up.setValuesCOO(self.up_vals, addv=INSERT)
+        self.K_pu.setValuesCOO(self.up_vals, addv=INSERT)
+        self.K_pp.setValuesCOO(self.pp_vals, addv=INSERT)
+        for A in (self.K_up, self.K_pu, self.K_pp):
+            A.assemble()
+
+    def update(self):
+        self.uu.assemble()
+        self._fill_coupling()
+        self.mat.assemble()          # (a new state: the field split sets its blocks up again)
+        if self.operator is not self.mat:
+            self.operator.assemble()

@@ -1,0 +1,170 @@
+"""How the mixed formulation is solved (solving/solver.py's SolverPlan, for the saddle point): GMRES with a
+Schur-complement field split — GAMG on the displacement block with the rigid-body near null space, Jacobi on the
+pressure mass matrix scaled by -(1/mu + 1/kappa) as the Schur complement's preconditioner — full Newton steps, the
+displacement split's GAMG set-up kept across Newton and load steps, and a constant pressure's null space where the
+pressure is known only up to a constant."""
+from petsc4py import PETSc
+
+from ...core.errors import UserError
+from ...solving.integrators import RAN_OUT
+from ...solving.solver import MERITS, SolverPlan
+from .operators import MixedAssembled, MixedNest
+
+# the mixed formulation's linear solver: GMRES on the saddle point, a full Schur-complement
+# factorization with GAMG on the displacement block and Jacobi on the scaled pressure mass matrix
+MIXED_DEFAULTS = (("ksp_type", "gmres"), ("pc_type", "fieldsplit"), ("pc_fieldsplit_type", "schur"),
+                  ("pc_fieldsplit_schur_fact_type", "full"), ("fieldsplit_u_ksp_type", "preonly"),
+                  ("fieldsplit_u_pc_type", "gamg"), ("fieldsplit_p_ksp_type", "preonly"),
+                  ("fieldsplit_p_pc_type", "jacobi"))
+
+
+# the mixed formulation's Newton: full steps (the load step halved where a solve fails), GMRES restarted every 100
+# iterations, not PETSc's 30, and stopped at 1000, not 10,000. Measured on a rubber L-bracket (docs/mixed.md, "Thin
+# parts"): a rotation's linearization changes the volume by ~theta^2, so a full step raises the residual norm ~10x
+# before Newton converges quadratically, and the residual-norm backtracking takes lambda = 0.1 for ten steps;
+# GMRES(30) stagnates there where GMRES(100) needs 60-150; a solve at a wild iterate that fails anyway fails at a
+# tenth of the cost. Where full steps are accepted (Cook's membrane) both line searches cost alike.
+MIXED_NEWTON = (("snes_linesearch_type", "basic"), ("ksp_gmres_restart", "100"), ("ksp_max_it", "1000"))
+MIXED_MERITS = {"basic": "none (full Newton steps)", "nleqerr": "Newton correction (NLEQ-ERR)"}
+# PETSc's kernel for the Galerkin products P^T A P of the field split's GAMG, which it forms at every Newton step:
+# PETSc's default (`scalable`) took 1.6-2.3x as long as `rap` on one rank and 2.3-4x as long as `nonscalable` on
+# two for the same products (Cook's membrane, BENCHMARKS.md "The Galerkin products' kernel"); the sequential and
+# the parallel matrices offer different kernels
+GALERKIN_KERNELS = ("rap", "nonscalable")      # (one rank, several)
+
+
+def apply_mixed_defaults(ranks=1):
+    """The mixed formulation's solver defaults where the options database does not set them: the field split's
+    when no -pc_type or -pc_type fieldsplit is given (a user's -pc_type lu, say, replaces all of it), with the
+    faster kernel for its GAMG's Galerkin products on this many ranks (GALERKIN_KERNELS); full Newton steps,
+    GMRES(100), at most 1000 Krylov iterations (MIXED_NEWTON). Returns the line search merit."""
+    opts = PETSc.Options()
+    split = not opts.getBool("snes_mf", False) and opts.getString("pc_type", "fieldsplit") == "fieldsplit"
+    for k, v in MIXED_DEFAULTS:
+        if (k == "ksp_type" or split) and not opts.hasName(k):
+            opts.setValue(k, v)
+    if split and opts.getString("fieldsplit_u_pc_type", "") == "gamg" and not opts.hasName("matptap_via"):
+        opts.setValue("matptap_via", GALERKIN_KERNELS[ranks > 1])
+    if opts.getString("snes_type", "newtonls") == "newtonls":
+        gmres = opts.getString("ksp_type", "") in ("gmres", "fgmres")
+        for k, v in MIXED_NEWTON:
+            if not opts.hasName(k) and (gmres or not k.startswith("ksp_")):   # (preonly reads neither)
+                opts.setValue(k, v)
+    return MIXED_MERITS.get(opts.getString("snes_linesearch_type", "bt"), MERITS[1])
+
+
+def mixed_blocks(mf):
+    """The mixed tangent by blocks (MixedNest): under the field split without MFFD; else one AIJ."""
+    return not mf and PETSc.Options().getString("pc_type", "") == "fieldsplit"
+
+
+# what a failed Krylov solve of the saddle point suggests (GMRES + the Schur field split by default: CG and GAMG
+# alone do not apply)
+KSP_HINTS = {
+    **dict.fromkeys(RAN_OUT, "a larger -ksp_max_it, or for a small problem the direct solve "
+                             "(-options_file options/mixed_direct.opts)"),
+    "DIVERGED_BREAKDOWN": "the direct solve (-options_file options/mixed_direct.opts), or -ksp_type fgmres",
+    "DIVERGED_PCSETUP_FAILED": "the default field split (no -pc_type), or options/mixed_direct.opts",
+}
+
+
+class FieldSplitPlan(SolverPlan):
+    """The Solver's questions, answered for the mixed formulation's system (system.MixedSystem)."""
+    escalates = False          # its preconditioner is the field split, not Jacobi
+    ksp_hints = KSP_HINTS
+
+    def __init__(self):
+        self.schur_pre = None      # the Schur complement's preconditioning matrix (assembled once, kept for a new KSP)
+
+    def defaults(self, solver, objective):
+        had = PETSc.Options().hasName("matptap_via")
+        solver.merit = apply_mixed_defaults(solver.system.space.comm.getSize())
+        if not had and PETSc.Options().hasName("matptap_via"):
+            solver.unrecorded = ("matptap_via",)
+        if objective:
+            how = ("full Newton steps, a smaller load step where a solve fails"
+                   if solver.merit == MIXED_MERITS["basic"] else f"the line search merit is the {solver.merit}")
+            solver.merit_note = ("the mixed formulation's solution is a saddle point, not a minimum: no energy "
+                                 f"merit; {how}")
+
+    def storage(self, storage, system, jacobian, assembly, mf):
+        """sbaij: the Krylov method multiplies by a MatNest whose displacement block is an SBAIJ copy (the field
+        split's GAMG smooths with it: -pc_fieldsplit_diag_use_amat); the PC is built from the AIJ."""
+        if storage == "aij":
+            return storage
+        ok = mixed_blocks(mf) and all(e.symmetric for e in system.effects)
+        if storage == "auto":
+            return "sbaij" if ok else "aij"
+        if storage == "sbaij" and not ok:
+            raise UserError(f"option -operator_storage {storage}: the mixed formulation's SBAIJ displacement block "
+                            "needs the field split (-pc_type fieldsplit), no MFFD and a symmetric tangent; use aij")
+        if storage != "sbaij":
+            raise UserError(f"option -operator_storage {storage}: the mixed formulation's tangent is stored as AIJ "
+                            "(or sbaij: its displacement block)")
+        return storage
+
+    def operator(self, system, jacobian, assembly, storage, mf):
+        if mf == "mf":
+            return None
+        return MixedNest(system, storage) if mixed_blocks(mf) else MixedAssembled(system)
+
+    def before_options(self, solver):
+        if solver.storage == "sbaij" and not PETSc.Options().hasName("pc_fieldsplit_diag_use_amat"):
+            PETSc.Options().setValue("pc_fieldsplit_diag_use_amat", "1")     # GAMG smooths with the SBAIJ block
+
+    def configure(self, solver):
+        self.field_split(solver)
+        if solver.system.constant_pressure_free and solver.op is not None:
+            self.constant_pressure(solver)
+
+    def field_split(self, solver):
+        """Under -pc_type fieldsplit: the fields u (displacements, with the rigid-body near null space) and p
+        (pressures), and the Schur complement preconditioned by -(1/mu + 1/kappa) M_p unless the options choose."""
+        pc = solver.snes.getKSP().getPC()
+        if pc.getType() != "fieldsplit":
+            return
+        sysm = solver.system
+        pc.setFieldSplitIS(("u", sysm.is_u), ("p", sysm.is_p))
+        if not PETSc.Options().hasName("pc_fieldsplit_schur_precondition"):
+            if self.schur_pre is None:               # (constant: assembled once, kept for a new KSP)
+                self.schur_pre = sysm.pressure_mass()
+            pc.setFieldSplitSchurPreType(PETSc.PC.FieldSplitSchurPreType.USER, self.schur_pre)
+
+    def constant_pressure(self, solver):
+        """A part whose whole boundary moves as prescribed, incompressible: the pressure is known up to a constant,
+        the tangent singular. Its null space on the operators (the Krylov method keeps the constant out of every
+        update: the pressure's constant stays where it starts) and on is_p (the field split's Schur complement)."""
+        sysm, op = solver.system, solver.op
+        ns, nsp = sysm.constant_pressure_nullspace()
+        for A in {op.mat.handle: op.mat, op.operator.handle: op.operator}.values():
+            A.setNullSpace(ns)
+            A.setTransposeNullSpace(ns)
+        sysm.is_p.compose("nullspace", nsp)
+        self.nullspace = ns
+        solver.notes.append("incompressible with every displacement of the boundary prescribed: the pressure is "
+                            "known up to a constant (it stays at its start)")
+
+    def reuse(self, solver, ptype):
+        """The field split is set up again at every Jacobian (cheap: its blocks are the MatNest's); its displacement
+        split's GAMG is kept (PCSetReusePreconditioner on that split, not SNES's lag: PCFIELDSPLIT sets its splits
+        up again whenever their blocks' values change)."""
+        if ptype == "fieldsplit" and PETSc.Options().getString("fieldsplit_u_pc_type", "") in solver.REUSED_PCS:
+            return {"base": None, "pending": True, "setups": 0}
+        return None
+
+    def kept_split(self, ksp):
+        return ksp.getPC().getFieldSplitSubKSP()[0].getPC()
+
+    def rebuild(self, solver):
+        """The field split's GAMG keeps state from one set-up to the next (a ILU split does not): a new KSP where a
+        restart begins, so that both runs continue bitwise alike (and its splits, new, are set up at the next solve
+        whether or not the old ones were kept)."""
+        if solver.snes.getKSP().getPC().getType() != "fieldsplit":
+            return
+        old = solver.snes.getKSP()
+        ksp = PETSc.KSP().create(comm=old.getComm())
+        ksp.setOptionsPrefix(old.getOptionsPrefix())
+        solver.snes.setKSP(ksp)
+        ksp.setFromOptions()
+        ksp.setPostSolve(solver._after_linear_solve)
+        self.field_split(solver)

@@ -1,0 +1,106 @@
+"""hyperelastic report FILE.h5: what a run's output holds, printed again — how the run went, the forces table
+of its end (reactions, load resultants, their sum), and on request the displacement and the cell fields at
+material points of a frame and the quantities `study refinement --watch` takes. Reads only; writes nothing."""
+import json
+
+import numpy as np
+
+from ..solving import stats
+from ..core.errors import ArgParser, UserError
+from ..core.files import completed_frames, open_output
+from ..solving.forces import table
+from ..mesh.read import interpolate, locate
+from .watch import HELP as WATCH_HELP, parse_watch, point3, watched
+
+
+def main(argv):
+    ap = ArgParser(prog="hyperelastic report", description="Print what an output file holds: the run, its "
+                   "forces, and values at material points.")
+    ap.add_argument("file", help="an output FILE.h5 of hyperelastic run")
+    ap.add_argument("--frame", type=int, default=-1, help="the frame of --at (default: the last; -2 the one "
+                    "before, ...)")
+    ap.add_argument("--at", action="append", default=[], metavar="X,Y,Z",
+                    help="a material point (reference coordinates): its displacement and its cell's fields")
+    ap.add_argument("--watch", action="append", default=[], metavar="Q", help=f"a quantity: {WATCH_HELP}")
+    ap.add_argument("--forces", action="store_true", help="the forces table at the time of --frame (from the "
+                    "statistics: every step of backward-Euler and quasi-static runs records it)")
+    a = ap.parse_args(argv)
+    points = [_point(s) for s in a.at]
+    watches = [parse_watch(w) for w in a.watch]
+    for line in report(a.file, a.frame, points, watches, a.forces):
+        print(line)
+    return 0
+
+
+def _point(spec):
+    p = point3(spec)
+    if p is None:
+        raise UserError(f"report: --at {spec}: give three finite coordinates X,Y,Z")
+    return p
+
+
+def report(path, frame, points, watches, forces=False):
+    """The report's lines (UserError for a file that is not a readable output or a frame it lacks)."""
+    with open_output(path, "report") as f:
+        n = completed_frames(f)
+        lines = [_summary(path, f, n)]
+        if "forces" in f.attrs and not forces:
+            rec = json.loads(f.attrs["forces"])
+            lines += table([(r["kind"], r["name"], np.array(r["F"]), np.array(r["M"])) for r in rec["forces"]],
+                           rec["t"])
+        if points or forces:
+            if n == 0:
+                raise UserError(f"report: '{path}' has no frames")
+            i = frame if frame >= 0 else n + frame
+            if not 0 <= i < n:
+                raise UserError(f"report: --frame {frame} out of range (0..{n - 1})")
+            if forces:
+                lines += _forces_at(f, float(f["time"][i]), i)
+            lines += [_at(f, i, p) for p in points]
+    for w in watches:
+        lines.append(f"{w.spec} = {watched(path, w):.9g}")
+    return lines
+
+
+def _forces_at(f, t, i):
+    """The forces table of the accepted step that ends at frame i's time t (the statistics' columns)."""
+    st = stats.read(f)
+    acc = stats.accepted_at(st, t)
+    rows = stats.forces_of(st, acc[-1]) if len(acc) else []
+    if not rows:
+        why = "its start (t = 0)" if i == 0 else f"t = {t:.6g} (a run without them: -integrator ts, or older)"
+        raise UserError(f"report: --forces: the statistics record no forces at frame {i}, {why}")
+    return table(rows, t)
+
+
+def _summary(path, f, n):
+    a = f.attrs
+    t = float(f["time"][n - 1]) if n else float("nan")
+    steps = a.get("steps_completed", None)
+    how = ("failed: " + str(a["failure"]) if "failure" in a else "interrupted: " + str(a["interrupted"])
+           if "interrupted" in a else "finished" if steps is not None else "did not finish (killed?)")
+    scene = a.get("scene", "?")
+    extra = f", formulation {a['formulation']}" if "formulation" in a else ""
+    tets = f["mesh/tetra"]
+    return (f"{path}: scene {scene}, {tets.shape[0]} tets ({'quadratic' if tets.shape[1] == 10 else 'linear'})"
+            f"{extra}; {n} frames to t = {t:.6g}; {steps if steps is not None else '?'} steps; {how}")
+
+
+def _at(f, i, p):
+    """One line: the displacement at material point p in frame i and its cell's fields."""
+    X, tets = f["mesh/points"][:], f["mesh/tetra"][:]
+    try:
+        cells, w = locate(X, tets, p)
+    except UserError as e:
+        raise UserError(f"report: --at {','.join(f'{v:g}' for v in p)}: {e}") from None
+    u = interpolate(tets, cells, w, f["x"][i] - X)[0]
+    words = [f"at ({', '.join(f'{v:g}' for v in p)}), frame {i} (t = {f['time'][i]:.6g}): "
+             f"u = ({u[0]:.6g}, {u[1]:.6g}, {u[2]:.6g}), |u| = {np.linalg.norm(u):.6g}"]
+    g = f.get(f"frames/{i}", {})
+    c = int(cells[0])
+    for name in sorted(g):
+        d = g[name]
+        if d.shape[0] == len(tets):          # a cell field: its value in the cell holding the point
+            v = np.atleast_1d(d[c])
+            words.append(f"{name} " + (f"{v[0]:.6g}" if v.size == 1 else "(" + ", ".join(f"{x:.6g}" for x in v) + ")"))
+    return "; ".join(words)

@@ -1,0 +1,162 @@
+"""Constitutive models, one home each: materials/NAME.py holds the numpy reference (psi(F, c), P(F, c),
+dP(F, dF, c), vectorized over a leading cell axis; c the material's constants) in a class named by its
+module's MATERIAL, and materials/NAME.h the C kernel (stress, derivative preparation, directional
+derivative, optionally the closed-form cell tangent) that setup.py compiles into he_forces_NAME,
+he_kv_NAME, ... (see _material_loops.h). A material is registered by adding NAME to REGISTRY below: its
+order is the order the hard-case matrix and the help list them in.
+
+A material declares its parameters (`Material.parameters`: name, unit, meaning, range, and how the
+default follows from Young's modulus E and Poisson's ratio nu) and how its kernel constants follow from
+them (`Material.constants`: the parameter block the C kernels receive, in the header's order). Every
+material takes E, nu and the density rho (-E -nu -rho, or a -preset); a material with constants of its
+own declares them and reads them as -NAME (per region -REGION_NAME). Units: SI.
+"""
+import importlib
+import math
+from dataclasses import dataclass, field
+
+from ...core.errors import UserError
+from ...core.options import Row
+from .base import lame
+
+__all__ = ["COMMON", "MATERIALS", "PRESETS", "REGISTRY", "Solid", "check_parameters", "default_solid", "get",
+           "lame", "own_parameters", "read_solid", "rows"]
+
+
+# E [Pa], nu [-], rho [kg/m^3]: every material's
+COMMON = ("E", "nu", "rho")
+
+REGISTRY = ("linear", "stvk", "neohookean", "snh", "corotational", "mooney_rivlin", "neohookean_split")
+MATERIALS = {n: importlib.import_module(f".{n}", __name__).MATERIAL for n in REGISTRY}
+
+# Preset values of the thesis framework (K. Erleben, hyper-sim, simulate/create_params.m, 2011);
+# "bone" is its "cortical bone". E [Pa], nu [-], rho [kg/m^3]. Rubber is nearly incompressible: its bulk modulus,
+# ~2 GPa, is some thousand times its shear modulus (Treloar, The Physics of Rubber Elasticity, 3rd ed., 1975,
+# ch. 1), so nu = 0.4995 (kappa/mu = 1000: kappa = 3.3 GPa with the framework's E = 10 MPa) where the framework
+# had 0.48 (kappa/mu = 25); on quadratic tetrahedra -formulation auto takes the mixed formulation for it.
+PRESETS = {
+    "rubber": (0.01e9, 0.4995, 1050.0),
+    "steel": (210e9, 0.31, 7800.0),
+    "cartilage": (0.69e6, 0.018, 1000.0),
+    "cortical_bone": (16.16e9, 0.33, 1600.0),
+    "bone": (16.16e9, 0.33, 1600.0),
+    "cancellous_bone": (452e6, 0.3, 1600.0),
+    "concrete": (30e9, 0.20, 2320.0),
+    "copper": (125e9, 0.35, 8900.0),
+    "aluminium": (72e9, 0.34, 2700.0),
+    "glass": (50e9, 0.18, 2190.0),
+}
+
+
+def check_parameters(E, nu, rho, where="material"):
+    for name, val in (("E", E), ("nu", nu), ("rho", rho)):
+        if not math.isfinite(val):
+            raise UserError(f"{where}: -{name} {val} is not a finite number")
+    if E <= 0:
+        raise UserError(f"{where}: Young's modulus -E {E:g} must be > 0")
+    if not (-1 < nu < 0.5):
+        raise UserError(f"{where}: Poisson's ratio -nu {nu:g} must satisfy -1 < nu < 0.5")
+    if rho <= 0:
+        raise UserError(f"{where}: density -rho {rho:g} must be > 0")
+
+
+def get(name):
+    try:
+        return MATERIALS[name]
+    except KeyError:
+        raise UserError(f"unknown material '{name}' (choose from {', '.join(sorted(MATERIALS))})") from None
+
+
+def own_parameters():
+    """{parameter name: Parameter} of every material (a name several materials declare means the same)."""
+    out = {}
+    for m in MATERIALS.values():
+        for p in m.parameters:
+            out.setdefault(p.name, p)
+    return out
+
+
+@dataclass
+class Solid:
+    """A material with its parameters resolved: the scene's, or a region's (-regions)."""
+    material: type                               # a Material subclass
+    values: dict = field(default_factory=dict)   # E, nu and the material's own parameters
+    rho: float = 1000.0
+
+    @property
+    def name(self):
+        return self.material.name
+
+    @property
+    def constants(self):
+        return tuple(float(c) for c in self.material.constants(self.values))
+
+    def describe(self):
+        """One line of the material and its parameters, as the set report prints it."""
+        own = "".join(f", {p.name} {self.values[p.name]:g}" for p in self.material.parameters)
+        return f"{self.material.name}, E {self.values['E']:g}, nu {self.values['nu']:g}{own}, rho {self.rho:g}"
+
+    def record(self):
+        """The parameters as the output records them (JSON-able)."""
+        return {"material": self.material.name, **{k: float(v) for k, v in self.values.items()}, "rho": self.rho}
+
+
+def read_solid(opts, prefix, default, where):
+    """The Solid of -PREFIXmaterial, -PREFIXpreset, -PREFIXE, -PREFIXnu, -PREFIXrho and the material's own
+    -PREFIXNAME over `default` (a Solid: the scene's, for a region), validated. A material parameter not
+    given follows from E and nu by its declaration; for a region, the un-prefixed option where given."""
+    text = opts.string(f"{prefix}material", None)
+    try:
+        mat = default.material if text is None else get(text)
+    except UserError as e:
+        raise UserError(f"option -{prefix}material: {e}") from None
+    preset = opts.string(f"{prefix}preset", None)
+    E, nu, rho = default.values["E"], default.values["nu"], default.rho
+    if preset is not None:
+        if preset not in PRESETS:
+            raise UserError(f"option -{prefix}preset: unknown preset '{preset}' (choose from "
+                            f"{', '.join(sorted(PRESETS))})")
+        E, nu, rho = PRESETS[preset]
+    E, nu, rho = opts.real(f"{prefix}E", E), opts.real(f"{prefix}nu", nu), opts.real(f"{prefix}rho", rho)
+    check_parameters(E, nu, rho, where=where)
+    values, keys = {"E": E, "nu": nu}, {}
+    for p in mat.parameters:                           # the given ones first: defaults may follow from them
+        keys[p.name] = f"{prefix}{p.name}" if opts.has(f"{prefix}{p.name}") or not opts.has(p.name) else p.name
+        v = opts.real(keys[p.name], None)              # a region's default: the un-prefixed option
+        if v is not None:
+            values[p.name] = v
+    for p in mat.parameters:
+        given = p.name in values
+        if not given:
+            values[p.name] = p.default(values)
+        if values[p.name] <= p.minimum if p.exclusive else values[p.name] < p.minimum:
+            what = (f"-{keys[p.name]} {values[p.name]:g}" if given else
+                    f"{p.name} = {values[p.name]:g} (from {p.default_text})")
+            raise UserError(f"{where}: {what} must be {'>' if p.exclusive else '>='} {p.minimum:g} ({p.meaning})")
+    mat.check(values, where)
+    return Solid(mat, values, rho)
+
+
+def default_solid(name, E=1e6, nu=0.3, rho=1000.0):
+    """Material `name` at (E, nu, rho), its own constants following from them (their defaults)."""
+    m = get(name)
+    values = {"E": E, "nu": nu}
+    for p in m.parameters:
+        values[p.name] = p.default(values)
+    return Solid(m, values, rho)
+
+
+def rows():
+    """The catalog rows of the materials' own parameters (one per material that has any)."""
+    out = []
+    for m in MATERIALS.values():
+        if not m.parameters:
+            continue
+        names = tuple(p.name for p in m.parameters)
+        help_ = f"`{m.name}`'s constants: " + "; ".join(f"{p.name} [{p.unit}] {p.meaning}" for p in m.parameters)
+        if m.references:
+            help_ += f" ({m.references})"
+        help_ += "; per region `-R1_" + "`, `-R1_".join(names) + "`"
+        out.append(Row(names, " ".join(f"-{n}" for n in names), help_,
+                       "; ".join(f"{p.name} = {p.default_text}" for p in m.parameters)))
+    return out

@@ -1,0 +1,96 @@
+/* Neo-Hookean with an isochoric/volumetric split (Simo & Taylor, CMAME 85, 1991):
+ * Psi = mu/2 (J^(-2/3) I1 - 3) + kappa/4 (J^2 - 1 - 2 ln J), constants (mu, kappa);
+ * P = a (F - I1/3 Q) + g Q with Q = F^-T, a = mu J^(-2/3), g = kappa/2 (J^2 - 1). Undefined for J <= 0
+ * (stress and prepare return 1 there). Numpy reference: neohookean_split.py. */
+#include "_tensor.h"
+typedef struct { double F[9], Q[9], a, I1, kJ2, g; } neohookean_split_cache;
+
+/* The scalars of F (J > 0): Q = F^-T, I1, a = mu J^(-2/3) (J^(-2/3) = 1/cbrt(J)^2), g and kappa J^2. */
+HE_INLINE int neohookean_split_scalars(const double *prm, const double *F, neohookean_split_cache *d,
+                                           double *J) {
+  const double mu = prm[0], kappa = prm[1];
+  double jm23;
+  if (split_scalars(F, J, d->Q, &jm23)) return 1;
+  d->I1 = 0;
+  for (int k = 0; k < 9; k++) d->I1 += F[k] * F[k];
+  d->a = mu * jm23;
+  d->kJ2 = kappa * *J * *J;
+  d->g = 0.5 * kappa * (*J * *J - 1);
+  return 0;
+}
+
+HE_INLINE int neohookean_split_stress(const double *prm, const double *F, double *P, double *psi) {
+  neohookean_split_cache d;
+  double J;
+  if (neohookean_split_scalars(prm, F, &d, &J)) {
+    for (int k = 0; k < 9; k++) P[k] = NAN;
+    if (psi) *psi = NAN;
+    return 1;
+  }
+  const double s = d.g - d.a * d.I1 / 3.0;
+  for (int k = 0; k < 9; k++) P[k] = d.a * F[k] + s * d.Q[k];
+  if (psi) *psi = 0.5 * (d.a * d.I1 - 3 * prm[0]) + 0.25 * prm[1] * (J * J - 1 - 2 * log(J));
+  return 0;
+}
+
+HE_INLINE int neohookean_split_prepare(const double *prm, const double *F, neohookean_split_cache *d) {
+  double J;
+  if (neohookean_split_scalars(prm, F, d, &J)) return 1;
+  memcpy(d->F, F, sizeof d->F);
+  return 0;
+}
+
+/* dP = a (dF - 2/3 (Q:dF) F - 2/3 (F:dF) Q + 2/9 I1 (Q:dF) Q + I1/3 Q dF^T Q) + kappa J^2 (Q:dF) Q - g Q dF^T Q */
+HE_INLINE void neohookean_split_dstress(const double *prm, const neohookean_split_cache *d, const double *dF,
+                                            double *dP) {
+  (void)prm;
+  const double *Q = d->Q, *F = d->F;
+  double T[9], U[9], qd = 0, fd = 0;
+  mtm(dF, Q, T); /* U = Q dF^T Q */
+  mm(Q, T, U);
+  for (int k = 0; k < 9; k++) { qd += Q[k] * dF[k]; fd += F[k] * dF[k]; }
+  const double cF = -2.0 / 3.0 * d->a * qd, cQ = d->a * (2.0 / 9.0 * d->I1 * qd - 2.0 / 3.0 * fd) + d->kJ2 * qd,
+               cU = d->a * d->I1 / 3.0 - d->g;
+  for (int k = 0; k < 9; k++) dP[k] = d->a * dF[k] + cF * F[k] + cQ * Q[k] + cU * U[k];
+}
+
+/* The 12x12 cell tangent in closed form: along dF = e_k (x) G_b (Q:dF = h_b,k, F:dF = u_b,k, Q dF^T Q G_a =
+ * h_b h_a,k with u_a = F G_a, h_a = Q G_a):
+ *   K[(a,i),(b,k)] = V (a delta_ik G_a.G_b - 2/3 a (u_a,i h_b,k + h_a,i u_b,k) + c_hh h_a,i h_b,k + c_x h_b,i h_a,k),
+ * c_hh = 2/9 a I1 + kappa J^2, c_x = a I1/3 - g. */
+#define neohookean_split_CELL_TANGENT 1
+HE_INLINE void neohookean_split_cell_tangent(const double *prm, const neohookean_split_cache *d, double G[4][3],
+                                                 double V, double *K, int accumulate) {
+  (void)prm;
+  double u[4][3], h[4][3];
+  m_grads(d->F, G, u);
+  m_grads(d->Q, G, h);
+  const double va = V * d->a, c2 = -2.0 / 3.0 * va, chh = V * (2.0 / 9.0 * d->a * d->I1 + d->kJ2),
+               cx = V * (d->a * d->I1 / 3.0 - d->g);
+  for (int a = 0; a < 4; a++)
+    for (int b = 0; b < 4; b++) {
+      const double gg = va * (G[a][0] * G[b][0] + G[a][1] * G[b][1] + G[a][2] * G[b][2]);
+      for (int i = 0; i < 3; i++) {
+        double *row = K + 12 * (3 * a + i) + 3 * b;
+        for (int k = 0; k < 3; k++) {
+          double v = c2 * (u[a][i] * h[b][k] + h[a][i] * u[b][k]) + chh * h[a][i] * h[b][k] + cx * h[b][i] * h[a][k]
+                     + (i == k ? gg : 0.0);
+          if (accumulate) row[k] += v;
+          else row[k] = v;
+        }
+      }
+    }
+}
+
+HE_INLINE void neohookean_split_cell_tangent_diag(const double *prm, const neohookean_split_cache *d,
+                                                      double G[4][3], double V, double diag[12]) {
+  (void)prm;
+  double u[4][3], h[4][3];
+  m_grads(d->F, G, u);
+  m_grads(d->Q, G, h);
+  const double va = V * d->a, c = V * (2.0 / 9.0 * d->a * d->I1 + d->kJ2 + d->a * d->I1 / 3.0 - d->g);
+  for (int a = 0; a < 4; a++) {
+    const double g2 = va * (G[a][0] * G[a][0] + G[a][1] * G[a][1] + G[a][2] * G[a][2]);
+    for (int i = 0; i < 3; i++) diag[3 * a + i] = g2 - 4.0 / 3.0 * va * u[a][i] * h[a][i] + c * h[a][i] * h[a][i];
+  }
+}

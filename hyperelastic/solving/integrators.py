@@ -1,0 +1,304 @@
+"""Backward Euler in the unknown x^{n+1} (thesis eq. 5.3, see system.py), or quasi-static
+loading steps, one SNES solve per step; v^{n+1} = (x^{n+1} - x^n)/h; with step control."""
+import math
+import signal
+import sys
+import time
+
+import numpy as np
+from mpi4py import MPI
+from petsc4py import PETSc
+
+from ..core.errors import Interrupted, SolveError
+from .forces import surface_forces
+from .stats import effect_column, energy_sum, force_columns
+
+
+def step_count(final_time, dt):
+    n = max(1, math.ceil(final_time / dt - 1e-9)) if final_time > 0 else 0
+    return n
+
+
+# the option most likely to fix a failed step: by KSP reason for a failed linear solve, else by SNES reason
+RAN_OUT = ("DIVERGED_MAX_IT", "DIVERGED_ITS")     # KSP's reason for running out of iterations (new, old name)
+KSP_HINTS = {
+    **dict.fromkeys(RAN_OUT, "CG + GAMG (-options_file options/gamg.opts) or a larger -ksp_max_it"),
+    "DIVERGED_BREAKDOWN": "-ksp_type gmres, or CG + GAMG (-options_file options/gamg.opts)",
+    "DIVERGED_INDEFINITE_PC": "-pc_type jacobi, or CG + GAMG (-options_file options/gamg.opts)",
+    "DIVERGED_INDEFINITE_MAT": "smaller steps (-dt), or -hessian_projection 1",
+}      # (a formulation's solver plan may bring its own: SolverPlan.ksp_hints)
+SNES_HINTS = {
+    "DIVERGED_MAX_IT": "smaller steps (-dt: more load steps) or a larger -snes_max_it",
+    "DIVERGED_FUNCTION_COUNT": "smaller steps (-dt) or a larger -snes_max_funcs",
+    "DIVERGED_LINE_SEARCH": "smaller steps (-dt), or -inversion_guard 1",
+    "DIVERGED_FNORM_NAN": "smaller steps (-dt), or -inversion_guard 1",
+    "DIVERGED_FUNCTION_DOMAIN": "smaller steps (-dt), or -inversion_guard 1",
+    "DIVERGED_DTOL": "smaller steps (-dt)",
+}
+
+
+class Integrator:
+    """What every time integrator of a run shares: the state (x, v, t, step), frames, statistics
+    rows, checkpoints, clean stops on SIGINT/SIGTERM and the progress line."""
+
+    def __init__(self, scene, system, solver, writer, x0, v0, quiet=False):
+        self.scene, self.system, self.solver, self.writer = scene, system, solver, writer
+        self.quiet = quiet
+        self.sp = system.space
+        self.x, self.v = x0, v0
+        self.t = 0.0
+        self.step = 0
+        self.rejections = 0
+        self.signal = 0        # set by request_stop (the SIGINT/SIGTERM handler of the command line)
+        self.h_try = None      # step size of the next attempt (step control)
+        self.streak = 0        # accepted steps since the last change of h_try
+        self.n0 = 0            # nominal steps already done (a restart starts later)
+        self.stages = {k: PETSc.Log.Stage(k) for k in ("Step", "Output")}
+        system.begin_step(0.0, scene.dt, x0, v0)
+        self.energy0 = energy_sum(system.energies(x0, v0))   # for energy_dissipated
+
+    def request_stop(self, signum):
+        """Stop at the next frame with a checkpoint (honoured on every rank)."""
+        self.signal = signum
+
+    def _say(self, line):
+        """A progress line on stderr (rank 0; not with -quiet)."""
+        if not self.quiet and self.sp.mpi.rank == 0:
+            print(line, file=sys.stderr, flush=True)
+
+    def _note(self, text):
+        """A note the run must leave: on stderr (rank 0; not with -quiet) and in the output's attribute `notes`."""
+        self._say(f"note: {text}")
+        self.run_notes = getattr(self, "run_notes", []) + [text]
+        if self.writer:
+            self.writer.set_attr("notes", "\n".join(self.run_notes))
+
+    def _write_stats(self, stats):
+        self.stages["Output"].push()
+        if self.writer:
+            self.writer.stats(stats)
+        self.stages["Output"].pop()
+
+    def _energy_stats(self, x1, v1, stats):
+        """The energies of the state (x1, v1) into the stats row; False if they or x1 are not finite."""
+        en = self.system.energies(x1, v1)
+        en.setdefault("kinetic", 0.0)
+        finite = self.sp.mpi.allreduce(bool(np.isfinite(x1).all()), op=MPI.LAND) and all(
+            math.isfinite(val) for k, val in en.items() if k not in ("J_min", "J_max"))
+        if not finite:
+            return False
+        tot = energy_sum(en)
+        stats.update(en)
+        stats.update({"energy_total": tot, "energy_dissipated": self.energy0 - tot})
+        return True
+
+    def _output(self, n_done, framed, last, x_frame=None):
+        """After a completed step: the frame (x_frame, default the state's x), a checkpoint every
+        -checkpoint_every steps, and a stop on a signal (all ranks agree). Returns whether a
+        checkpoint was written."""
+        sc = self.scene
+        self.stages["Output"].push()
+        if self.writer and framed:
+            self.writer.frame(self.t, self.x if x_frame is None else x_frame, self.v)
+        # a signal is honoured at a frame (all ranks agree), after a checkpoint of that state
+        stop = framed and self.sp.mpi.allreduce(self.signal, op=MPI.MAX)
+        ck = bool(sc.checkpoint_every and n_done % sc.checkpoint_every == 0 and not last)
+        if self.writer and (stop or ck):
+            self.checkpoint(n_done)
+        self.stages["Output"].pop()
+        if stop:
+            name = signal.Signals(stop).name
+            if self.writer:
+                self.writer.set_attr("interrupted", f"{name} at t={self.t:.6g} (step {self.step})")
+            raise Interrupted(f"interrupted by {name} at t={self.t:.6g} (step {self.step}); state saved: "
+                              f"continue with `hyperelastic run --restart {self.writer.final if self.writer else 'FILE'}`",
+                              stop)
+        return ck and self.writer is not None
+
+    def _progress(self, state, n, nsteps, stats, t_start, force=False):
+        """The progress line, every 2 s and at the end (state: {'last_print': time})."""
+        now = time.perf_counter()
+        if not self.quiet and self.sp.mpi.rank == 0 and (now - state["last_print"] > 2.0 or force):
+            state["last_print"] = now
+            rej = f" rejected {self.rejections}" if self.rejections else ""
+            of = f"/{nsteps}" if nsteps else ""
+            print(f"t={self.t:.4g}/{self.scene.final_time:.4g} step {n + 1}{of} newton {stats['newton_its']} "
+                  f"ksp {stats['ksp_its']}{rej} [{now - t_start:.1f} s]", file=sys.stderr, flush=True)
+
+    def _counters(self):
+        s = self.system
+        return (s.effect_counters(), s.residual_evals, s.residual_seconds, s.objective_evals, s.objective_seconds,
+                self.solver.inversion_cuts)
+
+    def _counter_stats(self, c0):
+        """The counters' increments since the snapshot c0 (_counters) as statistics columns."""
+        c1 = self._counters()
+        keys = ("residual_evals", "residual_seconds", "objective_evals", "objective_seconds", "inversion_cuts")
+        stats = {k: b - a for k, a, b in zip(keys, c0[1:], c1[1:])}
+        for name, (ev, ap, sec) in c1[0].items():
+            e0 = c0[0][name]
+            stats[effect_column(name, "evals")] = ev - e0[0]
+            stats[effect_column(name, "applies")] = ap - e0[1]
+            stats[effect_column(name, "seconds")] = sec - e0[2]
+        return stats
+
+    def checkpoint(self, n):
+        """The state, the step-size state and the output counters (-integrator ts: x and v as TS holds them;
+        there the uninterrupted run restarts at the checkpoints too)."""
+        self.solver.rebuild_preconditioner()     # where a restart begins: the same set-ups in both runs
+        self.writer.checkpoint(self.x, self.v, nodal=self.system.nodal_state(), t=self.t, step=self.step, n=n,
+                               h_try=self.h_try, streak=self.streak, rejections=self.rejections,
+                               nframes=self.writer.nframes, nstats=self.writer.nstats)
+
+    def _resume(self, state):
+        """Continue from a checkpoint (files.read_checkpoint): the same state, step control included."""
+        sp = self.sp
+        self.x, self.v = sp.scatter(state["x"]), sp.scatter(state["v"])
+        self.system.resume(state)
+        self.t, self.step, self.n0 = float(state["t"]), int(state["step"]), int(state["n"])
+        self.h_try, self.streak, self.rejections = float(state["h_try"]), int(state["streak"]), int(state["rejections"])
+
+    def _fail(self, where, why):
+        if self.writer:
+            self.writer.set_attr("failure", f"{where}: {why}")
+        raise SolveError(f"{where}: {why}")
+
+
+class BackwardEuler(Integrator):
+    def __init__(self, scene, system, solver, writer, x0, v0, checkpoint=None, quiet=False):
+        """Steps the system from the initial state (x0, v0: local arrays at t = 0), or from a
+        checkpoint's state (files.read_checkpoint) when given, writing frames and statistics to
+        `writer` (None: nothing is written). The scene gives the time settings."""
+        super().__init__(scene, system, solver, writer, x0, v0, quiet)
+        self.X = system.unknown_vec()
+        if checkpoint is not None:
+            self._resume(checkpoint)
+
+    def run(self):
+        """Steps of the nominal size -dt; frames every round(1/(fps dt)) of them. With step control
+        (default), a step whose solve fails (SNES diverged, a non-finite residual or state) is
+        rejected and retried with half the size; after -dt_grow_after accepted steps the size doubles
+        again, up to -dt. Every attempt is a row in stats (rejected = 1 for the refused ones). Below
+        -dt_min the run stops with a SolveError naming time, step and reason."""
+        sc = self.scene
+        H = sc.dt
+        nsteps = step_count(sc.final_time, H)
+        every = max(1, int(round(1.0 / (sc.fps * H))))
+        if self.writer and self.n0 == 0:
+            self.system.begin_step(0.0, H, self.x, self.v)
+            self.writer.frame(0.0, self.system.impose(self.x.copy()), self.v)
+        t_start = time.perf_counter()
+        progress = {"last_print": t_start}
+        self.h_try = H if self.h_try is None else self.h_try
+        for n in range(self.n0, nsteps):
+            t_end = self.t + (min(H, sc.final_time - self.t) if n == nsteps - 1 else H)
+            stats = self._nominal_step(t_end, H)
+            self._output(n + 1, (n + 1) % every == 0 or n == nsteps - 1, n == nsteps - 1)
+            self._progress(progress, n, nsteps, stats, t_start, force=n == nsteps - 1)
+        return self
+
+    def _nominal_step(self, t_end, H):
+        """Attempts from t to t_end (halving after each rejection, regrowing after accepted streaks);
+        returns the stats row of the last attempt."""
+        sc = self.scene
+        while self.t < t_end:
+            h = min(self.h_try, t_end - self.t)
+            last = t_end - self.t - h <= 1e-12 * H
+            stats = self.advance(h, t_end if last else self.t + h)
+            why = stats.pop("why", None)
+            linear_only, hint = stats.pop("linear_only", False), stats.pop("hint", "")
+            # at the step's first Newton iteration the load step's size does not change the tangent, so halving
+            # the step would not help (issue 34); at a later one the tangent is taken at an iterate that a smaller
+            # step changes (a rubber part's Newton iterates under rotation)
+            no_halving = linear_only and stats["newton_its"] == 0
+            if stats["rejected"]:
+                self._say(f"t={self.t:.4g}: step of h={h:.3g} rejected: {why}")
+            self._write_stats(stats)
+            if stats["rejected"]:
+                self.rejections += 1
+                self.streak = 0
+                self.h_try = 0.5 * h
+                note = self.solver.escalate() if linear_only else ""
+                if note:                 # the same step again, with a preconditioner that fits a static stiffness
+                    self._note(note)
+                    self.h_try = h
+                    continue
+                if not sc.step_control or self.h_try < sc.dt_min or no_halving:
+                    self._fail_step(stats, why, hint, halving=not no_halving)
+                continue
+            self.streak += 1
+            if self.h_try < H and self.streak >= sc.dt_grow_after:
+                self.h_try, self.streak = min(2 * self.h_try, H), 0
+        return stats
+
+    def _fail_step(self, stats, why, hint="", halving=True):
+        sc = self.scene
+        where = f"step {self.step + 1} (t={stats['time']:.6g}, h={stats['dt']:.3g})"
+        if sc.step_control and halving:
+            why += f"; step control reached -dt_min {sc.dt_min:.3g} after {self.rejections} rejected attempts"
+        elif sc.step_control:
+            why += "; not retried with a smaller load step (it would not change a quasi-static linear solve)"
+        self._fail(where, why + (f"; try {hint}" if hint else ""))
+
+    def advance(self, h, t1=None):
+        """One attempt of a step of size h from (x, v, t) to t1 (default t + h). Returns its stats
+        row; the state moves only when the attempt is accepted (stats['rejected'] == 0)."""
+        self.stages["Step"].push()
+        try:
+            return self._advance(h, self.t + h if t1 is None else t1)
+        finally:
+            self.stages["Step"].pop()
+
+    def _advance(self, h, t1):
+        sysm = self.system
+        c0 = self._counters()
+        w0 = time.perf_counter()
+        sysm.begin_step(t1, h, self.x, self.v)
+        self._initial_guess(h)
+        reason = self.solver.solve(self.X)
+        snes = self.solver.snes
+        stats = {"step": self.step + 1, "time": t1, "dt": h, "snes_reason": int(reason),
+                 "newton_its": snes.getIterationNumber(), "ksp_its": snes.getLinearSolveIterations(),
+                 **self._counter_stats(c0), "rejected": 1}
+        if reason <= 0:
+            name = self.solver.reason_name(reason)
+            ksp = self.solver.ksp_reason_name() if name == "DIVERGED_LINEAR_SOLVE" else ""
+            stats["why"] = (f"SNES did not converge ({name}{': KSP ' + ksp if ksp else ''}) after "
+                            f"{stats['newton_its']} Newton iterations")
+            # a Krylov solve that ran out of iterations on a quasi-static step: a preconditioner for a static
+            # stiffness may fix it (Solver.escalate); halving the step may not (the caller)
+            stats["linear_only"] = self.scene.quasistatic and ksp in RAN_OUT
+            hints = self.solver.plan.ksp_hints or KSP_HINTS
+            stats["hint"] = hints.get(ksp, "") if ksp else SNES_HINTS.get(name, "")
+            if ksp in RAN_OUT and self.solver.snes.getKSP().getPC().getType() == "gamg":
+                stats["hint"] = "a larger -ksp_max_it"
+            return self._rejected(stats, w0)
+        sysm.solved(self.X)
+        x1 = sysm.impose(sysm.local(self.X, sysm.xl).copy())
+        v1 = np.zeros_like(x1) if self.scene.quasistatic else (x1 - self.x) / h
+        if not self._energy_stats(x1, v1, stats):   # a NaN/Inf state never reaches the output
+            stats["why"] = "non-finite positions or energies after a converged solve"
+            return self._rejected(stats, w0)
+        self.x, self.v, self.t = x1, v1, t1
+        sysm.accept(self.X)
+        self.step += 1
+        if self.writer is not None and self.scene.step_forces:   # the step's reactions and load resultants
+            stats.update(force_columns(surface_forces(self.scene, sysm, x1)))
+        stats.update({"rejected": 0, "wall_s": time.perf_counter() - w0})
+        return stats
+
+    def _initial_guess(self, h):
+        """Newton's start in self.X: the explicit predictor x^n + h v^n with the step's boundary
+        positions. Where the material is undefined when inverted and that start inverts cells (fast
+        prescribed ends outrunning their neighbours' predicted motion), the previous positions x^n
+        instead, if they do not (the residual there is defined, so Newton can start)."""
+        sysm = self.system
+        guesses = [self.x + h * self.v] if not self.scene.quasistatic and self.v.any() else []
+        for guess in guesses + [self.x]:
+            sysm.set_guess(self.X, guess)
+            if not sysm.check_domain or guess is self.x or sysm.defined_at(self.X):
+                return
+
+    def _rejected(self, stats, w0):
+        stats["wall_s"] = time.perf_counter() - w0
+        return stats

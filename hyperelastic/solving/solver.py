@@ -1,0 +1,325 @@
+"""SNES / KSP / PC from the options database, with this application's defaults: Newton with a
+backtracking line search on the incremental potential (energy merit, SNESSetObjective) where every
+effect has one, else on the residual norm; CG (GMRES when an effect's tangent is not symmetric: follower
+loads) + Jacobi (no PC under -snes_mf)."""
+from mpi4py import MPI
+from petsc4py import PETSc
+
+from . import jacobians
+from ..core.errors import UserError
+from ..core.libpetsc import lag_preconditioner, lag_preconditioner_persists, set_function_domain_error
+
+MERITS = ("energy", "residual norm")
+
+
+def apply_defaults(merit="residual norm", symmetric=True):
+    """This application's defaults, where the options database does not set them. With the energy
+    merit, a Krylov solve that stops early (CG at negative curvature: DIVERGED_INDEFINITE_MAT) still
+    gives a descent direction for the energy (Steihaug 1983), so it does not end the Newton solve:
+    the line search decides; more Newton iterations are allowed for such steps."""
+    opts = PETSc.Options()
+    energy = merit == "energy"
+    defaults = [("ksp_type", "cg" if symmetric else "gmres"), ("snes_max_it", "100" if energy else "50")]
+    if opts.getString("snes_type", "newtonls") == "newtonls":
+        defaults.append(("snes_linesearch_type", "bt"))
+    for k, v in defaults:
+        if not opts.hasName(k):
+            opts.setValue(k, v)
+    if energy and not opts.hasName("snes_max_linear_solve_fail"):
+        opts.setValue("snes_max_linear_solve_fail", opts.getString("snes_max_it"))
+    if not opts.hasName("pc_type"):
+        opts.setValue("pc_type", "none" if opts.getBool("snes_mf", False) else "jacobi")
+
+
+def resolve_storage(storage, system, jacobian, assembly, mf):
+    """-operator_storage: `aij`, or `sbaij` where it applies — the tangent's upper triangle is all the
+    Krylov method sees of it, so it must be symmetric, assembled (by setvalues), and the operator SNES
+    multiplies by (not MFFD's); or `shell` — the Krylov method multiplies by the cells' action, the
+    preconditioner is built from the assembled AIJ (assembled by setvalues, not under MFFD). `auto`
+    (default): sbaij where it applies, else aij; an explicit sbaij or shell where it does not is an error."""
+    if storage == "aij":
+        return storage
+    if storage == "auto":
+        ok = (jacobian == "assembled" and assembly == "setvalues" and not mf
+              and all(e.symmetric for e in system.effects))
+        return "sbaij" if ok else "aij"
+    what = f"option -operator_storage {storage}"
+    if mf:
+        raise UserError(f"{what}: the Krylov method multiplies by MFFD under -snes_{mf}; use -operator_storage aij")
+    if jacobian != "assembled":
+        raise UserError(f"{what}: stores the assembled tangent; not with -jacobian {jacobian}")
+    if assembly != "setvalues":
+        raise UserError(f"{what}: needs -assembly setvalues (the exact pattern), not {assembly}")
+    unsym = [e.name for e in system.effects if not e.symmetric]
+    if unsym and storage == "sbaij":
+        raise UserError(f"{what}: the tangent of {', '.join(unsym)} is not symmetric; use -operator_storage aij")
+    return storage
+
+
+def matrix_free():
+    """'mf', 'mf_operator' or '' from -snes_mf / -snes_mf_operator."""
+    opts = PETSc.Options()
+    if opts.getBool("snes_mf", False):
+        return "mf"
+    if opts.getBool("snes_mf_operator", False):
+        return "mf_operator"
+    return ""
+
+
+class SolverPlan:
+    """How a formulation's system is solved, as far as the Solver asks (formulations/base.py: each formulation names
+    its plan). This base is the displacement formulation's: this application's defaults (apply_defaults), the
+    Jacobian operators of jacobians.py, a GAMG set-up kept by SNES's lag, and a quasi-static CG + Jacobi solve that
+    runs out of iterations retried with GAMG. A formulation with other needs subclasses it (the mixed formulation's
+    field split: formulations/mixed/solver.py); the Solver holds no formulation's branch."""
+    escalates = True       # a quasi-static CG + Jacobi solve that runs out of iterations may switch to GAMG
+    ksp_hints = None       # {KSP converged reason: what to try}, where the integrator's own do not fit
+
+    def defaults(self, solver, objective):
+        """Set this formulation's defaults in the options database (before apply_defaults), and the solver's
+        `merit`, `merit_note` and `unrecorded` where they differ from the displacement formulation's."""
+
+    def storage(self, storage, system, jacobian, assembly, mf):
+        """The -operator_storage this run uses (resolve_storage)."""
+        return resolve_storage(storage, system, jacobian, assembly, mf)
+
+    def operator(self, system, jacobian, assembly, storage, mf):
+        """The Jacobian operator SNES uses (`mat`, `operator`, `update()`), or None under -snes_mf (MFFD, no PC)."""
+        return None if mf == "mf" else jacobians.make(system, jacobian, assembly, storage)
+
+    def before_options(self, solver):
+        """Options the plan sets once the operator exists, before SNES reads the options database."""
+
+    def configure(self, solver):
+        """After SNES has read the options: the preconditioner's structure (the field split's fields)."""
+
+    def reuse(self, solver, ptype):
+        """-reuse_preconditioner auto: the reuse state where this run's set-up is worth keeping (GAMG), kept by
+        SNES's lag (persisting, rebuilt at the next Jacobian: lag -2); None where it is not."""
+        if ptype not in solver.REUSED_PCS:
+            return None
+        lag_preconditioner_persists(solver.snes)
+        lag_preconditioner(solver.snes, -2)
+        return {"base": None, "pending": True, "setups": 0}
+
+    def kept_split(self, ksp):
+        """The split of a field-split PC whose set-up is kept (PCSetReusePreconditioner), or None: SNES's lag keeps
+        the whole PC."""
+        return None
+
+    def rebuild(self, solver):
+        """Set the preconditioner up again at the next Jacobian (the caller marked the reuse state pending)."""
+        if solver.reuse is not None:
+            lag_preconditioner(solver.snes, -2)
+
+
+class Solver:
+    unrecorded = ()      # options this application set by the rank count (a restart on other ranks sets its own)
+
+    def __init__(self, system, jacobian, assembly="setvalues", guard=False, objective=True, snes=None,
+                 reuse_pc="auto", storage="auto", plan=None):
+        """SNES on the system's residual with Jacobian mode `jacobian` (scene.JACOBIANS; filled by
+        `assembly` when assembled); guard: shorten Newton updates that would invert an element;
+        objective: register the system's incremental potential as the SNES objective (the line
+        search merit) when every effect has one (`merit`; `merit_note` says why not otherwise).
+        snes: a PETSc TS's SNES (ts_integrator.py), whose function and Jacobian the TS sets and whose
+        options the TS reads; the operator `op` is built here all the same.
+        storage: `sbaij` multiplies by an SBAIJ copy of the assembled tangent (jacobians.AssembledChunked;
+        the PC is built from the AIJ): only for a symmetric tangent, assembled by setvalues; `auto`: sbaij
+        where it applies, else aij (`self.storage`: the one chosen). plan: the formulation's SolverPlan
+        (default: the displacement formulation's)."""
+        self.system = system
+        self.plan = plan or SolverPlan()
+        self.notes = []              # what the run should say at its start (run.py), one line each
+        self._merit(objective, snes is not None)
+        self.pc_chosen = PETSc.Options().hasName("pc_type")       # (by the user or a recipe: never changed)
+        self.reuse_mode = reuse_pc
+        apply_defaults(self.merit, all(e.symmetric for e in system.effects))
+        self.mf = matrix_free()
+        self.R = system.unknown_vec()
+        own = snes is None
+        self.snes = snes = PETSc.SNES().create(comm=system.space.comm) if own else snes
+        if own:
+            snes.setFunction(self._residual, self.R)
+        if self.merit == "energy":
+            snes.setObjective(self._objective)
+            snes.setUpdate(self._newton_iterate)
+        self.storage = self.plan.storage(storage, system, jacobian, assembly, self.mf)
+        self.op = self.plan.operator(system, jacobian, assembly, self.storage, self.mf)
+        if self.op is not None and own:
+            snes.setJacobian(self._jacobian, self.op.operator, self.op.mat)
+        self.inversion_cuts = 0   # Newton updates shortened so that no element inverts
+        self.guard = None
+        if guard:
+            self.guard = system.elastic_kernels()
+            snes.setLineSearchPreCheck(self._precheck)
+        self.plan.before_options(self)
+        if own:
+            snes.setFromOptions()
+        self.plan.configure(self)
+        self.reuse = None
+        self.linear_solves, self.linear_its = 0, 0
+        if self.op is not None:
+            self.snes.getKSP().setPostSolve(self._after_linear_solve)
+        self._setup_reuse(reuse_pc)
+        self.ev_res = PETSc.Log.Event("HE_Residual")
+        self.ev_jac = PETSc.Log.Event("HE_Jacobian")
+
+    def _merit(self, objective, under_ts):
+        """The line search merit: the energy where every effect has a potential and SNES is ours, else the residual
+        norm, and the note that says why (the plan may choose otherwise)."""
+        system = self.system
+        self.merit_note = ""
+        if under_ts and objective:
+            self.merit_note = "under -integrator ts the line search merit is the residual norm"
+        elif objective and not system.conservative:
+            self.merit_note = (f"{', '.join(system.nonconservative())} has no potential: the line search "
+                               "merit is the residual norm")
+        self.merit = MERITS[0] if objective and system.conservative and not under_ts else MERITS[1]
+        self.plan.defaults(self, objective)
+
+    # preconditioner set-ups worth keeping across Newton iterations and time steps (multigrid hierarchies)
+    REUSED_PCS = ("gamg",)
+    REBUILD_RATIO = 1.5
+
+    def _setup_reuse(self, mode):
+        """-reuse_preconditioner auto: where the PC's set-up is expensive (GAMG), keep it across Newton
+        iterations and steps until a Krylov solve needs more than REBUILD_RATIO x the iterations of the first
+        solve after the last set-up, or fails; then rebuild at the next Jacobian. How it is kept is the plan's
+        (SolverPlan.reuse: SNES's lag; the mixed formulation's: PCSetReusePreconditioner on its displacement
+        split). `never`: PETSc's default, a set-up per Jacobian."""
+        opts = PETSc.Options()
+        if mode == "never" or self.op is None or opts.hasName("snes_lag_preconditioner"):
+            return                          # (or the user chose a lag)
+        pc = self.snes.getKSP().getPC()
+        self.reuse = self.plan.reuse(self, pc.getType() or opts.getString("pc_type", ""))
+
+    # what a quasi-static step whose CG + Jacobi solve ran out of iterations is retried with (options/gamg.opts)
+    ESCALATION = (("pc_gamg_type", "agg"), ("pc_gamg_agg_nsmooths", "1"), ("mg_levels_ksp_type", "chebyshev"),
+                  ("mg_levels_pc_type", "jacobi"))
+
+    def escalate(self):
+        """CG + Jacobi ran out of iterations on a quasi-static step: switch the preconditioner of the assembled
+        tangent to GAMG with the rigid-body near null space (its set-up kept across steps) and say so; the
+        caller retries the step. Only for the default Jacobi (no -pc_type given), where the plan allows it
+        (not the mixed formulation's field split), and once. Returns the note, or "" when it does not apply.
+        Jacobi stays the default: it is faster on dynamic and small runs and keeps its Krylov directions
+        descent directions on indefinite tangents, where GAMG's Chebyshev smoothing became an indefinite preconditioner (a soft cantilever at
+        full load: docs/design.md, "Solver defaults")."""
+        ksp = self.snes.getKSP()
+        pc = ksp.getPC()
+        if (self.pc_chosen or not self.plan.escalates or self.op is None or self.mf or pc.getType() != "jacobi"
+                or self.op.mat.getType() not in ("seqaij", "mpiaij")):
+            return ""
+        opts = PETSc.Options()
+        for k, v in self.ESCALATION:
+            if not opts.hasName(k):
+                opts.setValue(k, v)
+        opts.setValue("pc_type", "gamg")
+        its = ksp.getIterationNumber()
+        pc.setType("gamg")
+        pc.setFromOptions()
+        self._setup_reuse(self.reuse_mode)
+        self.notes.append("switched to GAMG")
+        return (f"{ksp.getType().upper()} + Jacobi ran out of iterations ({its}) on a quasi-static step: retrying "
+                "it with GAMG (rigid-body modes; -options_file options/gamg.opts from the start saves the failed "
+                "attempt)")
+
+    def rebuild_preconditioner(self):
+        """Set the preconditioner up again at the next Jacobian (also where a restart would begin, so
+        that a restarted run and the uninterrupted one build it at the same point)."""
+        if self.reuse is not None:
+            self.reuse["pending"] = True
+        self.plan.rebuild(self)
+
+    def _after_linear_solve(self, ksp, b, x):
+        its = ksp.getIterationNumber()
+        self.linear_solves += 1
+        self.linear_its += its
+        r = self.reuse
+        if r is None:
+            return
+        split = self.plan.kept_split(ksp)
+        if r["pending"]:
+            r.update(base=max(its, 1), pending=False, setups=r["setups"] + 1)
+            if split is not None:           # keep the displacement split's set-up from now on
+                split.setReusePreconditioner(True)
+        elif ksp.getConvergedReason() < 0 or its > self.REBUILD_RATIO * r["base"]:
+            if split is not None:           # set it up at the next solve (not a new KSP: this one is still solving)
+                r["pending"] = True
+                split.setReusePreconditioner(False)
+            else:
+                self.rebuild_preconditioner()
+
+    # CG + Jacobi iterations per Newton step above which CG + GAMG, its set-up kept across steps, was
+    # faster end to end (bend, 60k-521k tets, four regimes: BENCHMARKS.md, bench_solvers.py --only crossover)
+    GAMG_PAYS_ABOVE = 100
+
+    def advice(self):
+        """A line for the user when the run's own Krylov iterations say another preconditioner of the
+        assembled tangent would have been faster ("" otherwise)."""
+        if self.op is None or self.mf or not self.linear_solves:
+            return ""
+        pc = self.snes.getKSP().getPC()
+        if pc.getType() != "jacobi" or self.op.mat.getType() not in ("seqaij", "mpiaij"):
+            return ""
+        its = self.linear_its / self.linear_solves
+        if its <= self.GAMG_PAYS_ABOVE:
+            return ""
+        return (f"{self.snes.getKSP().getType()} + Jacobi took {its:.0f} Krylov iterations per Newton step; "
+                f"above ~{self.GAMG_PAYS_ABOVE} CG + GAMG with its set-up kept (-options_file options/gamg.opts) "
+                "was faster end to end (measured at 60k-521k tets, BENCHMARKS.md)")
+
+    def _residual(self, snes, X, R):
+        self.ev_res.begin()
+        self.system.residual(X, R)
+        if self.system.undefined_cells():
+            set_function_domain_error(snes)
+        self.ev_res.end()
+
+    def _objective(self, snes, X):
+        return self.system.objective(X)
+
+    def _newton_iterate(self, snes, its):
+        """At the start of every Newton iteration: the objective is measured from this iterate."""
+        self.system.set_objective_base(snes.getSolution())
+
+    def _precheck(self, X, Y):
+        """Shorten the Newton update (X_new = X - lambda Y) so that no element inverts: the material
+        is undefined there (-inversion_guard; on by default for Neo-Hookean). The factor is the same
+        on every rank."""
+        sysm = self.system
+        x = sysm.impose(sysm.local(X, sysm.xl).copy())
+        d = -sysm.local(Y, sysm.vl).copy()
+        d[sysm.cdofs] = 0.0
+        t = sysm.space.mpi.allreduce(self.guard.max_step(x, d), op=MPI.MIN)
+        if t < 1.0:
+            Y.scale(t)
+            self.inversion_cuts += 1
+            return True
+        return False
+
+    def _jacobian(self, snes, X, J, P):
+        self.ev_jac.begin()
+        self.system.linearize(X)
+        self.op.update()
+        if J.handle != self.op.operator.handle:
+            J.assemble()   # MFFD operator (-snes_mf_operator): new base point
+        self.ev_jac.end()
+
+    def solve(self, X):
+        self.system.set_objective_base(None)
+        self.snes.solve(None, X)
+        return self.snes.getConvergedReason()
+
+    def reason_name(self, reason):
+        return enum_name(PETSc.SNES.ConvergedReason, reason)
+
+    def ksp_reason_name(self):
+        """The last Krylov solve's converged reason, by name."""
+        return enum_name(PETSc.KSP.ConvergedReason, self.snes.getKSP().getConvergedReason())
+
+
+def enum_name(enum, value):
+    names = {v: k for k, v in vars(enum).items() if isinstance(v, int) and not k.startswith("_")}
+    return names.get(value, str(value))

@@ -1,0 +1,122 @@
+"""The statistics a run writes: FILE.h5:stats/<column>, one entry per step attempt (rejected attempts
+included). Declared here once: the integrator writes these columns (output.Writer refuses others),
+and the studies, the hard-case matrix, the reproduction scripts and the tests read them from here. The
+energies are the effects' own (effects.energies(): each effect declares the columns it reports and their
+part in energy_total).
+"""
+import numpy as np
+
+from ..physics.effects import energies
+
+# column: (type, meaning)
+COLUMNS = {
+    "step": (int, "number of the step this attempt tries to complete (accepted steps before it + 1)"),
+    "time": (float, "time at the end of the attempt [s]"),
+    "dt": (float, "size of the attempt [s] (step control halves it after a rejection)"),
+    "snes_reason": (int, "SNES converged reason (negative: diverged)"),
+    "newton_its": (int, "Newton iterations"),
+    "ksp_its": (int, "Krylov iterations, summed over the Newton iterations"),
+    "residual_evals": (int, "residual evaluations (MFFD's included)"),
+    "residual_seconds": (float, "wall time in residual evaluations [s]"),
+    "objective_evals": (int, "evaluations of the incremental potential (the energy line search's merit)"),
+    "objective_seconds": (float, "wall time in objective evaluations [s]"),
+    "inversion_cuts": (int, "Newton updates the inversion guard shortened"),
+    "rejected": (int, "1: step control refused the attempt (the state did not move); 0: accepted"),
+    "wall_s": (float, "wall time of the attempt [s]"),
+    "energy_total": (float, "the sum of the energies below with their signs (kinetic + elastic + potentials "
+                            "- work of the loads) after the step [J]"),
+    "energy_dissipated": (float, "total energy at t = 0 minus energy_total [J]: physical damping plus the "
+                                 "integrator's numerical dissipation (and the work of prescribed motions)"),
+    "error_estimate": (float, "-integrator ts with an adaptor: the step's weighted local error estimate "
+                              "(TSEvaluateWLTE, accepted when <= 1)"),
+    "dt_next": (float, "-integrator ts: the step size chosen for the next step [s]"),
+}
+COLUMNS.update({e.column: (float, e.meaning) for e in energies().values()})
+ENERGY_TERMS = tuple((e.column, e.sign, e.work) for e in energies().values() if e.sign)   # energy_total's parts
+# effect_<name>_<kind>, for every effect the run built
+EFFECT_COLUMNS = {
+    "evals": (int, "residual evaluations of the effect"),
+    "applies": (int, "tangent applications, diagonals and assemblies of the effect"),
+    "seconds": (float, "wall time in the effect [s]"),
+}
+
+
+# <kind>_<name>_<component>: the forces on the body after each accepted step (forces.py: 'reaction' of each held
+# surface, 'load' of each other effect), NaN in rejected attempts' rows
+FORCE_KINDS = ("reaction", "load")
+FORCE_COMPONENTS = ("Fx", "Fy", "Fz", "Mx", "My", "Mz")
+
+
+def force_columns(rows):
+    """{column: value} of forces.surface_forces' rows."""
+    out = {}
+    for kind, name, F, M in rows:
+        for c, v in zip(FORCE_COMPONENTS, list(F) + list(M)):
+            out[f"{kind}_{name}_{c}"] = float(v)
+    return out
+
+
+def forces_of(st, i):
+    """[(kind, name, F (3,), M (3,))] of statistics row i (the columns force_columns made), in column order."""
+    rows = {}
+    for col in st:
+        kind, _, rest = col.partition("_")
+        name, _, comp = rest.rpartition("_")
+        if kind in FORCE_KINDS and comp in FORCE_COMPONENTS and name:
+            rows.setdefault((kind, name), np.zeros(6))[FORCE_COMPONENTS.index(comp)] = st[col][i]
+    return [(k, n, v[:3], v[3:]) for (k, n), v in rows.items()]
+
+
+def effect_column(effect, kind):
+    return f"effect_{effect}_{kind}"
+
+
+def column_type(name):
+    """int or float for a declared column; KeyError for any other name."""
+    if name in COLUMNS:
+        return COLUMNS[name][0]
+    if name.startswith("effect_"):
+        kind = name.rsplit("_", 1)[-1]
+        if kind in EFFECT_COLUMNS:
+            return EFFECT_COLUMNS[kind][0]
+    if name.partition("_")[0] in FORCE_KINDS and name.rpartition("_")[2] in FORCE_COMPONENTS:
+        return float
+    raise KeyError(f"'{name}' is not a declared statistics column (hyperelastic/stats.py)")
+
+
+def read(f):
+    """{column: array} of an open output file (h5py.File)."""
+    return {k: f["stats"][k][:] for k in f["stats"]}
+
+
+def at_time(times, t):
+    """Indices of `times` equal to t (to 1e-9 relative): the frames or steps that end there."""
+    return np.flatnonzero(np.abs(np.asarray(times) - t) <= 1e-9 * max(1.0, abs(t)))
+
+
+def accepted_at(st, t):
+    """Indices of the accepted attempts that end at time t (none in a file without statistics)."""
+    acc = np.flatnonzero(accepted(st))
+    return acc[at_time(st["time"][acc], t)] if len(acc) else acc
+
+
+def accepted(st):
+    """Boolean mask of the accepted attempts."""
+    n = len(st.get("step", []))
+    return ~st.get("rejected", np.zeros(n, np.int64)).astype(bool)
+
+
+def energy_sum(values, with_work=True):
+    """energy_total from {column: value (a number or an array)}: the effects' energies with their signs
+    (kinetic + elastic + potentials - work of the loads); with_work=False: the body's energy alone."""
+    tot = 0.0
+    for col, sign, work in ENERGY_TERMS:
+        if col in values and (with_work or not work):
+            tot = tot + values[col] if sign > 0 else tot - values[col]
+    return tot
+
+
+def total_energy(st, with_work=True):
+    """energy_total of the accepted attempts of a run's statistics (read())."""
+    acc = accepted(st)
+    return energy_sum({k: st[k][acc] for k, _, _ in ENERGY_TERMS if k in st}, with_work)
