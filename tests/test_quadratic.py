@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from conftest import ROOT, hyperelastic, make_model, read_h5, run_ok
+from hyperelastic.core.expressions import Expression
 from hyperelastic.element.reference import EDGES, TET_RULES, TRI_RULES, tet_shapes, tri_shapes
 
 REF_NODES = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]] + [[0.0] * 3] * 6, float)
@@ -74,7 +75,7 @@ def patch(cube, tmp_path, order, extra=()):
             "-ksp_rtol", 1e-14, "-ksp_atol", 1e-20, "-initial_rotation", "0,0,0", "-quiet", "-output", out, *extra])
     r = read_h5(out)
     X, Y, Z = r["points"].T
-    u = np.stack([eval(e, {"X": X, "Y": Y, "Z": Z}) for e in U], axis=1)
+    u = np.stack([np.broadcast_to(Expression(e, "XYZ")(X=X, Y=Y, Z=Z), X.shape) for e in U], axis=1)
     return np.abs(r["x"][-1] - r["points"] - u).max() / np.abs(u).max(), r
 
 

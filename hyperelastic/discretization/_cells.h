@@ -94,6 +94,20 @@ HE_INLINE void he_jscalars(he_jblock *b, int n) {
     if (!(b->J[q] > 0)) b->rJ[q] = b->lnJ[q] = NAN;
 }
 
+/* W += t, compensated (Kahan): the energy line search compares energies that differ by far less than the energy
+ * itself near convergence, so the sum's rounding error must stay at one ulp, not one per cell. */
+HE_INLINE void he_kahan_add(double *W, double *comp, double t) {
+  double term = t - *comp, sum = *W + term;
+  *comp = (sum - *W) - term;
+  *W = sum;
+}
+
+/* The range [jmin, jmax] of det F so far, with J. */
+HE_INLINE void he_jrange(double J, double *jmin, double *jmax) {
+  *jmin = J < *jmin ? J : *jmin;
+  *jmax = J > *jmax ? J : *jmax;
+}
+
 /* A material's parameter block: at most HE_NPARAM constants (kernels.py pads it with zeros). The loops take
  * it as `const double *restrict prm` (_material_loops.h): it aliases no output array, so the constants stay
  * in registers (without restrict, linear's K v ran ~3% slower; a local copy of the block, 2%). */
@@ -134,6 +148,16 @@ HE_INLINE void e_add_force(const double *P, double G[HE_MAXN][3], int nn, double
   for (int a = 0; a < nn; a++)
     for (int i = 0; i < 3; i++)
       fe[a][i] += w * (P[3 * i] * G[a][0] + P[3 * i + 1] * G[a][1] + P[3 * i + 2] * G[a][2]);
+}
+
+/* At point q of cell e of an element with quadrature: its row of `geo` (J^-1 row-major, then the weight |det J| w_q),
+ * the physical gradients G of the nn nodes and F of the cell's positions xe. */
+HE_INLINE const double *e_point(const double *geo, const double *dN, int64_t e, int q, int nn, int nq,
+                                double xe[HE_MAXN][3], double G[HE_MAXN][3], double *F) {
+  const double *g = geo + 10 * ((int64_t)nq * e + q);
+  e_grads(g, dN + 3 * nn * q, nn, G);
+  e_deformation(xe, G, nn, F);
+  return g;
 }
 
 HE_INLINE void e_scatter(const idx_t *c, int nn, double fe[HE_MAXN][3], double *f) {

@@ -13,6 +13,16 @@
 
 #include "_cells.h"
 
+/* dP along the tangent's column (b, k): the material's derivative along dF = e_k (x) G_b. */
+HE_INLINE void HE_EFN(column)(const double *p, const HE_MAT(cache) *d, double G[HE_MAXN][3], int b, int k,
+                              double dP[9]) {
+  double dF[9] = {0};
+  dF[3 * k] = G[b][0];
+  dF[3 * k + 1] = G[b][1];
+  dF[3 * k + 2] = G[b][2];
+  HE_MAT(dstress)(p, d, dF, dP);
+}
+
 /* f += k(x). Returns the number of cells where the material is undefined (their force is skipped). */
 int64_t HE_EFN(forces)(int64_t nc, int nn, int nq, const idx_t *cells, const double *dN, const double *geo,
                        const double *x, const double *restrict prm, double *f) {
@@ -24,10 +34,8 @@ int64_t HE_EFN(forces)(int64_t nc, int nn, int nq, const idx_t *cells, const dou
     int undefined = 0;
     e_gather(c, nn, x, xe);
     for (int q = 0; q < nq && !undefined; q++) {
-      const double *g = geo + 10 * ((int64_t)nq * e + q);
       double G[HE_MAXN][3], F[9], P[9];
-      e_grads(g, dN + 3 * nn * q, nn, G);
-      e_deformation(xe, G, nn, F);
+      const double *g = e_point(geo, dN, e, q, nn, nq, xe, G, F);
       undefined = HE_MAT(stress)(p, F, P, NULL);
       if (!undefined) e_add_force(P, G, nn, g[9], fe);
     }
@@ -49,20 +57,14 @@ int64_t HE_EFN(energy)(int64_t nc, int nn, int nq, const idx_t *cells, const dou
     int undefined = 0;
     e_gather(cells + (int64_t)nn * e, nn, x, xe);
     for (int q = 0; q < nq; q++) {
-      const double *g = geo + 10 * ((int64_t)nq * e + q);
       double G[HE_MAXN][3], F[9], P[9], psi;
-      e_grads(g, dN + 3 * nn * q, nn, G);
-      e_deformation(xe, G, nn, F);
-      double J = det3(F);
-      jmin = J < jmin ? J : jmin;
-      jmax = J > jmax ? J : jmax;
+      const double *g = e_point(geo, dN, e, q, nn, nq, xe, G, F);
+      he_jrange(det3(F), &jmin, &jmax);
       if (HE_MAT(stress)(p, F, P, &psi)) undefined = 1;
       else cell += g[9] * psi;
     }
     if (undefined) { bad++; continue; }
-    double term = cell - comp, sum = W + term;
-    comp = (sum - W) - term;
-    W = sum;
+    he_kahan_add(&W, &comp, cell);
   }
   out[0] = W; out[1] = jmin; out[2] = jmax;
   return bad;
@@ -80,11 +82,9 @@ int64_t HE_EFN(kv)(int64_t nc, int nn, int nq, const idx_t *cells, const double 
     e_gather(c, nn, x, xe);
     e_gather(c, nn, v, ve);
     for (int q = 0; q < nq && !undefined; q++) {
-      const double *g = geo + 10 * ((int64_t)nq * e + q);
       double G[HE_MAXN][3], F[9], dF[9], dP[9];
       HE_MAT(cache) d;
-      e_grads(g, dN + 3 * nn * q, nn, G);
-      e_deformation(xe, G, nn, F);
+      const double *g = e_point(geo, dN, e, q, nn, nq, xe, G, F);
       undefined = HE_MAT(prepare)(p, F, &d);
       if (undefined) break;
       e_deformation(ve, G, nn, dF);
@@ -112,20 +112,15 @@ int64_t HE_EFN(tangent)(int64_t nc, int nn, int nq, const idx_t *cells, const do
     for (int r = 0; r < n3 * n3; r++) Ke[r] = 0;
     e_gather(cells + (int64_t)nn * e, nn, x, xe);
     for (int q = 0; q < nq && !undefined; q++) {
-      const double *g = geo + 10 * ((int64_t)nq * e + q);
       double G[HE_MAXN][3], F[9];
       HE_MAT(cache) d;
-      e_grads(g, dN + 3 * nn * q, nn, G);
-      e_deformation(xe, G, nn, F);
+      const double *g = e_point(geo, dN, e, q, nn, nq, xe, G, F);
       undefined = HE_MAT(prepare)(p, F, &d);
       if (undefined) break;
       for (int b = 0; b < nn; b++)
         for (int k = 0; k < 3; k++) {
-          double dF[9] = {0}, dP[9];
-          dF[3 * k] = G[b][0];
-          dF[3 * k + 1] = G[b][1];
-          dF[3 * k + 2] = G[b][2];
-          HE_MAT(dstress)(p, &d, dF, dP);
+          double dP[9];
+          HE_EFN(column)(p, &d, G, b, k, dP);
           for (int a = 0; a < nn; a++)
             for (int i = 0; i < 3; i++)
               Ke[n3 * (3 * a + i) + 3 * b + k] +=
@@ -156,20 +151,15 @@ int64_t HE_EFN(tangent_diag)(int64_t nc, int nn, int nq, const idx_t *cells, con
     int undefined = 0;
     e_gather(c, nn, x, xe);
     for (int q = 0; q < nq && !undefined; q++) {
-      const double *g = geo + 10 * ((int64_t)nq * e + q);
       double G[HE_MAXN][3], F[9];
       HE_MAT(cache) d;
-      e_grads(g, dN + 3 * nn * q, nn, G);
-      e_deformation(xe, G, nn, F);
+      const double *g = e_point(geo, dN, e, q, nn, nq, xe, G, F);
       undefined = HE_MAT(prepare)(p, F, &d);
       if (undefined) break;
       for (int b = 0; b < nn; b++)
         for (int k = 0; k < 3; k++) {
-          double dF[9] = {0}, dP[9];
-          dF[3 * k] = G[b][0];
-          dF[3 * k + 1] = G[b][1];
-          dF[3 * k + 2] = G[b][2];
-          HE_MAT(dstress)(p, &d, dF, dP);
+          double dP[9];
+          HE_EFN(column)(p, &d, G, b, k, dP);
           de[b][k] += g[9] * (dP[3 * k] * G[b][0] + dP[3 * k + 1] * G[b][1] + dP[3 * k + 2] * G[b][2]);
         }
     }
@@ -194,10 +184,8 @@ int64_t HE_EFN(forces_dg)(int64_t nc, int nn, int nq, const idx_t *cells, const 
     e_gather(c, nn, x, xe);
     e_gather(c, nn, xn, xne);
     for (int q = 0; q < nq && !undefined; q++) {
-      const double *g = geo + 10 * ((int64_t)nq * e + q);
       double G[HE_MAXN][3], F[9], Fn[9], P[9];
-      e_grads(g, dN + 3 * nn * q, nn, G);
-      e_deformation(xe, G, nn, F);
+      const double *g = e_point(geo, dN, e, q, nn, nq, xe, G, F);
       e_deformation(xne, G, nn, Fn);
       undefined = HE_FN(point_dg)(p, F, Fn, P);
       if (!undefined) e_add_force(P, G, nn, g[9], fe);

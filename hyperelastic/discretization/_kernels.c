@@ -242,10 +242,8 @@ double he_emax_step(int64_t nc, int nn, int nq, const idx_t *cells, const double
     e_gather(c, nn, x, xe);
     e_gather(c, nn, d, de);
     for (int q = 0; q < nq && !skip; q++) {
-      const double *g = geo + 10 * ((int64_t)nq * e + q);
       double G[HE_MAXN][3], A[9], B[9];
-      e_grads(g, dN + 3 * nn * q, nn, G);
-      e_deformation(xe, G, nn, A);
+      e_point(geo, dN, e, q, nn, nq, xe, G, A);
       if (!(det3(A) > 0)) { skip = 1; break; }
       e_deformation(de, G, nn, B);
       double tq = det_step(A, B, frac);

@@ -49,8 +49,7 @@ int64_t HE_FN(forces)(int64_t nc, const idx_t *cells, const double *Dminv, const
 }
 
 /* Elastic energy sum_e V Psi(F_e), and min/max of J = det F. Returns the number of undefined cells.
- * The sum is compensated (Kahan): the energy line search compares energies that differ by far less
- * than the energy itself near convergence, so its rounding error must stay at one ulp, not nc ulps. */
+ * The sum is compensated (he_kahan_add). */
 int64_t HE_FN(energy)(int64_t nc, const idx_t *cells, const double *Dminv, const double *vol, const double *x,
                       const double *restrict prm, double *out /* [energy, Jmin, Jmax] */) {
   HE_PARAMS(p);
@@ -61,13 +60,10 @@ int64_t HE_FN(energy)(int64_t nc, const idx_t *cells, const double *Dminv, const
     int n = HE_FN(gather_block)(e0, nc, cells, Dminv, x, &jb);
     for (int q = 0; q < n; q++) {
       double P[9], psi, J = jb.J[q];
-      jmin = J < jmin ? J : jmin;
-      jmax = J > jmax ? J : jmax;
+      he_jrange(J, &jmin, &jmax);
       if (!(J > 0)) { bad++; continue; }
       HE_MAT(stress_j)(p, jb.F[q], jb.rJ[q], jb.lnJ[q], P, &psi);
-      double term = vol[e0 + q] * psi - comp, sum = W + term;
-      comp = (sum - W) - term;
-      W = sum;
+      he_kahan_add(&W, &comp, vol[e0 + q] * psi);
     }
   }
   out[0] = W; out[1] = jmin; out[2] = jmax;
@@ -91,8 +87,7 @@ int64_t HE_FN(forces)(int64_t nc, const idx_t *cells, const double *Dminv, const
 }
 
 /* Elastic energy sum_e V Psi(F_e), and min/max of J = det F. Returns the number of undefined cells.
- * The sum is compensated (Kahan): the energy line search compares energies that differ by far less
- * than the energy itself near convergence, so its rounding error must stay at one ulp, not nc ulps. */
+ * The sum is compensated (he_kahan_add). */
 int64_t HE_FN(energy)(int64_t nc, const idx_t *cells, const double *Dminv, const double *vol, const double *x,
                       const double *restrict prm, double *out /* [energy, Jmin, Jmax] */) {
   HE_PARAMS(p);
@@ -101,13 +96,9 @@ int64_t HE_FN(energy)(int64_t nc, const idx_t *cells, const double *Dminv, const
   for (int64_t e = 0; e < nc; e++) {
     double F[9], P[9], psi;
     gather_F(cells + 4 * e, Dminv + 9 * e, x, F);
-    double J = det3(F);
-    jmin = J < jmin ? J : jmin;
-    jmax = J > jmax ? J : jmax;
+    he_jrange(det3(F), &jmin, &jmax);
     if (HE_MAT(stress)(p, F, P, &psi)) { bad++; continue; }
-    double term = vol[e] * psi - comp, sum = W + term;
-    comp = (sum - W) - term;
-    W = sum;
+    he_kahan_add(&W, &comp, vol[e] * psi);
   }
   out[0] = W; out[1] = jmin; out[2] = jmax;
   return bad;

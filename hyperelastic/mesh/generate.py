@@ -61,7 +61,8 @@ def generate(name, level, out, size=None, refine=0, order=1):
     length of `level` (or `size` when given), keeping its physical groups; returns its statistics.
     With refine = N, also N uniformly refined meshes (each tet split into 8), OUT_r1.msh ... OUT_rN.msh,
     and returns a list of statistics. order 2: 10-node tetrahedra (and 6-node triangles), their edge nodes
-    placed on the geometry where it is curved (gmsh's high-order meshing)."""
+    placed on the geometry where it is curved (gmsh's high-order meshing). Every mesh is written to a temporary
+    file, read back and checked, and only then renamed into place: nothing of a failed run stays behind."""
     if order not in ORDERS:
         raise UserError(f"hyperelastic mesh: --order {order}: give 1 or 2")
     geo = geometry_file(name)
@@ -69,37 +70,12 @@ def generate(name, level, out, size=None, refine=0, order=1):
         size = level_size(level)
     elif not (size > 0 and math.isfinite(size)):
         raise UserError(f"mesh size {size} must be a finite number > 0")
-    outs = [out] + [f"{os.path.splitext(out)[0]}_r{i}.msh" for i in range(1, refine + 1)]
-    for o in outs:
-        if not o.lower().endswith(".msh"):
-            raise UserError(f"hyperelastic mesh: -o '{o}' must end in .msh (gmsh's format is what it writes)")
-        check_output_path(o, suffixes=None)
+    outs = _outputs(out, refine)
     import gmsh    # deferred on purpose: loading gmsh's library takes ~0.3 s, and only meshing needs it
     gmsh.initialize(["gmsh", "-v", "0"], readConfigFiles=False)
     tmps = []
     try:
-        gmsh.option.setNumber("General.Terminal", 0)
-        gmsh.option.setNumber("General.NumThreads", 1)
-        try:
-            _quiet(gmsh.open, geo)
-        except Exception as e:
-            raise UserError(f"geometry '{name}': gmsh cannot read it ({str(e).strip()[:200]})") from None
-        _check_size(name, size, refine)
-        auto_named = _name_entities()
-        gmsh.option.setNumber("Mesh.MeshSizeMin", size)
-        gmsh.option.setNumber("Mesh.MeshSizeMax", size)
-        gmsh.option.setNumber("Mesh.MeshSizeExtendFromBoundary", 0)
-        gmsh.option.setNumber("Mesh.Algorithm3D", 1)
-        gmsh.option.setNumber("Mesh.ElementOrder", 1)
-        gmsh.option.setNumber("Mesh.MshFileVersion", 4.1)
-        gmsh.option.setNumber("Mesh.SaveAll", 0)
-        try:
-            gmsh.model.mesh.generate(3)
-        except Exception as e:
-            raise UserError(f"geometry '{name}': gmsh cannot mesh it ({str(e).strip()[:200]})") from None
-        if not len(gmsh.model.mesh.getElementTypes(3)):
-            raise UserError(f"geometry '{name}': gmsh made no tetrahedra (a 2-D geometry, or surfaces that do not "
-                            "close a volume)")
+        auto_named = _mesh(gmsh, name, geo, size, refine)
         for i, o in enumerate(outs):
             if i:
                 if order > 1:
@@ -110,14 +86,7 @@ def generate(name, level, out, size=None, refine=0, order=1):
             tmps.append(o + f".tmp{os.getpid()}.msh")
             gmsh.write(tmps[-1])
         gmsh.finalize()
-        meshes = []       # every mesh read back and checked before any is renamed into place
-        for i, (o, tmp) in enumerate(zip(outs, tmps)):
-            try:
-                meshes.append(read_mesh(tmp))
-            except UserError as e:
-                why = (f" (gmsh's refinement moves the new nodes of curved surfaces onto the geometry, which crosses "
-                       f"tets this coarse: give a --size below {size:g})") if i else ""
-                raise UserError(str(e).replace(tmp, o) + why) from None
+        meshes = _read_back(outs, tmps, size)
     except BaseException:  # nothing of a failed run stays behind
         if gmsh.isInitialized():
             gmsh.finalize()
@@ -133,6 +102,53 @@ def generate(name, level, out, size=None, refine=0, order=1):
                                                    "order": m.order, "auto_named": auto_named,
                                                    "surfaces": surface_rows(m) if i == 0 else []})
     return stats if refine else stats[0]
+
+
+def _outputs(out, refine):
+    """OUT and its refinements' OUT_r1.msh ... OUT_rN.msh, each a .msh path that may be written."""
+    outs = [out] + [f"{os.path.splitext(out)[0]}_r{i}.msh" for i in range(1, refine + 1)]
+    for o in outs:
+        if not o.lower().endswith(".msh"):
+            raise UserError(f"hyperelastic mesh: -o '{o}' must end in .msh (gmsh's format is what it writes)")
+        check_output_path(o, suffixes=None)
+    return outs
+
+
+def _mesh(gmsh, name, geo, size, refine):
+    """Open the geometry in gmsh and mesh its volumes at edge length `size`; returns whether its surfaces and
+    volumes were named by their tags (_name_entities)."""
+    gmsh.option.setNumber("General.Terminal", 0)
+    gmsh.option.setNumber("General.NumThreads", 1)
+    try:
+        _quiet(gmsh.open, geo)
+    except Exception as e:
+        raise UserError(f"geometry '{name}': gmsh cannot read it ({str(e).strip()[:200]})") from None
+    _check_size(gmsh, name, size, refine)
+    auto_named = _name_entities()
+    for key, value in (("MeshSizeMin", size), ("MeshSizeMax", size), ("MeshSizeExtendFromBoundary", 0),
+                       ("Algorithm3D", 1), ("ElementOrder", 1), ("MshFileVersion", 4.1), ("SaveAll", 0)):
+        gmsh.option.setNumber(f"Mesh.{key}", value)
+    try:
+        gmsh.model.mesh.generate(3)
+    except Exception as e:
+        raise UserError(f"geometry '{name}': gmsh cannot mesh it ({str(e).strip()[:200]})") from None
+    if not len(gmsh.model.mesh.getElementTypes(3)):
+        raise UserError(f"geometry '{name}': gmsh made no tetrahedra (a 2-D geometry, or surfaces that do not "
+                        "close a volume)")
+    return auto_named
+
+
+def _read_back(outs, tmps, size):
+    """Every written mesh read back and checked (before any is renamed into place)."""
+    meshes = []
+    for i, (o, tmp) in enumerate(zip(outs, tmps)):
+        try:
+            meshes.append(read_mesh(tmp))
+        except UserError as e:
+            why = (f" (gmsh's refinement moves the new nodes of curved surfaces onto the geometry, which crosses "
+                   f"tets this coarse: give a --size below {size:g})") if i else ""
+            raise UserError(str(e).replace(tmp, o) + why) from None
+    return meshes
 
 
 def _name_entities():
@@ -177,12 +193,23 @@ def format_normal(u):
 MAX_TETS = 2e8      # beyond, gmsh would run for hours and the mesh would not fit this kind of machine
 
 
-def _check_size(name, size, refine):
-    """UserError when edge length `size` (and `refine` refinements, 8x each) would give more than MAX_TETS
-    tetrahedra for the opened geometry: its bounding box's volume over a regular tetrahedron's (an upper
-    estimate for a solid part)."""
-    import gmsh
-    x0, y0, z0, x1, y1, z1 = gmsh.model.getBoundingBox(-1, -1)
+# the largest mesh size taken, in units of the geometry's extent (its bounding box's diagonal): beyond, the "mesh"
+# would be the corners alone, and a size that large is a typo or a unit mistake
+MAX_SIZE_PER_EXTENT = 100.0
+
+
+def _check_size(gmsh, name, size, refine):
+    """UserError when the opened geometry is empty, when `size` is over MAX_SIZE_PER_EXTENT times its extent, or
+    when edge length `size` (and `refine` refinements, 8x each) would give more than MAX_TETS tetrahedra: its
+    bounding box's volume over a regular tetrahedron's (an upper estimate for a solid part)."""
+    try:
+        x0, y0, z0, x1, y1, z1 = gmsh.model.getBoundingBox(-1, -1)
+    except Exception:       # gmsh: "Empty bounding box"
+        raise UserError(f"geometry '{name}': holds no geometry (an empty or unreadable file)") from None
+    extent = math.sqrt(max(x1 - x0, 0.0) ** 2 + max(y1 - y0, 0.0) ** 2 + max(z1 - z0, 0.0) ** 2)
+    if size > MAX_SIZE_PER_EXTENT * extent:
+        raise UserError(f"mesh size {size:g} is over {MAX_SIZE_PER_EXTENT:g} times the geometry's extent (bounding "
+                        f"box {x1 - x0:.3g} x {y1 - y0:.3g} x {z1 - z0:.3g}): give one in the geometry's units")
     volume = max(x1 - x0, 0.0) * max(y1 - y0, 0.0) * max(z1 - z0, 0.0)
     cell = size ** 3 / (6 * math.sqrt(2))
     estimate = volume / cell * 8 ** refine if cell > 0 else math.inf

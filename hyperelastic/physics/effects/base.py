@@ -89,6 +89,22 @@ class Spec:
         return [] if self.sets is None else list(self.sets(params))
 
 
+def timed(kind):
+    """Decorator counting calls and wall time of an effect method (kind: 'evals' or 'applies')."""
+    def deco(fn):
+        def wrapper(self, *a, **k):
+            t0 = time.perf_counter()
+            try:
+                return fn(self, *a, **k)
+            finally:
+                self.seconds += time.perf_counter() - t0
+                setattr(self, kind, getattr(self, kind) + 1)
+        wrapper.__name__ = fn.__name__
+        wrapper.__doc__ = fn.__doc__
+        return wrapper
+    return deco
+
+
 class Effect:
     name = "effect"
     linear = True          # residual affine in x (seed_fd differences only the nonlinear effects)
@@ -157,20 +173,30 @@ class Effect:
         return {}
 
 
-def timed(kind):
-    """Decorator counting calls and wall time of an effect method (kind: 'evals' or 'applies')."""
-    def deco(fn):
-        def wrapper(self, *a, **k):
-            t0 = time.perf_counter()
-            try:
-                return fn(self, *a, **k)
-            finally:
-                self.seconds += time.perf_counter() - t0
-                setattr(self, kind, getattr(self, kind) + 1)
-        wrapper.__name__ = fn.__name__
-        wrapper.__doc__ = fn.__doc__
-        return wrapper
-    return deco
+class QuadraticEffect(Effect):
+    """An effect whose energy is quadratic about an origin x0 with a constant symmetric operator A: residual
+    A (x - x0), potential 1/2 (x - x0)^T A (x - x0), tangent A. A subclass gives `_apply(v, y)` (y += A v) and
+    `origin()` (x0: a spring's rest positions, the step's start of Rayleigh damping)."""
+
+    def _apply(self, v, y):
+        raise NotImplementedError
+
+    def origin(self):
+        raise NotImplementedError
+
+    @timed("evals")
+    def residual(self, x, r):
+        self._apply(x - self.origin(), r)
+
+    def potential(self, x):
+        d = x - self.origin()
+        y = np.zeros_like(d)
+        self._apply(d, y)
+        return 0.5 * float(d @ y)
+
+    @timed("applies")
+    def apply(self, v, y):
+        self._apply(v, y)
 
 
 def load_factor(scale, t):

@@ -3,7 +3,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ...core.options import Row, needs
-from .base import Effect, Spec, timed
+from .base import QuadraticEffect, Spec, timed
 from .mass import MassOperator, WeightedMass
 
 
@@ -17,7 +17,7 @@ class ViscousDamping(WeightedMass):
         return xn
 
 
-class RayleighDamping(Effect):
+class RayleighDamping(QuadraticEffect):
     """Rayleigh damping (alpha M + beta K(x^n)) (x - x^n)/h. The stiffness is frozen at the start
     of the step, so the residual is affine in x and its Jacobian (alpha M + beta K(x^n))/h is exact.
     Under PETSc TS: (alpha M + beta K(x^n)) v, x^n the state at the start of the step, weight shift_v."""
@@ -51,19 +51,8 @@ class RayleighDamping(Effect):
         """r += (alpha M + beta K(x^n)) v (TS form)."""
         self._apply(v, r, 1.0, self.beta)
 
-    @timed("evals")
-    def residual(self, x, r):
-        self._apply(x - self.xn, r)
-
-    def potential(self, x):
-        d = x - self.xn
-        y = np.zeros_like(d)
-        self._apply(d, y)
-        return 0.5 * float(d @ y)
-
-    @timed("applies")
-    def apply(self, v, y):
-        self._apply(v, y)
+    def origin(self):
+        return self.xn
 
     @timed("applies")
     def diag(self, d):

@@ -8,11 +8,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from ...core.options import Row, facet_sets, needs
-from .base import Effect, Energy, LoadKind, Spec, timed
+from .base import Energy, LoadKind, QuadraticEffect, Spec, timed
 from ...element import faces
 
 
-class Spring(Effect):
+class Spring(QuadraticEffect):
     name = "spring"
     symmetric = True
 
@@ -30,19 +30,8 @@ class Spring(Effect):
         f = np.einsum("tab,tbi->tai", self.Mk, dt) * self.mask[:, None, :]
         np.add.at(out.reshape(-1, 3), self.tris, sign * f)
 
-    @timed("evals")
-    def residual(self, x, r):
-        self._apply(x - self.X.ravel(), r)
-
-    def potential(self, x):
-        y = np.zeros_like(x)
-        d = x - self.X.ravel()
-        self._apply(d, y)
-        return 0.5 * float(d @ y)
-
-    @timed("applies")
-    def apply(self, v, y):
-        self._apply(v, y)
+    def origin(self):
+        return self.X.ravel()
 
     @timed("applies")
     def diag(self, d):
