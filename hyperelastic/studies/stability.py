@@ -22,7 +22,7 @@ from .experiments import table
 from .experiments.recipes import MODES as JACOBIAN_MODES
 from .experiments.runner import last_line, parallel_map, run_hyperelastic
 from ..output.figures import pyplot
-from ..physics.materials import REGISTRY
+from ..physics.materials import MATERIALS as MATERIAL_CLASSES, REGISTRY
 from ..mesh.generate import generate
 from ..mesh.sets import signed_volumes
 from ..discretization.space import reference_geometry
@@ -41,7 +41,7 @@ MATERIALS = REGISTRY        # every registered material, in the registry's order
 E_AXIS = {"1e2": 1e2, "1e6": 1e6, "rubber": 1e7, "cancellous_bone": 4.5e8, "bone": 1.6e10, "steel": 2.1e11,
           "1e15": 1e15}
 NU_AXIS = (0.0, 0.3, 0.45, 0.49, 0.499, 0.4999)
-SPLIT_MATERIALS = tuple(m for m in MATERIALS if m in ("linear", "neohookean_split", "mooney_rivlin"))
+SPLIT_MATERIALS = tuple(m for m in MATERIALS if MATERIAL_CLASSES[m].volumetric)   # (the mixed formulation's)
 H_AXIS = (1e-1, 1e-2, 1e-3)
 # the matrix's modes: the exact tangent assembled, and PETSc's MFFD operator with it as preconditioner
 MODES = {"assembled": JACOBIAN_MODES["assembled"], "mf_operator": JACOBIAN_MODES["snes_mf_operator"],
