@@ -710,6 +710,37 @@ def study_cases(rng):
     return [Case(f"study:{n}", "study command", a, setup=geo) for n, a in C.items()]
 
 
+def contract_cases(rng):
+    """The contracts of the newer features (issue 48): each refused with one line where it once ran into garbage,
+    an internal error or a misleading line."""
+    part = ["study", "price", "--part", "part.geo", "--scene", "scene.opts", "--size", "0.5", "--target", "0.01",
+            "-output_dir", "st"]
+
+    def geo(d):
+        _write(d, "part.geo", b'SetFactory("OpenCASCADE");\nBox(1) = {0, 0, 0, 1, 1, 1};\n')
+    C = [
+        ("mixed_snes_mf", BEND + ["-formulation", "mixed", "-order", "2", "-material", "neohookean_split", "-snes_mf"],
+         ("-snes_mf",), None),
+        ("p2_one_point", BEND + ["-order", "2", "-quadrature_degree", "1"], ("zero-energy",), None),
+        ("p1_mesh_rule", BEND + ["-quadrature_degree", "5"], ("linear tetrahedra",), None),
+        ("p1_rule", BEND + ["-order", "1", "-quadrature_degree", "2"], ("linear tetrahedra",), None),
+        ("report_frame", ["report", "prev.h5", "--frame", "999"], ("--frame 999",), None),
+        ("report_frame_negative", ["report", "prev.h5", "--frame", "-99"], ("--frame -99",), None),
+        ("report_forces_dynamic", ["report", "prev.h5", "--forces"], ("-step_forces",), None),
+        ("price_bogus_option", part + ["--run-args", "-bogus 1"], ("-bogus",), geo),
+        ("price_bad_value", part + ["--run-args", "-E -5"], ("-E",), geo),
+        ("price_without_part", ["study", "price", "--scene", "scene.opts"], ("--part", "price"), None),
+        ("price_max_runs", part + ["--max-runs", "0"], ("--max-runs 0",), geo),
+        ("price_max_level", part + ["--max-level", "-1"], ("--max-level -1",), geo),
+        ("mesh_empty_step", ["mesh", "e.step", "--size", "0.5", "-o", "m.msh"], ("no geometry",),
+         lambda d: _write(d, "e.step", b"")),
+        ("mesh_huge_size_geo", ["mesh", "part.geo", "--size", "1e300", "-o", "m.msh"], ("extent",), geo),
+        ("mesh_huge_size_bar", ["mesh", "bar", "--size", "1e300", "-o", "m.msh"], ("extent",), None),
+        ("restart_other_order", ["run", "--restart", "prev.h5", "-order", "2", "-quiet"], ("order",), None),
+    ]
+    return [Case(f"contract:{n}", "contracts", a, setup=setup, words=w) for n, a, w, setup in C]
+
+
 MPI_CATEGORIES = ("option values", "unknown options", "conflicting combinations", "scene and options files",
                   "meshes", "output paths", "restart files")
 
@@ -720,7 +751,7 @@ def all_cases(seed=SEED):
     cases = []
     for gen in (option_value_cases, unknown_option_cases, conflict_cases, file_cases, mesh_cases, output_cases,
                 restart_cases, plot_cases, command_line_cases, options_line_cases, viewer_cases, mesh_command_cases,
-                study_cases):
+                study_cases, contract_cases):
         cases += gen(rng)
     pool = [c for c in cases if c.category in MPI_CATEGORIES and not c.fsize]
     mpi = []

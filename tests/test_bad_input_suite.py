@@ -36,7 +36,11 @@ def test_the_suite_covers_the_issue():
     assert [c.name for c in suite.all_cases()] == names
 
 
-@pytest.mark.parametrize("case", QUICK, ids=[c.name for c in QUICK])
+CONTRACTS = [c for c in CASES if c.category == "contracts"]
+
+
+@pytest.mark.parametrize("case", QUICK + [c for c in CONTRACTS if c not in QUICK],
+                         ids=[c.name for c in QUICK] + [c.name for c in CONTRACTS if c not in QUICK])
 def test_bad_input_case(case, world, tmp_path):
     outcome, detail = suite.run_case(case, world, str(tmp_path))
     assert outcome == "pass", f"{outcome}: {detail}"

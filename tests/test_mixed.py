@@ -3,6 +3,7 @@ tangent against differences of the residual, homogeneous states reproduced exact
 thick-walled cylinder at nu = 0.4999 and incompressible against the closed form (with the locking of
 displacement-only P1 beside it), 2 ranks = 1 rank, a restart bitwise, and the paths it refuses."""
 import math
+import os
 
 import numpy as np
 import pytest
@@ -381,6 +382,27 @@ def test_mixed_regions_on_two_ranks(bimaterial, tmp_path):
     assert np.abs(p - pressure(tmp_path / "two.h5")).max() < 1e-7 * np.abs(p).max()
     X = a["points"]
     assert (p[X[:, 0] > 1 + 1e-9] == 0).all() and p[X[:, 0] < 1 - 1e-9].mean() > 0
+
+
+def test_mixed_refused_where_every_cells_region_has_no_split(bimaterial, tmp_path):
+    """-formulation mixed where the scene's own material has a split but every cell is in a region of St.VK: one line
+    naming the regions' materials, nothing written (it once ran, labelled mixed, a zero pressure, 4x slower); and
+    -formulation auto with -snes_mf runs displacements alone and says why, where mixed would have no
+    preconditioner."""
+    args = ["run", f"{ROOT}/examples/bimaterial.opts", "-mesh", bimaterial, "-quiet", "-material", "neohookean_split",
+            "-soft_material", "stvk", "-regions", "soft,stiff", "-order", 2, "-formulation", "mixed", "-output",
+            tmp_path / "x.h5"]
+    p = hyperelastic(args)
+    err = p.stderr.strip().splitlines()
+    assert p.returncode == 2 and len(err) == 1 and "no isochoric/volumetric split" in err[0], p.stderr
+    assert "region 'soft' stvk" in err[0] and "region 'stiff' stvk" in err[0] and not os.listdir(tmp_path)
+    out = tmp_path / "auto.h5"
+    p = hyperelastic(["run", "bend", "-order", 2, "-material", "neohookean_split", "-nu", 0.4999, "-snes_mf",
+                      "-final_time", 0.01, "-output", out])
+    assert p.returncode == 0 and "-snes_mf leaves the saddle point" in p.stderr, p.stderr
+    import h5py
+    with h5py.File(out, "r") as f:
+        assert f.attrs["formulation"] == "displacement"
 
 
 def test_mfd_operator_matches_assembled(cylinder, tmp_path):

@@ -138,7 +138,14 @@ def _integrate(integ, writer, comm, scene):
 
 
 def _check_restart(state, model, scene, path):
-    """The checkpoint fits the run it continues: the same mesh, and time left before -final_time."""
+    """The checkpoint fits the run it continues: the same element order and mesh, and time left before
+    -final_time."""
+    nodes = model.tets.shape[1]
+    if state.get("cell_nodes") in (4, 10) and state["cell_nodes"] != nodes:
+        kind = {4: "linear (order 1)", 10: "quadratic (order 2)"}
+        raise UserError(f"--restart '{path}': the checkpoint was written with {kind[state['cell_nodes']]} tetrahedra, "
+                        f"this run has {kind[nodes]} ones (a restart continues with the element order it was "
+                        "written with: drop -order)")
     if len(state["x"]) != len(model.points):
         raise UserError(f"--restart '{path}': the checkpoint has {len(state['x'])} vertices, the mesh of this run "
                         f"{len(model.points)} (a restart continues on the mesh it was written with)")

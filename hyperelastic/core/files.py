@@ -170,7 +170,7 @@ def read_checkpoint(path):
         if bad:
             raise UserError(f"--restart '{path}': checkpoint {slot} is incomplete (no {', '.join(bad)})")
         nv = f["mesh/points"].shape[0]
-        state = {}
+        state = {"cell_nodes": int(f["mesh/tetra"].shape[1]) if "mesh/tetra" in f else 0}   # 4 or 10
         for k in ("x", "v"):
             a = g[k]
             if a.shape != (nv, 3) or a.dtype.kind != "f":

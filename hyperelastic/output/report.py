@@ -17,13 +17,13 @@ def main(argv):
     ap = ArgParser(prog="hyperelastic report", description="Print what an output file holds: the run, its "
                    "forces, and values at material points.")
     ap.add_argument("file", help="an output FILE.h5 of hyperelastic run")
-    ap.add_argument("--frame", type=int, default=-1, help="the frame of --at (default: the last; -2 the one "
-                    "before, ...)")
+    ap.add_argument("--frame", type=int, default=None, help="the frame of --at and --forces (default: the last; -2 the "
+                    "one before, ...)")
     ap.add_argument("--at", action="append", default=[], metavar="X,Y,Z",
                     help="a material point (reference coordinates): its displacement and its cell's fields")
     ap.add_argument("--watch", action="append", default=[], metavar="Q", help=f"a quantity: {WATCH_HELP}")
     ap.add_argument("--forces", action="store_true", help="the forces table at the time of --frame (from the "
-                    "statistics: every step of backward-Euler and quasi-static runs records it)")
+                    "statistics: quasi-static runs record every step's, dynamic runs those of -step_forces)")
     a = ap.parse_args(argv)
     points = [_point(s) for s in a.at]
     watches = [parse_watch(w) for w in a.watch]
@@ -40,10 +40,15 @@ def _point(spec):
 
 
 def report(path, frame, points, watches, forces=False):
-    """The report's lines (UserError for a file that is not a readable output or a frame it lacks)."""
+    """The report's lines (UserError for a file that is not a readable output or a frame it lacks: --frame is
+    checked whether or not --at or --forces read it)."""
     with open_output(path, "report") as f:
         n = completed_frames(f)
         lines = [_summary(path, f, n)]
+        given = frame is not None
+        frame = -1 if frame is None else frame
+        if given and not -n <= frame < n:
+            raise UserError(f"report: --frame {frame} out of range ({f'0..{n - 1}' if n else 'the file has no frames'})")
         if "forces" in f.attrs and not forces:
             rec = json.loads(f.attrs["forces"])
             lines += table([(r["kind"], r["name"], np.array(r["F"]), np.array(r["M"])) for r in rec["forces"]],
@@ -68,9 +73,18 @@ def _forces_at(f, t, i):
     acc = stats.accepted_at(st, t)
     rows = stats.forces_of(st, acc[-1]) if len(acc) else []
     if not rows:
-        why = "its start (t = 0)" if i == 0 else f"t = {t:.6g} (a run without them: -integrator ts, or older)"
+        why = "its start (t = 0)" if i == 0 else f"t = {t:.6g} ({_no_forces(f, st)})"
         raise UserError(f"report: --forces: the statistics record no forces at frame {i}, {why}")
     return table(rows, t)
+
+
+def _no_forces(f, st):
+    """Why a run's statistics hold no forces: its integrator, -step_forces off, or an older file."""
+    if str(f.attrs.get("integrator", "")) == "ts":
+        return "-integrator ts records none"
+    if not any(k.startswith(("reaction_", "load_")) for k in st):
+        return "the run did not record them: -step_forces is off by default for dynamic runs; rerun with -step_forces"
+    return "no accepted step ends there"
 
 
 def _summary(path, f, n):

@@ -70,11 +70,13 @@ def _parser():
 
 
 def _check(a):
+    if a.which == "price" and (a.part is None or a.scene is None or a.size is None or a.target is None):
+        missing = [f"--{o}" for o in ("part", "scene", "size", "target") if getattr(a, o) is None]
+        raise UserError(f"hyperelastic study price: needs --part PART, --scene SCENE.opts, --size H and --target ERR "
+                        f"(missing {', '.join(missing)})")
     part_opts = [o for o in ("scene", "size", "target") if getattr(a, o) is not None]
     if a.part is None and part_opts:
         raise UserError(f"hyperelastic study: --{part_opts[0]} belongs to refinement --part PART or price")
-    if a.which == "price" and (a.part is None or a.scene is None or a.size is None or a.target is None):
-        raise UserError("hyperelastic study price: needs --part PART, --scene SCENE.opts, --size H and --target ERR")
     if a.part is not None and (a.which == "accuracy" or a.scene is None or a.size is None):
         raise UserError("hyperelastic study: --part goes with refinement or price, --scene SCENE.opts and --size H")
     if a.target is not None and a.which != "price":
@@ -83,8 +85,10 @@ def _check(a):
         raise UserError(f"hyperelastic study: --size {a.size} must be a positive number")
     if a.target is not None and not (a.target > 0 and math.isfinite(a.target)):
         raise UserError(f"hyperelastic study: --target {a.target}: a relative error > 0 (e.g. 0.01 for 1%)")
-    if a.jobs < 1 or a.max_runs < 3 or not 1 <= a.max_level <= 8:
-        raise UserError("hyperelastic study: --jobs must be >= 1, --max-runs >= 3, --max-level 1..8")
+    for name, value, ok, want in (("--jobs", a.jobs, a.jobs >= 1, ">= 1"), ("--max-runs", a.max_runs, a.max_runs >= 3,
+                                  ">= 3"), ("--max-level", a.max_level, 1 <= a.max_level <= 8, "1..8")):
+        if not ok:
+            raise UserError(f"hyperelastic study: {name} {value}: must be {want}")
     if not (a.budget > 0 and math.isfinite(a.budget)):
         raise UserError(f"hyperelastic study: --budget {a.budget}: seconds, a finite number > 0")
     text = a.order if a.order is not None else ("1,2" if a.which == "price" else "1")

@@ -118,6 +118,7 @@ class Search:
         self.rows, self.by_key, self.meshes, self.tets, self.written = [], {}, {}, {}, []
         self.solver = {o: None for o in orders}     # the linear solver kept per order (None: not tried yet)
         self.t0 = time.perf_counter()
+        self.stopped = ""          # why the search stopped before its plan was done ("" : it was not)
         os.makedirs(os.path.join(out_dir, "runs"), exist_ok=True)
 
     # ---- runs -------------------------------------------------------------------------------------------
@@ -153,6 +154,9 @@ class Search:
                "outcome": "finished" if rc == 0 else "failed", "message": last_line(err, rc) if rc else "",
                "setting": s, "path": path}
         row.update(read_cost(path))
+        if rc == 2 and not self.rows:   # the first run refused its input (an option, a value): so would every run
+            raise UserError("study price: the first run refused its input (--scene, --run-args): "
+                            + row["message"].replace("hyperelastic: error: ", ""))
         if rc == 0:      # (a watch the run's output cannot give is the user's error: it ends the study)
             row["quantity"] = watched(path, self.w, self.meshes[(s.order, s.level)])
         self.rows.append(row)
@@ -163,6 +167,12 @@ class Search:
 
     def elapsed(self):
         return time.perf_counter() - self.t0
+
+    def out_of_budget(self):
+        """Whether --budget is spent (the search then stops, and its report says so)."""
+        if self.elapsed() >= self.budget:
+            self.stopped = f"--budget {self.budget:g} s spent"
+        return bool(self.stopped)
 
     def ok(self, s):
         """The finished row of a setting's answer (any preconditioner), or None."""
@@ -221,6 +231,8 @@ class Search:
     def scale(self):
         """|q| of the most refined finished run: what errors are relative to."""
         done = [r for r in self.rows if "quantity" in r]
+        if not done:
+            return 1.0
         r = max(done, key=lambda r: (r["order"], r["level"], r["dt_halvings"], TOL_INDEX[r["tolerances"]]))
         return abs(r["quantity"]) or max(abs(x["quantity"]) for x in done) or 1.0
 
@@ -306,17 +318,18 @@ class Search:
 
     def probes(self):
         """The coarse start: the two coarsest meshes of each order; on each order's coarsest mesh dt/2 of the
-        scene's integrator and dt, dt/2 of the others (dynamic scenes); the default tolerances on the first's."""
+        scene's integrator and dt, dt/2 of the others (dynamic scenes); the default tolerances on the first's. A
+        spent budget ends them early."""
         o1, i0 = self.orders[0], self.integrator0
-        for o in self.orders:
-            for lv in (0, 1):
-                self.go(Setting(o, lv, 0, i0, 0), "start: space")
+        todo = [(Setting(o, lv, 0, i0, 0), "start: space") for o in self.orders for lv in (0, 1)]
         if self.dynamic:
-            for o in self.orders:
-                for integ in [i0] + [i for i in self.integrators if i != i0]:
-                    for j in (0, 1):
-                        self.go(Setting(o, 0, j, integ, 0), "start: time")
-        self.go(Setting(o1, 0, 0, i0, 1), "start: solver tolerances")
+            todo += [(Setting(o, 0, j, integ, 0), "start: time") for o in self.orders
+                     for integ in [i0] + [i for i in self.integrators if i != i0] for j in (0, 1)]
+        todo.append((Setting(o1, 0, 0, i0, 1), "start: solver tolerances"))
+        for s, why in todo:
+            if self.out_of_budget():
+                break
+            self.go(s, why)
         return {o: Setting(o, 1, 0, i0, 0) for o in self.orders}
 
     def step(self, c, p, m):
@@ -348,7 +361,9 @@ class Search:
             plans = {o: self.plan(o, m) for o in self.orders if o not in exhausted}
             open_ = [(pl[0], o, pl[1]) for o, pl in plans.items() if pl and (best is None or pl[0] < best["solve_s"])
                      and (self.ok(pl[1]) is None or not self.confirmed(pl[1], m))]
-            if not open_ or len(self.rows) >= self.max_runs or self.elapsed() >= self.budget:
+            if len(self.rows) >= self.max_runs:
+                self.stopped = f"--max-runs {self.max_runs} made"
+            if not open_ or self.stopped or self.out_of_budget():
                 break
             cost, o, p = min(open_, key=lambda t: t[0])
             if self.ok(p) is None:

@@ -52,9 +52,12 @@ def summarize(search):
 def _first_paragraph(search, s):
     b, w, tgt = s["best"], search.w.spec, search.target
     if b is None:
+        why = f" The search stopped early: {search.stopped}." if search.stopped else ""
+        done = sum(r["outcome"] == "finished" for r in search.rows)
         return (f"**No setting of the search met {tgt:.3g} (relative) in {w} within its limits (--budget "
                 f"{search.budget:g} s, --max-runs {search.max_runs}, --max-level {search.max_level}); the runs "
-                "below and their estimated errors show how far each got.**")
+                f"below ({done} of {len(search.rows)} finished) and their estimated errors show how far each got.**"
+                + why)
     st: Setting = b["setting"]
     words = [f"**For {w} within {tgt:.3g} (relative), the cheapest setting found is {st.label()} "
              f"({b['tets']:,} tets): {b['solve_s']:.3g} s of solve time, {w} = {b['quantity']:.6g}, estimated error "
