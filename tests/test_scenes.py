@@ -19,11 +19,19 @@ EXACT_MODES = {
 SEED_MODES = {"seed_fd": ["-jacobian", "seed_fd"], "seed_fd2": ["-jacobian", "seed_fd2"]}
 
 
+_RUNS = {}       # (scene, options, ranks) -> its output, read: one run serves every test that asks for it
+
+
 def run_scene(tmp_path, scene, mode_args, extra=(), nprocs=1, tag=None):
-    out = os.path.join(tmp_path, f"{scene}_{tag or '_'.join(mode_args)}.h5")
-    run_ok(["run", scene, "-level", 1, "-final_time", 0.1, "-quiet", "-output", out, *TIGHT, *mode_args, *extra],
-           nprocs=nprocs)
-    return read_h5(out)
+    """The output of `run SCENE` on L1 for 0.1 s with the tight tolerances and the options given, run once per
+    module (the first test that asks writes it in its tmp_path; the others read it)."""
+    key = (scene, tuple(map(str, mode_args)), tuple(map(str, extra)), nprocs)
+    if key not in _RUNS:
+        out = os.path.join(tmp_path, f"{scene}_{tag or '_'.join(mode_args)}_np{nprocs}.h5")
+        run_ok(["run", scene, "-level", 1, "-final_time", 0.1, "-quiet", "-output", out, *TIGHT, *mode_args, *extra],
+               nprocs=nprocs)
+        _RUNS[key] = dict(read_h5(out), path=out)
+    return _RUNS[key]
 
 
 @pytest.mark.parametrize("scene", SCENES)
@@ -93,7 +101,7 @@ def test_output_layout(tmp_path):
         column_type(col)
     assert "-jacobian" in r["attrs"]["options"] or "-final_time 0.1" in r["attrs"]["options"]
     assert r["attrs"]["steps_completed"] == 10
-    xdmf = os.path.join(tmp_path, "bend_layout.xdmf")
+    xdmf = os.path.splitext(r["path"])[0] + ".xdmf"
     import xml.etree.ElementTree as ET
     grids = ET.parse(xdmf).getroot().findall(".//Grid[@GridType='Uniform']")
     assert len(grids) == len(r["time"])

@@ -2,6 +2,7 @@
 
 The meshes are made from examples/*.geo by `hyperelastic mesh`, as a user would."""
 import json
+import os
 
 import numpy as np
 import pytest
@@ -374,3 +375,36 @@ def test_part_size_line_and_the_millimetre_note(tmp_path):
         part = [ln for ln in p.stderr.splitlines() if ln.startswith("part: ")]
         assert len(part) == 1 and ("x 0.0" in part[0]) != note, p.stderr
         assert ("drawn in millimetres" in p.stderr) == note, p.stderr
+
+
+def test_a_checked_mesh_is_read_again_from_the_cache(parts, tmp_path, monkeypatch):
+    """The second read of a mesh file comes from the parsed-mesh cache (no meshio) and is the same Mesh, groups and
+    boundary included; a file changed since is read again; a file that fails its checks is never kept."""
+    import shutil
+    from hyperelastic.mesh import read
+    monkeypatch.setenv("HYPERELASTIC_MESH_CACHE", str(tmp_path / "cache"))
+    path = tmp_path / "part.msh"
+    shutil.copy(parts["plate_hole"], path)
+    first = read.read_mesh(str(path))
+    calls = []
+    monkeypatch.setattr(read, "_read_meshio", lambda p: calls.append(p) or (_ for _ in ()).throw(AssertionError))
+    again = read.read_mesh(str(path))
+    assert calls == [] and again.path == first.path and again.order == first.order
+    for k in ("points", "tets", "facet_cell", "facet_k"):
+        a, b = getattr(first, k), getattr(again, k)
+        assert a.dtype == b.dtype and np.array_equal(a, b), k
+    assert list(first.groups) == list(again.groups)
+    for name, g in first.groups.items():
+        h = again.groups[name]
+        assert (g.tag, g.kind, g.ignored) == (h.tag, h.kind, h.ignored) and np.array_equal(g.items, h.items), name
+    monkeypatch.undo()
+    monkeypatch.setenv("HYPERELASTIC_MESH_CACHE", str(tmp_path / "cache"))
+    shutil.copy(parts["cube"], path)                      # another mesh at the same path: read, not the cached one
+    assert len(read.read_mesh(str(path)).tets) != len(first.tets)
+    n = len(os.listdir(tmp_path / "cache" / "parsed"))
+    bad = tmp_path / "bad.msh"
+    text = open(parts["cube"]).read()
+    bad.write_text(text.replace("$Nodes", "$Nodes\n", 1)[: len(text) // 2])      # truncated
+    with pytest.raises(Exception):
+        read.read_mesh(str(bad))
+    assert len(os.listdir(tmp_path / "cache" / "parsed")) == n

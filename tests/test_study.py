@@ -1,5 +1,5 @@
-"""`hyperelastic study accuracy|refinement`: the quick studies run for real (about 2.5 min together)
-and what must hold of them is asserted."""
+"""`hyperelastic study accuracy|refinement`: the studies run for real (accuracy's --smoke sweep, refinement's quick
+default) and what must hold of them is asserted."""
 import json
 import math
 import os
@@ -15,7 +15,7 @@ from hyperelastic.studies.command import measure, plan, report
 @pytest.fixture(scope="module")
 def accuracy(tmp_path_factory):
     out = tmp_path_factory.mktemp("accuracy")
-    run_ok(["study", "accuracy", "-output_dir", out], timeout=900)
+    run_ok(["study", "accuracy", "--smoke", "-output_dir", out], timeout=900)      # (every part of the study, ~70 runs)
     return out, measure.read_csv(os.path.join(out, "accuracy.csv"))
 
 
@@ -32,7 +32,7 @@ def finite(*vals):
 
 def test_every_sweep_point_is_a_run_with_numbers_or_a_recorded_failure(accuracy):
     out, rows = accuracy
-    planned = plan.plan(False).runs
+    planned = plan.plan("smoke").runs
     sweep = {r["id"]: r for r in rows if r["role"] == "sweep"}
     assert set(sweep) == {r.id for r in planned}
     for r in sweep.values():
@@ -102,7 +102,7 @@ def test_report_answers_in_numbers_and_the_mesh_error_shrinks(accuracy):
 def test_from_csv_redoes_the_report(accuracy, tmp_path):
     out, _ = accuracy
     os.remove(os.path.join(out, "accuracy.md"))
-    run_ok(["study", "accuracy", "-output_dir", out, "--from-csv"])
+    run_ok(["study", "accuracy", "--smoke", "-output_dir", out, "--from-csv"])
     assert os.path.getsize(os.path.join(out, "accuracy.md")) > 1000
 
 

@@ -9,6 +9,17 @@ SCENES_DIR = os.path.join(OPTIONS_DIR, "scenes")          # built-in scenes NAME
 GEO_DIR = os.path.join(DATA_DIR, "meshes")                # built-in geometries NAME.geo (the thesis' bar)
 
 
+def cache_dir(kind=""):
+    """Where this application keeps what it can make again (generated meshes of the built-in geometries; `kind`
+    "parsed": checked meshes): $HYPERELASTIC_MESH_CACHE, else the user's cache ($XDG_CACHE_HOME or ~/.cache,
+    /hyperelastic/meshes); never inside the installed package. Made on first use."""
+    user = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+    d = os.environ.get("HYPERELASTIC_MESH_CACHE") or os.path.join(user, "hyperelastic", "meshes")
+    d = os.path.join(d, kind) if kind else d
+    os.makedirs(d, exist_ok=True)
+    return d
+
+
 def builtin_scenes():
     return sorted(f[:-5] for f in os.listdir(SCENES_DIR) if f.endswith(".opts"))
 

@@ -6,7 +6,7 @@ import os
 
 import numpy as np
 
-from ..core.data import GEO_DIR
+from ..core.data import GEO_DIR, cache_dir
 from ..core.errors import UserError
 from ..core.files import check_output_path
 from ..element.reference import ORDERS
@@ -29,15 +29,6 @@ def level_size(level):
     if level in LEVEL_SIZES:
         return LEVEL_SIZES[level]
     return LEVEL_SIZES[8] * 2.0 ** (-(level - 8) / 3.0)
-
-
-def cache_dir():
-    """Where generated meshes of the built-in geometries are kept: $HYPERELASTIC_MESH_CACHE, else the user's cache
-    ($XDG_CACHE_HOME or ~/.cache, /hyperelastic/meshes): never inside the installed package."""
-    user = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
-    d = os.environ.get("HYPERELASTIC_MESH_CACHE") or os.path.join(user, "hyperelastic", "meshes")
-    os.makedirs(d, exist_ok=True)
-    return d
 
 
 CAD_SUFFIXES = (".geo", ".step", ".stp", ".brep", ".iges", ".igs")

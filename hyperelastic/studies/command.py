@@ -51,6 +51,8 @@ def _parser():
     ap.add_argument("which", choices=STUDIES)
     ap.add_argument("-output_dir", "--output-dir", dest="output_dir", default=None)
     ap.add_argument("--full", action="store_true", help="the whole sweep (hours) instead of the quick default")
+    ap.add_argument("--smoke", action="store_true", help="accuracy: the smallest sweep with every part of the study "
+                    "(about a minute; what the test suite runs)")
     ap.add_argument("--jobs", type=int, default=2, help="runs at a time (default 2)")
     ap.add_argument("--budget", type=float, default=600.0, help="refinement: seconds for the finer levels; price: "
                     "seconds for the search (default 600)")
@@ -81,6 +83,8 @@ def _check(a):
         raise UserError("hyperelastic study: --part goes with refinement or price, --scene SCENE.opts and --size H")
     if a.target is not None and a.which != "price":
         raise UserError("hyperelastic study: --target belongs to price")
+    if a.smoke and (a.which != "accuracy" or a.full):
+        raise UserError("hyperelastic study: --smoke is accuracy's smallest sweep (not with --full)")
     if a.part is not None and not (a.size > 0 and a.size < float("inf")):
         raise UserError(f"hyperelastic study: --size {a.size} must be a positive number")
     if a.target is not None and not (a.target > 0 and math.isfinite(a.target)):
@@ -114,13 +118,14 @@ def main(argv):
         extra = f": {r['message']}" if r["outcome"] == "failed" else ""
         print(f"[{time.perf_counter() - t0:6.1f} s] {what} {r['outcome']}{extra}", file=sys.stderr, flush=True)
     if a.which == "accuracy":
+        size = "smoke" if a.smoke else a.full
         if a.from_csv:
             path = os.path.join(out, "accuracy.csv")
             if not os.path.isfile(path):
                 raise UserError(f"--from-csv: no {path}")
-            rows, p = measure.read_csv(path), plan.plan(a.full)
+            rows, p = measure.read_csv(path), plan.plan(size)
         else:
-            rows, p = measure.accuracy(out, a.full, a.jobs, log)
+            rows, p = measure.accuracy(out, size, a.jobs, log)
             measure.write_csv(rows, os.path.join(out, "accuracy.csv"))
         report.figures(rows, out)
         report.report(rows, p, out, command)
