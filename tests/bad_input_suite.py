@@ -737,6 +737,8 @@ def contract_cases(rng):
         ("mesh_huge_size_geo", ["mesh", "part.geo", "--size", "1e300", "-o", "m.msh"], ("extent",), geo),
         ("mesh_huge_size_bar", ["mesh", "bar", "--size", "1e300", "-o", "m.msh"], ("extent",), None),
         ("restart_other_order", ["run", "--restart", "prev.h5", "-order", "2", "-quiet"], ("order",), None),
+        ("expression_leading_minus", BEND + ["-effects", "elasticity,fixed,prescribed", "-prescribe_faces", "right",
+                                             "-prescribe_uz", "-t*Z"], ("read as an option", "(-t*Z)"), None),
     ]
     return [Case(f"contract:{n}", "contracts", a, setup=setup, words=w) for n, a, w, setup in C]
 

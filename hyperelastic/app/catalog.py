@@ -247,6 +247,10 @@ def check_application_options(keys, regions=(), loads=(), scene_keys=()):
             continue
         if key in scene_keys and _prefixed_template(key):
             continue
+        if not re.fullmatch(r"[A-Za-z0-9_]+", key):      # an expression's leading minus: PETSc took it for an option
+            raise UserError(f"'-{key}' was read as an option, not as the value before it: PETSc takes a word that "
+                            f"starts with '-' (and not with a digit) for an option; write the expression as (-{key}) "
+                            f"or 0 - {key}")
         raise UserError(f"unknown option -{key}{suggestion(key, sorted(known) + COMMON_PETSC)}")
 
 

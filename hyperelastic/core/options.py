@@ -167,9 +167,26 @@ class Options:
 
 
 def all_options():
-    """The whole options database as a sorted list of (key, value)."""
-    d = PETSc.Options().getAll()
-    return sorted((k, "" if v is None else str(v)) for k, v in d.items())
+    """The whole options database as a sorted list of (key, value), each value whole. (petsc4py's getAll splits
+    PETSc's one-line listing at spaces: `-prescribe_x "X*cos(a) - Y*sin(a)"` came back as `X*cos(a)`, and a restart
+    replayed the cut expression. PETSc's own view lists one option a line.)"""
+    import tempfile
+    opts = PETSc.Options()
+    with tempfile.TemporaryDirectory() as d:
+        path = os.path.join(d, "options.txt")
+        viewer = PETSc.Viewer().createASCII(path, comm=PETSc.COMM_SELF)
+        opts.view(viewer)
+        viewer.destroy()
+        with open(path, encoding="utf-8", errors="replace") as fh:
+            lines = fh.read().splitlines()
+    out = {}
+    for line in lines:
+        if not line.startswith("-"):
+            continue                          # (the table's first and last lines are comments)
+        text = re.sub(r" # \(source: [^)]*\)$", "", line)
+        key, _, value = text[1:].partition(" ")
+        out[key] = value
+    return sorted(out.items())
 
 
 PREFIX = re.compile(r"[A-Za-z0-9_]+")     # what a region's or load's name must be to prefix options
