@@ -20,7 +20,7 @@ from .. import formulations
 from ..physics import effects, materials
 from ..element.reference import DEFAULT_DEGREE, TET_RULES
 from ..core.errors import UserError
-from ..core.options import PREFIX, Options, Row, insert_defaults, parse_options_file, resolve_scene
+from ..core.options import PREFIX, Options, Row, all_options, insert_defaults, parse_options_file, resolve_scene
 from .scene import (ASSEMBLIES, DEFAULT_EFFECTS, DEFAULT_MATERIAL, EFFECTS, EFFECTS_RULE, INTEGRATORS, JACOBIANS,
                     STORAGES, Scene, read_scene)
 
@@ -259,7 +259,7 @@ def check_solver_options(opts):
     did not use is unknown (a misspelling), or meaningless for this run (`-ts_type` under backward Euler,
     `-ksp_gmres_restart` under CG): one line, before any output is written."""
     used = []
-    for key in sorted(opts.getAll()):
+    for key, _ in all_options():
         if not key.startswith(SOLVER_FAMILIES) or READ_LATER.search(key):
             continue
         if opts.used(key):
@@ -280,8 +280,7 @@ def check_viewer_files(opts, taken=()):
     """A PETSc viewer's FILE in a directory that does not exist, or over an input or output file (`taken`):
     PETSc reports it only when it writes, at the end (after the run). One line, before any work is done."""
     taken = {os.path.realpath(t): t for t in taken if t}
-    for key, value in sorted(opts.getAll().items()):
-        value = "" if value is None else str(value)
+    for key, value in all_options():
         if VIEWERS.search(key) and ":" in value:
             why = _viewer_file_problem(value.split(":")[1], taken)
             if why:
@@ -338,7 +337,7 @@ def load_scene(scene_arg):
     opts = Options()
     from_scene = {k for k, _ in pairs if not opts.has(k)}
     insert_defaults(pairs)
-    check_application_options(sorted(opts.o.getAll()), _prefixes(opts, "regions"), _prefixes(opts, "loads"),
+    check_application_options([k for k, _ in all_options()], _prefixes(opts, "regions"), _prefixes(opts, "loads"),
                               {k for k, _ in pairs})
     check_petsc_values(opts.o)
     name = os.path.splitext(os.path.basename(path))[0]
