@@ -50,7 +50,7 @@ def same_run(a, b):
 
 @pytest.mark.parametrize("sig,nprocs", [(signal.SIGTERM, 1), (signal.SIGINT, 1), (signal.SIGTERM, 2)])
 def test_signal_stops_cleanly_and_restart_is_bitwise(tmp_path, reference, sig, nprocs):
-    """The signal is honoured at the next frame: a checkpoint is written, one line names the signal
+    """The signal is honoured after the step under way: a checkpoint is written, one line names the signal
     and the restart command, the exit status is 128 + signal; --restart then finishes with exactly
     the uninterrupted run's frames and statistics (same rank count)."""
     out = tmp_path / "o.h5"
@@ -70,6 +70,32 @@ def test_signal_stops_cleanly_and_restart_is_bitwise(tmp_path, reference, sig, n
     assert np.array_equal(r["x"], reference[nprocs]["x"][:len(r["time"])])
     run_ok(["run", "--restart", out, "-quiet"], nprocs=nprocs)
     same_run(read_h5(out), reference[nprocs])
+
+
+def test_a_signal_between_frames_stops_at_the_next_step(tmp_path):
+    """With a frame every 2 s of simulated time (200 steps), SIGTERM stops the run after the step under way, not at
+    the next frame (issue 47: a run crawling between frames ignored SIGTERM for 10 minutes): the checkpoint holds a
+    state between frames, and the restart ends bitwise on the uninterrupted run."""
+    extra = ["-frames_per_second", "0.5"]
+    ref = tmp_path / "ref.h5"
+    run_ok(["run", *RUN, *extra, "-output", ref])
+    out = tmp_path / "o.h5"
+    p = start(out, extra=extra)
+    wait_for_file(out)
+    time.sleep(1.0)
+    p.send_signal(signal.SIGTERM)
+    _, err = p.communicate(timeout=120)
+    if p.returncode == 0:
+        pytest.skip("the run finished before the signal arrived")
+    assert p.returncode == 128 + signal.SIGTERM and len(err.strip().splitlines()) == 1, err
+    import h5py
+    with h5py.File(out, "r") as f:
+        g = f[f"checkpoint/{f.attrs['checkpoint_slot']}"]
+        t_stop, step = float(g.attrs["t"]), int(g.attrs["step"])
+        frames = f["time"][:]
+    assert t_stop not in frames and 0 < t_stop < 4, (t_stop, step, frames)        # between frames
+    run_ok(["run", "--restart", out, "-quiet"])
+    same_run(read_h5(out), read_h5(ref))
 
 
 def test_kill_9_leaves_a_valid_file_and_a_usable_checkpoint(tmp_path, reference):
@@ -202,3 +228,64 @@ def test_one_blas_thread_per_rank():
     env["OPENBLAS_NUM_THREADS"] = "2"
     out = subprocess.run([sys.executable, "-c", probe], env=env, capture_output=True, text=True, check=True)
     assert out.stdout.split()[0] == "2"
+
+
+class _Writer:
+    """What an integrator writes, kept in memory: the last checkpoint's state (gathered, input order)."""
+    nframes = nstats = 0
+    final = "mem.h5"
+
+    def __init__(self, space):
+        self.space, self.state = space, None
+
+    def frame(self, t, x, v=None):
+        self.nframes += 1
+
+    def stats(self, row):
+        self.nstats += 1
+
+    def set_attr(self, key, value):
+        pass
+
+    def checkpoint(self, x, v, nodal=None, **state):
+        self.state = dict(state, x=self.space.gather(x), v=self.space.gather(v))
+
+
+def test_a_signal_inside_a_nominal_step_keeps_its_end(petsc):
+    """A signal between two attempts of one nominal step (a rejected attempt, then halves): the checkpoint keeps the
+    step's end (t_end), and the restart finishes that step on the nominal grid and ends bitwise on the run that was
+    not stopped."""
+    from conftest import make_model
+    from hyperelastic.core.errors import Interrupted
+    from hyperelastic.solving.integrators import BackwardEuler
+    from hyperelastic.solving.solver import Solver
+    opts = [("level", "1"), ("final_time", "0.06"), ("dt", "0.02"), ("quiet", "")]
+
+    def integrator(checkpoint=None, stop=False):
+        m = make_model(petsc, "bend", opts)
+        w = _Writer(m.space)
+        integ = BackwardEuler(m.scene, m.system, Solver(m.system, "assembled"), w, m.x0, m.v0, checkpoint=checkpoint,
+                              quiet=True)
+        real, calls = integ.advance, []
+
+        def advance(h, t1=None):     # the second step's first attempt is refused; the signal after the half step
+            calls.append(h)
+            if len(calls) == 2 and checkpoint is None:
+                return {"step": integ.step + 1, "time": integ.t + h, "dt": h, "snes_reason": -5, "newton_its": 1,
+                        "ksp_its": 1, "rejected": 1, "why": "refused here"}
+            out = real(h, t1)
+            if len(calls) == 3 and checkpoint is None and stop:
+                integ.signal = signal.SIGTERM
+            return out
+        integ.advance = advance
+        return integ, w
+    whole, _ = integrator()
+    whole.run()
+    cut, w = integrator(stop=True)
+    with pytest.raises(Interrupted):
+        cut.run()
+    st = w.state                             # stopped halfway through the second step: its end kept
+    assert st["t"] == pytest.approx(0.03) and st["t_end"] == pytest.approx(0.04) and st["n"] == 1
+    rest, _ = integrator(checkpoint=st)
+    rest.run()
+    assert np.array_equal(rest.x, whole.x) and rest.t == whole.t and rest.step == whole.step

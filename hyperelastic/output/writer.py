@@ -25,7 +25,7 @@ from petsc4py import PETSc
 from .. import __version__
 from ..core.errors import UserError
 from .fields import DEFAULT_FIELDS, NODAL, POINT_FIELDS, POINT_SCALARS, cell_fields, cell_quantities, finish, reference_volumes
-from ..core.files import CHECKPOINT_ATTRS, PARTIAL
+from ..core.files import CHECKPOINT_ATTRS, CHECKPOINT_OPTIONAL, PARTIAL
 from ..core.options import all_options
 from ..solving.stats import column_type
 
@@ -277,6 +277,11 @@ class Writer:
                 g[name][...] = a
         for k in CHECKPOINT_ATTRS:
             g.attrs[k] = state[k]
+        for k in CHECKPOINT_OPTIONAL:          # (the slot may hold an older checkpoint's)
+            if state.get(k) is not None:
+                g.attrs[k] = state[k]
+            elif k in g.attrs:
+                del g.attrs[k]
         f.flush()
         f.attrs.modify("checkpoint_slot", slot)
         f.flush()

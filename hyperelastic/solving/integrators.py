@@ -58,8 +58,28 @@ class Integrator:
         self.energy0 = energy_sum(system.energies(x0, v0))   # for energy_dissipated
 
     def request_stop(self, signum):
-        """Stop at the next frame with a checkpoint (honoured on every rank)."""
+        """Stop after the attempt under way, with a checkpoint of the last accepted state (honoured on every rank
+        alike: the ranks agree after each attempt). A frame is no longer waited for: a run crawling between
+        frames ignored SIGTERM for over 10 minutes (issue 47), longer than a scheduler's grace period."""
         self.signal = signum
+
+    def _stop_signal(self):
+        """The signal every rank agrees to stop on (0: none); collective."""
+        return self.sp.mpi.allreduce(self.signal, op=MPI.MAX)
+
+    def _interrupt(self, stop, n_done, t_end=None):
+        """Stop on signal `stop`: a checkpoint of the state (with the nominal step's end t_end where it is
+        written inside one), the output's attribute, and the one line."""
+        if self.writer:
+            self.stages["Output"].push()
+            self.checkpoint(n_done, t_end)
+            self.stages["Output"].pop()
+        name = signal.Signals(stop).name
+        if self.writer:
+            self.writer.set_attr("interrupted", f"{name} at t={self.t:.6g} (step {self.step})")
+        raise Interrupted(f"interrupted by {name} at t={self.t:.6g} (step {self.step}); state saved: "
+                          f"continue with `hyperelastic run --restart {self.writer.final if self.writer else 'FILE'}`",
+                          stop)
 
     def _say(self, line):
         """A progress line on stderr (rank 0; not with -quiet)."""
@@ -100,19 +120,13 @@ class Integrator:
         self.stages["Output"].push()
         if self.writer and framed:
             self.writer.frame(self.t, self.x if x_frame is None else x_frame, self.v)
-        # a signal is honoured at a frame (all ranks agree), after a checkpoint of that state
-        stop = framed and self.sp.mpi.allreduce(self.signal, op=MPI.MAX)
+        stop = self._stop_signal() if not last else 0
         ck = bool(sc.checkpoint_every and n_done % sc.checkpoint_every == 0 and not last)
-        if self.writer and (stop or ck):
+        if self.writer and ck and not stop:
             self.checkpoint(n_done)
         self.stages["Output"].pop()
         if stop:
-            name = signal.Signals(stop).name
-            if self.writer:
-                self.writer.set_attr("interrupted", f"{name} at t={self.t:.6g} (step {self.step})")
-            raise Interrupted(f"interrupted by {name} at t={self.t:.6g} (step {self.step}); state saved: "
-                              f"continue with `hyperelastic run --restart {self.writer.final if self.writer else 'FILE'}`",
-                              stop)
+            self._interrupt(stop, n_done)
         return ck and self.writer is not None
 
     def _progress(self, state, n, nsteps, stats, t_start, force=False):
@@ -142,13 +156,14 @@ class Integrator:
             stats[effect_column(name, "seconds")] = sec - e0[2]
         return stats
 
-    def checkpoint(self, n):
+    def checkpoint(self, n, t_end=None):
         """The state, the step-size state and the output counters (-integrator ts: x and v as TS holds them;
-        there the uninterrupted run restarts at the checkpoints too)."""
+        there the uninterrupted run restarts at the checkpoints too); t_end: the nominal step's end, where the
+        checkpoint is written inside one."""
         self.solver.rebuild_preconditioner()     # where a restart begins: the same set-ups in both runs
         self.writer.checkpoint(self.x, self.v, nodal=self.system.nodal_state(), t=self.t, step=self.step, n=n,
                                h_try=self.h_try, streak=self.streak, rejections=self.rejections,
-                               nframes=self.writer.nframes, nstats=self.writer.nstats)
+                               nframes=self.writer.nframes, nstats=self.writer.nstats, t_end=t_end)
 
     def _resume(self, state):
         """Continue from a checkpoint (files.read_checkpoint): the same state, step control included."""
@@ -157,6 +172,7 @@ class Integrator:
         self.system.resume(state)
         self.t, self.step, self.n0 = float(state["t"]), int(state["step"]), int(state["n"])
         self.h_try, self.streak, self.rejections = float(state["h_try"]), int(state["streak"]), int(state["rejections"])
+        self.t_end0 = state.get("t_end")         # inside a nominal step: its end
 
     def _fail(self, where, why):
         if self.writer:
@@ -192,16 +208,24 @@ class BackwardEuler(Integrator):
         self.h_try = H if self.h_try is None else self.h_try
         for n in range(self.n0, nsteps):
             t_end = self.t + (min(H, sc.final_time - self.t) if n == nsteps - 1 else H)
-            stats = self._nominal_step(t_end, H)
+            if n == self.n0 and getattr(self, "t_end0", None) is not None:
+                t_end = self.t_end0                  # (a restart inside a nominal step keeps its end)
+            stats = self._nominal_step(t_end, H, n)
             self._output(n + 1, (n + 1) % every == 0 or n == nsteps - 1, n == nsteps - 1)
             self._progress(progress, n, nsteps, stats, t_start, force=n == nsteps - 1)
         return self
 
-    def _nominal_step(self, t_end, H):
-        """Attempts from t to t_end (halving after each rejection, regrowing after accepted streaks);
-        returns the stats row of the last attempt."""
+    def _nominal_step(self, t_end, H, n):
+        """Attempts from t to t_end (halving after each rejection, regrowing after accepted streaks), the n-th
+        nominal step; returns the stats row of the last attempt. A signal stops it between two attempts."""
         sc = self.scene
+        first = True
         while self.t < t_end:
+            if not first:                  # (inside the nominal step, after an attempt: the ranks agree on a signal)
+                stop = self._stop_signal()
+                if stop:
+                    self._interrupt(stop, n, t_end)
+            first = False
             h = min(self.h_try, t_end - self.t)
             last = t_end - self.t - h <= 1e-12 * H
             stats = self.advance(h, t_end if last else self.t + h)
