@@ -307,12 +307,25 @@ class Solver:
             J.assemble()   # MFFD operator (-snes_mf_operator): new base point
         self.ev_jac.end()
 
+    # SNES's CONVERGED_SNORM_RELATIVE after the inversion guard cut an update in the solve: the update was small
+    # because the guard shortened it, not because Newton converged (PETSc reports SNORM only where the residual norm
+    # met neither -snes_rtol nor -snes_atol). Such a solve is refused (issue 47: a loosely toleranced quasi-static
+    # step was accepted at J_min 0.107, J_max 2.05 in an incompressible rubber, and every later step failed).
+    GUARDED_SNORM = -101
+
     def solve(self, X):
+        """Solve for the step's state in X; SNES's converged reason, or GUARDED_SNORM (refused)."""
         self.system.set_objective_base(None)
+        cuts = self.inversion_cuts
         self.snes.solve(None, X)
-        return self.snes.getConvergedReason()
+        reason = self.snes.getConvergedReason()
+        if reason == PETSc.SNES.ConvergedReason.CONVERGED_SNORM_RELATIVE and self.inversion_cuts > cuts:
+            return self.GUARDED_SNORM
+        return reason
 
     def reason_name(self, reason):
+        if reason == self.GUARDED_SNORM:
+            return "CONVERGED_SNORM_RELATIVE after an update cut by the inversion guard: a small step, not convergence"
         return enum_name(PETSc.SNES.ConvergedReason, reason)
 
     def ksp_reason_name(self):
