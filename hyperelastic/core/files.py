@@ -145,7 +145,7 @@ def check_output_path(path, inputs=(), suffixes=(".h5", ".hdf5")):
 CHECKPOINT_ATTRS = ("t", "step", "n", "h_try", "streak", "rejections", "nframes", "nstats")
 # where a checkpoint was written inside a nominal step (a stop on a signal between its attempts): that step's end,
 # so that the restart keeps the nominal grid t_n = n dt; absent at a step's end
-CHECKPOINT_OPTIONAL = ("t_end",)
+CHECKPOINT_OPTIONAL = ("t_end", "regrow_wait", "regrown")      # (step control's memory: see integrators.py)
 
 
 CHECKPOINT_NODAL = ("pressure",)     # optional scalar state per node (the mixed formulation's pressure)
@@ -196,8 +196,9 @@ def read_checkpoint(path):
         for k in CHECKPOINT_OPTIONAL:
             if k in g.attrs:
                 v = np.asarray(g.attrs[k])
-                if v.shape != () or v.dtype.kind != "f" or not np.isfinite(v) or v < state["t"]:
-                    raise UserError(f"--restart '{path}': checkpoint attribute {k} = {v!r} is not a time after t")
+                if v.shape != () or v.dtype.kind not in "iuf" or not np.isfinite(v) or v < 0 or (
+                        k == "t_end" and v < state["t"]):
+                    raise UserError(f"--restart '{path}': checkpoint attribute {k} = {v!r} is out of range")
                 state[k] = v.item()
         nstats = min((f["stats"][k].shape[0] for k in f["stats"]), default=0)
         limits = {"t": (0, None), "step": (0, None), "n": (0, None), "h_try": (0, None), "streak": (0, None),

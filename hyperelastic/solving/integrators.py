@@ -52,6 +52,11 @@ class Integrator:
         self.signal = 0        # set by request_stop (the SIGINT/SIGTERM handler of the command line)
         self.h_try = None      # step size of the next attempt (step control)
         self.streak = 0        # accepted steps since the last change of h_try
+        # regrowing: after regrow_wait accepted steps (-dt_grow_after, doubled each time a regrown size fails at
+        # once, reset where one holds: a 360-degree twist regrew into the same failure 11 times, issue 47);
+        # regrown: the last change of h_try was a regrowth
+        self.regrow_wait = scene.dt_grow_after
+        self.regrown = False
         self.n0 = 0            # nominal steps already done (a restart starts later)
         self.stages = {k: PETSc.Log.Stage(k) for k in ("Step", "Output")}
         system.begin_step(0.0, scene.dt, x0, v0)
@@ -163,7 +168,8 @@ class Integrator:
         self.solver.rebuild_preconditioner()     # where a restart begins: the same set-ups in both runs
         self.writer.checkpoint(self.x, self.v, nodal=self.system.nodal_state(), t=self.t, step=self.step, n=n,
                                h_try=self.h_try, streak=self.streak, rejections=self.rejections,
-                               nframes=self.writer.nframes, nstats=self.writer.nstats, t_end=t_end)
+                               nframes=self.writer.nframes, nstats=self.writer.nstats, t_end=t_end,
+                               regrow_wait=self.regrow_wait, regrown=int(self.regrown))
 
     def _resume(self, state):
         """Continue from a checkpoint (files.read_checkpoint): the same state, step control included."""
@@ -173,6 +179,8 @@ class Integrator:
         self.t, self.step, self.n0 = float(state["t"]), int(state["step"]), int(state["n"])
         self.h_try, self.streak, self.rejections = float(state["h_try"]), int(state["streak"]), int(state["rejections"])
         self.t_end0 = state.get("t_end")         # inside a nominal step: its end
+        self.regrow_wait = int(state.get("regrow_wait", self.scene.dt_grow_after))
+        self.regrown = bool(state.get("regrown", 0))
 
     def _fail(self, where, why):
         if self.writer:
@@ -233,15 +241,21 @@ class BackwardEuler(Integrator):
             linear_only, hint = stats.pop("linear_only", False), stats.pop("hint", "")
             # at the step's first Newton iteration the load step's size does not change the tangent, so halving
             # the step would not help (issue 34); at a later one the tangent is taken at an iterate that a smaller
-            # step changes (a rubber part's Newton iterates under rotation)
-            no_halving = linear_only and stats["newton_its"] == 0
+            # step changes (a rubber part's Newton iterates under rotation); nor where the step moves prescribed
+            # nodes: the first iterate moves them alone, and half the increment distorts the layer of cells beside
+            # them half as much (issue 47: a rubber torsion failed its first GMRES solve at 11.25 degrees a step and
+            # converged at 5.6, and the run was stopped instead of halved)
+            no_halving = linear_only and stats["newton_its"] == 0 and not stats.pop("moves_prescribed", False)
             if stats["rejected"]:
                 self._say(f"t={self.t:.4g}: step of h={h:.3g} rejected: {why}")
             self._write_stats(stats)
+            regrown, self.regrown = self.regrown, False
             if stats["rejected"]:
                 self.rejections += 1
                 self.streak = 0
                 self.h_try = 0.5 * h
+                if regrown:              # it failed where it had just regrown to: wait twice as long next time
+                    self.regrow_wait *= 2
                 note = self.solver.escalate() if linear_only else ""
                 if note:                 # the same step again, with a preconditioner that fits a static stiffness
                     self._note(note)
@@ -250,9 +264,11 @@ class BackwardEuler(Integrator):
                 if not sc.step_control or self.h_try < sc.dt_min or no_halving:
                     self._fail_step(stats, why, hint, halving=not no_halving)
                 continue
+            if regrown:                  # a regrown size that holds: back to -dt_grow_after
+                self.regrow_wait = sc.dt_grow_after
             self.streak += 1
-            if self.h_try < H and self.streak >= sc.dt_grow_after:
-                self.h_try, self.streak = min(2 * self.h_try, H), 0
+            if self.h_try < H and self.streak >= self.regrow_wait:
+                self.h_try, self.streak, self.regrown = min(2 * self.h_try, H), 0, True
         return stats
 
     def _fail_step(self, stats, why, hint="", halving=True):
@@ -292,6 +308,7 @@ class BackwardEuler(Integrator):
             # a Krylov solve that ran out of iterations on a quasi-static step: a preconditioner for a static
             # stiffness may fix it (Solver.escalate); halving the step may not (the caller)
             stats["linear_only"] = self.scene.quasistatic and ksp in RAN_OUT
+            stats["moves_prescribed"] = sysm.moves_prescribed(self.x)
             hints = self.solver.plan.ksp_hints or KSP_HINTS
             stats["hint"] = hints.get(ksp, "") if ksp else SNES_HINTS.get(name, "")
             if ksp in RAN_OUT and self.solver.snes.getKSP().getPC().getType() == "gamg":

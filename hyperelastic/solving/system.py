@@ -130,6 +130,13 @@ class System:
         # backward Euler half steps, alpha_f = 1, whose result the midpoint step does not depend on)
         self.em_base = xn.copy() if self.energy_momentum and abs(alpha_f - 0.5) <= 1e-12 else None
 
+    def moves_prescribed(self, x):
+        """Whether the step begun (begin_step) moves a prescribed dof away from its place in the local positions x,
+        on some rank. Collective."""
+        c = self.cdofs
+        moved = bool(len(c)) and not np.array_equal(self.g[c], x[c])
+        return self.space.mpi.allreduce(moved, op=MPI.LOR)
+
     def set_rate_weights(self, shift_v, shift_a):
         """Jacobian weights of the damping (shift_v) and inertia (shift_a) effects."""
         for e in self.effects:
