@@ -239,13 +239,14 @@ class BackwardEuler(Integrator):
             stats = self.advance(h, t_end if last else self.t + h)
             why = stats.pop("why", None)
             linear_only, hint = stats.pop("linear_only", False), stats.pop("hint", "")
+            moves = stats.pop("moves_prescribed", False)
             # at the step's first Newton iteration the load step's size does not change the tangent, so halving
             # the step would not help (issue 34); at a later one the tangent is taken at an iterate that a smaller
             # step changes (a rubber part's Newton iterates under rotation); nor where the step moves prescribed
             # nodes: the first iterate moves them alone, and half the increment distorts the layer of cells beside
             # them half as much (issue 47: a rubber torsion failed its first GMRES solve at 11.25 degrees a step and
             # converged at 5.6, and the run was stopped instead of halved)
-            no_halving = linear_only and stats["newton_its"] == 0 and not stats.pop("moves_prescribed", False)
+            no_halving = linear_only and stats["newton_its"] == 0 and not moves
             if stats["rejected"]:
                 self._say(f"t={self.t:.4g}: step of h={h:.3g} rejected: {why}")
             self._write_stats(stats)
