@@ -343,3 +343,16 @@ def test_p2_same_on_two_ranks_restart_and_readers(tmp_path):
     p = run_ok(["run", "sag", "-mesh", tmp_path / "c.h5", "-final_time", 0.02, "-output", tmp_path / "d.h5"])
     d = read_h5(tmp_path / "d.h5")
     assert d["tetra"].shape[1] == 10 and np.array_equal(d["points"], read_h5(tmp_path / "c.h5")["x"][-1])
+
+
+def test_the_element_is_decided_once_with_its_rule():
+    """Element.decide: -order, else the mesh's own; the default rule per order; a rule on linear tetrahedra, one
+    point on quadratic ones, an unknown order or degree: one line each."""
+    from hyperelastic.core.errors import UserError
+    from hyperelastic.element.reference import DEFAULT_DEGREE, Element
+    assert Element.decide(0, 0, 1) == Element(1, DEFAULT_DEGREE[1]) and Element.decide(0, 0, 2) == Element(2, 2)
+    assert Element.decide(2, 5, 1) == Element(2, 5) and Element.decide(1, 0, 2) == Element(1, 1)
+    for args, words in (((0, 2, 1), "linear tetrahedra"), ((1, 5, 2), "linear tetrahedra"), ((2, 1, 1), "zero-energy"),
+                        ((3, 0, 1), "-order: 3"), ((2, 4, 1), "the rules are of degree")):
+        with pytest.raises(UserError, match=words):
+            Element.decide(*args)

@@ -408,3 +408,25 @@ def test_a_checked_mesh_is_read_again_from_the_cache(parts, tmp_path, monkeypatc
     with pytest.raises(Exception):
         read.read_mesh(str(bad))
     assert len(os.listdir(tmp_path / "cache" / "parsed")) == n
+
+
+def test_the_parsed_mesh_cache_stays_bounded(parts, tmp_path, monkeypatch):
+    """Past PARSED_KEPT[0] files the least recently used go, down to PARSED_KEPT[1]; a read refreshes a file."""
+    import shutil
+    import time
+    from hyperelastic.mesh import read
+    monkeypatch.setenv("HYPERELASTIC_MESH_CACHE", str(tmp_path / "cache"))
+    monkeypatch.setattr(read, "PARSED_KEPT", (3, 2))
+    paths = []
+    for i in range(3):
+        paths.append(tmp_path / f"m{i}.msh")
+        shutil.copy(parts["cube"], paths[-1])
+        read.read_mesh(str(paths[-1]))
+        time.sleep(0.01)
+    read.read_mesh(str(paths[0]))                    # the oldest, read again: now the most recent
+    cache = tmp_path / "cache" / "parsed"
+    assert len(os.listdir(cache)) == 3
+    shutil.copy(parts["cube"], tmp_path / "m3.msh")
+    read.read_mesh(str(tmp_path / "m3.msh"))         # a fourth: down to two, m0 and m3 kept
+    kept = sorted(os.listdir(cache))
+    assert len(kept) == 2 and os.path.basename(read._parsed_path(str(paths[0]))) in kept

@@ -213,3 +213,20 @@ def test_refinement_of_a_mesh_independent_quantity():
     analyse(rows, expected=2)
     text = _verdict(1, "reaction_z:clamp", rows)
     assert "does not depend on the mesh" in text and "refine further" not in text
+
+
+def test_the_three_accuracy_plans():
+    """--smoke, the quick default and --full (planned, not run): every mode and preconditioner of each is there,
+    the thesis' operator in the quick plan at its two largest steps only, each plan's runs distinct, --smoke a subset
+    of the quick plan's configurations, and the references' extra runs on the plans' levels."""
+    smoke, quick, full = (plan.plan(k) for k in ("smoke", False, True))
+    modes = {"assembled", "shell", "snes_mf", "snes_mf_operator", "seed_fd", "alpha2", "alpha2_adapt"}
+    for p in (smoke, quick, full):
+        assert modes <= {r.mode for r in p.runs} and len(set(p.runs)) == len(p.runs)
+        refs, extra = plan.with_references(p)
+        assert set(refs) == {r.config for r in p.runs} and {r.role for r in extra} >= {"reference", "check", "disc"}
+        disc = {r.level for r in extra if r.role == "disc"}
+        assert min(disc) == 1 and max(disc) == p.finest_level and {r.order for r in extra if r.role == "disc"} == {1, 2}
+    assert sorted({r.h for r in quick.runs if r.mode == "seed_fd"}) == [0.05, 0.1]
+    assert {r.config for r in smoke.runs} <= {r.config for r in quick.runs} and len(smoke.runs) < len(quick.runs) / 2
+    assert len(full.runs) > 10 * len(quick.runs)
