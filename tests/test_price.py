@@ -133,3 +133,15 @@ def test_price_on_a_surface_the_part_lacks_leaves_nothing(tmp_path):
                       "--run-args", STATIC, "-output_dir", tmp_path / "o"])
     assert p.returncode == 2 and "no surface 'nowhere'" in p.stderr and len(p.stderr.strip().splitlines()) == 1
     assert not os.path.exists(tmp_path / "o" / "runs")
+
+
+def test_price_stops_its_probes_at_the_budget(tmp_path):
+    """--budget is wall time for the whole search, its coarse probes included (issue 48: --budget 5 took 20.7 s):
+    with a budget one run spends, the search stops after it, and the report says it stopped and why."""
+    out = tmp_path / "o"
+    run_ok(["study", "price", *BAR, "--watch", "u_y:5,0,0", "--target", "0.01", "--run-args", STATIC, "--budget",
+            "0.5", "-output_dir", out])
+    rows = read_csv(os.path.join(out, "price.csv"))
+    assert len(rows) == 1, rows
+    text = open(os.path.join(out, "price.md")).read()
+    assert "The search stopped early: --budget 0.5 s spent." in text, text.split("\n\n")[1]
