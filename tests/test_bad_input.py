@@ -315,3 +315,20 @@ def test_full_disk_keeps_every_frame_written_before(tmp_path):
         assert r.num_steps == n
     finally:
         subprocess.run(["umount", str(d)], capture_output=True)
+
+
+def test_the_index_range_is_checked_before_petsc_overflows(petsc):
+    """A mesh whose unknowns exceed PETSc's 32-bit indices is one line naming the count and the way out (64-bit
+    indices), before any distribution (issue 44, item 6): shown on a stand-in mesh with 2^31/3 nodes' worth of rows
+    and with this PETSc's own bits, and checked with 8-bit indices on a small one."""
+    import numpy as np
+    from types import SimpleNamespace
+    from hyperelastic.app.model import check_index_range
+    from hyperelastic.core.errors import UserError
+    check_index_range(SimpleNamespace(points=np.zeros((1000, 3))), "small")             # fine
+    with pytest.raises(UserError, match=r"3,000 unknowns \(3 per node\) exceed the 8-bit indices .*64-bit"):
+        check_index_range(SimpleNamespace(points=np.zeros((1000, 3))), "small", index_bits=8)
+    big = SimpleNamespace(points=np.broadcast_to(np.zeros(3), (2 ** 31 // 3 + 1, 3)))
+    if np.dtype(petsc.IntType).itemsize == 4:
+        with pytest.raises(UserError, match="32-bit indices"):
+            check_index_range(big, "big")

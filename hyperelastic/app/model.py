@@ -6,6 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from mpi4py import MPI
+from petsc4py import PETSc
 
 from ..core.errors import UserError
 from ..discretization.kernels import RegionKernels
@@ -107,6 +108,7 @@ def load_mesh(scene):
         mesh = elevate(mesh)
     elif element.order == 1 and mesh.order == 2:
         mesh = corners(mesh)
+    check_index_range(mesh, scene.mesh or f"bar L{scene.level}")
     labels, report = {}, []
     for option, name, kind in scene.set_uses():
         label = facet_label(name) if kind == "facets" else cell_label(name)
@@ -131,6 +133,17 @@ def load_mesh(scene):
             report.append({"name": g.name, "kind": "tets", "tag": int(g.tag if g.tag is not None else i + 1),
                            "count": len(g.items), "measure": mesh.volume(g.items), "line": mesh.describe(g)})
     return mesh, element, labels, report
+
+
+def check_index_range(mesh, name, index_bits=None):
+    """One line before PETSc's indices overflow: 3 unknowns per node must stay below 2^31 with the 32-bit indices of
+    a PETSc built without --with-64-bit-indices (pip's default); index_bits: PETSc's (default: this PETSc's)."""
+    bits = index_bits or 8 * np.dtype(PETSc.IntType).itemsize
+    dofs = 3 * len(mesh.points)
+    if dofs >= 2 ** (bits - 1):
+        raise UserError(f"mesh '{name}': {dofs:,} unknowns (3 per node) exceed the {bits}-bit indices of this PETSc "
+                        f"(at most {2 ** (bits - 1) - 1:,}); build PETSc with 64-bit indices (PETSC_CONFIGURE_OPTIONS="
+                        "'--with-64-bit-indices' for pip, or a cluster's 64-bit module)")
 
 
 def _set_line(mesh, s, kind, measure):
