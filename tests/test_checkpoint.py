@@ -23,6 +23,21 @@ def start(out, nprocs=1, extra=()):
     return subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
 
 
+def stopped_run(out, sig=signal.SIGTERM, after=1.0, nprocs=1, extra=()):
+    """Start RUN (with extra) writing `out`, send `sig` `after` seconds into its output, and check that it stopped
+    with exit status 128 + sig and one line; the line (skips the test where the run finished first)."""
+    p = start(out, nprocs, extra)
+    wait_for_file(out)
+    time.sleep(after)
+    p.send_signal(sig)              # under mpiexec: forwarded to every rank
+    _, err = p.communicate(timeout=120)
+    if p.returncode == 0:
+        pytest.skip("the run finished before the signal arrived")
+    lines = [ln for ln in err.splitlines() if ln.strip()]
+    assert p.returncode == 128 + sig and len(lines) == 1, err
+    return lines[0]
+
+
 def wait_for_file(path, timeout=60):
     t0 = time.time()
     while not os.path.exists(path) or os.path.getsize(path) == 0:
@@ -54,16 +69,8 @@ def test_signal_stops_cleanly_and_restart_is_bitwise(tmp_path, reference, sig, n
     and the restart command, the exit status is 128 + signal; --restart then finishes with exactly
     the uninterrupted run's frames and statistics (same rank count)."""
     out = tmp_path / "o.h5"
-    p = start(out, nprocs)
-    wait_for_file(out)
-    time.sleep(1.5)
-    p.send_signal(sig)              # under mpiexec: forwarded to every rank
-    _, err = p.communicate(timeout=120)
-    if p.returncode == 0:
-        pytest.skip("the run finished before the signal arrived")
-    assert p.returncode == 128 + sig, err
-    lines = [ln for ln in err.splitlines() if ln.strip()]
-    assert len(lines) == 1 and signal.Signals(sig).name in lines[0] and "--restart" in lines[0], err
+    line = stopped_run(out, sig, 1.5, nprocs)
+    assert signal.Signals(sig).name in line and "--restart" in line, line
     r = read_h5(out)
     assert "interrupted" in r["attrs"] and np.isfinite(r["x"]).all()
     assert 0 < len(r["time"]) < len(reference[nprocs]["time"])
@@ -80,14 +87,7 @@ def test_a_signal_between_frames_stops_at_the_next_step(tmp_path):
     ref = tmp_path / "ref.h5"
     run_ok(["run", *RUN, *extra, "-output", ref])
     out = tmp_path / "o.h5"
-    p = start(out, extra=extra)
-    wait_for_file(out)
-    time.sleep(1.0)
-    p.send_signal(signal.SIGTERM)
-    _, err = p.communicate(timeout=120)
-    if p.returncode == 0:
-        pytest.skip("the run finished before the signal arrived")
-    assert p.returncode == 128 + signal.SIGTERM and len(err.strip().splitlines()) == 1, err
+    stopped_run(out, extra=extra)
     import h5py
     with h5py.File(out, "r") as f:
         g = f[f"checkpoint/{f.attrs['checkpoint_slot']}"]
