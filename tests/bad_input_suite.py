@@ -711,7 +711,7 @@ def study_cases(rng):
 
 
 def contract_cases(rng):
-    """The contracts of the newer features (issue 48): each refused with one line where it once ran into garbage,
+    """The contracts of the newer features (issues 48, 44): each refused with one line where it once ran into garbage,
     an internal error or a misleading line."""
     part = ["study", "price", "--part", "part.geo", "--scene", "scene.opts", "--size", "0.5", "--target", "0.01",
             "-output_dir", "st"]
@@ -739,6 +739,8 @@ def contract_cases(rng):
         ("restart_other_order", ["run", "--restart", "prev.h5", "-order", "2", "-quiet"], ("order",), None),
         ("expression_leading_minus", BEND + ["-effects", "elasticity,fixed,prescribed", "-prescribe_faces", "right",
                                              "-prescribe_uz", "-t*Z"], ("read as an option", "(-t*Z)"), None),
+        ("partitioner_unknown", BEND + ["-partitioner", "scotch"], ("-partitioner", "morton, metis"), None),
+        ("partitioner_not_built", BEND + ["-partitioner", "parmetis"], ("-partitioner", "built without it"), None),
     ]
     return [Case(f"contract:{n}", "contracts", a, setup=setup, words=w) for n, a, w, setup in C]
 

@@ -19,6 +19,7 @@ import textwrap
 from .. import formulations
 from ..physics import effects, materials
 from ..element.reference import DEFAULT_DEGREE, TET_RULES
+from ..discretization import partition
 from ..core.errors import UserError
 from ..core.options import PREFIX, Options, Row, all_options, insert_defaults, parse_options_file, resolve_scene
 from .scene import (ASSEMBLIES, DEFAULT_EFFECTS, DEFAULT_MATERIAL, EFFECTS, EFFECTS_RULE, INTEGRATORS, JACOBIANS,
@@ -38,6 +39,11 @@ HEAD = (
         "default the last, becomes the reference; regions kept)", "cached bar at `-level`"),
     Row(("level",), "-level N", "bar mesh level: 1..8 = thesis L1..L8 (edge 0.80 … 0.30), 9.. finer (≈2× tets each)",
         f"{_S.level}"),
+    Row(("partitioner",), "-partitioner NAME", "how the cells are split among the MPI ranks: `morton` (equal "
+        "contiguous ranges along a Z-curve through the cells: PETSc's `simple` partitioner on the spatially ordered "
+        "mesh), `metis` (METIS on the cells' face graph, through PETSc's `shell` partitioner; seeded); PETSc's "
+        "`parmetis`, `ptscotch`, `chaco` where the PETSc in use has them. The start-up report gives the faces cut "
+        "and the largest part against the mean", partition.DEFAULT),
     Row(("order",), "-order 1|2", "element order: 1, linear tetrahedra (4 nodes); 2, quadratic (10 nodes: a "
         "linear mesh gets straight edges with a node at each midpoint, a quadratic mesh (`hyperelastic mesh "
         "--order 2`, or an output of an order-2 run) keeps its curved ones); `-order 1` on a quadratic mesh "

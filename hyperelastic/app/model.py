@@ -213,7 +213,7 @@ def build_model(scene, comm):
     mesh, element, labels, report = loaded if loaded is not None else (None, None, None, None)
     mpi = comm.tompi4py()
     element = mpi.bcast(element, root=0)
-    space = make_space(comm, element, mesh, labels)
+    space = make_space(comm, element, mesh, labels, scene.partitioner)
     report = mpi.bcast(report, root=0)
     problem = Problem(scene, element, solids_in_use(scene, space))
     formulation, notes = choose(problem)

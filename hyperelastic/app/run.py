@@ -57,6 +57,7 @@ def run_scene(scene_arg, options_files, restart=None, restart_path=None):
         return 0
     if not quiet and comm.getRank() == 0:
         lines = part_lines(model, scene) + [f"set {line}" for line in model.set_lines()]
+        lines += [model.space.partition_line] if model.space.partition_line else []
         notes = scene.notes + model.notes + ([solver.merit_note] if solver.merit_note else []) + solver.notes
         lines += [f"note: {n}" for n in notes]
         print("\n".join(lines), file=sys.stderr)

@@ -11,6 +11,7 @@ from ..element.reference import ORDERS, TET_RULES
 from ..core.errors import UserError
 from ..output.fields import DEFAULT_FIELDS, output_fields
 from ..mesh.generate import MAX_LEVEL
+from ..discretization import partition
 from ..core.options import Options, prefixed_names
 
 DEFAULT_MATERIAL = "stvk"
@@ -30,6 +31,7 @@ class Scene:
     mesh: str = None            # path, or None for the cached bar at `level`
     mesh_frame: int = -1        # the frame of an output file given as -mesh (default: the last)
     level: int = 1
+    partitioner: str = partition.DEFAULT    # how the cells are split among the ranks (discretization/partition.py)
     order: int = 0              # element order as given: 1 (4-node) or 2 (10-node) tetrahedra; 0: the mesh's own
     quadrature: int = 0         # degree of the stiffness rule as given (element.reference.TET_RULES); 0: the default
                                 # (the run's element is decided once from both and the mesh: Element.decide)
@@ -124,6 +126,11 @@ def _read_material(s, opts):
     if s.mesh is not None and opts.has("level"):
         raise UserError(f"options -mesh and -level: -level picks the built-in bar, -mesh {s.mesh} replaces it; give "
                         "one")
+    if opts.has("partitioner"):
+        s.partitioner = opts.string("partitioner")
+        why = partition.refusal(s.partitioner)
+        if why:
+            raise UserError(f"option -partitioner: {why}")
     s.order = opts.integer("order", s.order) if opts.has("order") else s.order
     if opts.has("order") and s.order not in ORDERS:
         raise UserError(f"option -order: {s.order}: give 1 (linear, 4-node) or 2 (quadratic, 10-node tetrahedra)")

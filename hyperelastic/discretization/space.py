@@ -1,10 +1,15 @@
 """P1 vector field (3 dofs per vertex) on a distributed, uninterpolated DMPlex of tetrahedra.
 
-Rank 0 reads the mesh, orders it spatially and builds the serial DMPlex; `distribute` with the
-`simple` partitioner hands each rank a contiguous range of (spatially ordered) cells. Every rank
-then knows, for its local vertices (owned + ghosts): the local dof offsets, reference coordinates,
-the index of the vertex in the input mesh, and ownership. Per-cell Dm^-1 and volumes are computed
-once here.
+Rank 0 reads the mesh, orders it spatially and builds the serial DMPlex; `distribute` with the run's
+partitioner (partition.py: by default the `simple` one, a contiguous range of the spatially ordered cells per
+rank) hands each rank its cells. Every rank then knows, for its local vertices (owned + ghosts): the local dof
+offsets, reference coordinates, the index of the vertex in the input mesh, and ownership. Per-cell Dm^-1 and
+volumes are computed once here.
+
+No rank but rank 0 (while it reads the mesh) holds an array of the whole mesh: what each rank needs of the
+serial mesh (input indices, P2 node positions) travels point by point through the distribution's migration star
+forest (`pull`), a restart's state is sent to each rank as its own rows (`scatter`), and the output's gather plan
+is built on rank 0 when the output first gathers.
 """
 import numpy as np
 from petsc4py import PETSc
@@ -12,6 +17,7 @@ from petsc4py import PETSc
 from mpi4py import MPI
 
 from ..element.reference import EDGES
+from . import partition
 from .kernels import IDX, Cells, ElementCells
 from ..core.libpetsc import plex_cones
 from ..mesh.read import spatial_order
@@ -41,26 +47,50 @@ def set_labels(dm, labels, corder, point_of_input):
                                                                   comm=PETSc.COMM_SELF))
 
 
-def make_space(comm, element, mesh=None, labels=None):
+def pull(sf, rootdata, n, width=1):
+    """Each rank's copy of per-point data of the serial DMPlex (rootdata: (points, width) on rank 0, empty
+    elsewhere) for its n local points, through the distribution's migration star forest (PetscSFBcast: every rank
+    receives the values of its own points only); rootdata itself without one (one rank)."""
+    if sf is None:
+        return rootdata
+    kind = np.asarray(rootdata).dtype
+    unit = MPI.INT64_T if kind.kind in "iu" else MPI.DOUBLE
+    root = np.ascontiguousarray(rootdata, np.int64 if kind.kind in "iu" else np.float64)
+    leaf = np.full((n, width) if width > 1 else n, -1, root.dtype)
+    if width > 1:
+        unit = unit.Create_contiguous(width).Commit()
+    sf.bcastBegin(unit, root, leaf, MPI.REPLACE)
+    sf.bcastEnd(unit, root, leaf, MPI.REPLACE)
+    if width > 1:
+        unit.Free()
+    return leaf
+
+
+def make_space(comm, element, mesh=None, labels=None, partitioner=partition.DEFAULT):
     """The distributed space of the element (element.reference.Element: its order picks P1 or P2) on the checked
-    input mesh of rank 0 (a mesh.sets.Mesh at that order; None on the other ranks) with its labels."""
+    input mesh of rank 0 (a mesh.sets.Mesh at that order; None on the other ranks) with its labels, its cells
+    split among the ranks by `partitioner` (partition.py)."""
     points, tets, nodes = (mesh.points, mesh.tets, mesh.nodes) if mesh is not None else (None, None, None)
+    boundary = len(mesh.facet_cell) if mesh is not None else None
     if element.order == 1:
-        return Space(comm, element, points, tets, labels)
-    return QuadraticSpace(comm, element, points, tets, labels, nodes)
+        return Space(comm, element, points, tets, labels, partitioner, boundary)
+    return QuadraticSpace(comm, element, points, tets, labels, nodes, partitioner, boundary)
 
 
 class Space:
     """P1: 3 dofs per vertex (make_space builds the space of the run's element)."""
 
-    def __init__(self, comm, element, points=None, tets=None, labels=None):
+    def __init__(self, comm, element, points=None, tets=None, labels=None, partitioner=partition.DEFAULT,
+                 boundary_faces=None):
         """element: the run's (order 1); points/tets: the checked input mesh on rank 0 (ignored on other ranks);
         labels (rank 0): {label name: {value: ("cells" | "vertices", input indices)}}, set on the serial DMPlex and
-        carried through distribution (see sets.py for the facet sets' values)."""
+        carried through distribution (see sets.py for the facet sets' values); partitioner: partition.py's name;
+        boundary_faces (rank 0): the mesh's boundary facet count (for the partition's cut faces)."""
         self.element = element
         self.comm = comm
         self.mpi = comm.tompi4py()
-        vperm, sf = self._distribute(points, tets, labels or {})
+        self.partitioner, self._boundary_faces = partitioner, boundary_faces
+        serial_input, sf = self._distribute(points, tets, labels or {})
         dm = self.dm
         vStart, vEnd = dm.getDepthStratum(0)
         self.nlv = nlv = vEnd - vStart
@@ -81,7 +111,7 @@ class Space:
             o = csec.getOffset(v)
             X[lvid[v - vStart]] = carr[o:o + 3]
         self.X = X
-        self.orig = self._input_indices(lvid, vStart, vEnd, vperm, sf)
+        self.orig = self._input_indices(lvid, vStart, vEnd, serial_input, sf)
         self.owned = self._ownership(lvid, vStart, vEnd)
         self.Dminv, self.vol = reference_geometry(X, self.cells)
         self.nc = len(self.cells)
@@ -93,44 +123,57 @@ class Space:
 
     def _finish(self, comm):
         """What every space computes once its nodes are known: the local-to-global map, the bounding box,
-        the output's gather plan (input node order on rank 0), whether local and global vectors coincide (one
-        rank, the same order: System.residual uses it)."""
+        whether local and global vectors coincide (one rank, the same order: System.residual uses it), the
+        partition's quality on several ranks (its start-up line)."""
         self.n_owned = int(self.owned.sum())
         self.lgmap = self.dm.getLGMap()
         self.bbox = self._bounding_box()
-        ids = self.orig[self.owned]
-        self._counts = self.mpi.gather(len(ids), root=0)
-        allids = self.mpi.gather(ids, root=0)
-        self._gorder = np.concatenate(allids) if self.mpi.rank == 0 else None
+        self._gorder = self._corder_gather = None       # the output's gather plan (rank 0), built at first use
         self.lvid_of_owned = np.flatnonzero(self.owned)
         g = self.lgmap.getIndices()
         self.local_is_global = bool(comm.getSize() == 1 and len(g) == 3 * self.nlv
                                     and (g == np.arange(3 * self.nlv)).all())
+        self.partition_line = None
+        if comm.getSize() > 1:
+            q = partition.quality(self.mpi, self.cells, self._boundary_faces)
+            self.partition_quality = q
+            self.partition_line = partition.describe(self.partitioner, q, comm.getSize())
+
+    def _gather_plan(self):
+        """(input index of every owned node, input index of every cell) in the ranks' order, on rank 0 (None
+        elsewhere): where the gathered pieces go (collective; built once, at the output's first gather)."""
+        if self._gorder is None:
+            ids = self.mpi.gather(self.orig[self.owned], root=0)
+            cids = self.mpi.gather(self.cell_orig, root=0)
+            if self.mpi.rank == 0:
+                self._gorder, self._corder_gather = np.concatenate(ids), np.concatenate(cids)
+            else:
+                self._gorder = self._corder_gather = False      # (built: nothing to hold here)
+        return self._gorder, self._corder_gather
 
     def _distribute(self, points, tets, labels):
-        """The serial DMPlex of the spatially ordered mesh (rank 0) with its labels, distributed with
-        the `simple` partitioner; returns (vertex permutation of the ordering on rank 0, migration SF
-        or None). -dm_view shows the distributed DMPlex and its labels."""
+        """The serial DMPlex of the spatially ordered mesh (rank 0) with its labels, distributed by the
+        run's partitioner; returns (the input index of each serial point on rank 0: cells first, then
+        vertices; the migration SF or None). -dm_view shows the distributed DMPlex and its labels."""
         comm = self.comm
         if comm.getRank() == 0:
             p, t, vperm, corder = spatial_order(points, tets)
             nv_total, nc_total = len(p), len(t)
+            serial_input = np.concatenate([corder, vperm]).astype(np.int64)
         else:
             p, t = np.zeros((0, 3)), np.zeros((0, 4), np.int64)
-            vperm = corder = None
+            serial_input = np.zeros(0, np.int64)
             nv_total = nc_total = 0
         self.nv_total, self.nc_total = self.mpi.bcast((nv_total, nc_total), root=0)
         dm = PETSc.DMPlex().createFromCellList(3, t.astype(PETSc.IntType), p, interpolate=False, comm=comm)
         if comm.getRank() == 0 and labels:
             self._set_labels(dm, labels, corder, vperm)
         self.label_names = self.mpi.bcast(list(labels) if comm.getRank() == 0 else None, root=0)
-        self._corder = corder
-        part = dm.getPartitioner()
-        part.setType(PETSc.Partitioner.Type.SIMPLE)
+        partition.apply(dm, self.partitioner, t, comm.getSize())
         sf = dm.distribute(overlap=0) if comm.getSize() > 1 else None
         self.dm = dm
         dm.viewFromOptions("-dm_view")
-        return vperm, sf
+        return serial_input, sf
 
     @staticmethod
     def _set_labels(dm, labels, corder, vperm):
@@ -153,26 +196,14 @@ class Space:
         self.dm.setLocalSection(sec)
         return sec
 
-    def _input_indices(self, lvid, vStart, vEnd, vperm, sf):
-        """The input-mesh index of each local vertex (through the migration SF on several ranks)."""
+    def _input_indices(self, lvid, vStart, vEnd, serial_input, sf):
+        """The input-mesh index of each local vertex, and of each local cell (cell_orig), pulled from the serial
+        DM's points through the migration SF on several ranks."""
         cStart, cEnd = self.dm.getHeightStratum(0)
-        if sf is None:
-            serial_vertex = np.arange(vStart, vEnd) - vStart
-            serial_cell = np.arange(cStart, cEnd)
-        else:
-            nroots, ilocal, iremote = sf.getGraph()
-            leaves = np.arange(len(iremote)) if ilocal is None else np.asarray(ilocal)
-            orig_point = np.full(self.dm.getChart()[1], -1, np.int64)
-            orig_point[leaves] = np.asarray(iremote).reshape(-1, 2)[:, 1]
-            serial_vertex = orig_point[vStart:vEnd] - self.nc_total  # serial DM: cells first, then vertices
-            serial_cell = orig_point[cStart:cEnd]
-        corder = self.mpi.bcast(self._corder, root=0)
-        self.cell_orig = np.asarray(corder, np.int64)[serial_cell]     # input-mesh index of each local cell
-        cids = self.mpi.gather(self.cell_orig, root=0)
-        self._corder_gather = np.concatenate(cids) if self.mpi.rank == 0 else None
-        vperm = self.mpi.bcast(vperm, root=0)
+        local = pull(sf, serial_input, self.dm.getChart()[1])
+        self.cell_orig = local[cStart:cEnd].copy()                  # input-mesh index of each local cell
         orig = np.empty(self.nlv, np.int64)
-        orig[lvid] = vperm[serial_vertex]
+        orig[lvid] = local[vStart:vEnd]
         return orig
 
     def _ownership(self, lvid, vStart, vEnd):
@@ -219,37 +250,48 @@ class Space:
         return local_array.reshape(-1, 3)[self.lvid_of_owned].reshape(-1)
 
     def scatter(self, full):
-        """Local array (nlv*3) from an (nv, 3) array in the input vertex order given on rank 0."""
-        full = self.mpi.bcast(full if self.mpi.rank == 0 else None, root=0)
-        return np.ascontiguousarray(np.asarray(full, np.float64)[self.orig]).reshape(-1)
+        """Local array (nlv*3, or nlv of a scalar) from an (nv, 3) or (nv,) array in the input node order given on
+        rank 0 (ignored elsewhere): rank 0 sends each rank the rows of its local nodes, asked for by input index
+        (no other rank holds the whole array)."""
+        if self.mpi.size == 1:
+            return np.ascontiguousarray(np.asarray(full, np.float64)[self.orig]).reshape(-1)
+        want = self.mpi.gather(self.orig, root=0)
+        rows = None
+        if self.mpi.rank == 0:
+            full = np.asarray(full, np.float64)
+            rows = [full[w] for w in want]
+        return np.ascontiguousarray(self.mpi.scatter(rows, root=0)).reshape(-1)
 
     def gather(self, local_array):
         """(nv, 3) array in the input mesh's vertex order on rank 0; None elsewhere."""
+        self._gather_plan()
         mine = np.ascontiguousarray(local_array.reshape(-1, 3)[self.owned])
         parts = self.mpi.gather(mine, root=0)
         if self.mpi.rank != 0:
             return None
         out = np.empty((self.nv_total, 3))
-        out[self._gorder] = np.concatenate(parts)
+        out[self._gather_plan()[0]] = np.concatenate(parts)
         return out
 
     def gather_nodal(self, local_array):
         """(nv,) array of a scalar per node in the input mesh's node order on rank 0; None elsewhere."""
+        self._gather_plan()
         parts = self.mpi.gather(np.ascontiguousarray(local_array[self.owned]), root=0)
         if self.mpi.rank != 0:
             return None
         out = np.empty(self.nv_total)
-        out[self._gorder] = np.concatenate(parts)
+        out[self._gather_plan()[0]] = np.concatenate(parts)
         return out
 
     def gather_cells(self, local_array):
         """(nc_total, ...) array of per-cell values in the input mesh's cell order on rank 0; None elsewhere."""
+        self._gather_plan()
         parts = self.mpi.gather(np.ascontiguousarray(local_array), root=0)
         if self.mpi.rank != 0:
             return None
         cat = np.concatenate(parts)
         out = np.empty_like(cat)
-        out[self._corder_gather] = cat
+        out[self._gather_plan()[1]] = cat
         return out
 
     # --- labelled sets -------------------------------------------------------------------------
@@ -317,13 +359,15 @@ class QuadraticSpace(Space):
     position and `orig` its index among the input mesh's points (mesh.nodes: a quadratic mesh's nodes, or
     a linear mesh's with a node at every edge midpoint, mesh.elevate)."""
 
-    def __init__(self, comm, element, points=None, tets=None, labels=None, nodes=None):
+    def __init__(self, comm, element, points=None, tets=None, labels=None, nodes=None, partitioner=partition.DEFAULT,
+                 boundary_faces=None):
         """element: the run's (order 2, its stiffness rule); points, tets (corners), nodes (nc, 10): the checked
         quadratic input mesh on rank 0; labels as Space's, the sets' nodes ("vertices" kind) being vertices and
-        edge nodes."""
+        edge nodes; partitioner, boundary_faces as Space's."""
         self.element = element
         self.comm = comm
         self.mpi = comm.tompi4py()
+        self.partitioner, self._boundary_faces = partitioner, boundary_faces
         serial = self._distribute_quadratic(points, tets, nodes, labels or {})
         dm = self.dm
         cf, fe, ev = plex_cones(dm)
@@ -335,16 +379,14 @@ class QuadraticSpace(Space):
         node_of_point[v0:v1] = np.arange(nv)
         node_of_point[e0:e1] = nv + np.arange(ne)
         self._node_of_point, self._cStart = node_of_point, c0
-        orig_point = self._serial_points(serial["sf"])
-        self.orig = np.empty(self.nlv, np.int64)
-        self.orig[:nv] = serial["vertex_input"][orig_point[v0:v1] - serial["v0"]]
-        self.orig[nv:] = serial["edge_node"][orig_point[e0:e1] - serial["e0"]]
-        self.cell_orig = serial["corder"][orig_point[c0:c1]]
-        self.X = serial["points"][self.orig]
+        n = dm.getChart()[1]
+        local = pull(serial["sf"], serial["input"], n)                    # each point's input index ...
+        X = pull(serial["sf"], serial["position"], n, width=3)             # ... and its node's position
+        self.orig = np.concatenate([local[v0:v1], local[e0:e1]])
+        self.cell_orig = local[c0:c1].copy()
+        self.X = np.concatenate([X[v0:v1], X[e0:e1]])
         self.cells = self._cell_nodes(cf - f0, fe - e0, ev - v0, node_of_point[v0:v1], nv)
         self.nc = len(self.cells)
-        cids = self.mpi.gather(self.cell_orig, root=0)
-        self._corder_gather = np.concatenate(cids) if self.mpi.rank == 0 else None
         self.owned = np.ones(self.nlv, bool)
         _, ilocal, _ = dm.getPointSF().getGraph()
         if ilocal is not None and len(ilocal):
@@ -360,31 +402,37 @@ class QuadraticSpace(Space):
 
     def _distribute_quadratic(self, points, tets, nodes, labels):
         """The serial interpolated DMPlex of the spatially ordered corners (rank 0), its labels (facet sets'
-        nodes: vertices and edges), distributed with the `simple` partitioner; returns what every rank
-        needs to find the input node of its points: the serial vertices' and edges' input points, the
-        serial strata, the cell order, the input points, the migration SF."""
+        nodes: vertices and edges), distributed by the run's partitioner; returns, on rank 0, the input index
+        ("input": cells, vertices and edges their input cell and node, faces -1) and the node position
+        ("position") of every serial point, for `pull`, and the migration SF (every rank)."""
         comm, rank0 = self.comm, self.comm.getRank() == 0
-        out = {}
+        out = {"input": np.zeros(0, np.int64), "position": np.zeros((0, 3))}
         if rank0:
             used, compact = np.unique(tets, return_inverse=True)
             p, t, vperm, corder = spatial_order(points[used], compact.reshape(tets.shape))
-            out.update(vertex_input=used[vperm], corder=corder, points=np.asarray(points, float))
         else:
             p, t = np.zeros((0, 3)), np.zeros((0, 4), np.int64)
         dm = PETSc.DMPlex().createFromCellList(3, t.astype(PETSc.IntType), p, interpolate=True, comm=comm)
+        totals = None
         if rank0:
             _, _, ev = plex_cones(dm)
-            (v0, _), (e0, _) = dm.getDepthStratum(0), dm.getDepthStratum(1)
-            ends = out["vertex_input"][ev - v0]                                   # (ne, 2) input points
-            out.update(v0=v0, e0=e0, edge_node=edge_nodes(nodes, ends, len(points)))
+            (v0, v1), (e0, e1) = dm.getDepthStratum(0), dm.getDepthStratum(1)
+            vertex_input = used[vperm]
+            edge_node = edge_nodes(nodes, vertex_input[ev - v0], len(points))
+            point_input = np.full(dm.getChart()[1], -1, np.int64)
+            point_input[:len(corder)] = corder                              # cells come first in the chart
+            point_input[v0:v1], point_input[e0:e1] = vertex_input, edge_node
+            position = np.zeros((len(point_input), 3))
+            position[v0:v1], position[e0:e1] = points[vertex_input], points[edge_node]
+            out.update(input=point_input, position=position)
             point_of_input = np.full(len(points), -1, np.int64)
-            point_of_input[out["vertex_input"]] = v0 + np.arange(len(out["vertex_input"]))
-            point_of_input[out["edge_node"]] = e0 + np.arange(len(ends))
+            point_of_input[vertex_input] = np.arange(v0, v1)
+            point_of_input[edge_node] = np.arange(e0, e1)
             set_labels(dm, labels, corder, point_of_input)
-        out = self.mpi.bcast(out if rank0 else None, root=0)
-        self.nv_total, self.nc_total = len(out["points"]), len(out["corder"])
+            totals = (len(points), len(corder))
+        self.nv_total, self.nc_total = self.mpi.bcast(totals, root=0)
         self.label_names = self.mpi.bcast(list(labels) if rank0 else None, root=0)
-        dm.getPartitioner().setType(PETSc.Partitioner.Type.SIMPLE)
+        partition.apply(dm, self.partitioner, t, comm.getSize())
         out["sf"] = dm.distribute(overlap=0) if comm.getSize() > 1 else None
         self.dm = dm
         dm.viewFromOptions("-dm_view")
@@ -407,17 +455,6 @@ class QuadraticSpace(Space):
                 if sec.getOffset(pt) != 3 * node:
                     raise RuntimeError("the node section's offsets do not follow the chart")
         return sec
-
-    def _serial_points(self, sf):
-        """The serial DM's point of each local point (the migration SF's roots; itself on one rank)."""
-        n = self.dm.getChart()[1]
-        if sf is None:
-            return np.arange(n)
-        _, ilocal, iremote = sf.getGraph()
-        leaves = np.arange(len(iremote)) if ilocal is None else np.asarray(ilocal)
-        orig_point = np.full(n, -1, np.int64)
-        orig_point[leaves] = np.asarray(iremote).reshape(-1, 2)[:, 1]
-        return orig_point
 
     def _cell_nodes(self, cf, fe, ev, vnode, nv):
         """(nc, 10) nodes of each cell: its 4 vertices by ascending input index, then its edges in

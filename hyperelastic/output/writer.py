@@ -129,6 +129,8 @@ def run_attributes(model, scene_file, solver):
             "mesh": os.path.abspath(sc.mesh) if sc.mesh else f"bar level {sc.level}",
             "vertices_per_rank": np.array(space.mpi.allgather(space.nlv)),
             "cells_per_rank": np.array(space.mpi.allgather(space.nc)),
+            "partitioner": space.partitioner,
+            "partition": json.dumps(getattr(space, "partition_quality", {})),
             "mass_matrix_builds": built.get("inertia", 0),
             "sets": json.dumps([{k: v for k, v in s.items() if k != "line"} for s in model.sets])}
 
