@@ -59,6 +59,29 @@ def test_mesh_command_keeps_physical_groups(parts, tmp_path):
     assert not list(tmp_path.glob("b*"))
 
 
+def test_mesh_keeps_a_graded_geometry_with_graded(tmp_path):
+    """A geometry's own size field (examples/graded_cube.geo: 0.04 at a corner, 0.3 away from it) is kept with
+    --graded, --size the largest edge; without it every edge is --size and a note says the field was overridden;
+    uniform refinement keeps the grading (8x the tets)."""
+    import meshio
+    geo = f"{ROOT}/examples/graded_cube.geo"
+    flat = run_ok(["mesh", geo, "--size", 0.3, "-o", tmp_path / "u.msh"])
+    assert "declares its own mesh sizes" in flat.stdout and "--graded" in flat.stdout
+    graded = run_ok(["mesh", geo, "--size", 0.3, "--graded", "--refine", 1, "-o", tmp_path / "g.msh"])
+    assert "declares" not in graded.stdout
+
+    def edges(path):
+        m = meshio.read(path)
+        t = np.concatenate([c.data for c in m.cells if c.type == "tetra"])
+        e = m.points[t[:, [0, 0, 0, 1, 1, 2]]] - m.points[t[:, [1, 2, 3, 2, 3, 3]]]
+        return len(t), np.linalg.norm(e, axis=2)
+    (nu, eu), (ng, eg), (n1, _) = edges(tmp_path / "u.msh"), edges(tmp_path / "g.msh"), edges(tmp_path / "g_r1.msh")
+    assert eu.min() > 0.15 and eg.min() < 0.06 and eg.max() < 0.3 * 1.6, (eu.min(), eg.min(), eg.max())
+    assert ng > 2 * nu and n1 == 8 * ng
+    one_line_error(hyperelastic(["mesh", geo, "--level", 2, "--graded", "-o", tmp_path / "x.msh"]), "--graded",
+                   "--size")
+
+
 def test_second_order_meshes(tmp_path):
     """`hyperelastic mesh --order 2`: 10-node tetrahedra with the physical groups on their 6-node triangles, run
     as quadratic cells (the set report's areas and volumes are the curved ones); a gmsh order-2 mesh without any

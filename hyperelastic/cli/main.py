@@ -210,18 +210,27 @@ def mesh_cmd(argv):
     ap.add_argument("--size", type=float, help="target edge length instead of a level")
     ap.add_argument("--refine", type=int, default=0, help="also write N uniformly refined meshes OUT_r1 .. OUT_rN")
     ap.add_argument("--order", type=int, default=1, help="2: 10-node tetrahedra, edge nodes on curved geometry")
+    ap.add_argument("--graded", action="store_true", help="keep the geometry's own mesh sizes (its size fields, its "
+                    "points' lengths), --size being the largest edge (without it every edge is --size)")
     ap.add_argument("-o", "--output", required=True, help="output .msh file")
     a = ap.parse_args(argv)
     if (a.level is None) == (a.size is None):
         raise UserError("hyperelastic mesh: give exactly one of --level N or --size H")
     if a.refine < 0:
         raise UserError(f"hyperelastic mesh: --refine {a.refine} must be >= 0")
-    st = generate(a.geometry, a.level, a.output, a.size, a.refine, a.order)
+    if a.graded and a.size is None:
+        raise UserError("hyperelastic mesh: --graded keeps the geometry's sizes up to --size H: give --size")
+    st = generate(a.geometry, a.level, a.output, a.size, a.refine, a.order, a.graded)
     for s in (st if a.refine else [st]):
         nodes = f" ({s['nodes']} nodes of 10-node tets)" if s["order"] == 2 else ""
         print(f"{s['file']}: level {a.level or '-'} target edge {s['target_size']:.4g}: {s['vertices']} vertices"
               f"{nodes}, {s['tets']} tets, min edge {s['min_edge']:.4g}")
     first = st[0] if a.refine else st
+    if first["flattened"]:
+        print(f"note: the geometry declares its own mesh sizes (a background field); every edge was made {a.size:g} "
+              f"(give --graded to keep its sizes, at most {a.size:g})" if a.size else
+              "note: the geometry declares its own mesh sizes (a background field); the level's edge length "
+              "overrode them (give --size H --graded to keep them)")
     if first["auto_named"]:
         print("the geometry has no physical groups: each surface and volume is named by its tag; pick surfaces "
               "by these names (-fix surface_3) or by geometry (-fix x=0, box=..., normal=+z)")

@@ -47,9 +47,12 @@ def geometry_file(name):
     return geo
 
 
-def generate(name, level, out, size=None, refine=0, order=1):
+def generate(name, level, out, size=None, refine=0, order=1, graded=False):
     """Mesh a geometry (meshes/<name>.geo, or a user's .geo/.step file) with gmsh at the target edge
     length of `level` (or `size` when given), keeping its physical groups; returns its statistics.
+    graded: the geometry's own sizes (its background field, its points' characteristic lengths) are kept, `size`
+    being the largest edge (gmsh's Mesh.MeshSizeMax); otherwise every edge is `size` (MeshSizeMin = Max), and
+    the statistics' `flattened` says whether the geometry declared a size field that this overrode.
     With refine = N, also N uniformly refined meshes (each tet split into 8), OUT_r1.msh ... OUT_rN.msh,
     and returns a list of statistics. order 2: 10-node tetrahedra (and 6-node triangles), their edge nodes
     placed on the geometry where it is curved (gmsh's high-order meshing). Every mesh is written to a temporary
@@ -66,7 +69,7 @@ def generate(name, level, out, size=None, refine=0, order=1):
     gmsh.initialize(["gmsh", "-v", "0"], readConfigFiles=False)
     tmps = []
     try:
-        auto_named = _mesh(gmsh, name, geo, size, refine)
+        auto_named, flattened = _mesh(gmsh, name, geo, size, refine, graded)
         for i, o in enumerate(outs):
             if i:
                 if order > 1:
@@ -91,6 +94,7 @@ def generate(name, level, out, size=None, refine=0, order=1):
         stats.append(describe(m.points, m.tets) | {"level": level, "target_size": size / 2 ** i, "file": o,
                                                    "vertices": len(np.unique(m.tets)), "nodes": len(m.points),
                                                    "order": m.order, "auto_named": auto_named,
+                                                   "graded": graded, "flattened": flattened,
                                                    "surfaces": surface_rows(m) if i == 0 else []})
     return stats if refine else stats[0]
 
@@ -105,9 +109,10 @@ def _outputs(out, refine):
     return outs
 
 
-def _mesh(gmsh, name, geo, size, refine):
-    """Open the geometry in gmsh and mesh its volumes at edge length `size`; returns whether its surfaces and
-    volumes were named by their tags (_name_entities)."""
+def _mesh(gmsh, name, geo, size, refine, graded=False):
+    """Open the geometry in gmsh and mesh its volumes at edge length `size` (graded: the geometry's own sizes, at
+    most `size`); returns (whether its surfaces and volumes were named by their tags (_name_entities), whether
+    a size field of the geometry was overridden by the uniform size)."""
     gmsh.option.setNumber("General.Terminal", 0)
     gmsh.option.setNumber("General.NumThreads", 1)
     try:
@@ -116,8 +121,10 @@ def _mesh(gmsh, name, geo, size, refine):
         raise UserError(f"geometry '{name}': gmsh cannot read it ({str(e).strip()[:200]})") from None
     _check_size(gmsh, name, size, refine)
     auto_named = _name_entities()
-    for key, value in (("MeshSizeMin", size), ("MeshSizeMax", size), ("MeshSizeExtendFromBoundary", 0),
-                       ("Algorithm3D", 1), ("ElementOrder", 1), ("MshFileVersion", 4.1), ("SaveAll", 0)):
+    fields = len(gmsh.model.mesh.field.list()) > 0
+    sizes = (("MeshSizeMax", size),) if graded else (("MeshSizeMin", size), ("MeshSizeMax", size),
+                                                      ("MeshSizeExtendFromBoundary", 0))
+    for key, value in sizes + (("Algorithm3D", 1), ("ElementOrder", 1), ("MshFileVersion", 4.1), ("SaveAll", 0)):
         gmsh.option.setNumber(f"Mesh.{key}", value)
     try:
         gmsh.model.mesh.generate(3)
@@ -126,7 +133,7 @@ def _mesh(gmsh, name, geo, size, refine):
     if not len(gmsh.model.mesh.getElementTypes(3)):
         raise UserError(f"geometry '{name}': gmsh made no tetrahedra (a 2-D geometry, or surfaces that do not "
                         "close a volume)")
-    return auto_named
+    return auto_named, fields and not graded
 
 
 def _read_back(outs, tmps, size):

@@ -61,6 +61,8 @@ def _parser():
     ap.add_argument("--scene", help="refinement --part: the scene (options file) to run on each mesh")
     ap.add_argument("--size", type=float, help="refinement --part: edge length of the coarsest mesh")
     ap.add_argument("--refine", type=int, default=2, help="refinement --part: uniform refinements (default 2)")
+    ap.add_argument("--graded", action="store_true", help="refinement --part, price: keep the part's own mesh sizes "
+                    "(its size fields), --size the largest edge; the refinements split every tet (the grading stays)")
     ap.add_argument("--watch", default="max_displacement", help=f"refinement --part, price: the quantity: {HELP}")
     ap.add_argument("--run-args", default="", help="refinement --part: more options for every run (quoted)")
     ap.add_argument("--order", default=None, help="refinement --part: element orders, e.g. 1,2 (default 1); price: "
@@ -134,7 +136,7 @@ def main(argv):
         return _price(a, out, command, t0)
     elif a.part is not None:
         rows = part.part_refinement(a.part, a.scene, a.watch, a.size, a.refine, out, a.jobs,
-                                    shlex.split(a.run_args), log=log, orders=a.orders)
+                                    shlex.split(a.run_args), log=log, orders=a.orders, graded=a.graded)
         part.part_report(rows, out, command, a.part, a.scene, a.watch)
         print(os.path.join(out, "refinement.md"))
     else:
@@ -153,7 +155,7 @@ def _price(a, out, command, t0):
         print(f"[{time.perf_counter() - t0:6.1f} s] run {r['run']} {r['setting'].label()} ({r['why']}) "
               f"{r['outcome']}{extra}", file=sys.stderr, flush=True)
     s = Search(a.part, a.scene, a.watch, a.target, a.size, out, a.orders, shlex.split(a.run_args), a.budget,
-               a.max_runs, a.max_level, log=log)
+               a.max_runs, a.max_level, log=log, graded=a.graded)
     try:
         s.search()
     except UserError:

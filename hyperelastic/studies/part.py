@@ -20,16 +20,17 @@ from .measure import read_cost, slope
 from ..output.watch import parse_watch, watched
 
 
-def meshes(part, size, refine, out_dir):
-    """[(level, .msh path, tets, target h)] of the part at size and its N uniform refinements."""
+def meshes(part, size, refine, out_dir, graded=False):
+    """[(level, .msh path, tets, target h)] of the part at size (graded: its own sizes, at most size) and its N
+    uniform refinements."""
     path = os.path.join(out_dir, os.path.splitext(os.path.basename(part))[0] + ".msh")
-    st = generate(part, None, path, size, refine)
+    st = generate(part, None, path, size, refine, graded=graded)
     st = st if refine else [st]
     return [(i, s["file"], s["tets"], size / 2 ** i) for i, s in enumerate(st)]
 
 
 def part_refinement(part, scene, watch, size, refine, out_dir, jobs=1, run_args=(), parallel_from=20000, log=None,
-                    orders=(1,)):
+                    orders=(1,), graded=False):
     """Rows, one per mesh and element order: tets, h, the watched quantity, its change against the finest
     mesh of that order, the run's cost; plus (in each row) the fitted order and the Richardson limit."""
     w = parse_watch(watch)
@@ -39,7 +40,7 @@ def part_refinement(part, scene, watch, size, refine, out_dir, jobs=1, run_args=
         raise UserError(f"--scene '{scene}': no such file")
     d = os.path.join(out_dir, "runs")
     os.makedirs(d, exist_ok=True)
-    levels = [(o,) + lv for o in orders for lv in meshes(part, size, refine, d)]
+    levels = [(o,) + lv for o in orders for lv in meshes(part, size, refine, d, graded)]
 
     def one(level):
         o, i, msh, tets, h = level

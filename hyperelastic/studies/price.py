@@ -104,7 +104,7 @@ class Search:
     """The runs of one price study, the error and cost models they make, and the search's steps."""
 
     def __init__(self, part, scene, watch, target, size, out_dir, orders=(1, 2), run_args=(), budget=600.0,
-                 max_runs=40, max_level=5, max_tets=3e6, log=None):
+                 max_runs=40, max_level=5, max_tets=3e6, log=None, graded=False):
         if not os.path.isfile(scene):
             raise UserError(f"--scene '{scene}': no such file")
         if not (target > 0 and math.isfinite(target)):
@@ -112,6 +112,7 @@ class Search:
         self.part, self.scene, self.w, self.target, self.size = part, scene, parse_watch(watch), target, size
         self.out, self.orders, self.run_args = out_dir, tuple(orders), list(run_args)
         self.budget, self.max_runs, self.max_level, self.max_tets, self.log = budget, max_runs, max_level, max_tets, log
+        self.graded = graded       # the part's own mesh sizes kept (mesh --graded), refined uniformly
         self.dynamic, self.integrator0, self.dt0 = scene_facts(scene, self.run_args)
         self.fps = 1.0 / self.dt0       # frames at the multiples of the scene's step in every run (@T, @max)
         self.integrators = tuple(INTEGRATORS) if self.dynamic else ("beuler",)
@@ -126,7 +127,7 @@ class Search:
         """The .msh of the part at `level` for `order` (made on first use with its coarser levels)."""
         if (order, level) not in self.meshes:
             base = os.path.join(self.out, "runs", f"part_p{order}.msh")
-            st = generate(self.part, None, base, self.size, level, order)
+            st = generate(self.part, None, base, self.size, level, order, self.graded)
             for i, s in enumerate(st if level else [st]):
                 self.meshes[(order, i)], self.tets[(order, i)] = s["file"], s["tets"]
         return self.meshes[(order, level)]

@@ -124,7 +124,8 @@ def price_report(search, out_dir, command):
          f"errors are relative to |{search.w.spec}| = {s['scale']:.6g}. Every run is in `price.csv` (failures "
          "with their message); `price.png` plots each run's estimated error against its solve time.", "",
          f"Command: `{command}`. Scene: `{search.scene}`" + (" (dynamic)" if search.dynamic else " (quasi-static)")
-         + f"; the scene's step {search.dt0:g} s; meshes: the part at --size {search.size:g}, refined uniformly.", ""]
+         + f"; the scene's step {search.dt0:g} s; meshes: the part at --size {search.size:g}"
+         + (" (its own sizes kept: --graded)" if search.graded else "") + ", refined uniformly.", ""]
     L += _models_lines(search, s)
     L += ["## Runs", "", "| # | why | setting | tets | quantity | est. error (space / time / solver) | meets | "
           "solve s | outcome |", "|" + "---|" * 9]
