@@ -711,7 +711,7 @@ def study_cases(rng):
 
 
 def contract_cases(rng):
-    """The contracts of the newer features (issues 48, 44): each refused with one line where it once ran into garbage,
+    """The contracts of the newer features (issues 48, 44, 49): each refused with one line where it once ran into garbage,
     an internal error or a misleading line."""
     part = ["study", "price", "--part", "part.geo", "--scene", "scene.opts", "--size", "0.5", "--target", "0.01",
             "-output_dir", "st"]
@@ -741,6 +741,10 @@ def contract_cases(rng):
                                              "-prescribe_uz", "-t*Z"], ("read as an option", "(-t*Z)"), None),
         ("partitioner_unknown", BEND + ["-partitioner", "scotch"], ("-partitioner", "morton, metis"), None),
         ("partitioner_not_built", BEND + ["-partitioner", "parmetis"], ("-partitioner", "built without it"), None),
+        ("pmg_on_p1", BEND + ["-pc_type", "mg"], ("-pc_type mg", "-order 2"), None),
+        ("pmg_levels", BEND + ["-order", "2", "-pc_type", "mg", "-pc_mg_levels", "3"], ("-pc_mg_levels 3",), None),
+        ("pmg_galerkin", BEND + ["-order", "2", "-pc_type", "mg", "-pc_mg_galerkin", "both"], ("-pc_mg_galerkin",),
+         None),
     ]
     return [Case(f"contract:{n}", "contracts", a, setup=setup, words=w) for n, a, w, setup in C]
 

@@ -14,6 +14,8 @@ QUANTITY[:WHERE] is one of
   elastic_energy, total_energy  the run's statistics (elastic; energy_total: kinetic + elastic + potentials
                               - work of the loads)
   reaction:SURFACE            |F| of a held surface's reaction (reaction_x:SURFACE, _y, _z: a component)
+  moment:SURFACE[:X,Y,Z]      |M| of a held surface's reaction moment about the point X,Y,Z (default the origin;
+                              moment_x, _y, _z: a component), e.g. the torque on a twisted face: M_p = M_0 - p x F
 and WHEN is the last frame (default), @T (the frame at time T) or @max (the largest magnitude over the run's
 frames; for the energies over its accepted steps). SURFACE is a physical surface of the mesh (looked up in
 the run's .msh) or a geometric selector (x=V, box=..., normal=+z; sets.py). Reactions come from the run's
@@ -34,12 +36,14 @@ from ..core.files import completed_frames
 from ..mesh.read import interpolate, locate, read_mesh
 
 HELP = ("max_displacement[:SURFACE], point:X,Y,Z (|u| there), u_x:X,Y,Z / u_y / u_z, von_mises:X,Y,Z, "
-        "max_von_mises[:SURFACE], elastic_energy, total_energy, reaction:SURFACE / reaction_x / _y / _z; "
+        "max_von_mises[:SURFACE], elastic_energy, total_energy, reaction:SURFACE / reaction_x / _y / _z, "
+        "moment:SURFACE[:X,Y,Z] / moment_x / _y / _z (about X,Y,Z; default the origin); "
         "each may end in @T (at time T) or @max (its largest magnitude over the run)")
 COMPONENTS = {"x": 0, "y": 1, "z": 2}
 AT_POINT = ("point", "u_x", "u_y", "u_z", "von_mises")
 ON_SURFACE = ("max_displacement", "max_von_mises")          # the SURFACE optional
 REACTIONS = ("reaction", "reaction_x", "reaction_y", "reaction_z")
+MOMENTS = ("moment", "moment_x", "moment_y", "moment_z")
 ENERGIES = {"elastic_energy": "elastic", "total_energy": "energy_total"}
 
 
@@ -49,11 +53,13 @@ class Watch:
     kind: str            # QUANTITY
     where: object        # the material point (np.ndarray), the surface (str) or None
     when: object         # None (the last frame), a time (float) or "max"
+    about: object = None  # a moment's point (np.ndarray; None: the origin)
 
     @property
     def kind_of_error(self):
         """'energy' (converges as the energy norm's square), 'reaction' (likewise) or 'displacement'."""
-        return "energy" if self.kind in ENERGIES else "reaction" if self.kind in REACTIONS else "displacement"
+        return ("energy" if self.kind in ENERGIES else "reaction" if self.kind in REACTIONS + MOMENTS
+                else "displacement")
 
 
 def point3(text):
@@ -91,6 +97,14 @@ def parse_watch(spec):
         return Watch(spec, head, p, when)
     if head in REACTIONS and arg:
         return Watch(spec, head, arg, when)
+    if head in MOMENTS and arg:
+        surface, colon2, point = arg.partition(":")
+        about = point3(point) if colon2 else None
+        if colon2 and about is None:
+            raise UserError(f"--watch {spec}: {head}:SURFACE:X,Y,Z needs three finite coordinates after the surface")
+        if not surface:
+            raise UserError(f"--watch {spec}: {head} needs a held SURFACE")
+        return Watch(spec, head, surface, when, about)
     raise UserError(f"--watch {spec}: unknown quantity (choose from {HELP})")
 
 
@@ -152,7 +166,7 @@ def watched(path, w, mesh_path=None):
     with h5py.File(path, "r") as f:
         if w.kind in ENERGIES:
             return _energy(f, w)
-        if w.kind in REACTIONS:
+        if w.kind in REACTIONS + MOMENTS:
             return _reaction(f, w)
         n = completed_frames(f)
         if n == 0:
@@ -205,17 +219,20 @@ def _steps(st, w):
 
 
 def _reaction(f, w):
-    """A reaction at the end (the forces attribute) or, with @T/@max, from the statistics' force columns."""
+    """A reaction or its moment at the end (the forces attribute) or, with @T/@max, from the statistics' force
+    columns (forces.py records moments about the origin: about p, M_p = M_0 - p x F)."""
     if w.when is None:
         forces = json.loads(f.attrs["forces"])["forces"] if "forces" in f.attrs else []
-        held = {r["name"]: np.array(r["F"]) for r in forces if r["kind"] == "reaction"}
+        held = {r["name"]: (np.array(r["F"]), np.array(r["M"])) for r in forces if r["kind"] == "reaction"}
         vals = [held.get(w.where)]
     else:
         st = stats.read(f)
-        per = [{n: F for k, n, F, _ in stats.forces_of(st, i) if k == "reaction"} for i in _steps(st, w)]
+        per = [{n: (F, M) for k, n, F, M in stats.forces_of(st, i) if k == "reaction"} for i in _steps(st, w)]
         held = per[-1] if per else {}
         vals = [p.get(w.where) for p in per]
     if not held or w.where not in held:
         raise UserError(f"--watch {w.spec}: the scene holds no surface '{w.where}' (held: "
                         f"{', '.join(held) or 'none'})")
-    return _pick([np.linalg.norm(F) if w.kind == "reaction" else F[COMPONENTS[w.kind[-1]]] for F in vals], w)
+    p = np.zeros(3) if w.about is None else w.about
+    vec = [M - np.cross(p, F) if w.kind in MOMENTS else F for F, M in vals]
+    return _pick([np.linalg.norm(v) if w.kind in ("reaction", "moment") else v[COMPONENTS[w.kind[-1]]] for v in vec], w)

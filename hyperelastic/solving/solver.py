@@ -5,7 +5,7 @@ loads) + Jacobi (no PC under -snes_mf)."""
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from . import jacobians
+from . import jacobians, pmg
 from ..core.errors import UserError
 from ..core.libpetsc import lag_preconditioner, lag_preconditioner_persists, set_function_domain_error
 
@@ -88,10 +88,16 @@ class SolverPlan:
         return None if mf == "mf" else jacobians.make(system, jacobian, assembly, storage)
 
     def before_options(self, solver):
-        """Options the plan sets once the operator exists, before SNES reads the options database."""
+        """Options the plan sets once the operator exists, before SNES reads the options database: -pc_type mg on
+        quadratic tetrahedra gets the P2 -> P1 levels (pmg.py)."""
+        if solver.op is not None:
+            pmg.before_options(solver.system.space)
 
     def configure(self, solver):
-        """After SNES has read the options: the preconditioner's structure (the field split's fields)."""
+        """After SNES has read the options: the preconditioner's structure (the field split's fields; p-multigrid's
+        interpolation)."""
+        if solver.op is not None:
+            solver.levels = pmg.configure(solver.snes.getKSP().getPC(), solver.system.space)
 
     def reuse(self, solver, ptype):
         """-reuse_preconditioner auto: the reuse state where this run's set-up is worth keeping (GAMG), kept by
@@ -149,6 +155,7 @@ class Solver:
         if self.op is not None and own:
             snes.setJacobian(self._jacobian, self.op.operator, self.op.mat)
         self.inversion_cuts = 0   # Newton updates shortened so that no element inverts
+        self.levels = None        # p-multigrid's levels (pmg.py), where the run uses them
         self.guard = None
         if guard:
             self.guard = system.elastic_kernels()
@@ -179,7 +186,7 @@ class Solver:
         self.plan.defaults(self, objective)
 
     # preconditioner set-ups worth keeping across Newton iterations and time steps (multigrid hierarchies)
-    REUSED_PCS = ("gamg",)
+    REUSED_PCS = ("gamg", "mg")
     REBUILD_RATIO = 1.5
 
     def _setup_reuse(self, mode):
@@ -303,6 +310,8 @@ class Solver:
         self.ev_jac.begin()
         self.system.linearize(X)
         self.op.update()
+        if self.levels is not None and (self.reuse is None or self.reuse["pending"]):
+            self.levels.update(P)          # p-multigrid's coarse operator, where the PC is set up again
         if J.handle != self.op.operator.handle:
             J.assemble()   # MFFD operator (-snes_mf_operator): new base point
         self.ev_jac.end()

@@ -1,0 +1,138 @@
+"""p-multigrid for quadratic tetrahedra: `-pc_type mg` on an order-2 run (issue 49, item 1; options/pmg.opts).
+
+Two levels on the same mesh: the P2 space (fine) and the P1 space of its vertices (coarse). The interpolation P
+from P1 to P2 is exact and local: a vertex node takes its vertex's value, an edge node the mean of its edge's two
+ends (the P1 function's value there; on curved cells too, as the element is isoparametric: the reference
+coordinates of an edge node are its ends' mean). P is assembled once (block size 3, identity blocks), the
+coarse operator is the Galerkin product P^T A P (formed here, with the coarse rigid-body modes attached: PCMG's own
+-pc_mg_galerkin cannot attach them), the P2 level is smoothed
+(Chebyshev/Jacobi by default: options/pmg.opts) and the P1 level is solved by what -mg_coarse_* says (smoothed-
+aggregation GAMG, handed the coarse vertices' coordinates for its rigid-body modes). Ratel's and deal.II's
+matrix-free high-order solvers use the same hierarchy: p-coarsening to the linear element, then algebraic multigrid.
+
+Options the user gives win; this module only supplies what PCMG cannot know (the interpolation, the coarse
+operator with its near null space) and the levels' count where it is not given."""
+import numpy as np
+from petsc4py import PETSc
+
+from ..core.errors import UserError
+from ..element.reference import EDGES
+
+
+def applies(space):
+    """Whether the run can use the P2 -> P1 levels: quadratic tetrahedra."""
+    return space.element.order == 2
+
+
+def before_options(space):
+    """Where the options ask for -pc_type mg: on an order-2 run two levels (P2, P1), the coarse operator formed
+    here; on an order-1 run one clear line (there is no coarser element on the same mesh)."""
+    opts = PETSc.Options()
+    if opts.getString("pc_type", "") != "mg":
+        return
+    levels = opts.getInt("pc_mg_levels", 2)
+    if not applies(space):
+        if levels != 1:
+            raise UserError("option -pc_type mg: p-multigrid needs quadratic tetrahedra (-order 2: P2 smoothed, P1 "
+                            "solved); on linear ones use -pc_type gamg (options/gamg.opts)")
+        return
+    if levels != 2:
+        raise UserError(f"option -pc_mg_levels {levels}: p-multigrid has two levels on one mesh (P2 and P1); the "
+                        "coarser ones are GAMG's inside the P1 solve (-mg_coarse_pc_type gamg)")
+    if opts.getString("pc_mg_galerkin", "none") != "none":
+        raise UserError(f"option -pc_mg_galerkin {opts.getString('pc_mg_galerkin')}: p-multigrid forms the P1 "
+                        "operator itself (P^T A P with the rigid-body modes GAMG needs): leave it out")
+    opts.setValue("pc_mg_levels", "2")
+
+
+def coarse_numbers(space):
+    """(the owned vertex nodes (local ids), each local node's coarse (P1) global number, -1 for an edge node): the
+    owned vertices of each rank numbered consecutively in rank order, the ghosts' numbers from their owners (one
+    global-to-local scatter of the fine space)."""
+    vertex = np.zeros(space.nlv, bool)
+    vertex[np.unique(space.cells[:, :4])] = True
+    owned_v = np.flatnonzero(vertex & space.owned)
+    first = space.mpi.exscan(len(owned_v)) or 0
+    local = np.zeros(3 * space.nlv)
+    local[3 * owned_v] = first + np.arange(len(owned_v)) + 1.0          # (0: not a vertex)
+    g, lv = space.global_vec(), space.local_vec()
+    g.getArray()[:] = space.owned_array(local)
+    space.to_local(g, lv)
+    num = lv.getArray(readonly=True)[0::3].round().astype(np.int64) - 1
+    g.destroy()
+    lv.destroy()
+    return owned_v, num
+
+
+def prolongation(space):
+    """(P: the (3 n_P2) x (3 n_P1) interpolation, block size 3; the owned coarse vertices' coordinates in their
+    global order) on the space's mesh."""
+    owned_v, num = coarse_numbers(space)
+    n_fine, n_coarse = 3 * space.n_owned, 3 * len(owned_v)
+    fine_dof = space.lgmap.getIndices().reshape(-1, 3)[:, 0] // 3          # global node of each local node
+    rows_n, cols_n, vals = [], [], []
+    owned = space.owned
+    is_vertex = num >= 0
+    v_own = np.flatnonzero(owned & is_vertex)
+    rows_n.append(fine_dof[v_own])
+    cols_n.append(num[v_own])
+    vals.append(np.ones(len(v_own)))
+    cells = space.cells.astype(np.int64)
+    edge_nodes = cells[:, 4:].ravel()
+    ends = cells[:, np.asarray(EDGES)].reshape(-1, 2)
+    nodes, first = np.unique(edge_nodes, return_index=True)
+    keep = owned[nodes]
+    nodes, ends = nodes[keep], ends[first[keep]]
+    for j in (0, 1):
+        rows_n.append(fine_dof[nodes])
+        cols_n.append(num[ends[:, j]])
+        vals.append(np.full(len(nodes), 0.5))
+    rn, cn, w = (np.concatenate(a) for a in (rows_n, cols_n, vals))
+    if (cn < 0).any():
+        raise RuntimeError("p-multigrid: a node's coarse vertex has no number")
+    rows = (3 * rn[:, None] + np.arange(3)).ravel()
+    cols = (3 * cn[:, None] + np.arange(3)).ravel()
+    P = PETSc.Mat().create(comm=space.comm)
+    P.setSizes(((n_fine, PETSc.DETERMINE), (n_coarse, PETSc.DETERMINE)), bsize=3)
+    P.setType(PETSc.Mat.Type.AIJ)
+    P.setPreallocationCOO(rows.astype(PETSc.IntType), cols.astype(PETSc.IntType))
+    P.setValuesCOO(np.repeat(w, 3), addv=PETSc.InsertMode.INSERT_VALUES)
+    P.assemble()
+    order = np.argsort(num[owned_v])
+    coords = np.ascontiguousarray(space.X[owned_v[order]])
+    return P, coords
+
+
+class Levels:
+    """The two levels of a run's PCMG: the interpolation P and the coarse operator P^T B P of the fine
+    preconditioning matrix B, formed here so that it carries the coarse vertices' rigid-body modes as its near null
+    space (GAMG reads them from the matrix when it is set up; PCMG's own Galerkin product would carry none, and it
+    fails on an SBAIJ operator)."""
+
+    def __init__(self, pc, space):
+        self.P, coords = prolongation(space)
+        pc.setMGInterpolation(1, self.P)
+        self.coarse = pc.getMGCoarseSolve()
+        self.Ac = None
+        v = self.P.createVecs("right")
+        v.setBlockSize(3)
+        v.getArray()[:] = coords.ravel()
+        self.nullspace = PETSc.NullSpace().createRigidBody(v)
+        v.destroy()
+
+    def update(self, B):
+        """The coarse operator of the fine matrix B as it is now (at a Jacobian where the PC is set up again)."""
+        if self.Ac is None:
+            self.Ac = B.ptap(self.P)
+            self.Ac.setNearNullSpace(self.nullspace)
+        else:
+            B.ptap(self.P, result=self.Ac)
+        self.coarse.setOperators(self.Ac, self.Ac)
+
+
+def configure(pc, space):
+    """After the PC has read the options: where it is PCMG on an order-2 run, the Levels (the caller updates their
+    coarse operator at every Jacobian that sets the PC up); else None."""
+    if pc.getType() != "mg" or not applies(space):
+        return None
+    return Levels(pc, space)
