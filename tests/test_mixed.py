@@ -421,7 +421,8 @@ def test_auto_formulation_rule(cook8, tmp_path):
     """-formulation auto (the default): mixed for a nearly incompressible split material on quadratic tetrahedra (a
     note says so, the output records it), displacements alone for a compressible one, and for the paths the mixed
     formulation does not take, with a note saying why (linear tetrahedra lock; a material without a split); the
-    rubber preset is nearly incompressible."""
+    rubber preset is nearly incompressible; -formulation displacement named with a nearly incompressible material
+    notes what it gives up."""
     import h5py
     msh = cook8
     keep = [ln for ln in open(f"{ROOT}/examples/cook.opts").read().splitlines()
@@ -432,7 +433,11 @@ def test_auto_formulation_rule(cook8, tmp_path):
              (split + ["-kappa", 400889.8], 1, "displacement", "linear tetrahedra lock"),
              (["-material", "neohookean", "-E", 240.565, "-nu", 0.4999], 2, "displacement",
               "no isochoric/volumetric split"),
-             (["-material", "neohookean_split", "-preset", "rubber"], 2, "mixed", "nu = 0.4995")]
+             (["-material", "neohookean_split", "-preset", "rubber"], 2, "mixed", "nu = 0.4995"),
+             # -formulation displacement named: what it gives up, said once (issue 47, item 6)
+             (split + ["-kappa", 400889.8, "-formulation", "displacement"], 1, "displacement", "linear tetrahedra lock"),
+             (split + ["-kappa", 400889.8, "-formulation", "displacement"], 2, "displacement", "still stiffen"),
+             (split + ["-kappa", 173.75, "-formulation", "displacement"], 2, "displacement", None)]
     for k, (material, order, form, note) in enumerate(cases):
         scene, out = tmp_path / f"s{k}.opts", tmp_path / f"o{k}.h5"
         pairs = [f"{material[i]} {material[i + 1]}" for i in range(0, len(material), 2)]

@@ -17,7 +17,7 @@ def choose(problem):
         why = spec.refusal(problem)
         if why:
             raise UserError(why)
-        return spec, []
+        return spec, spec.notes(problem)
     notes = []
     for spec in sorted(REGISTRY, key=lambda f: f.auto_rank):
         take, note = spec.claims(problem)

@@ -34,6 +34,11 @@ class Formulation:
         """Why it cannot run the problem, one line naming the option (None: it can)."""
         return None
 
+    def notes(self, problem):
+        """What the start-up report says of this formulation where the user named it (-formulation NAME), one line
+        each: e.g. what it gives up on this problem."""
+        return []
+
     def claims(self, problem):
         """-formulation auto: (whether it takes the problem, a note for the start-up report or None)."""
         return True, None

@@ -219,6 +219,29 @@ def elevate(mesh):
     return out
 
 
+# boundary edges whose two facets meet at an angle in this range (degrees) look like a faceted curved surface
+# (a cylinder in 8 to 360 segments, a fillet); sharper ones are a part's own edges, flatter ones a plane's
+CURVED_ANGLES = (0.5, 40.0)
+
+
+def bent_edges(mesh):
+    """(boundary edges where the two boundary facets meet at an angle in CURVED_ANGLES, all boundary edges) of a
+    linear mesh: how much of its boundary is a faceted curved surface."""
+    tri = mesh.facets()
+    p = mesh.points
+    n = np.cross(p[tri[:, 1]] - p[tri[:, 0]], p[tri[:, 2]] - p[tri[:, 0]])
+    n /= np.maximum(np.linalg.norm(n, axis=1), 1e-300)[:, None]
+    edges = np.sort(np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]]), axis=1)
+    facet = np.tile(np.arange(len(tri)), 3)
+    order = np.lexsort(edges.T[::-1])
+    e, f = edges[order], facet[order]
+    pair = np.flatnonzero((e[1:] == e[:-1]).all(axis=1))
+    cos = np.clip((n[f[pair]] * n[f[pair + 1]]).sum(axis=1), -1.0, 1.0)
+    angle = np.degrees(np.arccos(cos))
+    lo, hi = CURVED_ANGLES
+    return int(((angle > lo) & (angle < hi)).sum()), len(pair)
+
+
 def corners(mesh):
     """The linear mesh of a quadratic one's corners (its edge nodes dropped, the vertices renumbered in their
     order)."""
