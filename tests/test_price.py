@@ -145,3 +145,19 @@ def test_price_stops_its_probes_at_the_budget(tmp_path):
     assert len(rows) == 1, rows
     text = open(os.path.join(out, "price.md")).read()
     assert "The search stopped early: --budget 0.5 s spent." in text, text.split("\n\n")[1]
+
+
+def test_price_leaves_linear_tetrahedra_that_lock(tmp_path):
+    """A nearly incompressible material (split Neo-Hookean, kappa/mu = 1000): the first P1 run's start-up note says
+    linear tetrahedra lock (the output records its notes), so the search runs P2 only from then on and its report
+    says why (issue 47: price spent its runs on P1, which locks on rubber)."""
+    out = tmp_path / "o"
+    args = STATIC.replace("-material stvk", "-material neohookean_split -mu 1e6 -kappa 1e9")
+    run_ok(["study", "price", *BAR, "--watch", "u_y:5,0,0", "--target", "0.05", "--run-args", args, "--max-runs",
+            "4", "-output_dir", out], timeout=600)
+    rows = read_csv(os.path.join(out, "price.csv"), {"order": int})
+    assert [r["order"] for r in rows].count(1) == 1 and rows[0]["order"] == 1, rows
+    text = open(os.path.join(out, "price.md")).read()
+    assert "was left" in text and "linear tetrahedra lock" in text, text.split("\n\n")[1]
+    with h5py.File(rows[0]["path"] if "path" in rows[0] else next((out / "runs").glob("p1_*.h5")), "r") as f:
+        assert "linear tetrahedra lock" in f.attrs["notes"]

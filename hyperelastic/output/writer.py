@@ -132,6 +132,7 @@ def run_attributes(model, scene_file, solver):
             "partitioner": space.partitioner,
             "partition": json.dumps(getattr(space, "partition_quality", {})),
             "mass_matrix_builds": built.get("inertia", 0),
+            "notes": "\n".join(list(model.notes or []) + list(solver.notes)),
             "sets": json.dumps([{k: v for k, v in s.items() if k != "line"} for s in model.sets])}
 
 

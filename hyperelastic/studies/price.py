@@ -120,6 +120,7 @@ class Search:
         self.solver = {o: None for o in orders}     # the linear solver kept per order (None: not tried yet)
         self.t0 = time.perf_counter()
         self.stopped = ""          # why the search stopped before its plan was done ("" : it was not)
+        self.skipped = {}          # {order: why the search left it} (linear tetrahedra that lock)
         os.makedirs(os.path.join(out_dir, "runs"), exist_ok=True)
 
     # ---- runs -------------------------------------------------------------------------------------------
@@ -160,11 +161,24 @@ class Search:
                             + row["message"].replace("hyperelastic: error: ", ""))
         if rc == 0:      # (a watch the run's output cannot give is the user's error: it ends the study)
             row["quantity"] = watched(path, self.w, self.meshes[(s.order, s.level)])
+            self._locking(s, path)
         self.rows.append(row)
         self.by_key.setdefault(s.key(), {})[s] = row
         if self.log:
             self.log(row)
         return row
+
+    def _locking(self, s, path):
+        """A finished run whose start-up notes say its linear tetrahedra lock (a nearly incompressible material):
+        the search leaves that order (refining a locking element buys little accuracy per second) where another
+        order is searched, and the report says why."""
+        if s.order != 1 or len(self.orders) < 2 or 1 in self.skipped:
+            return
+        notes = _attr(path, "notes")
+        line = next((ln for ln in notes.splitlines() if "linear tetrahedra lock" in ln), None)
+        if line:
+            self.skipped[1] = ("linear tetrahedra lock on this nearly incompressible material (its first run said: "
+                               f"{line.split(':')[0]}); order 2 only from then on")
 
     def elapsed(self):
         return time.perf_counter() - self.t0
@@ -330,6 +344,8 @@ class Search:
         for s, why in todo:
             if self.out_of_budget():
                 break
+            if s.order in self.skipped:
+                continue
             self.go(s, why)
         return {o: Setting(o, 1, 0, i0, 0) for o in self.orders}
 
@@ -359,7 +375,7 @@ class Search:
         for _ in range(4 * self.max_runs):
             m = self.models()
             best = self.best(m)
-            plans = {o: self.plan(o, m) for o in self.orders if o not in exhausted}
+            plans = {o: self.plan(o, m) for o in self.orders if o not in exhausted and o not in self.skipped}
             open_ = [(pl[0], o, pl[1]) for o, pl in plans.items() if pl and (best is None or pl[0] < best["solve_s"])
                      and (self.ok(pl[1]) is None or not self.confirmed(pl[1], m))]
             if len(self.rows) >= self.max_runs:
@@ -439,12 +455,17 @@ def _next_notch(points):
 
 
 def _formulation(path):
+    return _attr(path, "formulation") or "displacement"
+
+
+def _attr(path, name):
+    """A run's output attribute as text ("" where the file or the attribute is missing)."""
     import h5py
     try:
         with h5py.File(path, "r") as f:
-            return str(f.attrs.get("formulation", "displacement"))
+            return str(f.attrs.get(name, ""))
     except OSError:
-        return "displacement"
+        return ""
 
 
 class DimModel:

@@ -53,6 +53,7 @@ def _first_paragraph(search, s):
     b, w, tgt = s["best"], search.w.spec, search.target
     if b is None:
         why = f" The search stopped early: {search.stopped}." if search.stopped else ""
+        why += "".join(f" Order {o} was left: {w}." for o, w in search.skipped.items())
         done = sum(r["outcome"] == "finished" for r in search.rows)
         return (f"**No setting of the search met {tgt:.3g} (relative) in {w} within its limits (--budget "
                 f"{search.budget:g} s, --max-runs {search.max_runs}, --max-level {search.max_level}); the runs "
@@ -84,7 +85,9 @@ def _first_paragraph(search, s):
         tm = f" (time alone {parts[1] / s['scale']:.2g})" if search.dynamic and parts[1] is not None else ""
         words.append(f"The defaults ({d.label()} refined) meet it on no mesh within the limits{tm}.")
     for o, (how, x) in s["others"].items():
-        if how == "measured":
+        if o in search.skipped:
+            words.append(f"P{o} was left after its first run: {search.skipped[o]}.")
+        elif how == "measured":
             words.append(f"The cheapest P{o} setting that meets it, {x['setting'].label()}, costs "
                          f"{x['solve_s']:.3g} s: "
                          f"{x['solve_s'] / b['solve_s']:.3g}x.")
