@@ -72,6 +72,7 @@ def run_scene(scene_arg, options_files, restart=None, restart_path=None):
     else:
         integ = BackwardEuler(scene, model.system, solver, writer, model.x0, model.v0, checkpoint=restart,
                               quiet=quiet)
+    integ.run_notes = [n for n in attrs["notes"].splitlines() if n]     # the start-up's; the run's own follow
     forces = _integrate(integ, writer, comm, scene)
     if not quiet and comm.getRank() == 0:
         if forces:

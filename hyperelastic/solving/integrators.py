@@ -166,10 +166,14 @@ class Integrator:
         there the uninterrupted run restarts at the checkpoints too); t_end: the nominal step's end, where the
         checkpoint is written inside one."""
         self.solver.rebuild_preconditioner()     # where a restart begins: the same set-ups in both runs
-        self.writer.checkpoint(self.x, self.v, nodal=self.system.nodal_state(), t=self.t, step=self.step, n=n,
+        self.writer.checkpoint(self.x, self.carried_v(), nodal=self.system.nodal_state(), t=self.t, step=self.step, n=n,
                                h_try=self.h_try, streak=self.streak, rejections=self.rejections,
                                nframes=self.writer.nframes, nstats=self.writer.nstats, t_end=t_end,
                                regrow_wait=self.regrow_wait, regrown=int(self.regrown))
+
+    def carried_v(self):
+        """What a checkpoint stores as v: the velocities."""
+        return self.v
 
     def _resume(self, state):
         """Continue from a checkpoint (files.read_checkpoint): the same state, step control included."""
@@ -195,8 +199,19 @@ class BackwardEuler(Integrator):
         `writer` (None: nothing is written). The scene gives the time settings."""
         super().__init__(scene, system, solver, writer, x0, v0, quiet)
         self.X = system.unknown_vec()
+        # quasi-static: the last accepted step's rate dx/dt, the predictor of a step that moves prescribed nodes
+        # (_initial_guess); a checkpoint stores it in v (a quasi-static run has no velocities)
+        self.rate = np.zeros_like(x0)
         if checkpoint is not None:
             self._resume(checkpoint)
+
+    def carried_v(self):
+        return self.rate if self.scene.quasistatic else self.v
+
+    def _resume(self, state):
+        super()._resume(state)
+        if self.scene.quasistatic:
+            self.rate, self.v = self.v, np.zeros_like(self.v)
 
     def run(self):
         """Steps of the nominal size -dt; frames every round(1/(fps dt)) of them. With step control
@@ -321,6 +336,8 @@ class BackwardEuler(Integrator):
         if not self._energy_stats(x1, v1, stats):   # a NaN/Inf state never reaches the output
             stats["why"] = "non-finite positions or energies after a converged solve"
             return self._rejected(stats, w0)
+        if self.scene.quasistatic:
+            self.rate = (x1 - self.x) / h
         self.x, self.v, self.t = x1, v1, t1
         sysm.accept(self.X)
         self.step += 1
@@ -333,9 +350,16 @@ class BackwardEuler(Integrator):
         """Newton's start in self.X: the explicit predictor x^n + h v^n with the step's boundary
         positions. Where the material is undefined when inverted and that start inverts cells (fast
         prescribed ends outrunning their neighbours' predicted motion), the previous positions x^n
-        instead, if they do not (the residual there is defined, so Newton can start)."""
+        instead, if they do not (the residual there is defined, so Newton can start). A quasi-static step
+        that moves prescribed nodes starts from x^n + h r^n, r^n the last accepted step's rate (the interior carried
+        along with its boundary, as the last step moved it: the first iterate no longer puts the whole boundary
+        increment into the layer of cells beside it, issue 47); other quasi-static steps from x^n."""
         sysm = self.system
-        guesses = [self.x + h * self.v] if not self.scene.quasistatic and self.v.any() else []
+        # (every condition the same on every rank: defined_at is collective)
+        if self.scene.quasistatic:
+            guesses = [self.x + h * self.rate] if sysm.moves_prescribed(self.x) else []
+        else:
+            guesses = [self.x + h * self.v] if self.sp.mpi.allreduce(bool(self.v.any()), op=MPI.LOR) else []
         for guess in guesses + [self.x]:
             sysm.set_guess(self.X, guess)
             if not sysm.check_domain or guess is self.x or sysm.defined_at(self.X):
