@@ -29,6 +29,17 @@ def apply_defaults(merit="residual norm", symmetric=True):
         opts.setValue("snes_max_linear_solve_fail", opts.getString("snes_max_it"))
     if not opts.hasName("pc_type"):
         opts.setValue("pc_type", "none" if opts.getBool("snes_mf", False) else "jacobi")
+    for k in REPRODUCIBLE_VEC:
+        if not opts.hasName(k):
+            opts.setValue(k, "0")
+
+
+# PETSc's multiple dot products and updates (GMRES's Gram-Schmidt) through BLAS gemv group the vectors by whether
+# their arrays happen to lie next to each other in memory, so their sums' order, and a GMRES run's last bits, changed
+# with the heap's layout: the same mixed run differed by 1e-13 with the length of an unrelated environment variable,
+# and a restart was not bitwise (issue 47's promise). PETSc's own loops sum in one order; at 9k P2 tets (Cook's
+# membrane, GMRES(100) in the field split) the runs took the same time (farm-bench 0.98, within noise).
+REPRODUCIBLE_VEC = ("vec_mdot_use_gemv", "vec_maxpy_use_gemv")
 
 
 def resolve_storage(storage, system, jacobian, assembly, mf):
