@@ -13,12 +13,13 @@ import os
 import subprocess
 import sys
 import tempfile
-import time
 
 import h5py
-import numpy as np
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+sys.path.insert(0, ROOT)
+from hyperelastic.studies.experiments.runner import run_hyperelastic  # noqa: E402
+
 BIN = os.path.dirname(sys.executable)
 EX = os.path.join(ROOT, "examples")
 GAMG = ["-options_file", os.path.join(ROOT, "options", "gamg.opts")]
@@ -34,14 +35,9 @@ MESHES = {
 
 
 def run(args, nprocs, out):
-    cmd = [os.path.join(BIN, "hyperelastic"), "run"] + args + GAMG + ["-output", out, "-quiet"]
-    if nprocs > 1:
-        cmd = [os.path.join(BIN, "mpiexec"), "-n", str(nprocs)] + cmd
-    t0 = time.perf_counter()
-    p = subprocess.run(cmd, capture_output=True, text=True)
-    if p.returncode:
-        raise SystemExit(f"failed: {' '.join(cmd)}\n{p.stderr}")
-    wall = time.perf_counter() - t0
+    rc, err, wall = run_hyperelastic(["run"] + args + GAMG + ["-output", out, "-quiet"], out, nprocs)
+    if rc:
+        raise SystemExit(f"failed: run {' '.join(args)} on {nprocs} ranks\n{err}")
     with h5py.File(out, "r") as f:
         a = dict(f.attrs)
         s = {k: f["stats"][k][:] for k in ("newton_its", "ksp_its", "wall_s")}

@@ -8,29 +8,25 @@ Newton steps (-reuse_preconditioner auto) in every run.
 """
 import argparse
 import os
-import subprocess
 import sys
 import tempfile
-import time
 
 import h5py
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-BIN = os.path.dirname(sys.executable)
+sys.path.insert(0, ROOT)
+from hyperelastic.studies.experiments.runner import run_hyperelastic  # noqa: E402
+
 OPTS = {"gamg": os.path.join(ROOT, "options", "gamg.opts"), "pmg": os.path.join(ROOT, "options", "pmg.opts")}
 CASES = (("P1", "1", "gamg"), ("P2", "2", "gamg"), ("P2", "2", "pmg"))
 
 
 def run(level, order, pc, ranks, out):
-    cmd = [os.path.join(BIN, "hyperelastic"), "run", "bend2", "-quasistatic", "-dt", "0.5", "-material",
-           "neohookean", "-level", str(level), "-order", order, "-options_file", OPTS[pc], "-output", out, "-quiet"]
-    if ranks > 1:
-        cmd = [os.path.join(BIN, "mpiexec"), "-n", str(ranks)] + cmd
-    t0 = time.perf_counter()
-    p = subprocess.run(cmd, capture_output=True, text=True)
-    if p.returncode:
-        raise SystemExit(f"failed: {' '.join(cmd)}\n{p.stderr}")
-    wall = time.perf_counter() - t0
+    args = ["run", "bend2", "-quasistatic", "-dt", "0.5", "-material", "neohookean", "-level", str(level), "-order",
+            order, "-options_file", OPTS[pc], "-output", out, "-quiet"]
+    rc, err, wall = run_hyperelastic(args, out, ranks)
+    if rc:
+        raise SystemExit(f"failed: {' '.join(args)} on {ranks} ranks\n{err}")
     with h5py.File(out, "r") as f:
         s = {k: f["stats"][k][:] for k in ("newton_its", "ksp_its", "wall_s")}
         dofs, tets = 3 * f["mesh/points"].shape[0], f["mesh/tetra"].shape[0]

@@ -146,17 +146,19 @@ def test_watch_quantities_by_name(tmp_path, bracket_mesh):
         watched(out, parse_watch("max_displacement:nowhere"))
 
 
-def test_quasi_static_jacobi_that_runs_out_switches_to_gamg(tmp_path, bracket_mesh):
-    """The default CG + Jacobi runs out of iterations on a quasi-static step: the step is retried with GAMG (not
-    halved), a note says so (stderr and the output's notes), and the run ends where a run with GAMG from the
-    start does."""
-    base = ["run", f"{ROOT}/examples/bracket.opts", "-mesh", bracket_mesh, "-ksp_max_it", 60, "-objective", 0]
+@pytest.mark.parametrize("order,name,recipe", [(1, "GAMG", "gamg"), (2, "p-multigrid", "pmg")])
+def test_quasi_static_jacobi_that_runs_out_switches_to_multigrid(tmp_path, bracket_mesh, order, name, recipe):
+    """The default CG + Jacobi runs out of iterations on a quasi-static step: the step is retried with GAMG (on
+    quadratic tetrahedra p-multigrid; not halved), a note says so (stderr and the output's notes), and the run ends
+    where a run with that recipe from the start does."""
+    base = ["run", f"{ROOT}/examples/bracket.opts", "-mesh", bracket_mesh, "-ksp_max_it", 60, "-objective", 0,
+            "-order", order]
     p = run_ok([*base, "-output", tmp_path / "s.h5"])
-    assert "note: CG + Jacobi ran out of iterations (60) on a quasi-static step: retrying it with GAMG" in p.stderr
-    run_ok([*base, "-options_file", f"{ROOT}/options/gamg.opts", "-quiet", "-output", tmp_path / "g.h5"])
+    assert f"note: CG + Jacobi ran out of iterations (60) on a quasi-static step: retrying it with {name}" in p.stderr
+    run_ok([*base, "-options_file", f"{ROOT}/options/{recipe}.opts", "-quiet", "-output", tmp_path / "g.h5"])
     a, b = read_h5(tmp_path / "s.h5"), read_h5(tmp_path / "g.h5")
     assert a["stats"]["rejected"].sum() == 1 and b["stats"]["rejected"].sum() == 0
-    assert "retrying it with GAMG" in a["attrs"]["notes"]
+    assert f"retrying it with {name}" in a["attrs"]["notes"]
     u = a["x"][-1] - a["points"]
     assert np.abs(a["x"][-1] - b["x"][-1]).max() < 1e-6 * np.abs(u).max()
 

@@ -212,14 +212,20 @@ class Solver:
         pc = self.snes.getKSP().getPC()
         self.reuse = self.plan.reuse(self, pc.getType() or opts.getString("pc_type", ""))
 
-    # what a quasi-static step whose CG + Jacobi solve ran out of iterations is retried with (options/gamg.opts)
+    # what a quasi-static step whose CG + Jacobi solve ran out of iterations is retried with: GAMG (options/gamg.opts)
+    # on linear tetrahedra, p-multigrid (options/pmg.opts: half GAMG's time per Newton step on P2, BENCHMARKS.md) on
+    # quadratic ones
     ESCALATION = (("pc_gamg_type", "agg"), ("pc_gamg_agg_nsmooths", "1"), ("mg_levels_ksp_type", "chebyshev"),
                   ("mg_levels_pc_type", "jacobi"))
+    ESCALATION_P2 = (("pc_mg_levels", "2"), ("mg_levels_ksp_type", "chebyshev"), ("mg_levels_ksp_max_it", "2"),
+                     ("mg_levels_pc_type", "jacobi"), ("mg_coarse_ksp_type", "preonly"), ("mg_coarse_pc_type", "gamg"),
+                     ("mg_coarse_pc_gamg_type", "agg"), ("mg_coarse_pc_gamg_agg_nsmooths", "1"),
+                     ("mg_coarse_mg_levels_ksp_type", "chebyshev"), ("mg_coarse_mg_levels_pc_type", "jacobi"))
 
     def escalate(self):
         """CG + Jacobi ran out of iterations on a quasi-static step: switch the preconditioner of the assembled
-        tangent to GAMG with the rigid-body near null space (its set-up kept across steps) and say so; the
-        caller retries the step. Only for the default Jacobi (no -pc_type given), where the plan allows it
+        tangent to GAMG with the rigid-body near null space (p-multigrid on quadratic tetrahedra: pmg.py; the
+        set-up kept across steps) and say so; the caller retries the step. Only for the default Jacobi (no -pc_type given), where the plan allows it
         (not the mixed formulation's field split), and once. Returns the note, or "" when it does not apply.
         Jacobi stays the default: it is faster on dynamic and small runs and keeps its Krylov directions
         descent directions on indefinite tangents, where GAMG's Chebyshev smoothing became an indefinite preconditioner (a soft cantilever at
@@ -230,18 +236,22 @@ class Solver:
                 or self.op.mat.getType() not in ("seqaij", "mpiaij")):
             return ""
         opts = PETSc.Options()
-        for k, v in self.ESCALATION:
+        p2 = pmg.applies(self.system.space)
+        ptype, recipe, name = ("mg", "pmg", "p-multigrid") if p2 else ("gamg", "gamg", "GAMG")
+        for k, v in (self.ESCALATION_P2 if p2 else self.ESCALATION):
             if not opts.hasName(k):
                 opts.setValue(k, v)
-        opts.setValue("pc_type", "gamg")
+        opts.setValue("pc_type", ptype)
         its = ksp.getIterationNumber()
-        pc.setType("gamg")
+        pc.setType(ptype)
         pc.setFromOptions()
+        if p2:
+            self.levels = pmg.configure(pc, self.system.space)
         self._setup_reuse(self.reuse_mode)
-        self.notes.append("switched to GAMG")
+        self.notes.append(f"switched to {name}")
         return (f"{ksp.getType().upper()} + Jacobi ran out of iterations ({its}) on a quasi-static step: retrying "
-                "it with GAMG (rigid-body modes; -options_file options/gamg.opts from the start saves the failed "
-                "attempt)")
+                f"it with {name} (rigid-body modes; -options_file options/{recipe}.opts from the start saves the "
+                "failed attempt)")
 
     def rebuild_preconditioner(self):
         """Set the preconditioner up again at the next Jacobian (also where a restart would begin, so
@@ -284,6 +294,10 @@ class Solver:
         its = self.linear_its / self.linear_solves
         if its <= self.GAMG_PAYS_ABOVE:
             return ""
+        if pmg.applies(self.system.space):
+            return (f"{self.snes.getKSP().getType()} + Jacobi took {its:.0f} Krylov iterations per Newton step; on "
+                    "quadratic tetrahedra CG + p-multigrid (-options_file options/pmg.opts) needs about as many as "
+                    "P1 with GAMG on the same mesh, at half the time per Newton step of GAMG (BENCHMARKS.md)")
         return (f"{self.snes.getKSP().getType()} + Jacobi took {its:.0f} Krylov iterations per Newton step; "
                 f"above ~{self.GAMG_PAYS_ABOVE} CG + GAMG with its set-up kept (-options_file options/gamg.opts) "
                 "was faster end to end (measured at 60k-521k tets, BENCHMARKS.md)")
