@@ -43,7 +43,7 @@ def test_bracket_reaction_balances_the_load(tmp_path, bracket_mesh, order, nproc
 
 def test_surfaces_sharing_held_nodes_and_the_mixed_pressure(tmp_path):
     """Cook's membrane, mixed P2-P1: the clamp and the two roller faces share the nodes of two edges, so their
-    rows count those nodes' reactions twice; the `(all held)` row counts each held component once and balances
+    rows count those nodes' reactions twice; the `all_held` row counts each held component once and balances
     the load, and the pressure's terms (internal forces) are not a load."""
     m, out = tmp_path / "cook.msh", tmp_path / "c.h5"
     run_ok(["mesh", f"{ROOT}/examples/cook.geo", "--size", 8, "--order", 2, "-o", m])
@@ -51,8 +51,8 @@ def test_surfaces_sharing_held_nodes_and_the_mixed_pressure(tmp_path):
                       "-final_time", 0.25, "-snes_rtol", "1e-10", "-ksp_rtol", "1e-12", "-output", out])
     assert p.returncode == 0, p.stderr
     _, F = forces(out)
-    assert set(F) == {("reaction", n) for n in ("left", "front", "back", "(all held)")} | {("load", "traction")}
-    (Fa, Ma), (Fl, Ml) = F[("reaction", "(all held)")], F[("load", "traction")]
+    assert set(F) == {("reaction", n) for n in ("left", "front", "back", "all_held")} | {("load", "traction")}
+    (Fa, Ma), (Fl, Ml) = F[("reaction", "all_held")], F[("load", "traction")]
     assert np.allclose(Fl, [0, 0.25 * 6.25 * 160, 0], rtol=1e-12, atol=1e-9)
     assert np.abs(Fa + Fl).max() <= 1e-7 * np.abs(Fl).max() and np.abs(Ma + Ml).max() <= 1e-7 * np.abs(Ml).max()
     rows = sum(F[("reaction", n)][0] for n in ("left", "front", "back"))

@@ -553,3 +553,22 @@ def test_a_mixed_run_does_not_depend_on_the_heap(cook8, tmp_path):
         with h5py.File(out, "r") as f:
             runs.append(f["x"][-1])
     assert all(np.array_equal(runs[0], r) for r in runs[1:])
+
+
+def test_report_at_gives_the_pressure_with_its_sign(cook8, tmp_path):
+    """report --at prints the mixed formulation's pressure at a material point, interpolated like the displacement
+    (at a vertex: that node's value) and with its sign convention said (mean stress, positive in tension)."""
+    import h5py
+    out = tmp_path / "p.h5"
+    run_ok(["run", f"{ROOT}/examples/cook.opts", "-mesh", cook8, "-order", 2, "-formulation", "mixed", "-final_time",
+            0.5, "-quiet", "-output", out])
+    with h5py.File(out, "r") as f:
+        X, tets = f["mesh/points"][:], f["mesh/tetra"][:]
+        n = len(f["time"]) - 1
+        p = f[f"frames/{n}/pressure"][:]
+    k = int(tets[len(tets) // 2, 0])                   # a corner of a cell inside
+    text = run_ok(["report", out, "--at", ",".join(repr(float(v)) for v in X[k])]).stdout
+    line = [ln for ln in text.splitlines() if ln.startswith("at (")][0]
+    assert "(mean stress, positive in tension; Abaqus' pressure is -p)" in line
+    value = float(line.split("pressure ")[1].split()[0])
+    assert abs(value - p[k]) <= 1e-5 * np.abs(p).max(), (value, p[k])

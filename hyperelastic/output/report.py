@@ -101,7 +101,9 @@ def _summary(path, f, n):
 
 
 def _at(f, i, p):
-    """One line: the displacement at material point p in frame i and its cell's fields."""
+    """One line: the displacement at material point p in frame i, the other point fields interpolated there (the
+    mixed formulation's pressure: the mean stress, positive in tension; Abaqus' pressure is its negative), and its
+    cell's fields."""
     X, tets = f["mesh/points"][:], f["mesh/tetra"][:]
     try:
         cells, w = locate(X, tets, p)
@@ -112,6 +114,12 @@ def _at(f, i, p):
              f"u = ({u[0]:.6g}, {u[1]:.6g}, {u[2]:.6g}), |u| = {np.linalg.norm(u):.6g}"]
     g = f.get(f"frames/{i}", {})
     c = int(cells[0])
+    for name in sorted(g):
+        d = g[name]
+        if d.shape[0] == len(X) and name not in ("displacement", "velocity") and d.ndim == 1:   # a point field
+            v = float(interpolate(tets, cells, w, d[:])[0])
+            sign = " (mean stress, positive in tension; Abaqus' pressure is -p)" if name == "pressure" else ""
+            words.append(f"{name} {v:.6g}{sign}")
     for name in sorted(g):
         d = g[name]
         if d.shape[0] == len(tets):          # a cell field: its value in the cell holding the point

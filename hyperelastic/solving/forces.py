@@ -9,13 +9,15 @@ minus the sum of its own residual over every node (loads: the applied force; ine
 -M a; damping: -C v). The internal forces sum to zero, so reactions + loads + inertia + damping = 0 to the
 solver's tolerance. Sums run over each rank's local nodes, ghosts included: every cell lives on one rank,
 so each cell's contribution is counted once. A node on two constrained surfaces counts in both surfaces'
-rows; with more than one such surface a row `reaction (all held)` counts every held component once, and the
+rows; with more than one such surface a row `reaction all_held` counts every held component once, and the
 balance line sums that row and the loads.
 """
 import numpy as np
 from mpi4py import MPI
 
-TOTAL = "(all held)"       # the row of every held component once (surfaces sharing held nodes count them in both rows)
+TOTAL = "all_held"         # the row of every held component once (surfaces sharing held nodes count them in both rows;
+                           # a name without spaces or parentheses: it is also a statistics column's, reaction_all_held_Fz)
+TOTALS = (TOTAL, "(all held)")   # (its name in outputs written before 2026-11-26, which report still reads)
 
 
 def surface_forces(scene, system, x):
@@ -63,8 +65,8 @@ def table(rows, t):
         lines.append(f"  {kind} {name}: F = ({F[0]:.6g}, {F[1]:.6g}, {F[2]:.6g}), "
                      f"M = ({M[0]:.6g}, {M[1]:.6g}, {M[2]:.6g})")
     if rows:
-        total = any(k == "reaction" and n == TOTAL for k, n, _, _ in rows)
-        part = [(k, F) for k, n, F, _ in rows if not (total and k == "reaction" and n != TOTAL)]
+        total = any(k == "reaction" and n in TOTALS for k, n, _, _ in rows)
+        part = [(k, F) for k, n, F, _ in rows if not (total and k == "reaction" and n not in TOTALS)]
         S = sum(F for _, F in part)
         big = max(np.linalg.norm(F) for _, _, F, _ in rows)       # (a surface's own reaction, where no load)
         rel = np.linalg.norm(S) / big if big > 0 else 0.0
