@@ -234,6 +234,10 @@ def mesh_cmd(argv):
     if first["auto_named"]:
         print("the geometry has no physical groups: each surface and volume is named by its tag; pick surfaces "
               "by these names (-fix surface_3) or by geometry (-fix x=0, box=..., normal=+z)")
+    elif first["surfaces"]:
+        print("the geometry's physical surfaces (pick them by name, -fix NAME, or by geometry: -fix x=0, box=..., "
+              "normal=+z):")
+    if first["surfaces"]:
         print(f"  {'surface':<14} {'facets':>7} {'area':>11}  {'centroid':<36} outward normal")
         for name, nf, area, c, u in first["surfaces"]:
             cen = "(" + ", ".join(f"{v:.4g}" for v in c) + ")"
