@@ -138,7 +138,7 @@ def test_study_bad_arguments_are_one_line():
 
 def test_refinement_of_a_users_part(tmp_path):
     """`study refinement --part --order 1,2`: the bimaterial bar's .geo meshed and refined twice, the scene run
-    on each mesh with linear and with quadratic tetrahedra, the watched end displacement converging (P1: the
+    on each mesh with linear and with quadratic tetrahedra (10-node meshes of the same cells), the watched end displacement converging (P1: the
     changes shrink, positive order, Richardson), and P2 on the coarsest mesh nearer P1's limit than P1 on the
     finest."""
     root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -162,6 +162,11 @@ def test_refinement_of_a_users_part(tmp_path):
     assert abs(float(p2[0]["quantity"]) - limit) < abs(q[2] - limit)
     assert (out / "refinement.png").stat().st_size > 1000
     assert "P1: " in (out / "refinement.md").read_text() and "P2: " in (out / "refinement.md").read_text()
+    # P2 runs on its own 10-node meshes (as study price's: edge nodes on the geometry), not elevated linear ones
+    import meshio
+    assert all("_p2" in r["mesh"] for r in p2) and not any("_p2" in r["mesh"] for r in rows)
+    assert {c.type for c in meshio.read(p2[0]["mesh"]).cells} >= {"tetra10"}
+    assert [int(r["tets"]) for r in p2] == tets
 
 
 @pytest.mark.parametrize("args, words", [
