@@ -92,7 +92,7 @@ def graded_mesh(part, out, boxes, hmax, hmin, dist):
     """A P2 .msh of the part graded toward the curves inside `boxes`; returns its tet count."""
     import gmsh
     from hyperelastic.mesh.read import read_mesh
-    gmsh.initialize(["gmsh", "-v", "0"], readConfigFiles=False)
+    gmsh.initialize(["gmsh", "-v", "0"], readConfigFiles=False, interruptible=False)
     try:
         gmsh.option.setNumber("General.NumThreads", 1)
         gmsh.open(part)

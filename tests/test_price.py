@@ -161,3 +161,35 @@ def test_price_leaves_linear_tetrahedra_that_lock(tmp_path):
     assert "was left" in text and "linear tetrahedra lock" in text, text.split("\n\n")[1]
     with h5py.File(rows[0]["path"] if "path" in rows[0] else next((out / "runs").glob("p1_*.h5")), "r") as f:
         assert "linear tetrahedra lock" in f.attrs["notes"]
+
+
+def test_price_stops_a_run_at_the_budget_and_reports_on_ctrl_c(tmp_path):
+    """A run under way when --budget ends is stopped there (SIGTERM, its file closed), and the report says so; Ctrl-C
+    (SIGINT to the study's process group, as a terminal sends it) ends the run under way, writes the report of
+    the runs so far (exit 130) and leaves no child process (issue 47: a run overran the budget by minutes; Ctrl-C
+    left no report and an orphaned run)."""
+    import signal
+    import subprocess
+    import time
+    from conftest import BIN
+    out = tmp_path / "b"
+    run_ok(["study", "price", *BAR, "--watch", "u_y:5,0,0", "--target", "0.001", "--run-args", STATIC, "--budget",
+            "4", "-output_dir", out])
+    text = open(os.path.join(out, "price.md")).read()
+    rows = read_csv(os.path.join(out, "price.csv"))
+    stopped = [r for r in rows if "stopped at the end of --budget" in r.get("message", "")]
+    assert stopped and "was stopped at it" in text, text.split("\n\n")[1]
+    out = tmp_path / "c"
+    p = subprocess.Popen([os.path.join(BIN, "hyperelastic"), "study", "price", *BAR, "--watch", "u_y:5,0,0", "--target",
+                          "0.001", "--run-args", STATIC, "-output_dir", str(out)], start_new_session=True,
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    while not list((out / "runs").glob("*.h5")) if (out / "runs").exists() else True:
+        time.sleep(0.2)
+    time.sleep(2.0)
+    os.killpg(p.pid, signal.SIGINT)
+    _, err = p.communicate(timeout=120)
+    assert p.returncode == 130, err
+    text = open(os.path.join(out, "price.md")).read()
+    assert "interrupted (Ctrl-C)" in text, text.split("\n\n")[1]
+    left = subprocess.run(["pgrep", "-g", str(p.pid)], capture_output=True, text=True).stdout.split()
+    assert not left, left

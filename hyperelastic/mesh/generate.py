@@ -66,7 +66,9 @@ def generate(name, level, out, size=None, refine=0, order=1, graded=False):
         raise UserError(f"mesh size {size} must be a finite number > 0")
     outs = _outputs(out, refine)
     import gmsh    # deferred on purpose: loading gmsh's library takes ~0.3 s, and only meshing needs it
-    gmsh.initialize(["gmsh", "-v", "0"], readConfigFiles=False)
+    # interruptible=False: gmsh's Python API would set SIGINT to SIG_DFL and (its finalize restoring a global it
+    # never set) leave it so: Ctrl-C would then kill a study outright, with no report and its child run orphaned
+    gmsh.initialize(["gmsh", "-v", "0"], readConfigFiles=False, interruptible=False)
     tmps = []
     try:
         auto_named, flattened = _mesh(gmsh, name, geo, size, refine, graded)

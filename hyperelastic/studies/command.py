@@ -35,6 +35,7 @@ edge length) and time per load step vs tets.
 import math
 import os
 import shlex
+import signal
 import sys
 import time
 
@@ -156,11 +157,19 @@ def _price(a, out, command, t0):
               f"{r['outcome']}{extra}", file=sys.stderr, flush=True)
     s = Search(a.part, a.scene, a.watch, a.target, a.size, out, a.orders, shlex.split(a.run_args), a.budget,
                a.max_runs, a.max_level, log=log, graded=a.graded)
+    # Ctrl-C and SIGTERM end the search with its report (PETSc, loaded with the study, otherwise ends the process
+    # on SIGINT at once); the run under way gets the signal too and stops after its step
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, signal.default_int_handler)
+    interrupted = False
     try:
         s.search()
     except UserError:
         s.remove_files()
         raise
+    except KeyboardInterrupt:        # Ctrl-C: the run under way was ended with it; report what the runs so far say
+        interrupted = True
+        s.stopped = "interrupted (Ctrl-C)"
     price_report(s, out, command)
     print(os.path.join(out, "price.md"))
-    return 0
+    return 130 if interrupted else 0

@@ -148,8 +148,11 @@ class Search:
         path = os.path.join(self.out, "runs", f"p{s.order}_r{s.level}_dt{s.dt}_{s.integrator}_t{s.tol}_{s.solver}.h5")
         args = self.args(s, path)
         self.written += [path, os.path.splitext(path)[0] + ".xdmf"]
-        remaining = max(60.0, self.budget - self.elapsed())
-        rc, err, wall = run_hyperelastic(args, path, nprocs=1, timeout=min(3600, 3 * remaining))
+        remaining = max(1.0, self.budget - self.elapsed())         # a run is stopped where the budget ends
+        rc, err, wall = run_hyperelastic(args, path, nprocs=1, timeout=min(3600, remaining))
+        if rc == -1 and err.startswith("timed out"):
+            self.stopped = f"--budget {self.budget:g} s spent (run {len(self.rows) + 1} was stopped at it)"
+            err = f"stopped at the end of --budget ({remaining:.3g} s into the run)"
         row = {"run": len(self.rows) + 1, "why": why, "order": s.order, "level": s.level, "dt_halvings": s.dt,
                "integrator": s.integrator, "tolerances": TOLERANCES[s.tol][0], "pc": s.solver,
                "tets": self.tets.get((s.order, s.level)), "rc": rc, "wall_s": wall,
@@ -185,7 +188,7 @@ class Search:
 
     def out_of_budget(self):
         """Whether --budget is spent (the search then stops, and its report says so)."""
-        if self.elapsed() >= self.budget:
+        if self.elapsed() >= self.budget and not self.stopped:
             self.stopped = f"--budget {self.budget:g} s spent"
         return bool(self.stopped)
 

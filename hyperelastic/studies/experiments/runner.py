@@ -21,20 +21,43 @@ def command(args, nprocs=1):
     return [mpiexec(), "-n", str(nprocs)] + cmd if nprocs > 1 else cmd
 
 
+# after a run's time is up it gets SIGTERM (it stops after the step under way, its file closed and checkpointed:
+# mpiexec forwards the signal to the ranks) and this long to end before SIGKILL
+GRACE_S = 15.0
+
+
 def run_hyperelastic(args, output, nprocs=1, timeout=900):
     """(exit status, stderr, wall seconds) of `python -m hyperelastic ARGS` writing `output` (removed
-    first, so that a stale file is never read as this run's result); nprocs > 1 runs it under mpiexec."""
+    first, so that a stale file is never read as this run's result); nprocs > 1 runs it under mpiexec. A run
+    past `timeout` is stopped (SIGTERM, then SIGKILL after GRACE_S): exit status -1, stderr 'timed out after ...'.
+    On Ctrl-C (KeyboardInterrupt here; the child, in the same process group, got the SIGINT too) the child is
+    given GRACE_S to end before it is killed, and the interrupt goes on: no child outlives the study."""
     if os.path.exists(output):
         os.remove(output)
     cmd = command(args, nprocs)
     env = dict(os.environ, OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1")
     t0 = time.perf_counter()
-    try:
-        p = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, env=env)
-        rc, err = p.returncode, p.stderr
-    except subprocess.TimeoutExpired:
-        rc, err = -1, f"timed out after {timeout} s"
+    with subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env) as p:
+        try:
+            _, err = p.communicate(timeout=timeout)
+            rc = p.returncode
+        except subprocess.TimeoutExpired:
+            p.terminate()
+            _end(p)
+            rc, err = -1, f"timed out after {timeout:g} s"
+        except KeyboardInterrupt:
+            _end(p)
+            raise
     return rc, err, time.perf_counter() - t0
+
+
+def _end(p):
+    """Wait up to GRACE_S for a signalled child, then kill it."""
+    try:
+        p.communicate(timeout=GRACE_S)
+    except subprocess.TimeoutExpired:
+        p.kill()
+        p.communicate()
 
 
 def last_line(stderr, rc):
