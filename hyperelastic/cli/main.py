@@ -3,7 +3,8 @@
   hyperelastic run SCENE [PETSc options]         simulate a scene (built-in name or options file)
   hyperelastic run --restart FILE.h5 [options]   continue a run from the last checkpoint in FILE.h5
   hyperelastic mesh bar --level N -o FILE.msh    generate a gmsh mesh of the thesis' bar
-  hyperelastic mesh PART.geo --size H -o F.msh   mesh your own .geo/.step (physical groups kept; --refine N)
+  hyperelastic mesh PART.geo --size H -o F.msh   mesh your own .geo/.step (physical groups kept; --refine N;
+                                                 --graded keeps its own size fields, H the largest edge)
   hyperelastic plot FILE.h5 [-o FILE.png]        picture of a frame (default: the last)
   hyperelastic report FILE.h5 [--at X,Y,Z] [--frame N] [--watch Q]
                                                  the run, its forces, values at material points, again
