@@ -191,5 +191,11 @@ def test_price_stops_a_run_at_the_budget_and_reports_on_ctrl_c(tmp_path):
     assert p.returncode == 130, err
     text = open(os.path.join(out, "price.md")).read()
     assert "interrupted (Ctrl-C)" in text, text.split("\n\n")[1]
-    left = subprocess.run(["pgrep", "-g", str(p.pid)], capture_output=True, text=True).stdout.split()
+    left = []                                   # processes still in the study's process group (/proc: no pgrep needed)
+    for d in os.listdir("/proc"):
+        try:
+            if d.isdigit() and int(open(f"/proc/{d}/stat").read().rsplit(")", 1)[1].split()[2]) == p.pid:
+                left.append(d)
+        except (OSError, IndexError, ValueError):
+            pass
     assert not left, left
