@@ -173,19 +173,22 @@ def test_price_stops_a_run_at_the_budget_and_reports_on_ctrl_c(tmp_path):
     import time
     from conftest import BIN
     out = tmp_path / "b"
-    run_ok(["study", "price", *BAR, "--watch", "u_y:5,0,0", "--target", "0.001", "--run-args", STATIC, "--budget",
-            "4", "-output_dir", out])
+    slow = STATIC.replace("-dt 0.0625", "-dt 0.0002")       # 1,250 load steps: the first run outlasts the budget
+    t0 = time.perf_counter()
+    run_ok(["study", "price", *BAR, "--watch", "u_y:5,0,0", "--target", "0.001", "--run-args", slow, "--budget",
+            "3", "-output_dir", out])
+    assert time.perf_counter() - t0 < 3 + 20, "the run was not stopped at the budget"
     text = open(os.path.join(out, "price.md")).read()
     rows = read_csv(os.path.join(out, "price.csv"))
-    stopped = [r for r in rows if "stopped at the end of --budget" in r.get("message", "")]
-    assert stopped and "was stopped at it" in text, text.split("\n\n")[1]
+    assert len(rows) == 1 and "stopped at the end of --budget" in rows[0]["message"], rows
+    assert "was stopped at it" in text, text.split("\n\n")[1]
     out = tmp_path / "c"
     p = subprocess.Popen([os.path.join(BIN, "hyperelastic"), "study", "price", *BAR, "--watch", "u_y:5,0,0", "--target",
-                          "0.001", "--run-args", STATIC, "-output_dir", str(out)], start_new_session=True,
+                          "0.001", "--run-args", slow, "-output_dir", str(out)], start_new_session=True,
                          stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    while not list((out / "runs").glob("*.h5")) if (out / "runs").exists() else True:
+    while not list((out / "runs").glob("*.h5*")) if (out / "runs").exists() else True:   # a run under way
         time.sleep(0.2)
-    time.sleep(2.0)
+    time.sleep(1.0)
     os.killpg(p.pid, signal.SIGINT)
     _, err = p.communicate(timeout=120)
     assert p.returncode == 130, err
