@@ -140,6 +140,10 @@ def test_watch_quantities_by_name(tmp_path, bracket_mesh):
             parse_watch(bad)
     with pytest.raises(UserError, match="holds no surface 'load'"):
         watched(out, parse_watch("reaction:load"))
+    with pytest.raises(UserError, match="-output_fields stress"):           # (the run wrote the default fields)
+        watched(out, parse_watch(f"stress_xx:{P}"))
+    with pytest.raises(UserError, match="no 'pressure' point field"):      # (a displacement-only run)
+        watched(out, parse_watch(f"pressure:{P}"))
     with pytest.raises(UserError, match="no frame at t = 0.3"):
         watched(out, parse_watch(f"u_z:{P}@0.3"))
     with pytest.raises(UserError, match="no surface 'nowhere'"):

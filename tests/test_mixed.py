@@ -561,14 +561,23 @@ def test_report_at_gives_the_pressure_with_its_sign(cook8, tmp_path):
     import h5py
     out = tmp_path / "p.h5"
     run_ok(["run", f"{ROOT}/examples/cook.opts", "-mesh", cook8, "-order", 2, "-formulation", "mixed", "-final_time",
-            0.5, "-quiet", "-output", out])
+            0.5, "-quiet", "-output_fields", "default,stress", "-output", out])
     with h5py.File(out, "r") as f:
         X, tets = f["mesh/points"][:], f["mesh/tetra"][:]
         n = len(f["time"]) - 1
         p = f[f"frames/{n}/pressure"][:]
+        stress = f[f"frames/{n}/stress"][:]
     k = int(tets[len(tets) // 2, 0])                   # a corner of a cell inside
     text = run_ok(["report", out, "--at", ",".join(repr(float(v)) for v in X[k])]).stdout
     line = [ln for ln in text.splitlines() if ln.startswith("at (")][0]
     assert "(mean stress, positive in tension; Abaqus' pressure is -p)" in line
     value = float(line.split("pressure ")[1].split()[0])
     assert abs(value - p[k]) <= 1e-5 * np.abs(p).max(), (value, p[k])
+    # the same as watched quantities (issue 47: --watch for pressure and stress components at a point)
+    from hyperelastic.mesh.read import locate
+    from hyperelastic.output.watch import parse_watch, watched
+    at = ",".join(repr(float(v)) for v in X[k])
+    assert abs(watched(out, parse_watch(f"pressure:{at}")) - p[k]) <= 1e-12 * np.abs(p).max()
+    c = int(locate(X, tets, X[k])[0][0])
+    assert watched(out, parse_watch(f"stress_xy:{at}")) == stress[c, 1]
+    assert watched(out, parse_watch(f"stress_zz:{at}")) == stress[c, 5]

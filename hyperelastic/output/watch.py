@@ -9,6 +9,8 @@ QUANTITY[:WHERE] is one of
   point:X,Y,Z                 |u| at a material point (reference coordinates), interpolated in its cell
   u_x:X,Y,Z (u_y, u_z)        a displacement component there
   von_mises:X,Y,Z             the von Mises stress of the cell holding the material point (the cell field)
+  stress_xx:X,Y,Z (_yy, _zz, _xy, _xz, _yz)  a Cauchy stress component there (the cell field; -output_fields stress)
+  pressure:X,Y,Z              the mixed formulation's pressure there (mean stress, positive in tension), interpolated
   max_von_mises               the largest cell von Mises stress; max_von_mises:SURFACE over the cells with a
                               facet on the surface
   elastic_energy, total_energy  the run's statistics (elastic; energy_total: kinetic + elastic + potentials
@@ -36,11 +38,14 @@ from ..core.files import completed_frames
 from ..mesh.read import interpolate, locate, read_mesh
 
 HELP = ("max_displacement[:SURFACE], point:X,Y,Z (|u| there), u_x:X,Y,Z / u_y / u_z, von_mises:X,Y,Z, "
+        "stress_xx:X,Y,Z / _yy / _zz / _xy / _xz / _yz, pressure:X,Y,Z, "
         "max_von_mises[:SURFACE], elastic_energy, total_energy, reaction:SURFACE / reaction_x / _y / _z, "
         "moment:SURFACE[:X,Y,Z] / moment_x / _y / _z (about X,Y,Z; default the origin); "
         "each may end in @T (at time T) or @max (its largest magnitude over the run)")
 COMPONENTS = {"x": 0, "y": 1, "z": 2}
-AT_POINT = ("point", "u_x", "u_y", "u_z", "von_mises")
+STRESS = {f"stress_{'xyz'[i]}{'xyz'[j]}": k for k, (i, j) in enumerate(((0, 0), (0, 1), (0, 2), (1, 1), (1, 2),
+                                                                          (2, 2)))}      # Tensor6's columns
+AT_POINT = ("point", "u_x", "u_y", "u_z", "von_mises", "pressure") + tuple(STRESS)
 ON_SURFACE = ("max_displacement", "max_von_mises")          # the SURFACE optional
 REACTIONS = ("reaction", "reaction_x", "reaction_y", "reaction_z")
 MOMENTS = ("moment", "moment_x", "moment_y", "moment_z")
@@ -185,6 +190,11 @@ def watched(path, w, mesh_path=None):
         cells, wts = locate(X, tets, w.where)
         if w.kind == "von_mises":
             return _pick([_cell_field(f, i, "von_mises", w)[int(cells[0])] for i in frames], w)
+        if w.kind in STRESS:
+            return _pick([_cell_field(f, i, "stress", w, STRESS[w.kind])[int(cells[0])] for i in frames], w)
+        if w.kind == "pressure":
+            return _pick([float(interpolate(tets, cells, wts, _point_field(f, i, "pressure", w, len(X)))[0])
+                          for i in frames], w)
         vals = []
         for i in frames:
             u = interpolate(tets, cells, wts, f["x"][i] - X)[0]
@@ -192,11 +202,18 @@ def watched(path, w, mesh_path=None):
         return _pick(vals, w)
 
 
-def _cell_field(f, i, name, w):
+def _cell_field(f, i, name, w, column=0):
     g = f.get(f"frames/{i}")
     if g is None or name not in g:
-        raise UserError(f"--watch {w.spec}: frame {i} has no '{name}' field (-output_fields)")
-    return np.asarray(g[name][:], float).reshape(len(f["mesh/tetra"]), -1)[:, 0]
+        raise UserError(f"--watch {w.spec}: frame {i} has no '{name}' field (-output_fields {name})")
+    return np.asarray(g[name][:], float).reshape(len(f["mesh/tetra"]), -1)[:, column]
+
+
+def _point_field(f, i, name, w, nv):
+    g = f.get(f"frames/{i}")
+    if g is None or name not in g or g[name].shape[0] != nv:
+        raise UserError(f"--watch {w.spec}: frame {i} has no '{name}' point field (the mixed formulation writes it)")
+    return np.asarray(g[name][:], float)
 
 
 def _energy(f, w):
