@@ -324,6 +324,8 @@ class Search:
         with the others, and the fastest is kept for that order."""
         s = replace(s, solver=self.solver[s.order] or "default")
         row = self.run(s, why)
+        if s.order in self.skipped:         # (an order left after this run: no solver trials for it)
+            return row
         if self.solver[s.order] is None and row["outcome"] == "finished" and row.get("solve_s", 0) >= PC_TRIAL:
             if _formulation(row["path"]) == "mixed":
                 self.solver[s.order] = "default"       # its Schur field split (GAMG inside): nothing to try
@@ -347,8 +349,11 @@ class Search:
         for s, why in todo:
             if self.out_of_budget():
                 break
-            if s.order in self.skipped:
-                continue
+            if s.order in self.skipped:       # (the tolerances' probe moves to an order still searched)
+                alt = [o for o in self.orders if o not in self.skipped]
+                if why != "start: solver tolerances" or not alt:
+                    continue
+                s = replace(s, order=alt[0])
             self.go(s, why)
         return {o: Setting(o, 1, 0, i0, 0) for o in self.orders}
 

@@ -55,6 +55,15 @@ def _first_paragraph(search, s):
         why = f" The search stopped early: {search.stopped}." if search.stopped else ""
         why += "".join(f" Order {o} was left: {w}." for o, w in search.skipped.items())
         done = sum(r["outcome"] == "finished" for r in search.rows)
+        prov = [r for r in search.rows if "quantity" in r and r.get("est_total") is not None and r["est_total"] <= tgt]
+        if prov:         # an answer on the element's expected order, where a third mesh level was out of reach
+            p = min(prov, key=lambda r: r["solve_s"])
+            return (f"**No setting was confirmed to meet {tgt:.3g} (relative) in {w} within the search's limits "
+                    f"(--budget {search.budget:g} s, --max-runs {search.max_runs}, --max-level {search.max_level}): "
+                    "an estimate is confirmed by three mesh levels of its order. On the order the element is expected "
+                    f"to converge at, the cheapest run whose estimate meets it is {p['setting'].label()} "
+                    f"({p['tets']:,} tets): {p['solve_s']:.3g} s of solve time, {w} = {p['quantity']:.6g}, "
+                    f"estimated error {p['est_total']:.2g} (unconfirmed).**" + why)
         return (f"**No setting of the search met {tgt:.3g} (relative) in {w} within its limits (--budget "
                 f"{search.budget:g} s, --max-runs {search.max_runs}, --max-level {search.max_level}); the runs "
                 f"below ({done} of {len(search.rows)} finished) and their estimated errors show how far each got.**"
