@@ -133,11 +133,10 @@ class Space:
         g = self.lgmap.getIndices()
         self.local_is_global = bool(comm.getSize() == 1 and len(g) == 3 * self.nlv
                                     and (g == np.arange(3 * self.nlv)).all())
-        self.partition_line = None
+        self.partition_quality, self.partition_line = {}, None        # (one rank: no partition)
         if comm.getSize() > 1:
-            q = partition.quality(self.mpi, self.cells, self._boundary_faces)
-            self.partition_quality = q
-            self.partition_line = partition.describe(self.partitioner, q, comm.getSize())
+            self.partition_quality = partition.quality(self.mpi, self.cells, self._boundary_faces)
+            self.partition_line = partition.describe(self.partitioner, self.partition_quality, comm.getSize())
 
     def _gather_plan(self):
         """(input index of every owned node, input index of every cell) in the ranks' order, on rank 0 (None
@@ -264,34 +263,34 @@ class Space:
 
     def gather(self, local_array):
         """(nv, 3) array in the input mesh's vertex order on rank 0; None elsewhere."""
-        self._gather_plan()
+        order, _ = self._gather_plan()
         mine = np.ascontiguousarray(local_array.reshape(-1, 3)[self.owned])
         parts = self.mpi.gather(mine, root=0)
         if self.mpi.rank != 0:
             return None
         out = np.empty((self.nv_total, 3))
-        out[self._gather_plan()[0]] = np.concatenate(parts)
+        out[order] = np.concatenate(parts)
         return out
 
     def gather_nodal(self, local_array):
         """(nv,) array of a scalar per node in the input mesh's node order on rank 0; None elsewhere."""
-        self._gather_plan()
+        order, _ = self._gather_plan()
         parts = self.mpi.gather(np.ascontiguousarray(local_array[self.owned]), root=0)
         if self.mpi.rank != 0:
             return None
         out = np.empty(self.nv_total)
-        out[self._gather_plan()[0]] = np.concatenate(parts)
+        out[order] = np.concatenate(parts)
         return out
 
     def gather_cells(self, local_array):
         """(nc_total, ...) array of per-cell values in the input mesh's cell order on rank 0; None elsewhere."""
-        self._gather_plan()
+        _, corder = self._gather_plan()
         parts = self.mpi.gather(np.ascontiguousarray(local_array), root=0)
         if self.mpi.rank != 0:
             return None
         cat = np.concatenate(parts)
         out = np.empty_like(cat)
-        out[self._gather_plan()[1]] = cat
+        out[corder] = cat
         return out
 
     # --- labelled sets -------------------------------------------------------------------------

@@ -36,6 +36,7 @@ from ..solving import stats
 from ..core.errors import UserError
 from ..core.files import completed_frames
 from ..mesh.read import interpolate, locate, read_mesh
+from .fields import TENSOR6
 
 HELP = ("max_displacement[:SURFACE], point:X,Y,Z (|u| there), u_x:X,Y,Z / u_y / u_z, von_mises:X,Y,Z, "
         "stress_xx:X,Y,Z / _yy / _zz / _xy / _xz / _yz, pressure:X,Y,Z, "
@@ -43,8 +44,7 @@ HELP = ("max_displacement[:SURFACE], point:X,Y,Z (|u| there), u_x:X,Y,Z / u_y / 
         "moment:SURFACE[:X,Y,Z] / moment_x / _y / _z (about X,Y,Z; default the origin); "
         "each may end in @T (at time T) or @max (its largest magnitude over the run)")
 COMPONENTS = {"x": 0, "y": 1, "z": 2}
-STRESS = {f"stress_{'xyz'[i]}{'xyz'[j]}": k for k, (i, j) in enumerate(((0, 0), (0, 1), (0, 2), (1, 1), (1, 2),
-                                                                          (2, 2)))}      # Tensor6's columns
+STRESS = {f"stress_{'xyz'[i]}{'xyz'[j]}": k for k, (i, j) in enumerate(TENSOR6)}      # the stress field's columns
 AT_POINT = ("point", "u_x", "u_y", "u_z", "von_mises", "pressure") + tuple(STRESS)
 ON_SURFACE = ("max_displacement", "max_von_mises")          # the SURFACE optional
 REACTIONS = ("reaction", "reaction_x", "reaction_y", "reaction_z")

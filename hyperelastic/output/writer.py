@@ -130,7 +130,7 @@ def run_attributes(model, scene_file, solver):
             "vertices_per_rank": np.array(space.mpi.allgather(space.nlv)),
             "cells_per_rank": np.array(space.mpi.allgather(space.nc)),
             "partitioner": space.partitioner,
-            "partition": json.dumps(getattr(space, "partition_quality", {})),
+            "partition": json.dumps(space.partition_quality),
             "mass_matrix_builds": built.get("inertia", 0),
             "notes": "\n".join(list(model.notes or []) + list(solver.notes)),
             "sets": json.dumps([{k: v for k, v in s.items() if k != "line"} for s in model.sets])}

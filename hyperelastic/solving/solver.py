@@ -2,11 +2,15 @@
 backtracking line search on the incremental potential (energy merit, SNESSetObjective) where every
 effect has one, else on the residual norm; CG (GMRES when an effect's tangent is not symmetric: follower
 loads) + Jacobi (no PC under -snes_mf)."""
+import os
+
 from mpi4py import MPI
 from petsc4py import PETSc
 
 from . import jacobians, pmg
+from ..core.data import OPTIONS_DIR
 from ..core.errors import UserError
+from ..core.options import parse_options_file
 from ..core.libpetsc import lag_preconditioner, lag_preconditioner_persists, set_function_domain_error
 
 MERITS = ("energy", "residual norm")
@@ -40,6 +44,13 @@ def apply_defaults(merit="residual norm", symmetric=True):
 # and a restart was not bitwise (issue 47's promise). PETSc's own loops sum in one order; at 9k P2 tets (Cook's
 # membrane, GMRES(100) in the field split) the runs took the same time (farm-bench 0.98, within noise).
 REPRODUCIBLE_VEC = ("vec_mdot_use_gemv", "vec_maxpy_use_gemv")
+
+
+def recipe_pc(recipe):
+    """(the PC type, [(option, value)] of the PC's own options) of the recipe options/RECIPE.opts: the options that
+    are neither -pc_type nor the Jacobian's or the Krylov method's."""
+    rows = parse_options_file(os.path.join(OPTIONS_DIR, recipe + ".opts"))
+    return dict(rows)["pc_type"], [(k, v) for k, v in rows if k not in ("pc_type", "jacobian", "ksp_type")]
 
 
 def resolve_storage(storage, system, jacobian, assembly, mf):
@@ -212,15 +223,10 @@ class Solver:
         pc = self.snes.getKSP().getPC()
         self.reuse = self.plan.reuse(self, pc.getType() or opts.getString("pc_type", ""))
 
-    # what a quasi-static step whose CG + Jacobi solve ran out of iterations is retried with: GAMG (options/gamg.opts)
-    # on linear tetrahedra, p-multigrid (options/pmg.opts: half GAMG's time per Newton step on P2, BENCHMARKS.md) on
-    # quadratic ones
-    ESCALATION = (("pc_gamg_type", "agg"), ("pc_gamg_agg_nsmooths", "1"), ("mg_levels_ksp_type", "chebyshev"),
-                  ("mg_levels_pc_type", "jacobi"))
-    ESCALATION_P2 = (("pc_mg_levels", "2"), ("mg_levels_ksp_type", "chebyshev"), ("mg_levels_ksp_max_it", "2"),
-                     ("mg_levels_pc_type", "jacobi"), ("mg_coarse_ksp_type", "preonly"), ("mg_coarse_pc_type", "gamg"),
-                     ("mg_coarse_pc_gamg_type", "agg"), ("mg_coarse_pc_gamg_agg_nsmooths", "1"),
-                     ("mg_coarse_mg_levels_ksp_type", "chebyshev"), ("mg_coarse_mg_levels_pc_type", "jacobi"))
+    # what a quasi-static step whose CG + Jacobi solve ran out of iterations is retried with, by element order: the
+    # preconditioner of a recipe (its PC options; the run keeps its Jacobian and Krylov method): GAMG on linear
+    # tetrahedra, p-multigrid on quadratic ones (half GAMG's time per Newton step on P2, BENCHMARKS.md)
+    ESCALATION = {1: ("gamg", "GAMG"), 2: ("pmg", "p-multigrid")}
 
     def escalate(self):
         """CG + Jacobi ran out of iterations on a quasi-static step: switch the preconditioner of the assembled
@@ -236,17 +242,16 @@ class Solver:
                 or self.op.mat.getType() not in ("seqaij", "mpiaij")):
             return ""
         opts = PETSc.Options()
-        p2 = pmg.applies(self.system.space)
-        ptype, recipe, name = ("mg", "pmg", "p-multigrid") if p2 else ("gamg", "gamg", "GAMG")
-        for k, v in (self.ESCALATION_P2 if p2 else self.ESCALATION):
+        recipe, name = self.ESCALATION[self.system.space.element.order]
+        ptype, pc_options = recipe_pc(recipe)
+        for k, v in pc_options:
             if not opts.hasName(k):
                 opts.setValue(k, v)
         opts.setValue("pc_type", ptype)
         its = ksp.getIterationNumber()
         pc.setType(ptype)
         pc.setFromOptions()
-        if p2:
-            self.levels = pmg.configure(pc, self.system.space)
+        self.levels = pmg.configure(pc, self.system.space)      # (None but for p-multigrid)
         self._setup_reuse(self.reuse_mode)
         self.notes.append(f"switched to {name}")
         return (f"{ksp.getType().upper()} + Jacobi ran out of iterations ({its}) on a quasi-static step: retrying "

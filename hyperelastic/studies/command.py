@@ -157,8 +157,9 @@ def _price(a, out, command, t0):
               f"{r['outcome']}{extra}", file=sys.stderr, flush=True)
     s = Search(a.part, a.scene, a.watch, a.target, a.size, out, a.orders, shlex.split(a.run_args), a.budget,
                a.max_runs, a.max_level, log=log, graded=a.graded)
-    # Ctrl-C and SIGTERM end the search with its report (PETSc, loaded with the study, otherwise ends the process
-    # on SIGINT at once); the run under way gets the signal too and stops after its step
+    # Ctrl-C and SIGTERM (a scheduler's) end the search with its report: both raise KeyboardInterrupt here (Python
+    # alone would end the process at a SIGTERM with no report); the run under way gets the signal too and stops after
+    # its step
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, signal.default_int_handler)
     interrupted = False
