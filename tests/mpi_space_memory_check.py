@@ -1,15 +1,16 @@
 """Run under `mpiexec -n N` by test_partition.py: what each rank receives and allocates while the model of a scene
-is built and a restart's state is scattered to it. Every message the space's mpi4py communicator delivers
+is built and a restart's state is read from a file (every rank a slice, the rows sent where they belong). Every message the space's mpi4py communicator delivers
 (bcast, scatter, gather, allgather, alltoall, ...) is looked at: the longest numpy array in it is recorded, so a
 whole-mesh array sent to a rank shows up whatever else the rank holds. tracemalloc counts the Python/numpy bytes
 (PETSc's own memory is not traced). Prints one JSON line per rank on rank 0: {rank, received (longest array
 received), peak, held (bytes, from just before the build), cells, nodes, nc_total, nv_total}.
-ARGS: scene, then option=value pairs."""
+ARGS: scene, a scratch file for the state, then option=value pairs."""
 import json
 import os
 import sys
 import tracemalloc
 
+import h5py
 import numpy as np
 import petsc4py
 
@@ -19,8 +20,10 @@ from petsc4py import PETSc  # noqa: E402
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from conftest import make_model  # noqa: E402
 
+from hyperelastic.core.files import StateRows  # noqa: E402
 from hyperelastic.discretization.space import Space  # noqa: E402
 
+BUFFERED = ("Alltoallv", "Allgatherv", "Gatherv", "Scatterv", "Recv", "Bcast")
 RECEIVING = ("bcast", "scatter", "gather", "allgather", "alltoall", "allreduce", "reduce", "recv", "sendrecv")
 
 
@@ -33,6 +36,12 @@ class Recording:
 
     def __getattr__(self, name):
         attr = getattr(self._comm, name)
+        if name in BUFFERED:                 # the receive buffer (its rows) of an exchange
+            def buffered(*args, **kw):
+                out = attr(*args, **kw)
+                Recording.longest = max(Recording.longest, longest(args[1][0]))
+                return out
+            return buffered
         if name not in RECEIVING:
             return attr
 
@@ -60,16 +69,19 @@ def recorded(self, comm):
 Space.mpi = property(lambda self: self.__dict__["_mpi"], recorded)
 
 
-def main(scene, options):
+def main(scene, options, state_file):
     tracemalloc.start()
     base = tracemalloc.get_traced_memory()[0]
     tracemalloc.reset_peak()
     m = make_model(PETSc, scene, options)
     held, peak = tracemalloc.get_traced_memory()
     sp = m.space
-    full = m.points if sp.mpi.rank == 0 else None        # a restart's state: an (nv, 3) array on rank 0
-    mine = sp.scatter(full)
-    assert np.array_equal(mine.reshape(-1, 3), sp.X), "scatter: a rank received another node's row"
+    if sp.mpi.rank == 0:                 # a restart's state: an (nv, 3) array in a file, rows in input order
+        with h5py.File(state_file, "w") as f:
+            f["x"] = m.points
+    sp.mpi.Barrier()
+    mine = sp.read_state(StateRows(state_file, "x", sp.nv_total, 3))
+    assert np.array_equal(mine.reshape(-1, 3), sp.X), "read_state: a rank received another node's row"
     rows = sp.mpi.gather({"rank": sp.mpi.rank, "received": Recording.longest, "peak": peak - base,
                           "held": held - base, "cells": sp.nc, "nodes": sp.nlv, "nc_total": sp.nc_total,
                           "nv_total": sp.nv_total}, root=0)
@@ -79,4 +91,4 @@ def main(scene, options):
 
 
 if __name__ == "__main__":
-    main(sys.argv[1], [tuple(a.split("=", 1)) for a in sys.argv[2:]])
+    main(sys.argv[1], [tuple(a.split("=", 1)) for a in sys.argv[3:]], sys.argv[2])

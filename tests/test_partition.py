@@ -94,12 +94,13 @@ def test_metis_cuts_fewer_faces_on_a_plate_with_a_hole(tmp_path):
 
 
 @pytest.mark.parametrize("options", [["level=6"], ["level=5", "order=2", "partitioner=metis"]])
-def test_no_rank_is_sent_the_whole_mesh(options):
+def test_no_rank_is_sent_the_whole_mesh(options, tmp_path):
     """On 4 ranks (oversubscribed) no rank receives an array longer than twice its share of the mesh's cells or
-    nodes (the smaller count) while the model is built and a restart's state is scattered: input numbering, P2
-    node positions and the restart's rows go point by point (the migration star forest, slices), not as whole-mesh
+    nodes (the smaller count) while the model is built and a restart's state is read (a slice per rank, then
+    exchanged): input numbering, P2 node positions and the restart's rows go point by point (the migration star
+    forest, the exchange), not as whole-mesh
     broadcasts (before: every rank received the whole cell order, vertex order, and P2's every node position)."""
-    p = run_mpi_script("mpi_space_memory_check.py", ["bend"] + options, nprocs=4, timeout=600)
+    p = run_mpi_script("mpi_space_memory_check.py", ["bend", tmp_path / "state.h5"] + options, nprocs=4, timeout=600)
     assert p.returncode == 0, p.stdout + p.stderr
     rows = [json.loads(ln) for ln in p.stdout.splitlines() if ln.startswith("{")]
     assert len(rows) == 4

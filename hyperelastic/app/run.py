@@ -148,9 +148,9 @@ def _check_restart(state, model, scene, path):
         raise UserError(f"--restart '{path}': the checkpoint was written with {kind[state['cell_nodes']]} tetrahedra, "
                         f"this run has {kind[nodes]} ones (a restart continues with the element order it was "
                         "written with: drop -order)")
-    if len(state["x"]) != len(model.points):
+    if len(state["x"]) != model.space.nv_total:
         raise UserError(f"--restart '{path}': the checkpoint has {len(state['x'])} vertices, the mesh of this run "
-                        f"{len(model.points)} (a restart continues on the mesh it was written with)")
+                        f"{model.space.nv_total} (a restart continues on the mesh it was written with)")
     if state["t"] >= scene.final_time * (1 - 1e-12):
         raise UserError(f"--restart '{path}': the checkpoint is at t = {state['t']:g}, the end of the run "
                         f"(-final_time {scene.final_time:g}); give a later -final_time to continue")

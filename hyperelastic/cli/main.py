@@ -168,12 +168,9 @@ def _restart_args(argv):
     err = MPI.COMM_WORLD.bcast(err, root=0)
     if err:
         raise UserError(err)
-    # the state's mesh-sized arrays stay on rank 0 (the others get None in their place): Space.scatter sends
-    # each rank its own rows
-    light = None if res is None else (res[0], res[1], {k: (None if hasattr(v, "shape") and v.shape else v)
-                                                        for k, v in res[2].items()})
-    scene, args, state = MPI.COMM_WORLD.bcast(light, root=0)
-    return (scene, args, res[2] if MPI.COMM_WORLD.rank == 0 else state)
+    # the state holds no mesh-sized array: its x, v (and pressure) are read by every rank in slices
+    # (files.StateRows, Space.read_state)
+    return MPI.COMM_WORLD.bcast(res, root=0)
 
 
 def run_cmd(argv):

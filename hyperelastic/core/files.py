@@ -47,9 +47,32 @@ def option_lines(text, where):
 PARTIAL = ".partial"      # a run writes FILE.h5.partial until it has completed a step (Writer._commit)
 
 
+RANKS = ".d"            # FILE.h5.d/: the per-rank files of a run written with -output_layout ranks (output/ranks.py)
+
+
 def output_names(path):
     """The files an output path stands for: the HDF5 file, the XDMF beside it and the partial file."""
     return [path, os.path.splitext(path)[0] + ".xdmf", path + PARTIAL]
+
+
+class StateRows:
+    """A checkpoint array of an output file, not read yet: every rank reads a slice of it when the run is restarted
+    (discretization/space.py: Space.read_state), whatever the rank count that wrote it. path, the dataset `name`,
+    its row count n and width (3, or 1 for a scalar per node), and `keys`: the dataset holding each row's input
+    index (the per-rank layout's mesh/input_index), None where the rows are in input order."""
+
+    def __init__(self, path, name, n, width, keys=None):
+        self.path, self.name, self.n, self.width, self.keys = path, name, n, width, keys
+
+    def __len__(self):
+        return self.n
+
+    def read(self, lo, hi):
+        """(rows lo..hi-1, their input indices)."""
+        with h5py.File(self.path, "r") as f:
+            rows = np.asarray(f[self.name][lo:hi], np.float64)
+            keys = np.asarray(f[self.keys][lo:hi], np.int64) if self.keys else np.arange(lo, hi, dtype=np.int64)
+        return rows, keys
 
 
 OUTPUT_DATASETS = ("mesh/points", "mesh/tetra", "time", "x")     # what every output of `hyperelastic run` holds
@@ -174,20 +197,19 @@ def read_checkpoint(path):
             raise UserError(f"--restart '{path}': checkpoint {slot} is incomplete (no {', '.join(bad)})")
         nv = f["mesh/points"].shape[0]
         state = {"cell_nodes": int(f["mesh/tetra"].shape[1]) if "mesh/tetra" in f else 0}   # 4 or 10
+        keys = "mesh/input_index" if "mesh/input_index" in f else None
         for k in ("x", "v"):
             a = g[k]
             if a.shape != (nv, 3) or a.dtype.kind != "f":
                 raise UserError(f"--restart '{path}': checkpoint {k} has shape {a.shape} ({a.dtype}), the mesh "
                                 f"needs ({nv}, 3) numbers")
-            state[k] = a[:]
-            if not np.isfinite(state[k]).all():
-                raise UserError(f"--restart '{path}': checkpoint {k} holds non-finite values")
-        for k in CHECKPOINT_NODAL:
+            state[k] = StateRows(path, a.name, nv, 3, keys)     # (read in slices by every rank: non-finite
+        for k in CHECKPOINT_NODAL:                                  # values are refused there)
             if k in g:
                 a = g[k]
-                if a.shape != (nv,) or a.dtype.kind != "f" or not np.isfinite(a[:]).all():
-                    raise UserError(f"--restart '{path}': checkpoint {k} is not {nv} finite numbers")
-                state[k] = a[:]
+                if a.shape != (nv,) or a.dtype.kind != "f":
+                    raise UserError(f"--restart '{path}': checkpoint {k} is not {nv} numbers")
+                state[k] = StateRows(path, a.name, nv, 1, keys)
         for k in CHECKPOINT_ATTRS:
             v = np.asarray(g.attrs[k])
             if v.shape != () or v.dtype.kind not in "iuf" or not np.isfinite(v):

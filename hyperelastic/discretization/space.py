@@ -8,7 +8,7 @@ volumes are computed once here.
 
 No rank but rank 0 (while it reads the mesh) holds an array of the whole mesh: what each rank needs of the
 serial mesh (input indices, P2 node positions) travels point by point through the distribution's migration star
-forest (`pull`), a restart's state is sent to each rank as its own rows (`scatter`), and the output's gather plan
+forest (`pull`), a restart's state is read by every rank in slices and sent to the ranks whose nodes the rows are (`read_state`), and the output's gather plan
 is built on rank 0 when the output first gathers.
 """
 import numpy as np
@@ -18,7 +18,9 @@ from mpi4py import MPI
 
 from ..element.reference import EDGES
 from . import partition
+from .exchange import Exchange
 from .kernels import IDX, Cells, ElementCells
+from ..core.errors import UserError
 from ..core.libpetsc import plex_cones
 from ..mesh.read import spatial_order
 from ..mesh.sets import FACE_VERTICES, VERTEX_VALUE, cell_label, facet_label, orient_outward
@@ -248,18 +250,22 @@ class Space:
         """The owned part of a local array, in global-vector order."""
         return local_array.reshape(-1, 3)[self.lvid_of_owned].reshape(-1)
 
-    def scatter(self, full):
-        """Local array (nlv*3, or nlv of a scalar) from an (nv, 3) or (nv,) array in the input node order given on
-        rank 0 (ignored elsewhere): rank 0 sends each rank the rows of its local nodes, asked for by input index
-        (no other rank holds the whole array)."""
-        if self.mpi.size == 1:
-            return np.ascontiguousarray(np.asarray(full, np.float64)[self.orig]).reshape(-1)
-        want = self.mpi.gather(self.orig, root=0)
-        rows = None
-        if self.mpi.rank == 0:
-            full = np.asarray(full, np.float64)
-            rows = [full[w] for w in want]
-        return np.ascontiguousarray(self.mpi.scatter(rows, root=0)).reshape(-1)
+    def read_state(self, rows):
+        """Local array (nlv*3, or nlv of a scalar) of a checkpoint array (core.files.StateRows) in any output file,
+        whatever the rank count that wrote it: every rank reads one contiguous slice of the file's rows with their
+        input indices, and the rows travel to the ranks whose nodes they are (exchange.Exchange: no rank reads or
+        receives more than its share). UserError on every rank when a row is not finite or a node has no row."""
+        n, size, rank = rows.n, self.mpi.size, self.mpi.rank
+        lo, hi = n * rank // size, n * (rank + 1) // size
+        vals, keys = rows.read(lo, hi)
+        bad = self.mpi.allreduce(int(not np.isfinite(vals).all()), op=MPI.SUM)
+        what = f"--restart '{rows.path}': checkpoint {rows.name.rsplit('/', 1)[-1]}"
+        if bad:
+            raise UserError(f"{what} holds non-finite values")
+        ex = Exchange(self.mpi, keys, self.orig, n)
+        if ex.missing:
+            raise UserError(f"{what}: {ex.missing} nodes of this mesh have no row in it")
+        return np.ascontiguousarray(ex.move(vals), np.float64).reshape(-1)
 
     def gather(self, local_array):
         """(nv, 3) array in the input mesh's vertex order on rank 0; None elsewhere."""

@@ -63,6 +63,48 @@ def _compact_group(parent, name, links):
     return parent[name]
 
 
+class Guard:
+    """The end-of-file reserve of one open HDF5 file (h5py.File) being written by this process.
+
+    HDF5 writes its superblock (with the file's end address) last in a flush, after the metadata that points into
+    space it has just allocated; a kill between them left a file whose readers refused that space ('addr
+    overflow'). So before each write the file is first extended (sparsely) by the write's bytes and a margin, then
+    the superblock's end-of-file address is set to the new end: whatever HDF5 writes up to its own flush lies below
+    it. HDF5 rewrites the address at that flush; `trim` cuts the closed file to it. Armed only when the superblock
+    is where it is expected (HDF5 File Format Specification, version 0/1 superblock)."""
+
+    def __init__(self, f):
+        self.f = f
+        f.flush()
+        self.on = self._eoa() == os.fstat(self._fd()).st_size
+
+    def _fd(self):
+        return self.f.id.get_vfd_handle()
+
+    def _eoa(self):
+        return int.from_bytes(os.pread(self._fd(), 8, SUPERBLOCK_EOA_AT), "little")
+
+    def reserve(self, nbytes):
+        """Room in the file for the next writes of `nbytes`, recorded in the superblock before HDF5 allocates it."""
+        if not self.on:
+            return
+        fd = self._fd()
+        end = self.f.id.get_filesize() + int(1.5 * nbytes) + ROOM_MARGIN  # HDF5's own end + what room_for checked
+        try:
+            os.ftruncate(fd, end)        # (HDF5's writes go below `end`: a sparse tail left from the last one
+        except OSError:                  # is cut, and the apparent size grows only with the data)
+            return                       # (ulimit -f at the close: HDF5's own writes would fail the same way)
+        os.pwrite(fd, end.to_bytes(8, "little"), SUPERBLOCK_EOA_AT)
+
+
+def trim(path):
+    """The closed file cut to the end HDF5 recorded (a Guard's sparse tail gone)."""
+    with open(path, "r+b") as fh:
+        end = int.from_bytes(os.pread(fh.fileno(), 8, SUPERBLOCK_EOA_AT), "little")
+        if os.fstat(fh.fileno()).st_size > end:
+            fh.truncate(end)
+
+
 _LIB = []
 
 
@@ -164,7 +206,7 @@ class Writer:
         self._pending = []       # statistics rows not yet written (see stats())
         self._columns = {}       # the open statistics datasets by name
         self._stats_flushed = time.monotonic()
-        self._guard = False      # the end-of-file reserve (_reserve) is on: the superblock is as expected
+        self.h5 = None           # the file's end-of-file reserve (Guard; rank 0, once opened)
         if resume is not None:
             self._resume(resume, attrs)
             return
@@ -176,9 +218,8 @@ class Writer:
             return
         self._tets = np.asarray(tets) if self._needs_tets() else None
         self.f = self._new_file(points, tets, reg, attrs)
-        self.f.flush()
         self.nv, self.nc = len(points), len(tets)
-        self._guard = self._superblock_eoa() == os.fstat(self._fd()).st_size
+        self.h5 = Guard(self.f)
 
     def _new_file(self, points, tets, region, attrs):
         """The file's layout, made before the first step (a kill after that only meets writes into it)."""
@@ -209,8 +250,7 @@ class Writer:
             return
         with h5py.File(self.final, "r") as src:      # the checkpoint's file stays as it is until _commit
             self.f = f = self._copy_until_checkpoint(src, attrs)
-        f.flush()
-        self._guard = self._superblock_eoa() == os.fstat(self._fd()).st_size
+        self.h5 = Guard(f)
 
     def _copy_until_checkpoint(self, src, attrs):
         """A new file with what `src` held up to its checkpoint: the mesh, the checkpoint's frames and
@@ -415,28 +455,10 @@ class Writer:
             self._volume = reference_volumes(self.points, self._tets)
         return self._volume
 
-    def _fd(self):
-        return self.f.id.get_vfd_handle()
-
-    def _superblock_eoa(self):
-        return int.from_bytes(os.pread(self._fd(), 8, SUPERBLOCK_EOA_AT), "little")
-
     def _reserve(self, nbytes):
-        """Room in the file for the next writes, recorded in the superblock before HDF5 allocates it. HDF5
-        writes its superblock (with the file's end address) last in a flush, after the metadata that points
-        into space it has just allocated; a kill between them left a file whose readers refused that space
-        ('addr overflow'). So the file is first extended (sparsely) by the writes' bytes and the margin, then
-        the superblock's end-of-file address is set to the new end: whatever HDF5 writes up to its own flush
-        lies below it. HDF5 rewrites the address at that flush; close() trims the file to it."""
-        if not self._guard:
-            return
-        fd = self._fd()
-        end = self.f.id.get_filesize() + int(1.5 * nbytes) + ROOM_MARGIN  # HDF5's own end + what room_for checked
-        try:
-            os.ftruncate(fd, end)        # (HDF5's writes go below `end`: a sparse tail left from the last one
-        except OSError:                  # is cut, and the apparent size grows only with the data)
-            return                       # (ulimit -f at the close: HDF5's own writes would fail the same way)
-        os.pwrite(fd, end.to_bytes(8, "little"), SUPERBLOCK_EOA_AT)
+        """Room for the next writes (Guard.reserve)."""
+        if self.h5 is not None:
+            self.h5.reserve(nbytes)
 
     def close(self, keep=True):
         """Flush and close. A run that completed no step replaces an earlier FILE.h5 only when `keep`
@@ -451,15 +473,8 @@ class Writer:
             self.f = None
             if not self.committed and os.path.exists(self.path):
                 os.remove(self.path)
-            elif self._guard:
-                self._trim()
-
-    def _trim(self):
-        """The closed file cut to the end HDF5 recorded (the reserve's sparse tail gone)."""
-        with open(self.path, "r+b") as fh:
-            end = int.from_bytes(os.pread(fh.fileno(), 8, SUPERBLOCK_EOA_AT), "little")
-            if os.fstat(fh.fileno()).st_size > end:
-                fh.truncate(end)
+            elif self.h5.on:
+                trim(self.path)
 
     def _mesh_xml(self):
         h5 = os.path.basename(self.final)

@@ -178,7 +178,7 @@ class Integrator:
     def _resume(self, state):
         """Continue from a checkpoint (files.read_checkpoint): the same state, step control included."""
         sp = self.sp
-        self.x, self.v = sp.scatter(state["x"]), sp.scatter(state["v"])
+        self.x, self.v = sp.read_state(state["x"]), sp.read_state(state["v"])
         self.system.resume(state)
         self.t, self.step, self.n0 = float(state["t"]), int(state["step"]), int(state["n"])
         self.h_try, self.streak, self.rejections = float(state["h_try"]), int(state["streak"]), int(state["rejections"])

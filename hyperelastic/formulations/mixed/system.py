@@ -177,7 +177,7 @@ class MixedSystem(System):
 
     def resume(self, state):
         if "pressure" in state:
-            p = self.space.scatter(state["pressure"])[:self.pspace.nlp]
+            p = self.space.read_state(state["pressure"])[:self.pspace.nlp]
             self.p_owned = p[self.pspace.owned_idx].copy()
 
     def pressure_nodal(self):
