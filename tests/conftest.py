@@ -35,13 +35,22 @@ def run_ok(args, nprocs=1, **kw):
     return p
 
 
-def read_h5(path):
+def read_h5(path, frames=False):
+    """An output's x, time, mesh, attributes and statistics (frames: and every frame's fields), in the input mesh's
+    node and cell order whatever the layout (a per-rank output's rows put back through mesh/input_index)."""
     import h5py
-    from hyperelastic.core.files import completed_frames
+    from hyperelastic.core.files import completed_frames, input_order
     with h5py.File(path, "r") as f:
         n = completed_frames(f)          # (a killed run's file may hold one row of x more)
-        out = {"x": f["x"][:n], "time": f["time"][:n], "points": f["mesh/points"][:], "tetra": f["mesh/tetra"][:],
-               "attrs": dict(f.attrs), "stats": {k: f["stats"][k][:] for k in f["stats"]}}
+        nodes, cells = input_order(f)
+        out = {"x": f["x"][:n][:, nodes], "time": f["time"][:n], "points": f["mesh/points"][:][nodes],
+               "tetra": f["mesh/tetra"][:][cells], "attrs": dict(f.attrs), "stats": {k: f["stats"][k][:] for k in f["stats"]}}
+        if "mesh/input_index" in f:
+            out["tetra"] = f["mesh/input_index"][:][out["tetra"]]
+        if frames:
+            from hyperelastic.output.fields import is_point_field
+            out["frames"] = [{k: d[:][nodes if is_point_field(k) else cells] for k, d in f[f"frames/{i}"].items()}
+                             for i in range(n)]
     return out
 
 

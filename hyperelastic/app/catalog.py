@@ -126,6 +126,12 @@ TAIL = (
         "Tensor6), and `NAME_nodal` of any cell field (averaged at the nodes, weighted by the cells' volumes); "
         "`default`, `all`. With the mixed formulation the stress's mean is the pressure field's",
         "default (displacement, velocity, J, energy_density, von_mises)"),
+    Row(("output_layout",), "-output_layout auto|gather|ranks", "`gather`: rank 0 gathers every frame and writes "
+        "FILE.h5 alone, in the input mesh's node and cell order; `ranks`: every rank writes its own part of each frame "
+        "to FILE.h5.d/TAG_rNNNNN.h5 and FILE.h5 presents them as the same datasets (HDF5 virtual datasets), in the "
+        "partition's order with `mesh/input_index` and `mesh/cell_input_index` giving each row's input index. "
+        "`auto`: gather on one rank, ranks on several. A restart writes on in the layout of its file",
+        "auto"),
     Row(("checkpoint_every",), "-checkpoint_every N", "write the full state (x, v, t, step-control state) into "
         "FILE.h5 every N steps", "0 (only on a signal)"),
     Row(("integrator",), "-integrator beuler|ts", "`beuler`: backward Euler (the thesis' integrator, one SNES solve "

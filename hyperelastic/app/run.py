@@ -16,6 +16,7 @@ from ..solving.forces import record, surface_forces, table
 from ..solving.integrators import BackwardEuler
 from .model import build_model, collective
 from ..core.options import Options
+from ..output.ranks import RankWriter
 from ..output.writer import Writer, run_attributes
 from ..mesh.sets import REGION_LABEL
 from ..solving.solver import Solver
@@ -63,8 +64,7 @@ def run_scene(scene_arg, options_files, restart=None, restart_path=None):
         print("\n".join(lines), file=sys.stderr)
     attrs = run_attributes(model, scene_file, solver)
     stage.pop()
-    writer = Writer(out, model.space, model.points, model.tets, attrs, resume=restart, kernels=model.kernels,
-                    region=model.space.cell_values(REGION_LABEL), fields=scene.output_fields)
+    writer = open_writer(_layout(scene, comm, restart, out), out, model, attrs, restart, scene.output_fields)
     writer.point_scalars = model.formulation.point_values(model.system)
     if ts is not None:
         integ = GeneralizedAlpha(scene, model.system, solver, writer, model.x0, model.v0, ts, checkpoint=restart,
@@ -137,6 +137,24 @@ def _integrate(integ, writer, comm, scene):
         writer.set_attr("steps_completed", integ.step)
         writer.set_attr("peak_rss_mb", peak_rss_mb(comm))
         writer.close(keep=ended)
+
+
+def _layout(scene, comm, restart, out):
+    """The output's layout: a restart's file's own, else -output_layout (auto: gather on one rank, ranks on more)."""
+    if restart is not None:
+        return restart.get("layout", "gather")
+    if scene.output_layout != "auto":
+        return scene.output_layout
+    return "ranks" if comm.getSize() > 1 else "gather"
+
+
+def open_writer(layout, out, model, attrs, restart, fields):
+    """The output's writer of `layout` (output/writer.py: gather, output/ranks.py: ranks)."""
+    region = model.space.cell_values(REGION_LABEL)
+    if layout == "ranks":
+        return RankWriter(out, model.space, attrs, resume=restart, kernels=model.kernels, region=region, fields=fields)
+    return Writer(out, model.space, model.points, model.tets, attrs, resume=restart, kernels=model.kernels,
+                  region=region, fields=fields)
 
 
 def _check_restart(state, model, scene, path):

@@ -14,6 +14,8 @@ from ..mesh.generate import MAX_LEVEL
 from ..discretization import partition
 from ..core.options import Options, prefixed_names
 
+OUTPUT_LAYOUTS = ("auto", "gather", "ranks")     # -output_layout (output/writer.py, output/ranks.py)
+
 DEFAULT_MATERIAL = "stvk"
 DEFAULT_EFFECTS = effects_pkg.DEFAULT
 EFFECTS = effects_pkg.NAMES
@@ -63,6 +65,7 @@ class Scene:
                                   # materials undefined when inverted)
     checkpoint_every: int = 0     # write the full state every N steps (0: only on SIGINT/SIGTERM)
     output_fields: tuple = DEFAULT_FIELDS   # what each frame holds (fields.OUTPUT_FIELDS)
+    output_layout: str = "auto"             # gather (one file, rank 0) | ranks (a file per rank + FILE.h5's VDS)
     reuse_preconditioner: str = "auto"  # auto: keep a GAMG set-up until the Krylov iterations grow (solver.py)
     integrator: str = "beuler"    # beuler: backward Euler (thesis); ts: PETSc TS (-ts_type alpha2)
     energy_momentum: bool = False  # -integrator ts at rho_inf = 1: the discrete-gradient elastic force
@@ -192,6 +195,7 @@ def _read_time(s, opts):
     s.dt_grow_after = opts.integer("dt_grow_after", s.dt_grow_after, minimum=1)
     s.checkpoint_every = opts.integer("checkpoint_every", s.checkpoint_every, minimum=0)
     s.output_fields = output_fields(opts.names("output_fields", ""))
+    s.output_layout = opts.choice("output_layout", OUTPUT_LAYOUTS, s.output_layout)
     s.integrator = opts.choice("integrator", INTEGRATORS, s.integrator)
     s.energy_momentum = opts.flag("energy_momentum", s.energy_momentum)
     if s.energy_momentum and s.integrator != "ts":

@@ -111,6 +111,15 @@ def completed_frames(f):
     return n
 
 
+def input_order(f):
+    """(node rows, cell rows) that put an open output's arrays in the input mesh's order: a[nodes] is in input
+    node order; slice(None) for both where they are already (the gathered layout). A per-rank output's mesh/tetra
+    refers to its own rows: input_index[tetra[cells]] is the input mesh's cells."""
+    if "mesh/input_index" not in f:
+        return slice(None), slice(None)
+    return np.argsort(f["mesh/input_index"][:]), np.argsort(f["mesh/cell_input_index"][:])
+
+
 def is_output(path):
     """Whether `path` is an output file of `hyperelastic run` (HDF5 with OUTPUT_DATASETS)."""
     if not os.path.isfile(path):
@@ -196,7 +205,8 @@ def read_checkpoint(path):
         if bad:
             raise UserError(f"--restart '{path}': checkpoint {slot} is incomplete (no {', '.join(bad)})")
         nv = f["mesh/points"].shape[0]
-        state = {"cell_nodes": int(f["mesh/tetra"].shape[1]) if "mesh/tetra" in f else 0}   # 4 or 10
+        state = {"cell_nodes": int(f["mesh/tetra"].shape[1]) if "mesh/tetra" in f else 0,   # 4 or 10
+                 "layout": str(f.attrs.get("output_layout", "gather"))}
         keys = "mesh/input_index" if "mesh/input_index" in f else None
         for k in ("x", "v"):
             a = g[k]

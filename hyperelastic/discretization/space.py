@@ -267,6 +267,29 @@ class Space:
             raise UserError(f"{what}: {ex.missing} nodes of this mesh have no row in it")
         return np.ascontiguousarray(ex.move(vals), np.float64).reshape(-1)
 
+    def node_global(self):
+        """The global index of every local node (owned and ghost) in the global vectors' node order: the ranks'
+        owned nodes one rank after another, each rank's in its local order."""
+        return self.lgmap.getIndices()[0::3] // 3
+
+    def sum_owned(self, a, n=None):
+        """(n_owned, k) sums over the ranks of a (local nodes, k) array (the first n local nodes given, the rest
+        zero): every rank's contribution at a node, in the owner's rows, in the owned nodes' order. Collective."""
+        a = np.asarray(a, np.float64).reshape(len(a), -1)
+        k = a.shape[1]
+        if self.mpi.size == 1:
+            full = np.zeros((self.nlv, k))
+            full[:len(a)] = a
+            return full[self.lvid_of_owned]
+        v = PETSc.Vec().createMPI((self.n_owned * k, PETSc.DECIDE), bsize=k, comm=self.comm)
+        v.zeroEntries()
+        g = self.node_global()[:len(a)].astype(PETSc.IntType)
+        v.setValuesBlocked(g, np.ascontiguousarray(a).reshape(-1), addv=PETSc.InsertMode.ADD_VALUES)
+        v.assemble()
+        out = v.getArray(readonly=True).reshape(-1, k).copy()
+        v.destroy()
+        return out
+
     def gather(self, local_array):
         """(nv, 3) array in the input mesh's vertex order on rank 0; None elsewhere."""
         order, _ = self._gather_plan()

@@ -31,6 +31,11 @@ DEFAULT_FIELDS = POINT_FIELDS + CELL_FIELDS
 TENSOR6 = ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))
 
 
+def is_point_field(name):
+    """Whether the written field `name` has a value per node (else per cell)."""
+    return name in POINT_FIELDS + POINT_SCALARS or name.endswith(NODAL)
+
+
 def output_fields(words):
     """The fields a run writes: -output_fields' words (names of OUTPUT_FIELDS, `default`, `all`) in
     OUTPUT_FIELDS' order; UserError on an unknown name."""
@@ -59,10 +64,12 @@ def cell_quantities(fields):
     return tuple(n for n in CELL_FIELDS + TENSOR_FIELDS if n in base)
 
 
-def finish(cells, fields, tets=None, volume=None, pressure=None):
-    """On rank 0: the written cell fields from the gathered cell quantities `cells` (input cell order):
-    the stress's mean from the mixed pressure (node values; its P1 corners), the principal stresses, the
-    nodal averages (tets, volume: the cells' nodes and reference volumes); only `fields` are kept."""
+def finish(cells, fields, tets=None, volume=None, pressure=None, total=None):
+    """The written fields from the cell quantities `cells` of the cells `tets` (rank 0's gathered ones in input
+    order, or each rank's own): the stress's mean from the mixed pressure (node values; its P1 corners), the
+    principal stresses, the nodal averages (volume: the cells' reference volumes; total: with each rank's own
+    cells, sums a (local nodes, k) array over the ranks into the rows of the nodes it owns, Space.sum_owned);
+    only `fields` are kept."""
     out = dict(cells)
     if "stress" in out and pressure is not None:
         s = out["stress"]
@@ -82,13 +89,14 @@ def finish(cells, fields, tets=None, volume=None, pressure=None):
         out["principal_stress"] = ev
     for name in fields:
         if name.endswith(NODAL):
-            out[name] = nodal_average(out[name[:-len(NODAL)]], tets, volume)
+            out[name] = nodal_average(out[name[:-len(NODAL)]], tets, volume, total)
     return {n: out[n] for n in fields if n in out}
 
 
-def nodal_average(values, tets, volume):
-    """Cell values averaged at every node of the cells (weights: the cells' volumes); NaN cells left out."""
-    nv = int(tets.max()) + 1
+def nodal_average(values, tets, volume, total=None):
+    """Cell values averaged at every node of the cells (weights: the cells' volumes); NaN cells left out. total:
+    sums the (nodes, k + 1) numerators and weights over the ranks (see finish): the owned nodes' averages."""
+    nv = int(tets.max()) + 1 if len(tets) else 0
     v = values.reshape(len(values), -1)
     w = np.where(np.isfinite(v).all(axis=1), volume, 0.0)
     num = np.zeros((nv, v.shape[1]))
@@ -96,9 +104,12 @@ def nodal_average(values, tets, volume):
     for a in range(tets.shape[1]):
         np.add.at(num, tets[:, a], np.nan_to_num(v) * w[:, None])
         np.add.at(den, tets[:, a], w)
+    if total is not None:
+        both = total(np.concatenate([num, den[:, None]], axis=1), nv)
+        num, den = both[:, :-1], both[:, -1]
     with np.errstate(all="ignore"):
         out = num / den[:, None]
-    return out.reshape((nv,) + values.shape[1:])
+    return out.reshape((len(out),) + values.shape[1:])
 
 
 def reference_volumes(points, tets):

@@ -24,7 +24,7 @@ from petsc4py import PETSc
 
 from .. import __version__
 from ..core.errors import UserError
-from .fields import DEFAULT_FIELDS, NODAL, POINT_FIELDS, POINT_SCALARS, cell_fields, cell_quantities, finish, reference_volumes
+from .fields import DEFAULT_FIELDS, NODAL, cell_fields, cell_quantities, finish, is_point_field, reference_volumes
 from ..core.files import CHECKPOINT_ATTRS, CHECKPOINT_OPTIONAL, PARTIAL
 from ..core.options import all_options
 from ..solving.stats import column_type
@@ -179,20 +179,17 @@ def run_attributes(model, scene_file, solver):
 
 
 class Writer:
-    def __init__(self, path, space, points, tets, attrs, resume=None, kernels=None, region=None,
-                 fields=DEFAULT_FIELDS):
-        """A new output file, or (resume = a checkpoint's state) the existing one cut back to the
-        frames and statistics rows the checkpoint had. kernels: the elastic cell kernels, for the cell
-        fields (none without); region: the local cells' region tags (collective); fields: what each frame
-        holds (fields.output_fields)."""
+    """-output_layout gather: rank 0 gathers every frame in the input mesh's order and writes the one file."""
+    layout = "gather"
+
+    def _common(self, path, space, kernels, fields):
+        """What every layout's writer holds."""
         self.space = space
         self.kernels = kernels
         self.fields = tuple(fields)
-        self._tets = None        # (rank 0) the cells' nodes, for the fields that need them (fields.finish)
-        self._volume = None
         self.point_scalars = None      # () -> {name: local array per node}: scalar point fields of a frame
         self.f = None            # the HDF5 file (rank 0, once opened)
-        self.points = None if points is None else np.asarray(points, np.float64)
+        self.h5 = None           # the file's end-of-file reserve (Guard; rank 0, once opened)
         self.root = space.mpi.rank == 0
         # written under FILE.h5.partial until a step is complete (see _commit): a run that fails before
         # leaves an earlier FILE.h5 (and its XDMF) byte-identical
@@ -206,7 +203,17 @@ class Writer:
         self._pending = []       # statistics rows not yet written (see stats())
         self._columns = {}       # the open statistics datasets by name
         self._stats_flushed = time.monotonic()
-        self.h5 = None           # the file's end-of-file reserve (Guard; rank 0, once opened)
+
+    def __init__(self, path, space, points, tets, attrs, resume=None, kernels=None, region=None,
+                 fields=DEFAULT_FIELDS):
+        """A new output file, or (resume = a checkpoint's state) the existing one cut back to the
+        frames and statistics rows the checkpoint had. kernels: the elastic cell kernels, for the cell
+        fields (none without); region: the local cells' region tags (collective); fields: what each frame
+        holds (fields.output_fields)."""
+        self._common(path, space, kernels, fields)
+        self._tets = None        # (rank 0) the cells' nodes, for the fields that need them (fields.finish)
+        self._volume = None
+        self.points = None if points is None else np.asarray(points, np.float64)
         if resume is not None:
             self._resume(resume, attrs)
             return
@@ -494,7 +501,7 @@ class Writer:
             self._mesh_text = self._mesh_xml()
         attrs = [self._attribute(h5, "/mesh/region", "region", (self.nc,), "Cell", "Int")]
         for name, shape in fields:
-            node = name in POINT_FIELDS + POINT_SCALARS or name.endswith(NODAL)
+            node = is_point_field(name)
             attrs.append(self._attribute(h5, f"/frames/{i}/{name}", name, shape, "Node" if node else "Cell", "Float"))
         return (f'   <Grid Name="frame{i}" GridType="Uniform">\n{self._mesh_text}\n    <Time Value="{t:.17g}"/>\n'
                 + "\n".join(attrs) + "\n   </Grid>\n")

@@ -1,0 +1,435 @@
+"""-output_layout ranks (the default on several ranks): every rank writes its own part of each frame to its own HDF5
+file, and FILE.h5 presents the parts as one output through HDF5 virtual datasets (VDS, HDF5 >= 1.10).
+
+    FILE.h5                the file users open (rank 0 writes it): the run's attributes, `time`, `stats/*`,
+                           checkpoint attributes, and virtual datasets with the gathered layout's names and shapes:
+                           mesh/points, mesh/tetra, mesh/region, x, frames/<i>/<field>, checkpoint/<slot>/<array>,
+                           plus mesh/input_index (nv,) and mesh/cell_input_index (nc,)
+    FILE.h5.d/TAG_rNNNNN.h5 rank N's part of a run (TAG: the run's or the restart's own): its rows of mesh/* (the first
+                           part only), x (its frames, from the part's first), frames/<i>/*, checkpoint/<slot>/*
+
+The virtual datasets' node and cell order is the partition's (the ranks' owned nodes one rank after another, the
+PETSc global vectors' order), not the input mesh's: mesh/input_index gives the input index of each row, and
+mesh/tetra refers to the rows. A run restarted on another rank count keeps the file's order: each rank then writes a
+contiguous block of it, its rows sent there by an exchange (discretization/exchange.py).
+
+Rank 0's part of a frame is metadata only (a virtual dataset per field with one mapping per rank, and the time):
+its cost does not grow with the mesh. Crash safety as the gathered layout's: every file has its end-of-file reserve
+(writer.Guard) and compact groups; a frame's virtual datasets are made after every rank has flushed its part, and
+its time after them, so a frame is counted (files.completed_frames) only when it is whole in every file."""
+import json
+import os
+import time
+
+import h5py
+import numpy as np
+from h5py import h5d, h5p, h5s, h5t
+
+from ..core.errors import UserError
+from ..core.files import RANKS
+from ..discretization.exchange import Exchange
+from .fields import NODAL, cell_fields, cell_quantities, finish, reference_volumes
+from .writer import FIELD_LINKS, FRAME_LINKS, ROOM_ATTR, ROOM_ATTR_BYTES, Guard, Writer, _compact_group, room_for, trim
+
+MESH = (("points", 3, "node", np.float64), ("input_index", 1, "node", np.int64), ("tetra", None, "cell", np.int64),
+        ("region", 1, "cell", np.int64), ("cell_input_index", 1, "cell", np.int64))
+FILL = {np.dtype(np.float64): np.nan, np.dtype(np.int64): -1}
+
+
+def _tail(width):
+    return () if width == 1 else (width,)
+
+
+def virtual(group, name, pieces, tail, dtype=np.float64, **attrs):
+    """A virtual dataset `name` in `group`: the pieces [(file relative to the group's file, dataset, rows)]
+    one after another along the first axis (tail: the rows' shape); unmapped or unreadable rows read as FILL."""
+    dtype = np.dtype(dtype)
+    n = sum(rows for _, _, rows in pieces)
+    dcpl = h5p.create(h5p.DATASET_CREATE)
+    dcpl.set_fill_value(np.array(FILL[dtype], dtype))
+    space = h5s.create_simple((n,) + tail)
+    at = 0
+    for path, dset, rows in pieces:
+        if rows:
+            vs = h5s.create_simple((n,) + tail)
+            vs.select_hyperslab((at,) + (0,) * len(tail), (rows,) + tail)
+            src = h5s.create_simple((rows,) + tail)
+            dcpl.set_virtual(vs, path.encode(), dset.encode(), src)
+        at += rows
+    if name in group:
+        del group[name]
+    h5d.create(group.id, name.encode(), h5t.py_create(dtype), space, dcpl=dcpl)
+    for k, v in attrs.items():
+        group[name].attrs[k] = v
+
+
+def virtual_x(f, parts, nv):
+    """mesh x (frames, nv, 3): part p's rank files' rows at frames first_p ... (up to the next part's first; the
+    last part's unlimited, so that the dataset grows as its ranks extend their files)."""
+    U = h5s.UNLIMITED
+    dcpl = h5p.create(h5p.DATASET_CREATE)
+    dcpl.set_fill_value(np.array(np.nan))
+    fixed = 0                     # the frames the earlier parts' mappings reach (the dataset's least extent)
+    for p, part in enumerate(parts):
+        last = p == len(parts) - 1
+        # (an earlier part's frames end where any later part's begin: a restart from an older checkpoint)
+        frames = None if last else min(q["first"] for q in parts[p + 1:]) - part["first"]
+        if frames is not None and frames <= 0:
+            continue
+        fixed = max(fixed, part["first"] + (frames or 0))
+        at = 0
+        for path, rows in zip(part["files"], part["nodes"]):
+            if rows:
+                vs = h5s.create_simple((0, nv, 3), (U, nv, 3))
+                src = h5s.create_simple((0, rows, 3), (U, rows, 3))
+                count = U if last else frames
+                vs.select_hyperslab((part["first"], at, 0), (count, 1, 1), (1, 1, 1), (1, rows, 3))
+                src.select_hyperslab((0, 0, 0), (count, 1, 1), (1, 1, 1), (1, rows, 3))
+                dcpl.set_virtual(vs, path.encode(), b"x", src)
+            at += rows
+    if "x" in f:
+        del f["x"]
+    h5d.create(f.id, b"x", h5t.NATIVE_DOUBLE, h5s.create_simple((fixed, nv, 3), (U, nv, 3)), dcpl=dcpl)
+
+
+def copy_virtual(src, dst_group, name):
+    """A virtual dataset of another file made again in dst_group with the same mappings (the files it maps to are
+    named relative to the file that holds it: both files lie in one directory)."""
+    d = src.id
+    h5d.create(dst_group.id, name.encode(), d.get_type(), d.get_space(), dcpl=d.get_create_plist())
+    for k, v in src.attrs.items():
+        dst_group[name].attrs[k] = v
+
+
+class RankWriter(Writer):
+    """The writer of -output_layout ranks (see the module's text): the same interface as Writer."""
+    layout = "ranks"
+
+    def __init__(self, path, space, attrs, resume=None, kernels=None, region=None, fields=()):
+        self._common(path, space, kernels, fields)
+        mpi = self.mpi = space.mpi
+        here = os.path.dirname(os.path.abspath(path))
+        # the part's own name: its start, and 8 random hex digits (two runs of one process in one second differ)
+        self.tag = mpi.bcast(f"{time.strftime('%Y%m%d-%H%M%S')}-{os.urandom(4).hex()}" if self.root else None, root=0)
+        names = [os.path.join(os.path.basename(path) + RANKS, f"{self.tag}_r{r:05d}.h5") for r in range(mpi.size)]
+        self.rank_path = os.path.join(here, names[mpi.rank])
+        self.nv, self.nc = space.nv_total, space.nc_total
+        self._volume = None
+        self._slot = -1
+        node_keys, cell_keys = space.orig[space.owned], space.cell_orig
+        self._nodes = self._cells = None          # the exchanges to the file's order (None: the ranks' own rows)
+        old = None
+        if resume is None:
+            first = 0
+            counts = (space.n_owned, space.nc)
+        else:
+            old = mpi.bcast(self._old_parts() if self.root else None, root=0)
+            first = self.nframes = int(resume["nframes"])
+            self.nstats = int(resume["nstats"])
+            self._slot = old["slot"]
+            counts = self._blocks(old, node_keys, cell_keys)
+        nodes, cells = (np.array(mpi.allgather(c)) for c in counts)
+        self.part = {"tag": self.tag, "files": names, "nodes": nodes.tolist(), "cells": cells.tolist(), "first": first}
+        self.parts = (old["parts"] if old else []) + [self.part]
+        self._make_dir(here, path)
+        mesh = None if resume is not None else self._mesh_rows(region)
+        need = sum(a.nbytes for a in mesh.values()) if mesh else 0
+        self._ensure_room(lambda: need + 65536, "the mesh" if mesh else "a copy of the checkpoint's file")
+        self.rf = h5py.File(self.rank_path, "w")
+        rf = self.rf
+        for k, a in (mesh or {}).items():
+            rf.create_dataset(f"mesh/{k}", data=a)
+        n = self.part["nodes"][mpi.rank]
+        rf.create_dataset("x", shape=(0, n, 3), maxshape=(None, n, 3), dtype=np.float64, chunks=(1, max(n, 1), 3),
+                          fillvalue=np.nan)
+        _compact_group(rf, "frames", FRAME_LINKS)
+        ck = rf.create_group("checkpoint")
+        for slot in (0, 1):
+            _compact_group(ck, str(slot), FIELD_LINKS)
+        rf.attrs.update({"rank": mpi.rank, "ranks": mpi.size, "part": self.tag, "first_frame": first})
+        self.rh5 = Guard(rf)
+        self._written = 0                 # frames in this rank's file
+        mpi.Barrier()                     # (every rank file exists before the virtual datasets name them)
+        if self.root:
+            self.f = self._new_master(attrs) if resume is None else self._copy_master(attrs, old)
+            self.h5 = Guard(self.f)
+
+    # --- set-up ------------------------------------------------------------------------------
+    def _make_dir(self, here, path):
+        err = None
+        if self.root:
+            try:
+                os.makedirs(os.path.join(here, os.path.basename(path) + RANKS), exist_ok=True)
+            except OSError as e:
+                err = f"output '{path}': cannot create its ranks' directory ({e.strerror})"
+        err = self.mpi.bcast(err, root=0)
+        if err:
+            raise UserError(err)
+
+    def _mesh_rows(self, region):
+        """This rank's rows of mesh/*: its owned nodes and its cells (their nodes by their rows in the file)."""
+        sp = self.space
+        g = sp.node_global()
+        reg = np.zeros(sp.nc, np.int64) if region is None else np.asarray(region, np.int64)
+        return {"points": np.ascontiguousarray(sp.X[sp.owned]), "input_index": sp.orig[sp.owned].astype(np.int64),
+                "tetra": g[sp.cells].astype(np.int64), "region": reg, "cell_input_index": sp.cell_orig.astype(np.int64)}
+
+    def _old_parts(self):
+        """(rank 0) What the checkpoint's file says of its parts and checkpoint."""
+        with h5py.File(self.final, "r") as src:
+            return {"parts": json.loads(src.attrs["parts"]), "slot": int(src.attrs["checkpoint_slot"])}
+
+    def _blocks(self, old, node_keys, cell_keys):
+        """A restart: this rank's block of the file's node and cell order (part 0's blocks on its rank count, else
+        even ones), and the exchanges that bring the rows there."""
+        mpi, sp = self.mpi, self.space
+        first = old["parts"][0]
+        if len(first["nodes"]) == mpi.size:
+            nb, cb = np.cumsum([0] + first["nodes"]), np.cumsum([0] + first["cells"])
+            (nlo, nhi), (clo, chi) = nb[mpi.rank:mpi.rank + 2], cb[mpi.rank:mpi.rank + 2]
+        else:
+            nlo, nhi = self.nv * mpi.rank // mpi.size, self.nv * (mpi.rank + 1) // mpi.size
+            clo, chi = self.nc * mpi.rank // mpi.size, self.nc * (mpi.rank + 1) // mpi.size
+        with h5py.File(self.final, "r") as src:
+            want_n = src["mesh/input_index"][nlo:nhi]
+            want_c = src["mesh/cell_input_index"][clo:chi]
+        self._nodes = Exchange(mpi, node_keys, want_n, self.nv)
+        self._cells = Exchange(mpi, cell_keys, want_c, self.nc)
+        if self._nodes.missing or self._cells.missing:
+            raise UserError(f"--restart '{self.final}': its mesh/input_index does not cover this run's mesh")
+        self._nodes = None if self._nodes.identity else self._nodes
+        self._cells = None if self._cells.identity else self._cells
+        return int(nhi - nlo), int(chi - clo)
+
+    def _pieces(self, dset, center, part=None):
+        part = part or self.part
+        return list(zip(part["files"], [dset] * len(part["files"]), part["nodes" if center == "node" else "cells"]))
+
+    def _new_master(self, attrs):
+        f = h5py.File(self.path, "w")
+        npc = self.space.cells.shape[1]
+        mesh = f.create_group("mesh")
+        for name, width, center, dtype in MESH:
+            virtual(mesh, name, self._pieces(f"mesh/{name}", center), _tail(npc if width is None else width), dtype)
+        self._master_common(f, attrs)
+        return f
+
+    def _master_common(self, f, attrs):
+        f.create_dataset("time", shape=(0,), maxshape=(None,), dtype=np.float64, chunks=(256,), fillvalue=np.nan)
+        virtual_x(f, self.parts, self.nv)
+        if "stats" not in f:
+            f.create_group("stats")
+        _compact_group(f, "frames", FRAME_LINKS)
+        ck = f.require_group("checkpoint")
+        for slot in (0, 1):
+            _compact_group(ck, str(slot), FIELD_LINKS)
+        for k, v in attrs.items():
+            f.attrs[k] = v
+        f.attrs["output_layout"] = self.layout
+        f.attrs["parts"] = json.dumps(self.parts)
+        if "checkpoint_slot" not in f.attrs:
+            f.attrs["checkpoint_slot"] = -1
+        f.attrs[ROOM_ATTR] = np.zeros(ROOM_ATTR_BYTES, np.uint8)
+
+    def _copy_master(self, attrs, old):
+        """(rank 0) A restart's new FILE.h5 (partial until its first step): the checkpoint's frames, statistics rows
+        and checkpoint, mapping to the earlier parts' files, which are not touched."""
+        with h5py.File(self.final, "r") as src:
+            keep = {k: v for k, v in src.attrs.items()
+                    if k not in ("failure", "interrupted", "checkpoint_slot", ROOM_ATTR, "parts")}
+            keep["restarts"] = int(src.attrs.get("restarts", 0)) + 1
+            keep["options"] = attrs["options"]
+            f = h5py.File(self.path, "w")
+            mesh = f.create_group("mesh")
+            for name in src["mesh"]:
+                copy_virtual(src[f"mesh/{name}"], mesh, name)
+            n = self.nframes
+            self._master_common(f, keep)
+            f["time"].resize((n,))
+            f["time"][:] = src["time"][:n]
+            for i in range(n):
+                g = _compact_group(f["frames"], str(i), FIELD_LINKS)
+                for k, d in src[f"frames/{i}"].items():
+                    copy_virtual(d, g, k)
+            for k, d in src["stats"].items():
+                f["stats"].create_dataset(k, data=d[:self.nstats], maxshape=(None,), chunks=(256,),
+                                          fillvalue=0 if d.dtype.kind == "i" else np.nan)
+            slot = old["slot"]
+            g, h = src[f"checkpoint/{slot}"], f[f"checkpoint/{slot}"]
+            for k, d in g.items():
+                copy_virtual(d, h, k)
+            for k, v in g.attrs.items():
+                h.attrs[k] = v
+            f.attrs.modify("checkpoint_slot", slot)
+        return f
+
+    # --- frames and checkpoints --------------------------------------------------------------
+    def _node_rows(self, a):
+        a = np.ascontiguousarray(a)
+        return a if self._nodes is None else self._nodes.move(a)
+
+    def _cell_rows(self, a):
+        a = np.ascontiguousarray(a)
+        return a if self._cells is None else self._cells.move(a)
+
+    def _owned(self, local, width=3):
+        sp = self.space
+        return np.asarray(local).reshape(sp.nlv, -1)[sp.owned].reshape((-1,) + _tail(width))
+
+    def _volumes(self):
+        if self._volume is None:
+            self._volume = reference_volumes(self.space.X, self.space.cells)
+        return self._volume
+
+    def frame(self, t, x_local, v_local=None):
+        """Frame at time t (collective): every rank writes its rows to its file, then rank 0 the frame's virtual
+        datasets and its time."""
+        sp = self.space
+        x = self._owned(x_local)
+        nodes = {}
+        if "displacement" in self.fields:
+            nodes["displacement"] = x - sp.X[sp.owned]
+        if v_local is not None and "velocity" in self.fields:
+            nodes["velocity"] = self._owned(v_local)
+        cells = {}
+        scalars = self.point_scalars() if self.point_scalars is not None else {}
+        if self.kernels is not None:
+            local = cell_fields(self.kernels, x_local, cell_quantities(self.fields))
+            done = finish(local, self.fields, sp.cells, self._volumes(), scalars.get("pressure"),
+                          total=lambda a, n: sp.sum_owned(a, n))
+            for k, a in done.items():
+                (nodes if k.endswith(NODAL) else cells)[k] = a
+        for k, a in scalars.items():
+            nodes[k] = self._owned(a, 1)
+        rows = {"x": self._node_rows(x)}
+        rows.update({f"frames/{self.nframes}/{k}": self._node_rows(a) for k, a in nodes.items()})
+        rows.update({f"frames/{self.nframes}/{k}": self._cell_rows(a) for k, a in cells.items()})
+        nbytes = sum(a.nbytes for a in rows.values()) + 16384
+        self._ensure_room(lambda: nbytes, f"frame {self.nframes}")
+        self._write_rows(rows)
+        shapes = [(k, a.shape[1:], "node" if k in nodes else "cell") for k, a in
+                  [(k.rsplit("/", 1)[1], a) for k, a in rows.items() if k != "x"]]
+        self.mpi.Barrier()            # (every rank's part is flushed before the frame's virtual datasets name it)
+        if self.root:
+            self._reserve(4096 * (1 + len(shapes)) + 64 * self.mpi.size * len(shapes))
+            self._write_frame(t, shapes)
+        else:
+            self.nframes += 1
+        self._leave_together()
+
+    def _write_rows(self, rows):
+        rf = self.rf
+        self.rh5.reserve(sum(a.nbytes for a in rows.values()) + 16384)
+        for k, a in rows.items():
+            if k == "x":
+                j = self._written
+                rf["x"].resize((j + 1,) + rf["x"].shape[1:])
+                rf["x"][j] = a
+                self._written += 1
+                continue
+            group, name = k.rsplit("/", 1)
+            g = _compact_group(rf[group.rsplit("/", 1)[0]], group.rsplit("/", 1)[1], FIELD_LINKS)
+            if name in g:
+                del g[name]
+            g.create_dataset(name, data=a)
+        rf.flush()
+
+    def _write_frame(self, t, shapes):
+        """(rank 0) Frame i's virtual datasets (one mapping per rank each), a flush, then its time and a flush."""
+        f = self.f
+        i = self.nframes
+        g = _compact_group(f["frames"], str(i), FIELD_LINKS)
+        for k in list(g):
+            del g[k]
+        for name, tail, center in shapes:
+            virtual(g, name, self._pieces(f"frames/{i}/{name}", center), tail)
+        self.nframes += 1
+        if time.monotonic() - self._stats_flushed >= 1.0:
+            self._flush_stats()
+        f.flush()
+        f["time"].resize((i + 1,))
+        f["time"][i] = t
+        f.flush()
+        if self.committed:
+            n = {"node": self.nv, "cell": self.nc}
+            self._append_xdmf(i, t, sorted((k, (n[c],) + tuple(tail)) for k, tail, c in shapes))
+
+    def checkpoint(self, x_local, v_local, nodal=None, **state):
+        """The full state into checkpoint/<slot> of every rank's file, then (rank 0) the slot's virtual datasets
+        and attributes, and last the root attribute checkpoint_slot that names it. Collective."""
+        slot = 1 if self._slot == 0 else 0
+        arrays = {"x": self._node_rows(self._owned(x_local)), "v": self._node_rows(self._owned(v_local))}
+        arrays.update({k: self._node_rows(self._owned(a, 1)) for k, a in (nodal or {}).items()})
+        nbytes = sum(a.nbytes for a in arrays.values()) + 16384
+        self._ensure_room(lambda: nbytes, "a checkpoint")
+        self._write_rows({f"checkpoint/{slot}/{k}": a for k, a in arrays.items()})
+        self.mpi.Barrier()
+        if self.root:
+            self._reserve(8192 + 64 * self.mpi.size * len(arrays))
+            self._write_checkpoint(slot, state, [(k, a.shape[1:]) for k, a in arrays.items()])
+        self._slot = slot
+        self._leave_together()
+
+    def _write_checkpoint(self, slot, state, arrays):
+        from ..core.files import CHECKPOINT_ATTRS, CHECKPOINT_OPTIONAL
+        f = self.f
+        self._flush_stats()
+        g = f[f"checkpoint/{slot}"]
+        for name, tail in arrays:
+            if name not in g or g[name].attrs.get("part") != self.tag:     # (made once per part and slot)
+                virtual(g, name, self._pieces(f"checkpoint/{slot}/{name}", "node"), tail, part=self.tag)
+        for k in CHECKPOINT_ATTRS:
+            g.attrs[k] = state[k]
+        for k in CHECKPOINT_OPTIONAL:
+            if state.get(k) is not None:
+                g.attrs[k] = state[k]
+            elif k in g.attrs:
+                del g.attrs[k]
+        f.flush()
+        f.attrs.modify("checkpoint_slot", slot)
+        f.flush()
+
+    def _ensure_room(self, nbytes, what):
+        """UserError on every rank unless every rank can write nbytes() more to its file (and rank 0 to FILE.h5)."""
+        size = self.rf.id.get_filesize() if getattr(self, "rf", None) is not None else None
+        why = room_for(self.rank_path, nbytes(), size=size)
+        if why is None and self.root:
+            why = room_for(self.path, 65536 + 64 * self.mpi.size * 16,
+                           size=self.f.id.get_filesize() if self.f is not None else None)
+        whys = self.mpi.allgather(why)
+        why = next((w for w in whys if w), None)
+        if why:
+            held = f"it holds frames 0..{self.nframes - 1}" if self.nframes else "it holds no frame"
+            raise UserError(f"output '{self.final}': no room for {what} ({why}); {held}")
+
+    # --- the end -----------------------------------------------------------------------------
+    def _commit(self):
+        super()._commit()
+        self._clean()
+
+    def _clean(self):
+        """(rank 0, once FILE.h5 is this run's) The rank files that FILE.h5 does not name (an earlier run's)."""
+        d = self.final + RANKS
+        mine = {os.path.basename(p) for part in self.parts for p in part["files"]}
+        for name in os.listdir(d) if os.path.isdir(d) else []:
+            if name not in mine and name.endswith(".h5"):
+                try:
+                    os.remove(os.path.join(d, name))
+                except OSError:
+                    pass
+
+    def close(self, keep=True):
+        """Flush and close every file (collective). A run that completed no step and is not kept leaves no file of
+        its own (its rank files are removed with its partial FILE.h5)."""
+        if getattr(self, "rf", None) is not None:
+            self.rh5.reserve(65536)
+            self.rf.flush()
+            self.rf.close()
+            self.rf = None
+            if self.rh5.on:
+                trim(self.rank_path)
+        self.mpi.Barrier()
+        super().close(keep)
+        committed = self.mpi.bcast(self.committed, root=0)
+        if not committed and os.path.exists(self.rank_path):
+            os.remove(self.rank_path)
