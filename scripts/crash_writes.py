@@ -3,7 +3,11 @@ N-th pwrite64 (HDF5's writes) for every N in a range, and each file left behind 
 reference's frames (x, time and every frame's fields), and give a bitwise restart from its checkpoint.
 
     python scripts/crash_writes.py [--first 1] [--last 0 (= every write)] [--every 1] [--jobs 2]
-        [--restart-every 10] [--keep DIR]
+        [--restart-every 10] [--ranks 1]
+
+--ranks N runs it under mpiexec -n N (the per-rank output layout on N > 1: FILE.h5 and FILE.h5.d/); strace counts
+each process's writes on its own, so the N-th write of every rank that makes one is killed (mpiexec then ends the
+others), and the restart runs on N ranks too.
 
 Needs strace (apt-get install strace). Prints one line per failing N and a summary; exit 1 on a failure.
 tests/test_checkpoint.py runs a few N of it; the whole range is this script's (about 0.6 s per N per job).
@@ -28,8 +32,18 @@ BIN = os.path.dirname(sys.executable)
 RUN = ["bend", "-level", "1", "-final_time", "0.6", "-checkpoint_every", "7", "-quiet"]
 
 
+RANKS = [1]
+
+
+def mpi(cmd):
+    """cmd under the venv's mpiexec with --ranks ranks (as it is on one)."""
+    if RANKS[0] == 1:
+        return cmd
+    return [shutil.which("mpiexec", path=BIN) or "mpiexec", "-n", str(RANKS[0])] + cmd
+
+
 def command(out):
-    return [os.path.join(BIN, "hyperelastic"), "run", *RUN, "-output", out]
+    return mpi([os.path.join(BIN, "hyperelastic"), "run", *RUN, "-output", out])
 
 
 def count_writes(out):
@@ -58,7 +72,8 @@ def check(n_write, ref, tmp, restart):
                     "-e", f"inject=pwrite64:signal=KILL:when={n_write}", *command(out)], capture_output=True)
     try:
         if not os.path.exists(out):              # killed before the first step completed: nothing replaced
-            return "" if not os.listdir(d) or os.listdir(d) == ["o.h5.partial"] else f"left {os.listdir(d)}"
+            left = set(os.listdir(d)) - {"o.h5.partial", "o.h5.d"}       # (the rank files of a run never
+            return "" if not left else f"left {sorted(left)}"                # committed: the next commit's to remove)
         try:
             r = read(out)
         except Exception as e:                   # noqa: BLE001 (any reader failure is the finding)
@@ -75,7 +90,7 @@ def check(n_write, ref, tmp, restart):
             if not n - 1 <= grids <= n:
                 return f"the XDMF has {grids} frames, the file {n}"
         if restart and r["slot"] >= 0:
-            q = subprocess.run([os.path.join(BIN, "hyperelastic"), "run", "--restart", out, "-quiet"],
+            q = subprocess.run(mpi([os.path.join(BIN, "hyperelastic"), "run", "--restart", out, "-quiet"]),
                                capture_output=True, text=True)
             if q.returncode != 0:
                 return f"restart failed: {q.stderr.strip()}"
@@ -94,7 +109,9 @@ def main(argv=None):
     ap.add_argument("--every", type=int, default=1)
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--restart-every", type=int, default=10, help="restart every K-th killed run (0: none)")
+    ap.add_argument("--ranks", type=int, default=1, help="MPI ranks of the run (and of the restarts)")
     args = ap.parse_args(argv)
+    RANKS[0] = args.ranks
     if shutil.which("strace") is None:
         sys.exit("crash_writes: needs strace (apt-get install strace)")
     tmp = tempfile.mkdtemp(prefix="crash_writes_")

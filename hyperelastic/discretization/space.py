@@ -267,6 +267,10 @@ class Space:
             raise UserError(f"{what}: {ex.missing} nodes of this mesh have no row in it")
         return np.ascontiguousarray(ex.move(vals), np.float64).reshape(-1)
 
+    def input_cells(self):
+        """The local cells' nodes in their input cells' order (P1: the cells keep it)."""
+        return self.cells
+
     def node_global(self):
         """The global index of every local node (owned and ghost) in the global vectors' node order: the ranks'
         owned nodes one rank after another, each rank's in its local order."""
@@ -374,6 +378,7 @@ class Space:
         return orient_outward(self.X, np.concatenate(tris), np.concatenate(opp))
 
 
+CORNER_CODE = 256      # a P2 cell's input index travels as index * 256 + the code of its corners' order (4 x 2 bits)
 # edge index (element.EDGES) of a pair of corner positions i < j: EDGE_OF[4 i + j]
 EDGE_OF = np.full(16, -1)
 for _e, (_i, _j) in enumerate(EDGES):
@@ -411,7 +416,8 @@ class QuadraticSpace(Space):
         local = pull(serial["sf"], serial["input"], n)                    # each point's input index ...
         X = pull(serial["sf"], serial["position"], n, width=3)             # ... and its node's position
         self.orig = np.concatenate([local[v0:v1], local[e0:e1]])
-        self.cell_orig = local[c0:c1].copy()
+        self.cell_orig = local[c0:c1] // CORNER_CODE
+        self._corner_code = local[c0:c1] % CORNER_CODE
         self.X = np.concatenate([X[v0:v1], X[e0:e1]])
         self.cells = self._cell_nodes(cf - f0, fe - e0, ev - v0, node_of_point[v0:v1], nv)
         self.nc = len(self.cells)
@@ -448,7 +454,11 @@ class QuadraticSpace(Space):
             vertex_input = used[vperm]
             edge_node = edge_nodes(nodes, vertex_input[ev - v0], len(points))
             point_input = np.full(dm.getChart()[1], -1, np.int64)
-            point_input[:len(corder)] = corder                              # cells come first in the chart
+            # cells come first in the chart: each its input cell, and (CORNER_CODE) where the input cell has each
+            # of its corners among them sorted by input index (the order `cells` keeps): input_cells restores it
+            corners = nodes[corder, :4]
+            rank = np.argsort(np.argsort(corners, axis=1, kind="stable"), axis=1)
+            point_input[:len(corder)] = corder * CORNER_CODE + rank @ (4 ** np.arange(4))
             point_input[v0:v1], point_input[e0:e1] = vertex_input, edge_node
             position = np.zeros((len(point_input), 3))
             position[v0:v1], position[e0:e1] = points[vertex_input], points[edge_node]
@@ -501,6 +511,17 @@ class QuadraticSpace(Space):
         out[rows, 4 + ref] = nv + edges
         return out
 
+
+    def input_cells(self):
+        """The local cells' nodes in their input cells' order (the input's corner order, its edges after them):
+        `cells` has the corners sorted by input index."""
+        pos = (self._corner_code[:, None] // 4 ** np.arange(4)) % 4        # input corner k is sorted corner pos[k]
+        out = np.empty_like(self.cells)
+        rows = np.arange(len(self.cells))[:, None]
+        out[:, :4] = self.cells[rows, pos]
+        edge = EDGE_OF[4 * pos[:, [i for i, _ in EDGES]] + pos[:, [j for _, j in EDGES]]]
+        out[:, 4:] = self.cells[rows, 4 + edge]
+        return out
 
     def set_vertices(self, name):
         """Local nodes (owned and ghost: vertices and edge nodes) of the facet set labelled `name`."""

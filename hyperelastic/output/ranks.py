@@ -172,7 +172,7 @@ class RankWriter(Writer):
         g = sp.node_global()
         reg = np.zeros(sp.nc, np.int64) if region is None else np.asarray(region, np.int64)
         return {"points": np.ascontiguousarray(sp.X[sp.owned]), "input_index": sp.orig[sp.owned].astype(np.int64),
-                "tetra": g[sp.cells].astype(np.int64), "region": reg, "cell_input_index": sp.cell_orig.astype(np.int64)}
+                "tetra": g[sp.input_cells()].astype(np.int64), "region": reg, "cell_input_index": sp.cell_orig.astype(np.int64)}
 
     def _old_parts(self):
         """(rank 0) What the checkpoint's file says of its parts and checkpoint."""

@@ -246,6 +246,7 @@ class Writer:
             _compact_group(ck, str(slot), FIELD_LINKS)
         for k, v in attrs.items():
             f.attrs[k] = v
+        f.attrs["output_layout"] = self.layout
         f.attrs["checkpoint_slot"] = -1     # made here: a checkpoint then rewrites it in place
         f.attrs[ROOM_ATTR] = np.zeros(ROOM_ATTR_BYTES, np.uint8)
         return f

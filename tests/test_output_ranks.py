@@ -1,0 +1,126 @@
+"""The per-rank output layout (issue 45): every rank writes its own part of each frame to FILE.h5.d/, FILE.h5 holds
+metadata and HDF5 virtual datasets; the same answers as the gathered layout through mesh/input_index; real readers
+read it; a restart continues it on any rank count; a kill -9 at any write leaves it readable."""
+import os
+import subprocess
+import sys
+
+import h5py
+import numpy as np
+import pytest
+
+from conftest import ROOT, hyperelastic, read_h5, run_ok
+from test_output_readers import VTK_SCRIPT
+
+RUN = ["run", "bend", "-level", 1, "-dt", 0.03, "-final_time", 0.06, "-checkpoint_every", 1, "-quiet",
+       "-output_fields", "default,stress,J_nodal,von_mises_nodal"]
+
+
+@pytest.fixture(scope="module")
+def outs(tmp_path_factory):
+    d = tmp_path_factory.mktemp("ranks")
+    run_ok([*RUN, "-output", d / "one.h5"])
+    run_ok([*RUN, "-output", d / "two.h5"], nprocs=2)
+    return d
+
+
+def test_two_ranks_write_their_own_files_and_the_same_answer(outs):
+    one, two = read_h5(outs / "one.h5", frames=True), read_h5(outs / "two.h5", frames=True)
+    assert two["attrs"]["output_layout"] == "ranks" and one["attrs"]["output_layout"] == "gather"
+    assert sorted(os.listdir(outs / "two.h5.d"))[0].endswith("_r00000.h5") and len(os.listdir(outs / "two.h5.d")) == 2
+    assert np.array_equal(one["points"], two["points"]) and np.array_equal(np.sort(one["tetra"], axis=1),
+                                                                          np.sort(two["tetra"], axis=1))
+    assert np.abs(one["x"] - two["x"]).max() < 1e-12
+    for a, b in zip(one["frames"], two["frames"]):
+        assert set(a) == set(b) >= {"J_nodal", "von_mises_nodal", "stress", "displacement"}
+        for k in a:
+            scale = max(1.0, np.nanmax(np.abs(a[k])))
+            assert np.nanmax(np.abs(a[k] - b[k])) <= 1e-9 * scale, k     # (nodal sums in another order)
+
+
+def test_rank_0_writes_only_metadata(outs):
+    """Every mesh-sized dataset of FILE.h5 is virtual (the ranks' data); what FILE.h5 holds itself is small."""
+    with h5py.File(outs / "two.h5") as f:
+        nv = f["mesh/points"].shape[0]
+        real = []
+        f.visititems(lambda name, d: real.append(name) if isinstance(d, h5py.Dataset) and not d.is_virtual
+                     and d.size >= nv else None)
+        assert real == [] and f["x"].is_virtual and f["frames/1/J"].is_virtual
+        sources = {s.file_name for s in f["frames/1/J"].virtual_sources()}
+        assert len(sources) == 2 and all(s.startswith("two.h5.d/") for s in sources)
+
+
+def test_readers_read_a_per_rank_output(outs, tmp_path):
+    """meshio (through the XDMF), VTK's XDMF reader, and the application reading it as a mesh."""
+    import meshio
+    r = read_h5(outs / "two.h5")
+    with h5py.File(outs / "two.h5") as f:
+        X, T = f["mesh/points"][:], f["mesh/tetra"][:]
+    with meshio.xdmf.TimeSeriesReader(str(outs / "two.xdmf")) as reader:
+        points, cells = reader.read_points_cells()
+        assert np.array_equal(points, X) and np.array_equal(cells[0].data, T) and reader.num_steps == 3
+        _, pd, cd = reader.read_data(2)
+        assert set(pd) >= {"displacement", "J_nodal"} and np.all(np.abs(cd["J"][0] - 1) < 0.05)
+    p = subprocess.run([sys.executable, "-c", VTK_SCRIPT, str(outs / "two.xdmf")], capture_output=True, text=True,
+                       timeout=120)
+    assert p.returncode == 0 and "rror" not in p.stderr, p.stderr
+    rows = [line.split() for line in p.stdout.strip().splitlines()]
+    assert len(rows) == 3 and all(row[1:3] == [str(len(X)), str(len(T))] for row in rows)
+    again = tmp_path / "again.h5"
+    run_ok(["run", "bend", "-mesh", outs / "two.h5", "-final_time", 0.01, "-dt", 0.01, "-quiet", "-output", again])
+    assert np.allclose(np.sort(read_h5(again)["points"], axis=0), np.sort(r["x"][-1], axis=0), rtol=0, atol=1e-14)
+
+
+@pytest.mark.parametrize("ranks", [1, 2, 4])
+def test_restart_on_any_rank_count(outs, tmp_path, ranks):
+    """Written on 2 ranks, stopped at a checkpoint, restarted on 1, 2 and 4 (oversubscribed) ranks: the same
+    trajectory as the run that was not stopped (bitwise on 2), the file still in its first part's order."""
+    full = tmp_path / "full.h5"
+    run_ok([*RUN[:7], 0.12, *RUN[8:], "-output", full], nprocs=2)
+    cut = tmp_path / "cut.h5"
+    run_ok([*RUN, "-output", cut], nprocs=2)
+    before = sorted(os.listdir(tmp_path / "cut.h5.d"))
+    run_ok(["run", "--restart", cut, "-final_time", 0.12, "-quiet"], nprocs=ranks)
+    a, b = read_h5(full, frames=True), read_h5(cut, frames=True)
+    assert np.array_equal(a["time"], b["time"]) and len(b["time"]) == 5
+    tol = 0 if ranks == 2 else 1e-12
+    assert np.abs(a["x"] - b["x"]).max() <= tol
+    assert np.nanmax(np.abs(a["frames"][4]["von_mises"] - b["frames"][4]["von_mises"])) <= 1e-6 * (tol > 0)
+    with h5py.File(cut) as f:
+        parts = __import__("json").loads(f.attrs["parts"])
+        assert [len(p["files"]) for p in parts] == [2, ranks] and f.attrs["restarts"] == 1
+    after = sorted(os.listdir(tmp_path / "cut.h5.d"))
+    assert set(before) < set(after) and len(after) == 2 + ranks      # the first part's files kept as they were
+
+
+def test_a_new_run_replaces_the_files_only_when_it_commits(tmp_path):
+    """A run over an earlier per-rank output that fails before its first step leaves that output (its rank files
+    too) byte-identical; one that completes a step removes the earlier run's rank files."""
+    out = tmp_path / "o.h5"
+    run_ok([*RUN, "-output", out], nprocs=2)
+    files = {p: (tmp_path / "o.h5.d" / p).read_bytes() for p in os.listdir(tmp_path / "o.h5.d")}
+    main = out.read_bytes()
+    p = hyperelastic([*RUN, "-output", out, "-dt_min", 0.03, "-snes_max_it", 1], nprocs=2)
+    assert p.returncode != 0
+    assert out.read_bytes() == main
+    assert {q: (tmp_path / "o.h5.d" / q).read_bytes() for q in os.listdir(tmp_path / "o.h5.d")} == files
+    run_ok([*RUN, "-output", out], nprocs=2)
+    now = os.listdir(tmp_path / "o.h5.d")
+    assert len(now) == 2 and not set(now) & set(files)
+
+
+def test_one_rank_can_write_the_per_rank_layout(outs, tmp_path):
+    r = tmp_path / "r.h5"
+    run_ok([*RUN, "-output", r, "-output_layout", "ranks"])
+    a, b = read_h5(outs / "one.h5", frames=True), read_h5(r, frames=True)
+    assert np.array_equal(a["x"], b["x"]) and all(np.array_equal(a["frames"][2][k], b["frames"][2][k], equal_nan=True)
+                                                  for k in a["frames"][2] if not k.endswith("_nodal"))
+
+
+def test_kill_at_writes_of_a_two_rank_run():
+    """kill -9 at writes of a 2-rank run (scripts/crash_writes.py --ranks 2): every file left opens, holds only the
+    reference's frames, and restarts to the reference."""
+    script = os.path.join(ROOT, "scripts", "crash_writes.py")
+    p = subprocess.run([sys.executable, script, "--ranks", "2", "--every", "97", "--restart-every", "3", "--jobs", "1"],
+                       capture_output=True, text=True, timeout=900)
+    assert p.returncode == 0, p.stdout + p.stderr
