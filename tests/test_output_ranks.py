@@ -124,3 +124,11 @@ def test_kill_at_writes_of_a_two_rank_run():
     p = subprocess.run([sys.executable, script, "--ranks", "2", "--every", "97", "--restart-every", "3", "--jobs", "1"],
                        capture_output=True, text=True, timeout=900)
     assert p.returncode == 0, p.stdout + p.stderr
+
+
+def test_a_file_where_the_ranks_directory_goes_is_one_line(tmp_path):
+    (tmp_path / "o.h5.d").write_text("mine")
+    p = hyperelastic([*RUN, "-output", tmp_path / "o.h5"], nprocs=2, timeout=120)
+    lines = p.stderr.strip().splitlines()
+    assert p.returncode == 2 and len(lines) == 1 and "o.h5.d' exists and is not a directory" in lines[0], p.stderr
+    assert (tmp_path / "o.h5.d").read_text() == "mine" and not (tmp_path / "o.h5").exists()

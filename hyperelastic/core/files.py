@@ -161,6 +161,8 @@ def check_output_path(path, inputs=(), suffixes=(".h5", ".hdf5")):
     for p in output_names(path):
         if os.path.lexists(p) and not os.path.isfile(p):
             raise UserError(f"output '{path}': '{p}' exists and is not a regular file")
+    if os.path.lexists(path + RANKS) and not os.path.isdir(path + RANKS):     # (the per-rank layout's files)
+        raise UserError(f"output '{path}': '{path + RANKS}' exists and is not a directory")
     if os.path.exists(path) and not is_output(path):
         raise UserError(f"output '{path}': exists and is not an output of hyperelastic (not overwriting it)")
     probe = path + PARTIAL

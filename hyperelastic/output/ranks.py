@@ -29,7 +29,8 @@ from ..core.errors import UserError
 from ..core.files import RANKS
 from ..discretization.exchange import Exchange
 from .fields import NODAL, cell_fields, cell_quantities, finish, reference_volumes
-from .writer import FIELD_LINKS, FRAME_LINKS, ROOM_ATTR, ROOM_ATTR_BYTES, Guard, Writer, _compact_group, room_for, trim
+from .writer import (EVENTS, FIELD_LINKS, FRAME_LINKS, ROOM_ATTR, ROOM_ATTR_BYTES, Guard, Writer, _compact_group,
+                     room_for, trim)
 
 MESH = (("points", 3, "node", np.float64), ("input_index", 1, "node", np.int64), ("tetra", None, "cell", np.int64),
         ("region", 1, "cell", np.int64), ("cell_input_index", 1, "cell", np.int64))
@@ -294,9 +295,11 @@ class RankWriter(Writer):
         cells = {}
         scalars = self.point_scalars() if self.point_scalars is not None else {}
         if self.kernels is not None:
+            EVENTS.Fields.begin()
             local = cell_fields(self.kernels, x_local, cell_quantities(self.fields))
             done = finish(local, self.fields, sp.cells, self._volumes(), scalars.get("pressure"),
                           total=lambda a, n: sp.sum_owned(a, n))
+            EVENTS.Fields.end()
             for k, a in done.items():
                 (nodes if k.endswith(NODAL) else cells)[k] = a
         for k, a in scalars.items():
@@ -311,13 +314,22 @@ class RankWriter(Writer):
                   [(k.rsplit("/", 1)[1], a) for k, a in rows.items() if k != "x"]]
         self.mpi.Barrier()            # (every rank's part is flushed before the frame's virtual datasets name it)
         if self.root:
+            EVENTS.Rank0.begin()
             self._reserve(4096 * (1 + len(shapes)) + 64 * self.mpi.size * len(shapes))
             self._write_frame(t, shapes)
+            EVENTS.Rank0.end()
         else:
             self.nframes += 1
         self._leave_together()
 
     def _write_rows(self, rows):
+        EVENTS.RankPart.begin()
+        try:
+            self._write_rank_rows(rows)
+        finally:
+            EVENTS.RankPart.end()
+
+    def _write_rank_rows(self, rows):
         rf = self.rf
         self.rh5.reserve(sum(a.nbytes for a in rows.values()) + 16384)
         for k, a in rows.items():
@@ -365,8 +377,10 @@ class RankWriter(Writer):
         self._write_rows({f"checkpoint/{slot}/{k}": a for k, a in arrays.items()})
         self.mpi.Barrier()
         if self.root:
+            EVENTS.Rank0.begin()
             self._reserve(8192 + 64 * self.mpi.size * len(arrays))
             self._write_checkpoint(slot, state, [(k, a.shape[1:]) for k, a in arrays.items()])
+            EVENTS.Rank0.end()
         self._slot = slot
         self._leave_together()
 

@@ -45,6 +45,22 @@ FRAME_LINKS = 4096       # the frames group's links kept in its header (made wit
 FIELD_LINKS = 16         # a frame's fields, the same
 
 
+class Events:
+    """PETSc log events of the output (-log_view): HE_OutFields (a frame's fields on the local cells, every rank),
+    HE_OutRank0 (rank 0's writes of a frame or checkpoint: the whole frame in the gathered layout, metadata in the
+    per-rank one), HE_OutRankPart (each rank's own rows, per-rank layout). Made at first use (after PETSc is
+    initialised)."""
+    _made = {}
+
+    def __getattr__(self, name):
+        if name not in self._made:
+            self._made[name] = PETSc.Log.Event(f"HE_Out{name}")
+        return self._made[name]
+
+
+EVENTS = Events()
+
+
 def _compact_group(parent, name, links):
     """A group whose links are kept in its own object header, made with room for `links` of them: adding a
     link rewrites that header in place. HDF5's default group adds each name to a heap, a symbol node and a
@@ -306,8 +322,10 @@ class Writer:
             nbytes = 8 * (6 * len(x) + sum(len(a) for a in extra.values())) + 16384
         self._ensure_room(lambda: nbytes, "a checkpoint")
         if self.root:
+            EVENTS.Rank0.begin()
             self._reserve(nbytes)
             self._write_checkpoint(x, v, state, extra)
+            EVENTS.Rank0.end()
         self._leave_together()
 
     def _leave_together(self):
@@ -343,8 +361,10 @@ class Writer:
         vel = self.space.gather(v_local) if v_local is not None else None
         cells, nodal = {}, {}
         if self.kernels is not None:
-            cells = {k: self.space.gather_cells(a)
-                     for k, a in cell_fields(self.kernels, x_local, cell_quantities(self.fields)).items()}
+            EVENTS.Fields.begin()
+            local = cell_fields(self.kernels, x_local, cell_quantities(self.fields))
+            EVENTS.Fields.end()
+            cells = {k: self.space.gather_cells(a) for k, a in local.items()}
         if self.point_scalars is not None:             # (the mixed formulation's pressure)
             nodal = {k: self.space.gather_nodal(a) for k, a in self.point_scalars().items()}
         if self.root:
@@ -354,8 +374,10 @@ class Writer:
             nbytes = 8 * (3 * self.nv * (3 if vel is not None else 2) + sum(a.size for a in cells.values())) + 16384
         self._ensure_room(lambda: nbytes, f"frame {self.nframes}")
         if self.root:
+            EVENTS.Rank0.begin()
             self._reserve(nbytes)
             self._write_frame(t, full, vel, cells)
+            EVENTS.Rank0.end()
         self._leave_together()
 
     def _write_frame(self, t, full, vel, cells):
