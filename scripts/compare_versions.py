@@ -84,8 +84,10 @@ def run(code, args, out, mesh_dir):
 
 def compare(a, b):
     """(same number of frames, max |x_a - x_b| / max |x_b|) of two outputs."""
+    def x(f):             # (in the input order: a per-rank output's rows put back through mesh/input_index)
+        return f["x"][:][:, np.argsort(f["mesh/input_index"][:])] if "mesh/input_index" in f else f["x"][:]
     with h5py.File(a, "r") as fa, h5py.File(b, "r") as fb:
-        xa, xb = fa["x"][:], fb["x"][:]
+        xa, xb = x(fa), x(fb)
     if xa.shape != xb.shape:
         return False, np.inf
     return True, float(np.abs(xa - xb).max() / max(np.abs(xb).max(), 1e-300))

@@ -385,23 +385,14 @@ class RankWriter(Writer):
         self._leave_together()
 
     def _write_checkpoint(self, slot, state, arrays):
-        from ..core.files import CHECKPOINT_ATTRS, CHECKPOINT_OPTIONAL
+        """(rank 0) The slot's virtual datasets (made once per part and slot), its attributes, checkpoint_slot."""
         f = self.f
         self._flush_stats()
         g = f[f"checkpoint/{slot}"]
         for name, tail in arrays:
             if name not in g or g[name].attrs.get("part") != self.tag:     # (made once per part and slot)
                 virtual(g, name, self._pieces(f"checkpoint/{slot}/{name}", "node"), tail, part=self.tag)
-        for k in CHECKPOINT_ATTRS:
-            g.attrs[k] = state[k]
-        for k in CHECKPOINT_OPTIONAL:
-            if state.get(k) is not None:
-                g.attrs[k] = state[k]
-            elif k in g.attrs:
-                del g.attrs[k]
-        f.flush()
-        f.attrs.modify("checkpoint_slot", slot)
-        f.flush()
+        self._complete_checkpoint(g, slot, state)
 
     def _ensure_room(self, nbytes, what):
         """UserError on every rank unless every rank can write nbytes() more to its file (and rank 0 to FILE.h5)."""

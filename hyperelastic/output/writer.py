@@ -344,6 +344,10 @@ class Writer:
                 g.create_dataset(name, data=a)
             else:
                 g[name][...] = a
+        self._complete_checkpoint(g, slot, state)
+
+    def _complete_checkpoint(self, g, slot, state):
+        """A checkpoint slot's data written: its attributes, a flush, then the root attribute that names it."""
         for k in CHECKPOINT_ATTRS:
             g.attrs[k] = state[k]
         for k in CHECKPOINT_OPTIONAL:          # (the slot may hold an older checkpoint's)
@@ -351,9 +355,9 @@ class Writer:
                 g.attrs[k] = state[k]
             elif k in g.attrs:
                 del g.attrs[k]
-        f.flush()
-        f.attrs.modify("checkpoint_slot", slot)
-        f.flush()
+        self.f.flush()
+        self.f.attrs.modify("checkpoint_slot", slot)
+        self.f.flush()
 
     def frame(self, t, x_local, v_local=None):
         """Frame at time t: positions x, velocities v (local arrays) and the fields (fields.py). Collective."""
