@@ -139,3 +139,29 @@ def test_a_file_where_the_ranks_directory_goes_is_one_line(tmp_path):
     lines = p.stderr.strip().splitlines()
     assert p.returncode == 2 and len(lines) == 1 and "o.h5.d' exists and is not a directory" in lines[0], p.stderr
     assert (tmp_path / "o.h5.d").read_text() == "mine" and not (tmp_path / "o.h5").exists()
+
+
+def test_report_and_plot_read_a_block_at_a_time(outs, tmp_path, monkeypatch):
+    """`report --at` and `plot` go through the cells a block at a time (one rank's part at most) and read only the
+    rows they need: the same line and the same surface with blocks of 100 rows as with one block, on both layouts,
+    and the 2-rank output reports what the 1-rank one does."""
+    from hyperelastic.core import files
+    from hyperelastic.output import plot, report
+    lines = {}
+    for name in ("one.h5", "two.h5"):
+        with h5py.File(outs / name) as f:
+            got = []
+            for block in (files.BLOCK, 100):
+                monkeypatch.setattr(files, "BLOCK", block)
+                X = f["mesh/points"][:]
+                tri = plot.boundary_surface(f)
+                got.append((report._at(f, 2, np.array([1.0, 0.5, 0.3])),
+                            sorted(map(tuple, np.sort(X[tri].round(12), axis=1).reshape(len(tri), -1).tolist()))))
+            assert got[0] == got[1] and len(files.cell_blocks(f)) > 2
+            lines[name] = got[0]
+    assert lines["one.h5"][1] == lines["two.h5"][1]            # the same boundary surface
+    a, b = (np.array([float(v) for v in __import__("re").findall(r"[-+]?\d\.\d+e?[-+]?\d*", lines[n][0])])
+            for n in ("one.h5", "two.h5"))
+    assert np.allclose(a, b, rtol=1e-5)
+    run_ok(["plot", outs / "two.h5", "-o", tmp_path / "two.png"])
+    assert (tmp_path / "two.png").stat().st_size > 10000

@@ -120,6 +120,39 @@ def input_order(f):
     return np.argsort(f["mesh/input_index"][:]), np.argsort(f["mesh/cell_input_index"][:])
 
 
+BLOCK = 1 << 20          # rows read at a time by the readers that go through an output in blocks
+
+
+def cell_blocks(f, most=None):
+    """[(lo, hi)] contiguous ranges of an open output's cells, each at most `most` long: within one rank's part in a
+    per-rank output (its cells refer to few rows beyond its own), plain ranges in a gathered one."""
+    nc, most = f["mesh/tetra"].shape[0], most or BLOCK
+    if "parts" in f.attrs:
+        import json
+        ends = np.cumsum([0] + json.loads(f.attrs["parts"])[0]["cells"])
+    else:
+        ends = np.array([0, nc])
+    out = []
+    for lo, hi in zip(ends[:-1], ends[1:]):
+        out += [(int(a), int(min(a + most, hi))) for a in range(int(lo), int(hi), most)]
+    return out
+
+
+def read_rows(d, rows, frame=None, window=None):
+    """d[rows] (or d[frame, rows]) of a dataset for sorted unique rows, read a window of rows at a time: memory for
+    the rows asked and one window, not for the whole dataset."""
+    rows, window = np.asarray(rows, np.int64), window or BLOCK
+    shape = d.shape[1:] if frame is None else d.shape[2:]
+    out = np.empty((len(rows),) + shape, d.dtype)
+    n = d.shape[0] if frame is None else d.shape[1]
+    for lo in range(0, n, window):
+        a, b = np.searchsorted(rows, [lo, lo + window])
+        if b > a:
+            block = d[lo:lo + window] if frame is None else d[frame, lo:lo + window]
+            out[a:b] = block[rows[a:b] - lo]
+    return out
+
+
 def is_output(path):
     """Whether `path` is an output file of `hyperelastic run` (HDF5 with OUTPUT_DATASETS)."""
     if not os.path.isfile(path):

@@ -271,19 +271,25 @@ def locate(points, tets, P):
     """(cell index, barycentric weights (k,4)) of each point P (k,3) in the reference mesh; UserError
     for a point outside it. Brute force over cells (meant for a handful of material points)."""
     P = np.atleast_2d(np.asarray(P, np.float64))
-    X0 = points[tets[:, 0]]
-    D = np.stack([points[tets[:, a]] - X0 for a in (1, 2, 3)], axis=-1)       # (nc,3,3)
-    Dinv = np.linalg.inv(D)
     cells, weights = [], []
     for p in P:
-        lam = np.einsum("cij,cj->ci", Dinv, p - X0)
-        bary = np.column_stack([1.0 - lam.sum(axis=1), lam])
-        c = int(np.argmax(bary.min(axis=1)))          # the cell the point is deepest inside
-        if bary[c].min() < -1e-9:
+        c, bary = deepest(points, tets, p)
+        if bary.min() < -1e-9:
             raise UserError(f"material point ({', '.join(f'{v:g}' for v in p)}) lies outside the mesh")
         cells.append(c)
-        weights.append(bary[c])
+        weights.append(bary)
     return np.array(cells), np.array(weights)
+
+
+def deepest(points, tets, p):
+    """(cell, its barycentric weights of p): the cell p is deepest inside (its least weight the largest; negative
+    where p is outside every cell)."""
+    X0 = points[tets[:, 0]]
+    D = np.stack([points[tets[:, a]] - X0 for a in (1, 2, 3)], axis=-1)       # (nc,3,3)
+    lam = np.einsum("cij,cj->ci", np.linalg.inv(D), p - X0)
+    bary = np.column_stack([1.0 - lam.sum(axis=1), lam])
+    c = int(np.argmax(bary.min(axis=1)))
+    return c, bary[c]
 
 
 def interpolate(tets, cells, weights, values):

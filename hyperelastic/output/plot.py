@@ -6,13 +6,22 @@ import numpy as np
 
 from ..core.errors import UserError
 from .figures import pyplot
-from ..core.files import check_output_path, completed_frames, open_output
+from ..core.files import cell_blocks, check_output_path, completed_frames, open_output, read_rows
 
 
 def boundary_faces(tets):
     faces = np.concatenate([tets[:, [0, 2, 1]], tets[:, [0, 1, 3]], tets[:, [1, 2, 3]], tets[:, [0, 3, 2]]])
     key = np.sort(faces, axis=1)
     _, idx, counts = np.unique(key, axis=0, return_index=True, return_counts=True)
+    return faces[idx[counts == 1]]
+
+
+def boundary_surface(f):
+    """The boundary triangles (rows of the output's nodes, outward) of an open output, its cells read a block at a
+    time (files.cell_blocks): each block's faces met once are kept, and of those the ones met once overall (a face
+    between two blocks is met once in each). Memory: one block and the surface."""
+    faces = np.concatenate([boundary_faces(f["mesh/tetra"][lo:hi][:, :4]) for lo, hi in cell_blocks(f)])
+    _, idx, counts = np.unique(np.sort(faces, axis=1), axis=0, return_index=True, return_counts=True)
     return faces[idx[counts == 1]]
 
 
@@ -24,18 +33,18 @@ def render(path, out, frame=-1):
         n = completed_frames(f)
         if n == 0:
             raise UserError(f"plot: '{path}' has no frames")
-        X = f["mesh/points"][:]
-        tets = f["mesh/tetra"][:]
         i = frame if frame >= 0 else n + frame
         if not 0 <= i < n:
             raise UserError(f"plot: frame {frame} out of range (0..{n - 1})")
-        x = f["x"][i]
+        tri = boundary_surface(f)
+        rows, tri = np.unique(tri, return_inverse=True)        # only the surface's rows are read
+        tri = tri.reshape(-1, 3)
+        X, x = read_rows(f["mesh/points"], rows), read_rows(f["x"], rows, frame=i)
         t = f["time"][i]
         scene = f.attrs.get("scene", "")
     if not np.isfinite(x).all() or not np.isfinite(X).all():
         raise UserError(f"plot: frame {i} of '{path}' holds non-finite positions (choose another with --frame)")
     check_output_path(out, [path], suffixes=())
-    tri = boundary_faces(tets)
     u = np.linalg.norm(x - X, axis=1)
     fig = plt.figure(figsize=(8, 5))
     ax = fig.add_subplot(111, projection="3d")

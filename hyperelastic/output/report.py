@@ -7,9 +7,9 @@ import numpy as np
 
 from ..solving import stats
 from ..core.errors import ArgParser, UserError
-from ..core.files import completed_frames, open_output
+from ..core.files import cell_blocks, completed_frames, open_output, read_rows
 from ..solving.forces import table
-from ..mesh.read import interpolate, locate
+from ..mesh.read import deepest, interpolate
 from .watch import HELP as WATCH_HELP, parse_watch, point3, watched
 
 
@@ -100,29 +100,55 @@ def _summary(path, f, n):
             f"{extra}; {n} frames to t = {t:.6g}; {steps if steps is not None else '?'} steps; {how}")
 
 
+def locate_in(f, p):
+    """(cell, barycentric weights, the cell's nodes (their rows)) of material point p in an open output, going
+    through its cells a block at a time (files.cell_blocks: one rank's part of a per-rank output): one process never
+    holds the whole mesh. UserError when p lies outside it."""
+    best = None
+    for lo, hi in cell_blocks(f):
+        T = f["mesh/tetra"][lo:hi]
+        rows, local = np.unique(T, return_inverse=True)
+        local = local.reshape(T.shape)
+        c, bary = deepest(read_rows(f["mesh/points"], rows), local[:, :4], p)
+        if best is None or bary.min() > best[1].min():
+            best = (lo + c, bary, rows[local[c]])
+        if bary.min() >= 0:
+            break
+    if best is None or best[1].min() < -1e-9:
+        raise UserError(f"material point ({', '.join(f'{v:g}' for v in p)}) lies outside the mesh")
+    return best
+
+
 def _at(f, i, p):
     """One line: the displacement at material point p in frame i, the other point fields interpolated there (the
     mixed formulation's pressure: the mean stress, positive in tension; Abaqus' pressure is its negative), and its
-    cell's fields."""
-    X, tets = f["mesh/points"][:], f["mesh/tetra"][:]
+    cell's fields. Reads the mesh a block of cells at a time and then only the rows of p's cell."""
     try:
-        cells, w = locate(X, tets, p)
+        c, w, nodes = locate_in(f, p)
     except UserError as e:
         raise UserError(f"report: --at {','.join(f'{v:g}' for v in p)}: {e}") from None
-    u = interpolate(tets, cells, w, f["x"][i] - X)[0]
+    order = np.argsort(nodes)
+    cell = np.empty(len(nodes), np.int64)
+    cell[order] = np.arange(len(nodes))
+    sorted_rows = nodes[order]
+
+    def at_nodes(d, frame=None):        # the cell's nodes' values, in the cell's node order
+        return (d[sorted_rows] if frame is None else d[frame, sorted_rows])[cell]
+    one, w = np.arange(len(nodes))[None], w[None]       # the cell alone, its nodes 0..k-1 in its own order
+    u = interpolate(one, [0], w, at_nodes(f["x"], i) - at_nodes(f["mesh/points"]))[0]
     words = [f"at ({', '.join(f'{v:g}' for v in p)}), frame {i} (t = {f['time'][i]:.6g}): "
              f"u = ({u[0]:.6g}, {u[1]:.6g}, {u[2]:.6g}), |u| = {np.linalg.norm(u):.6g}"]
     g = f.get(f"frames/{i}", {})
-    c = int(cells[0])
+    nv, nc = f["mesh/points"].shape[0], f["mesh/tetra"].shape[0]
     for name in sorted(g):
         d = g[name]
-        if d.shape[0] == len(X) and name not in ("displacement", "velocity") and d.ndim == 1:   # a point field
-            v = float(interpolate(tets, cells, w, d[:])[0])
+        if d.shape[0] == nv and name not in ("displacement", "velocity") and d.ndim == 1:   # a point field
+            v = float(interpolate(one, [0], w, at_nodes(d))[0])
             sign = " (mean stress, positive in tension; Abaqus' pressure is -p)" if name == "pressure" else ""
             words.append(f"{name} {v:.6g}{sign}")
     for name in sorted(g):
         d = g[name]
-        if d.shape[0] == len(tets):          # a cell field: its value in the cell holding the point
+        if d.shape[0] == nc:          # a cell field: its value in the cell holding the point
             v = np.atleast_1d(d[c])
             words.append(f"{name} " + (f"{v[0]:.6g}" if v.size == 1 else "(" + ", ".join(f"{x:.6g}" for x in v) + ")"))
     return "; ".join(words)
