@@ -165,3 +165,16 @@ def test_report_and_plot_read_a_block_at_a_time(outs, tmp_path, monkeypatch):
     assert np.allclose(a, b, rtol=1e-5)
     run_ok(["plot", outs / "two.h5", "-o", tmp_path / "two.png"])
     assert (tmp_path / "two.png").stat().st_size > 10000
+
+
+def test_a_one_rank_output_restarts_on_two_ranks(outs, tmp_path):
+    """A gathered (1-rank) output restarted on 2 ranks: the state read in slices, the file written on in its own
+    layout and order, the uninterrupted 1-rank trajectory to the solver tolerance."""
+    full = tmp_path / "full.h5"
+    run_ok([*RUN[:7], 0.12, *RUN[8:], "-output", full])
+    cut = tmp_path / "cut.h5"
+    run_ok([*RUN, "-output", cut])
+    run_ok(["run", "--restart", cut, "-final_time", 0.12, "-quiet"], nprocs=2)
+    a, b = read_h5(full), read_h5(cut)
+    assert b["attrs"]["output_layout"] == "gather" and not (tmp_path / "cut.h5.d").exists()
+    assert np.array_equal(a["time"], b["time"]) and np.abs(a["x"] - b["x"]).max() <= 1e-12
