@@ -9,5 +9,5 @@ export PYTHONPATH=$R/sp:$PWD LD_LIBRARY_PATH=$R/lib:$R/lib/mpich:$R/sp/petsc/lib
 O=${OUT:-/tmp/out}; mkdir -p $O
 PY=$(command -v python3); echo "python $($PY -V 2>&1); nproc $(nproc); $(lscpu | grep 'Model name')" | tee $O/output.txt
 B="$PY scripts/bench_output_ranks.py /tmp/bor --steps 1 --mpiexec $(command -v mpiexec)"
-$B --boxes 100x40x40 --ranks 1,4,16 2>&1 | grep -v Warning | tee -a $O/output.txt
-$B --boxes 125x50x50 --ranks 16 2>&1 | grep -v Warning | tee -a $O/output.txt
+$B --boxes ${BIG:-100x40x40} --ranks ${RANKS_BIG:-1,4,16} 2>&1 | grep -v Warning | tee -a $O/output.txt
+$B --boxes ${BIGGER:-125x50x50} --ranks ${RANKS_BIGGER:-16} 2>&1 | grep -v Warning | tee -a $O/output.txt
