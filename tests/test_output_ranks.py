@@ -102,7 +102,8 @@ def test_restart_on_any_rank_count(outs, tmp_path, ranks):
 
 def test_a_new_run_replaces_the_files_only_when_it_commits(tmp_path):
     """A run over an earlier per-rank output that fails before its first step leaves that output (its rank files
-    too) byte-identical; one that completes a step removes the earlier run's rank files."""
+    too) byte-identical; one that completes a step removes the earlier run's rank files (a gathered one, the
+    directory)."""
     out = tmp_path / "o.h5"
     run_ok([*RUN, "-output", out], nprocs=2)
     files = {p: (tmp_path / "o.h5.d" / p).read_bytes() for p in os.listdir(tmp_path / "o.h5.d")}
@@ -114,6 +115,8 @@ def test_a_new_run_replaces_the_files_only_when_it_commits(tmp_path):
     run_ok([*RUN, "-output", out], nprocs=2)
     now = os.listdir(tmp_path / "o.h5.d")
     assert len(now) == 2 and not set(now) & set(files)
+    run_ok([*RUN, "-output", out])                          # one rank, gathered: the ranks' directory goes too
+    assert not (tmp_path / "o.h5.d").exists() and read_h5(out)["attrs"]["output_layout"] == "gather"
 
 
 def test_one_rank_can_write_the_per_rank_layout(outs, tmp_path):
@@ -178,3 +181,16 @@ def test_a_one_rank_output_restarts_on_two_ranks(outs, tmp_path):
     a, b = read_h5(full), read_h5(cut)
     assert b["attrs"]["output_layout"] == "gather" and not (tmp_path / "cut.h5.d").exists()
     assert np.array_equal(a["time"], b["time"]) and np.abs(a["x"] - b["x"]).max() <= 1e-12
+
+
+def test_a_per_rank_output_without_its_files_is_one_line(tmp_path):
+    """FILE.h5 copied without FILE.h5.d/: restart, report, plot and -mesh each say which file is missing."""
+    out = tmp_path / "o.h5"
+    run_ok([*RUN, "-output", out], nprocs=2)
+    os.rename(tmp_path / "o.h5.d", tmp_path / "away")
+    for args, who in ((["run", "--restart", out, "-final_time", 0.1], "--restart"), (["report", out], "report:"),
+                      (["plot", out, "-o", tmp_path / "p.png"], "plot:"),
+                      (["run", "bend", "-mesh", out, "-output", tmp_path / "b.h5"], "mesh")):
+        p = hyperelastic(args, timeout=120)
+        lines = p.stderr.strip().splitlines()
+        assert p.returncode == 2 and len(lines) == 1 and who in lines[0] and "is missing" in lines[0], p.stderr

@@ -83,6 +83,20 @@ def missing_datasets(f, more=()):
     return [k for k in OUTPUT_DATASETS + tuple(more) if k not in f]
 
 
+def missing_parts(f, path):
+    """The first per-rank file that the open per-rank output f (at `path`) names and that is not there (None when
+    every one is): its virtual datasets would read their fill values."""
+    if "parts" not in f.attrs:
+        return None
+    import json
+    here = os.path.dirname(os.path.abspath(path))
+    for part in json.loads(f.attrs["parts"]):
+        for name in part["files"]:
+            if not os.path.isfile(os.path.join(here, name)):
+                return name
+    return None
+
+
 def open_output(path, who):
     """The output file `path` open for reading (h5py.File); UserError, worded for command `who`, when it is not
     a regular file, not HDF5, or not an output of hyperelastic."""
@@ -96,6 +110,11 @@ def open_output(path, who):
     if missing:
         f.close()
         raise UserError(f"{who}: '{path}' is not an output of hyperelastic (no {', '.join(missing)})")
+    gone = missing_parts(f, path)
+    if gone:
+        f.close()
+        raise UserError(f"{who}: '{path}' is written per rank and its file '{gone}' is missing (keep {os.path.basename(path)}"
+                        f"{RANKS}/ beside it)")
     return f
 
 
@@ -232,6 +251,10 @@ def read_checkpoint(path):
         missing += [f"attribute {k}" for k in ("options", "scene_file") if k not in f.attrs]
         if missing:
             raise UserError(f"--restart '{path}': not an output of hyperelastic (no {', '.join(missing)})")
+        gone = missing_parts(f, path)
+        if gone:
+            raise UserError(f"--restart '{path}': written per rank, and its file '{gone}' is missing (keep "
+                            f"{os.path.basename(path)}{RANKS}/ beside it)")
         slot = f.attrs.get("checkpoint_slot", -1)
         if slot < 0 or f"checkpoint/{slot}" not in f:
             raise UserError(f"--restart '{path}': holds no checkpoint (run with -checkpoint_every N)")

@@ -408,20 +408,8 @@ class RankWriter(Writer):
             raise UserError(f"output '{self.final}': no room for {what} ({why}); {held}")
 
     # --- the end -----------------------------------------------------------------------------
-    def _commit(self):
-        super()._commit()
-        self._clean()
-
-    def _clean(self):
-        """(rank 0, once FILE.h5 is this run's) The rank files that FILE.h5 does not name (an earlier run's)."""
-        d = self.final + RANKS
-        mine = {os.path.basename(p) for part in self.parts for p in part["files"]}
-        for name in os.listdir(d) if os.path.isdir(d) else []:
-            if name not in mine and name.endswith(".h5"):
-                try:
-                    os.remove(os.path.join(d, name))
-                except OSError:
-                    pass
+    def _rank_files(self):
+        return {os.path.basename(p) for part in self.parts for p in part["files"]}
 
     def close(self, keep=True):
         """Flush and close every file (collective). A run that completed no step and is not kept leaves no file of

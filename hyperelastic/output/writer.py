@@ -15,6 +15,7 @@ Vector with displacement shows the deformed body).
 import ctypes
 import json
 import os
+import re
 import resource
 import time
 
@@ -25,7 +26,7 @@ from petsc4py import PETSc
 from .. import __version__
 from ..core.errors import UserError
 from .fields import DEFAULT_FIELDS, NODAL, cell_fields, cell_quantities, finish, is_point_field, reference_volumes
-from ..core.files import CHECKPOINT_ATTRS, CHECKPOINT_OPTIONAL, PARTIAL
+from ..core.files import CHECKPOINT_ATTRS, CHECKPOINT_OPTIONAL, PARTIAL, RANKS
 from ..core.options import all_options
 from ..solving.stats import column_type
 
@@ -446,6 +447,27 @@ class Writer:
         os.replace(self.path, self.final)
         self.path, self.committed = self.final, True
         self._write_xdmf()
+        self._clean()
+
+    def _rank_files(self):
+        """The per-rank files (in FILE.h5.d/) that this run's FILE.h5 names: none in the gathered layout."""
+        return set()
+
+    def _clean(self):
+        """(rank 0, once FILE.h5 is this run's) The per-rank files in FILE.h5.d/ that FILE.h5 does not name: an earlier
+        run's, replaced now (a run that fails before its first step leaves them); the directory too once empty."""
+        d = self.final + RANKS
+        if not os.path.isdir(d):
+            return
+        keep = self._rank_files()
+        for name in os.listdir(d):
+            if name not in keep and re.search(r"_r\d{5}\.h5$", name):
+                try:
+                    os.remove(os.path.join(d, name))
+                except OSError:
+                    pass
+        if not os.listdir(d):
+            os.rmdir(d)
 
     def _flush_stats(self):
         rows, self._pending = self._pending, []
