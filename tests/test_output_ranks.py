@@ -129,10 +129,11 @@ def test_one_rank_can_write_the_per_rank_layout(outs, tmp_path):
 
 def test_kill_at_writes_of_a_two_rank_run():
     """kill -9 at writes of a 2-rank run (scripts/crash_writes.py --ranks 2): every file left opens, holds only the
-    reference's frames, and restarts to the reference."""
+    reference's frames, and restarts to the reference. Six kills over the ~680 writes each rank makes (frames,
+    checkpoints, the close), two of them restarted; the script's sweep of every 7th: 0 of 195 bad (BENCHMARKS.md)."""
     script = os.path.join(ROOT, "scripts", "crash_writes.py")
-    p = subprocess.run([sys.executable, script, "--ranks", "2", "--every", "97", "--restart-every", "3", "--jobs", "1"],
-                       capture_output=True, text=True, timeout=900)
+    p = subprocess.run([sys.executable, script, "--ranks", "2", "--first", "45", "--last", "700", "--every", "130",
+                        "--restart-every", "3", "--jobs", "1"], capture_output=True, text=True, timeout=900)
     assert p.returncode == 0, p.stdout + p.stderr
 
 

@@ -144,7 +144,8 @@ def test_price_stops_its_probes_at_the_budget(tmp_path):
     rows = read_csv(os.path.join(out, "price.csv"))
     assert len(rows) == 1, rows
     text = open(os.path.join(out, "price.md")).read()
-    assert "The search stopped early: --budget 0.5 s spent." in text, text.split("\n\n")[1]
+    # (its one run is given at least 1 s: on a loaded machine it is stopped there too, and the report says so)
+    assert "The search stopped early: --budget 0.5 s spent" in text, text.split("\n\n")[1]
 
 
 def test_price_leaves_linear_tetrahedra_that_lock(tmp_path):
