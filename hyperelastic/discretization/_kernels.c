@@ -9,7 +9,7 @@
  * cell's derivative data, and the directional derivative dP), beside its numpy reference
  * materials/NAME.py. setup.py generates he_materials.h, which instantiates the cell loops of
  * _material_loops.h once per material header: he_forces_NAME, he_energy_NAME, he_kv_NAME,
- * he_tangent_NAME, he_tangent_diag_NAME, he_forces_dg_NAME, each taking the material's parameter block
+ * he_tangent_NAME, he_tangent_diag_NAME, he_forces_dg_NAME, he_fields_NAME (the output's cell fields), each taking the material's parameter block
  * (HE_NPARAM below). The kernels below do not depend on the material.
  * All arrays are C-contiguous; vertex indices index a local vector with 3 dofs per vertex.
  */

@@ -2,7 +2,7 @@
  *   #include "materials/NAME.h"
  *   #define MATERIAL NAME
  *   #include "_material_loops.h"
- * which defines he_forces_NAME, he_energy_NAME, he_kv_NAME, he_tangent_NAME, he_tangent_diag_NAME and
+ * which defines he_forces_NAME, he_energy_NAME, he_kv_NAME, he_tangent_NAME, he_tangent_diag_NAME, he_fields_NAME and
  * he_forces_dg_NAME (bound by name in kernels.py) from NAME_stress, NAME_prepare, NAME_dstress and NAME_cache; where the
  * header defines NAME_BATCH_J 1, the force, energy and K v loops use NAME_stress_j and NAME_prepare_j
  * (from F, 1/J, ln J); where it defines NAME_CELL_TANGENT 1, the tangent loops take the cell's 12x12
@@ -284,3 +284,48 @@ int64_t HE_FN(forces_dg)(int64_t nc, const idx_t *cells, const double *Dminv, co
   return bad;
 }
 
+
+/* The output's cell fields (output/fields.py), 15 numbers a cell: J = det F, Psi, the von Mises stress
+ * sqrt(3/2 s:s) of the Cauchy stress sigma = P F^T / J (s its deviator), sigma and the Green-Lagrange strain
+ * E = (F^T F - I)/2 as Tensor6 (xx, xy, xz, yy, yz, zz). Psi, von Mises and sigma are NaN where the material is
+ * undefined or they are not finite. Returns the number of such cells. */
+int64_t HE_FN(fields)(int64_t nc, const idx_t *cells, const double *Dminv, const double *vol, const double *x,
+                      const double *restrict prm, double *out) {
+  static const int T6[6][2] = {{0, 0}, {0, 1}, {0, 2}, {1, 1}, {1, 2}, {2, 2}};
+  HE_PARAMS(p);
+  int64_t bad = 0;
+  (void)vol;
+  for (int64_t e = 0; e < nc; e++) {
+    double F[9], P[9], sig[9], psi = 0, *o = out + 15 * e;
+    gather_F(cells + 4 * e, Dminv + 9 * e, x, F);
+    double J = det3(F);
+    o[0] = J;
+    for (int k = 0; k < 6; k++) {
+      int i = T6[k][0], j = T6[k][1];
+      o[9 + k] = 0.5 * (F[i] * F[j] + F[3 + i] * F[3 + j] + F[6 + i] * F[6 + j] - (i == j ? 1.0 : 0.0));
+    }
+    int ok = HE_MAT(stress)(p, F, P, &psi) == 0 && isfinite(psi);
+    double ss = 0, tr = 0;
+    for (int i = 0; ok && i < 3; i++)
+      for (int j = 0; j < 3; j++) {
+        sig[3 * i + j] = (P[3 * i] * F[3 * j] + P[3 * i + 1] * F[3 * j + 1] + P[3 * i + 2] * F[3 * j + 2]) / J;
+        ok = ok && isfinite(sig[3 * i + j]);
+      }
+    if (!ok) {
+      bad++;
+      o[1] = o[2] = NAN;
+      for (int k = 0; k < 6; k++) o[3 + k] = NAN;
+      continue;
+    }
+    tr = (sig[0] + sig[4] + sig[8]) / 3.0;
+    for (int i = 0; i < 3; i++)
+      for (int j = 0; j < 3; j++) {
+        double s = sig[3 * i + j] - (i == j ? tr : 0.0);
+        ss += s * s;
+      }
+    o[1] = psi;
+    o[2] = sqrt(1.5 * ss);
+    for (int k = 0; k < 6; k++) o[3 + k] = sig[3 * T6[k][0] + T6[k][1]];
+  }
+  return bad;
+}

@@ -41,7 +41,7 @@ _D = ctypes.c_double
 # per material NAME (materials/NAME.h): he_KIND_NAME(nc, cells, Dminv, vol, x, prm, ...), prm the material's
 # parameter block (NPARAM doubles: its constants, zero-padded; see _kernels.c, HE_NPARAM)
 _MATERIAL_KERNELS = {"forces": [_P], "energy": [_P], "kv": [_P, _P], "tangent": [_P, ctypes.c_int],
-                     "tangent_diag": [_P], "forces_dg": [_P, _P]}
+                     "tangent_diag": [_P], "forces_dg": [_P, _P], "fields": [_P]}
 NPARAM = 8
 _lib.he_mass_apply.restype = None
 _lib.he_mass_apply.argtypes = [_I, _P, _P, _D, _P, _P]
@@ -286,6 +286,13 @@ class CellKernels:
         out = np.zeros(3)
         bad = self.fn["energy"](*self._args, self._x(x), self._prm, _ptr(out, np.float64))
         return out[0], out[1], out[2], bad
+
+    def fields(self, x):
+        """(nc, 15) per cell: J, Psi, von Mises, the Cauchy stress and the Green-Lagrange strain as Tensor6 (the
+        output's cell fields, output/fields.py; NaN where the material is undefined)."""
+        out = np.empty((self.nc, 15))
+        self.fn["fields"](*self._args, self._x(x), self._prm, _ptr(out, np.float64))
+        return out
 
     def kv(self, x, v, y):
         """y += K(x) v."""

@@ -149,7 +149,7 @@ def cell_fields(kernels, x, names=CELL_FIELDS):
     for idx, k in kernels.parts:             # one material (CellKernels), or one per region
         cells = np.arange(kernels.nc)[idx]   # the local cells of this material
         for lo in range(0, k.nc, CHUNK):
-            part = (_cell_fields(k.cells[lo:lo + CHUNK], k.Dminv[lo:lo + CHUNK], k, x, names) if k.nn == 4 else
+            part = (_compiled_fields(k, x, lo, min(lo + CHUNK, k.nc), names) if k.nn == 4 else
                     _element_fields(k, x, lo, min(lo + CHUNK, k.nc), names))
             for name in names:
                 out[name][cells[lo:lo + CHUNK]] = part[name]
@@ -171,7 +171,19 @@ def _element_fields(k, x, lo, hi, names):
     return out
 
 
+# the columns of the compiled loop (discretization/_material_loops.h: he_fields_NAME) by field
+COMPILED = {"J": 0, "energy_density": 1, "von_mises": 2, "stress": slice(3, 9), "strain": slice(9, 15)}
+
+
+def _compiled_fields(k, x, lo, hi, names=CELL_FIELDS):
+    """The fields of P1 cells lo..hi-1 of CellKernels k by the material's compiled loop (its C stress; ~10x the
+    numpy reference's speed, which _cell_fields keeps for the tests)."""
+    out = k.part(lo, hi).fields(x) if (lo, hi) != (0, k.nc) else k.fields(x)
+    return {n: out[:, COMPILED[n]] for n in names}
+
+
 def _cell_fields(cells, Dminv, kernels, x, names=CELL_FIELDS):
+    """The fields of P1 cells by the materials' numpy reference (what _compiled_fields is checked against)."""
     return _point_fields(deformation_gradients(cells, Dminv, x), kernels, names)
 
 
