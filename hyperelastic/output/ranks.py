@@ -297,7 +297,8 @@ class RankWriter(Writer):
         if self.kernels is not None:
             EVENTS.Fields.begin()
             local = cell_fields(self.kernels, x_local, cell_quantities(self.fields))
-            done = finish(local, self.fields, sp.cells, self._volumes(), scalars.get("pressure"),
+            nodal = any(n.endswith(NODAL) for n in self.fields)          # (the volumes weigh nodal averages)
+            done = finish(local, self.fields, sp.cells, self._volumes() if nodal else None, scalars.get("pressure"),
                           total=lambda a, n: sp.sum_owned(a, n))
             EVENTS.Fields.end()
             for k, a in done.items():
