@@ -163,7 +163,7 @@ def option_value_cases(rng):
                     "body_force"],
                    ["1,2", "1,2,3,4", "a,b,c", "nan,0,0", "inf,0,0", "1e308,0,0", "", ",,", "1e-320,0,0"]),
         "choice": (["material", "preset", "jacobian", "assembly", "operator_storage", "integrator", "mass",
-                    "prescribe_motion", "formulation"],
+                    "prescribe_motion", "formulation", "output_layout"],
                    ["bogus", "", "STVK", "1"]),
         "flag": (["quasistatic", "step_control", "objective", "hessian_projection", "inversion_guard", "incompressible"],
                  ["maybe", "2", "-1", "yes please"]),
