@@ -219,7 +219,8 @@ def test_registry_one_home_per_material():
     assert headers == set(materials.REGISTRY)
     for name in materials.REGISTRY:
         assert MATERIALS[name].name == name
-        assert set(material_kernels(name)) == {"forces", "energy", "kv", "tangent", "tangent_diag", "forces_dg"}
+        assert set(material_kernels(name)) == {"forces", "energy", "kv", "tangent", "tangent_diag", "forces_dg",
+                                               "fields"}
     with pytest.raises(ImportError, match="no compiled kernels for material 'nosuch'"):
         material_kernels("nosuch")
 
@@ -227,7 +228,8 @@ def test_registry_one_home_per_material():
 @pytest.mark.parametrize("name", sorted(MATERIALS))
 def test_compiled_output_fields_match_the_numpy_reference(name):
     """The output's P1 cell fields from the material's compiled loop (he_fields_NAME: J, energy density, von Mises,
-    Cauchy stress, Green-Lagrange strain) equal the numpy reference's (output/fields.py) to rounding, NaN in the
+    Cauchy stress, Green-Lagrange strain) equal the numpy reference's (output/fields.py) to rounding (1e-11 of the
+    largest; the cells are strained far, some inverted), NaN in the
     same cells (some cells inverted: where the material is undefined)."""
     from hyperelastic.discretization.kernels import CellKernels
     from hyperelastic.output.fields import CELL_FIELDS, TENSOR_FIELDS, _cell_fields, _compiled_fields
@@ -241,4 +243,4 @@ def test_compiled_output_fields_match_the_numpy_reference(name):
         a, b = np.asarray(ref[n]), got[n]
         assert np.array_equal(np.isnan(a), np.isnan(b)), n
         ok = ~np.isnan(a)
-        assert np.abs(a[ok] - b[ok]).max() <= 1e-12 * max(1.0, np.abs(a[ok]).max()), n
+        assert np.abs(a[ok] - b[ok]).max() <= 1e-11 * max(1.0, np.abs(a[ok]).max()), n     # (rounding: 1e-12 seen)
