@@ -11,7 +11,7 @@ from petsc4py import PETSc
 
 from .catalog import check_solver_options, check_viewer_files, help_text, load_scene, scene_option_names
 from ..core.errors import Interrupted, UserError
-from ..core.files import check_output_path, output_names
+from ..core.files import StateRows, check_output_path, output_names
 from ..solving.forces import record, surface_forces, table
 from ..solving.integrators import BackwardEuler
 from .model import build_model, collective
@@ -62,6 +62,8 @@ def run_scene(scene_arg, options_files, restart=None, restart_path=None):
         notes = scene.notes + model.notes + ([solver.merit_note] if solver.merit_note else []) + solver.notes
         lines += [f"note: {n}" for n in notes]
         print("\n".join(lines), file=sys.stderr)
+    if restart is not None:      # the state read (collective) before anything is written: a bad row is one line
+        restart = dict(restart, **{k: model.space.read_state(v) for k, v in restart.items() if isinstance(v, StateRows)})
     attrs = run_attributes(model, scene_file, solver)
     stage.pop()
     writer = open_writer(_layout(scene, comm, restart, out), out, model, attrs, restart, scene.output_fields)
