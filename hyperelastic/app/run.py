@@ -63,7 +63,8 @@ def run_scene(scene_arg, options_files, restart=None, restart_path=None):
         lines += [f"note: {n}" for n in notes]
         print("\n".join(lines), file=sys.stderr)
     if restart is not None:      # the state read (collective) before anything is written: a bad row is one line
-        restart = dict(restart, **{k: model.space.read_state(v) for k, v in restart.items() if isinstance(v, StateRows)})
+        restart = dict(restart, **{k: model.space.read_state(v) for k, v in restart.items()
+                                   if isinstance(v, StateRows)})
     attrs = run_attributes(model, scene_file, solver)
     stage.pop()
     writer = open_writer(_layout(scene, comm, restart, out), out, model, attrs, restart, scene.output_fields)
