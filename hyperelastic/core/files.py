@@ -2,7 +2,9 @@
 is (its names, the datasets it always holds), the checks an output path passes before any work is done
 (mesh generation and runs alike), and reading a checkpoint back (before PETSc is initialized: no module
 here imports it)."""
+import json
 import os
+import re
 import shlex
 
 import h5py
@@ -48,6 +50,18 @@ PARTIAL = ".partial"      # a run writes FILE.h5.partial until it has completed 
 
 
 RANKS = ".d"            # FILE.h5.d/: the per-rank files of a run written with -output_layout ranks (output/ranks.py)
+RANK_FILE = re.compile(r"_r\d{5}\.h5$")       # what such a file's name ends in (rank_file)
+
+
+def rank_file(tag, rank):
+    """The name of rank `rank`'s file of the output part `tag`, in FILE.h5.d/."""
+    return f"{tag}_r{rank:05d}.h5"
+
+
+def parts(f):
+    """The parts of an open per-rank output ([{tag, files, nodes, cells, first}], output/ranks.py), None for a
+    gathered one."""
+    return json.loads(f.attrs["parts"]) if "parts" in f.attrs else None
 
 
 def output_names(path):
@@ -83,18 +97,16 @@ def missing_datasets(f, more=()):
     return [k for k in OUTPUT_DATASETS + tuple(more) if k not in f]
 
 
-def missing_parts(f, path):
-    """The first per-rank file that the open per-rank output f (at `path`) names and that is not there (None when
-    every one is): its virtual datasets would read their fill values."""
-    if "parts" not in f.attrs:
-        return None
-    import json
+def require_parts(f, path, where):
+    """UserError `where: ...` when a per-rank file that the open output f (at `path`) names is not there: its
+    virtual datasets would read their fill values."""
     here = os.path.dirname(os.path.abspath(path))
-    for part in json.loads(f.attrs["parts"]):
+    for part in parts(f) or []:
         for name in part["files"]:
             if not os.path.isfile(os.path.join(here, name)):
-                return name
-    return None
+                f.close()
+                raise UserError(f"{where}: written per rank, and its file '{name}' is missing (keep "
+                                f"{os.path.basename(path)}{RANKS}/ beside it)")
 
 
 def open_output(path, who):
@@ -110,11 +122,7 @@ def open_output(path, who):
     if missing:
         f.close()
         raise UserError(f"{who}: '{path}' is not an output of hyperelastic (no {', '.join(missing)})")
-    gone = missing_parts(f, path)
-    if gone:
-        f.close()
-        raise UserError(f"{who}: '{path}' is written per rank and its file '{gone}' is missing (keep {os.path.basename(path)}"
-                        f"{RANKS}/ beside it)")
+    require_parts(f, path, f"{who}: '{path}'")
     return f
 
 
@@ -146,11 +154,7 @@ def cell_blocks(f, most=None):
     """[(lo, hi)] contiguous ranges of an open output's cells, each at most `most` long: within one rank's part in a
     per-rank output (its cells refer to few rows beyond its own), plain ranges in a gathered one."""
     nc, most = f["mesh/tetra"].shape[0], most or BLOCK
-    if "parts" in f.attrs:
-        import json
-        ends = np.cumsum([0] + json.loads(f.attrs["parts"])[0]["cells"])
-    else:
-        ends = np.array([0, nc])
+    ends = np.cumsum([0] + parts(f)[0]["cells"]) if parts(f) else np.array([0, nc])
     out = []
     for lo, hi in zip(ends[:-1], ends[1:]):
         out += [(int(a), int(min(a + most, hi))) for a in range(int(lo), int(hi), most)]
@@ -251,10 +255,7 @@ def read_checkpoint(path):
         missing += [f"attribute {k}" for k in ("options", "scene_file") if k not in f.attrs]
         if missing:
             raise UserError(f"--restart '{path}': not an output of hyperelastic (no {', '.join(missing)})")
-        gone = missing_parts(f, path)
-        if gone:
-            raise UserError(f"--restart '{path}': written per rank, and its file '{gone}' is missing (keep "
-                            f"{os.path.basename(path)}{RANKS}/ beside it)")
+        require_parts(f, path, f"--restart '{path}'")
         slot = f.attrs.get("checkpoint_slot", -1)
         if slot < 0 or f"checkpoint/{slot}" not in f:
             raise UserError(f"--restart '{path}': holds no checkpoint (run with -checkpoint_every N)")

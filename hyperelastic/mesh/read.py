@@ -10,7 +10,7 @@ import numpy as np
 
 from ..core.data import cache_dir
 from ..core.errors import UserError
-from ..core.files import completed_frames, is_output, missing_parts
+from ..core.files import completed_frames, is_output, require_parts
 from ..element.reference import EDGES, TET_RULES, tet_shapes
 from .sets import FACE_VERTICES, Mesh, NamedSet, face_incidence, signed_volumes
 
@@ -111,9 +111,7 @@ def _read_output(path, frame):
     """sets.Mesh of frame `frame` of an output file: its positions become the reference, its regions
     (mesh/region, named as the run's attribute `sets` names them) are kept."""
     with h5py.File(path, "r") as f:
-        gone = missing_parts(f, path)
-        if gone:
-            raise UserError(f"mesh '{path}': written per rank, and its file '{gone}' is missing (keep it beside)")
+        require_parts(f, path, f"mesh '{path}'")
         nf = completed_frames(f)
         if nf == 0 or frame is None:
             points = f["mesh/points"][:]

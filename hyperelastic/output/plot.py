@@ -10,9 +10,12 @@ from ..core.files import cell_blocks, check_output_path, completed_frames, open_
 
 
 def boundary_faces(tets):
-    faces = np.concatenate([tets[:, [0, 2, 1]], tets[:, [0, 1, 3]], tets[:, [1, 2, 3]], tets[:, [0, 3, 2]]])
-    key = np.sort(faces, axis=1)
-    _, idx, counts = np.unique(key, axis=0, return_index=True, return_counts=True)
+    return met_once(np.concatenate([tets[:, [0, 2, 1]], tets[:, [0, 1, 3]], tets[:, [1, 2, 3]], tets[:, [0, 3, 2]]]))
+
+
+def met_once(faces):
+    """The faces (triangles) that appear once among `faces`, whatever their vertex order."""
+    _, idx, counts = np.unique(np.sort(faces, axis=1), axis=0, return_index=True, return_counts=True)
     return faces[idx[counts == 1]]
 
 
@@ -20,9 +23,7 @@ def boundary_surface(f):
     """The boundary triangles (rows of the output's nodes, outward) of an open output, its cells read a block at a
     time (files.cell_blocks): each block's faces met once are kept, and of those the ones met once overall (a face
     between two blocks is met once in each). Memory: one block and the surface."""
-    faces = np.concatenate([boundary_faces(f["mesh/tetra"][lo:hi][:, :4]) for lo, hi in cell_blocks(f)])
-    _, idx, counts = np.unique(np.sort(faces, axis=1), axis=0, return_index=True, return_counts=True)
-    return faces[idx[counts == 1]]
+    return met_once(np.concatenate([boundary_faces(f["mesh/tetra"][lo:hi][:, :4]) for lo, hi in cell_blocks(f)]))
 
 
 def render(path, out, frame=-1):

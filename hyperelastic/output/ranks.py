@@ -26,11 +26,11 @@ import numpy as np
 from h5py import h5d, h5p, h5s, h5t
 
 from ..core.errors import UserError
-from ..core.files import RANKS
+from ..core.files import RANKS, parts, rank_file
 from ..discretization.exchange import Exchange
 from .fields import NODAL, cell_fields, cell_quantities, finish, reference_volumes
-from .writer import (EVENTS, FIELD_LINKS, FRAME_LINKS, ROOM_ATTR, ROOM_ATTR_BYTES, Guard, Writer, _compact_group,
-                     room_for, trim)
+from .writer import (EVENTS, FIELD_LINKS, FRAME_LINKS, ROOM_ATTR, ROOM_ATTR_BYTES, STATS_EVERY_S, Guard, Writer,
+                     _compact_group, room_for, trim)
 
 MESH = (("points", 3, "node", np.float64), ("input_index", 1, "node", np.int64), ("tetra", None, "cell", np.int64),
         ("region", 1, "cell", np.int64), ("cell_input_index", 1, "cell", np.int64))
@@ -112,7 +112,7 @@ class RankWriter(Writer):
         here = os.path.dirname(os.path.abspath(path))
         # the part's own name: its start, and 8 random hex digits (two runs of one process in one second differ)
         self.tag = mpi.bcast(f"{time.strftime('%Y%m%d-%H%M%S')}-{os.urandom(4).hex()}" if self.root else None, root=0)
-        names = [os.path.join(os.path.basename(path) + RANKS, f"{self.tag}_r{r:05d}.h5") for r in range(mpi.size)]
+        names = [os.path.join(os.path.basename(path) + RANKS, rank_file(self.tag, r)) for r in range(mpi.size)]
         self.rank_path = os.path.join(here, names[mpi.rank])
         self.nv, self.nc = space.nv_total, space.nc_total
         self._volume = None
@@ -178,7 +178,7 @@ class RankWriter(Writer):
     def _old_parts(self):
         """(rank 0) What the checkpoint's file says of its parts and checkpoint."""
         with h5py.File(self.final, "r") as src:
-            return {"parts": json.loads(src.attrs["parts"]), "slot": int(src.attrs["checkpoint_slot"])}
+            return {"parts": parts(src), "slot": int(src.attrs["checkpoint_slot"])}
 
     def _blocks(self, old, node_keys, cell_keys):
         """A restart: this rank's block of the file's node and cell order (part 0's blocks on its rank count, else
@@ -357,7 +357,7 @@ class RankWriter(Writer):
         for name, tail, center in shapes:
             virtual(g, name, self._pieces(f"frames/{i}/{name}", center), tail)
         self.nframes += 1
-        if time.monotonic() - self._stats_flushed >= 1.0:
+        if time.monotonic() - self._stats_flushed >= STATS_EVERY_S:
             self._flush_stats()
         f.flush()
         f["time"].resize((i + 1,))

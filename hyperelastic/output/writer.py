@@ -15,7 +15,6 @@ Vector with displacement shows the deformed body).
 import ctypes
 import json
 import os
-import re
 import resource
 import time
 
@@ -26,7 +25,7 @@ from petsc4py import PETSc
 from .. import __version__
 from ..core.errors import UserError
 from .fields import DEFAULT_FIELDS, NODAL, cell_fields, cell_quantities, finish, is_point_field, reference_volumes
-from ..core.files import CHECKPOINT_ATTRS, CHECKPOINT_OPTIONAL, PARTIAL, RANKS
+from ..core.files import CHECKPOINT_ATTRS, CHECKPOINT_OPTIONAL, PARTIAL, RANK_FILE, RANKS
 from ..core.options import all_options
 from ..solving.stats import column_type
 
@@ -461,7 +460,7 @@ class Writer:
             return
         keep = self._rank_files()
         for name in os.listdir(d):
-            if name not in keep and re.search(r"_r\d{5}\.h5$", name):
+            if name not in keep and RANK_FILE.search(name):
                 try:
                     os.remove(os.path.join(d, name))
                 except OSError:
