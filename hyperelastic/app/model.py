@@ -15,6 +15,7 @@ from ..element.reference import Element
 from ..formulations import choose
 from ..formulations.base import Problem
 from ..mesh.generate import cached_bar
+from ..mesh.prepared import is_prepared, read_slice, read_whole
 from ..mesh.read import CURVED_ANGLES, bent_edges, corners, elevate, read_mesh
 from ..mesh.sets import MATERIAL_LABEL, REGION_LABEL, VERTEX_VALUE, cell_label, facet_label
 from ..physics import effects as effects_pkg
@@ -86,6 +87,15 @@ class Model:
     v0: np.ndarray
     sets: list = None           # [{name, kind, count, measure, ...}] of the sets the run uses (all ranks)
     notes: list = None          # what the start-up report says of the model's choices, one line each
+    sliced_from: str = None     # the prepared mesh every rank read its slice of (points, tets: None everywhere)
+
+    def whole_mesh(self):
+        """(points, tets) of the whole input mesh in its own numbering on rank 0 (None elsewhere), for the gathered
+        output: a mesh read in slices is read whole here, on rank 0, only where that output asks for it."""
+        if self.points is None and self.sliced_from and self.space.mpi.rank == 0:
+            m = read_whole(self.sliced_from)
+            self.points, self.tets = m.points, m.tets
+        return self.points, self.tets
 
     def set_lines(self):
         """One line per set: name, facets or tets, area or volume."""
@@ -93,10 +103,10 @@ class Model:
 
 
 def load_mesh(scene):
-    """(sets.Mesh, Element, DMPlex labels, set report) of the scene's mesh, on rank 0: the run's element, decided
-    here once (-order, else the mesh's own; -quadrature_degree), and the mesh at its order (a linear mesh elevated
-    to straight-sided quadratic cells, a quadratic one reduced to its corners where the order asks); the facet and
-    cell sets its effects name (an unknown name is a UserError listing the mesh's) and its regions."""
+    """(sets.Mesh, Element, DMPlex labels, set report, notes) of the scene's mesh, on rank 0: the run's element,
+    decided here once (-order, else the mesh's own; -quadrature_degree), and the mesh at its order (a linear mesh
+    elevated to straight-sided quadratic cells, a quadratic one reduced to its corners where the order asks); the
+    facet and cell sets its effects name (an unknown name is a UserError listing the mesh's) and its regions."""
     mesh = read_mesh(scene.mesh, scene.mesh_frame) if scene.mesh else read_mesh(cached_bar(scene.level))
     ranks = MPI.COMM_WORLD.size
     if len(mesh.tets) < ranks:
@@ -110,7 +120,33 @@ def load_mesh(scene):
         mesh = elevate(mesh)
     elif element.order == 1 and mesh.order == 2:
         mesh = corners(mesh)
-    check_index_range(mesh, scene.mesh or f"bar L{scene.level}")
+    check_index_range(len(mesh.points), scene.mesh or f"bar L{scene.level}")
+    labels, report = mesh_labels(scene, mesh)
+    return mesh, element, labels, report, notes
+
+
+def in_slices(scene):
+    """Whether every rank reads its slice of the scene's mesh: a prepared mesh (mesh/prepared.py) run with linear
+    tetrahedra and our own partitioners but METIS (which partitions the whole dual graph on rank 0); otherwise rank 0
+    reads it whole (read_mesh reads a prepared mesh too)."""
+    return (bool(scene.mesh) and is_prepared(scene.mesh) and scene.order in (None, 1)
+            and scene.partitioner != "metis")
+
+
+def load_slices(scene, comm):
+    """(this rank's SliceMesh, the DMPlex built from the slices, Element, its labels, the set report, notes) of a
+    prepared mesh, every rank reading its own slice (collective; errors raised on every rank)."""
+    mesh, dm = read_slice(scene.mesh, comm)
+    element = Element.decide(scene.order, scene.quadrature, 1)
+    check_index_range(mesh.totals[0], scene.mesh)
+    labels, report = mesh_labels(scene, mesh)
+    return mesh, dm, element, labels, report, []
+
+
+def mesh_labels(scene, mesh):
+    """(DMPlex labels, set report) of the sets the scene's effects name and of the mesh's regions: on the whole mesh
+    (rank 0), or on a rank's part of a prepared mesh (every rank, its own cells and vertices; counts and measures
+    the whole mesh's)."""
     labels, report = {}, []
     for option, name, kind in scene.set_uses():
         label = facet_label(name) if kind == "facets" else cell_label(name)
@@ -133,8 +169,9 @@ def load_mesh(scene):
     for i, g in enumerate(regions):
         if not any(r.get("group") == g.name for r in report):
             report.append({"name": g.name, "kind": "tets", "tag": int(g.tag if g.tag is not None else i + 1),
-                           "count": len(g.items), "measure": mesh.volume(g.items), "line": mesh.describe(g)})
-    return mesh, element, labels, report, notes
+                           "count": mesh.total(len(g.items)), "measure": mesh.volume(g.items),
+                           "line": mesh.describe(g)})
+    return labels, report
 
 
 def straight_sided_note(mesh):
@@ -150,11 +187,11 @@ def straight_sided_note(mesh):
             "places the edge nodes on the curved geometry"]
 
 
-def check_index_range(mesh, name, index_bits=None):
+def check_index_range(nodes, name, index_bits=None):
     """One line before PETSc's indices overflow: 3 unknowns per node must stay below 2^31 with the 32-bit indices of
     a PETSc built without --with-64-bit-indices (pip's default); index_bits: PETSc's (default: this PETSc's)."""
     bits = index_bits or 8 * np.dtype(PETSc.IntType).itemsize
-    dofs = 3 * len(mesh.points)
+    dofs = 3 * nodes
     if dofs >= 2 ** (bits - 1):
         raise UserError(f"mesh '{name}': {dofs:,} unknowns (3 per node) exceed the {bits}-bit indices of this PETSc "
                         f"(at most {2 ** (bits - 1) - 1:,}); build PETSc with 64-bit indices (PETSC_CONFIGURE_OPTIONS="
@@ -162,7 +199,7 @@ def check_index_range(mesh, name, index_bits=None):
 
 
 def _set_line(mesh, s, kind, measure):
-    return {"name": s.name, "kind": kind, "tag": None if s.tag is None else int(s.tag), "count": len(s.items),
+    return {"name": s.name, "kind": kind, "tag": None if s.tag is None else int(s.tag), "count": mesh.total(len(s.items)),
             "measure": measure, "line": mesh.describe(s)}
 
 
@@ -176,21 +213,23 @@ def material_regions(scene, mesh, labels, report):
     for i, r in enumerate(scene.regions):
         g = mesh.find(r.name, "tets", "regions")
         twice = owner[g.items] != 0
-        if twice.any():
-            other = scene.regions[owner[g.items][twice][0] - 1].name
-            raise UserError(f"option -regions: regions '{other}' and '{r.name}' share {int(twice.sum())} tets; "
-                            "a tet can have one material")
+        shared = mesh.total(int(twice.sum()))
+        if shared:
+            first = mesh.total(int(owner[g.items][twice][0]) if twice.any() else len(scene.regions), op="min")
+            raise UserError(f"option -regions: regions '{scene.regions[first - 1].name}' and '{r.name}' share "
+                            f"{shared} tets; a tet can have one material")
         owner[g.items] = i + 1
         labels[MATERIAL_LABEL][i + 1] = ("cells", g.items)
         report.append({"name": r.name, "group": g.name, "kind": "tets", "tag": None if g.tag is None else int(g.tag),
-                       "count": len(g.items), "measure": mesh.volume(g.items), "material": r.describe(),
+                       "count": mesh.total(len(g.items)), "measure": mesh.volume(g.items), "material": r.describe(),
                        "line": f"{mesh.describe(g)}; {r.describe()}"})
     rest = np.flatnonzero(owner == 0)
-    if len(rest):
-        own = scene.solid.describe()
-        report.append({"name": "(other cells)", "kind": "tets", "tag": None, "count": len(rest),
-                       "measure": mesh.volume(rest), "material": own,
-                       "line": f"(other cells): {len(rest)} tets, volume {mesh.volume(rest):.6g}; the scene's {own}"})
+    n_rest = mesh.total(len(rest))
+    if n_rest:
+        own, volume = scene.solid.describe(), mesh.volume(rest)
+        report.append({"name": "(other cells)", "kind": "tets", "tag": None, "count": n_rest,
+                       "measure": volume, "material": own,
+                       "line": f"(other cells): {n_rest} tets, volume {volume:.6g}; the scene's {own}"})
 
 
 def solids_in_use(scene, space):
@@ -224,12 +263,18 @@ def build_model(scene, comm):
     """Read the scene's mesh (rank 0) and decide its element, distribute it with the sets the scene uses, choose
     the formulation, build the effects the scene names and the formulation's System, calibrated at the initial
     state. The scene is read, never written."""
-    loaded = collective(comm, lambda: load_mesh(scene))
-    mesh, element, labels, report, mesh_notes = loaded if loaded is not None else (None,) * 5
-    mpi = comm.tompi4py()
-    element, mesh_notes = mpi.bcast((element, mesh_notes), root=0)
-    space = make_space(comm, element, mesh, labels, scene.partitioner)
-    report = mpi.bcast(report, root=0)
+    sliced = in_slices(scene)
+    if sliced:
+        mesh, dm, element, labels, report, mesh_notes = load_slices(scene, comm)
+        space = make_space(comm, element, mesh, labels, scene.partitioner, dm=dm)
+        mesh = None                                 # (Model.whole_mesh reads it whole where the output needs it)
+    else:
+        loaded = collective(comm, lambda: load_mesh(scene))
+        mesh, element, labels, report, mesh_notes = loaded if loaded is not None else (None,) * 5
+        mpi = comm.tompi4py()
+        element, mesh_notes = mpi.bcast((element, mesh_notes), root=0)
+        space = make_space(comm, element, mesh, labels, scene.partitioner)
+        report = mpi.bcast(report, root=0)
     problem = Problem(scene, element, solids_in_use(scene, space))
     formulation, notes = choose(problem)
     k, density = cell_kernels(scene, space, formulation.cell_constants)
@@ -238,4 +283,5 @@ def build_model(scene, comm):
     x0, v0 = initial_state(scene, space)
     system = formulation.system(problem, space, k, effects, constraints, x0, v0)
     points, cells = (mesh.points, mesh.cell_nodes) if mesh is not None else (None, None)
-    return Model(scene, element, formulation, points, cells, space, k, system, x0, v0, report, mesh_notes + notes)
+    return Model(scene, element, formulation, points, cells, space, k, system, x0, v0, report, mesh_notes + notes,
+                 scene.mesh if sliced else None)

@@ -156,14 +156,15 @@ def open_writer(layout, out, model, attrs, restart, fields):
     region = model.space.cell_values(REGION_LABEL)
     if layout == "ranks":
         return RankWriter(out, model.space, attrs, resume=restart, kernels=model.kernels, region=region, fields=fields)
-    return Writer(out, model.space, model.points, model.tets, attrs, resume=restart, kernels=model.kernels,
+    points, tets = model.whole_mesh()
+    return Writer(out, model.space, points, tets, attrs, resume=restart, kernels=model.kernels,
                   region=region, fields=fields)
 
 
 def _check_restart(state, model, scene, path):
     """The checkpoint fits the run it continues: the same element order and mesh, and time left before
     -final_time."""
-    nodes = model.tets.shape[1]
+    nodes = 4 if model.element.order == 1 else 10
     if state.get("cell_nodes") in (4, 10) and state["cell_nodes"] != nodes:
         kind = {4: "linear (order 1)", 10: "quadratic (order 2)"}
         raise UserError(f"--restart '{path}': the checkpoint was written with {kind[state['cell_nodes']]} tetrahedra, "

@@ -5,6 +5,8 @@
   hyperelastic mesh bar --level N -o FILE.msh    generate a gmsh mesh of the thesis' bar
   hyperelastic mesh PART.geo --size H -o F.msh   mesh your own .geo/.step (physical groups kept; --refine N;
                                                  --graded keeps its own size fields, H the largest edge)
+  hyperelastic mesh F.msh --prepare -o F.h5      check and order a mesh once; runs with -mesh F.h5 read it in
+                                                 slices, every MPI rank its own
   hyperelastic plot FILE.h5 [-o FILE.png]        picture of a frame (default: the last)
   hyperelastic report FILE.h5 [--at X,Y,Z] [--frame N] [--watch Q]
                                                  the run, its forces, values at material points, again
@@ -210,8 +212,12 @@ def mesh_cmd(argv):
     ap.add_argument("--order", type=int, default=1, help="2: 10-node tetrahedra, edge nodes on curved geometry")
     ap.add_argument("--graded", action="store_true", help="keep the geometry's own mesh sizes (its size fields, its "
                     "points' lengths), --size being the largest edge (without it every edge is --size)")
-    ap.add_argument("-o", "--output", required=True, help="output .msh file")
+    ap.add_argument("--prepare", action="store_true", help="GEOMETRY is a mesh file (any a run reads): check it, "
+                    "order it and write it as an .h5 every rank of a run reads its own slice of (-mesh OUT.h5)")
+    ap.add_argument("-o", "--output", required=True, help="output .msh file (.h5 with --prepare)")
     a = ap.parse_args(argv)
+    if a.prepare:
+        return prepare_cmd(a)
     if (a.level is None) == (a.size is None):
         raise UserError("hyperelastic mesh: give exactly one of --level N or --size H")
     if a.refine < 0:
@@ -240,6 +246,19 @@ def mesh_cmd(argv):
         for name, nf, area, c, u in first["surfaces"]:
             cen = "(" + ", ".join(f"{v:.4g}" for v in c) + ")"
             print(f"  {name:<14} {nf:>7} {area:>11.4g}  {cen:<36} {format_normal(u)}")
+    return 0
+
+
+def prepare_cmd(a):
+    """`hyperelastic mesh MESH --prepare -o OUT.h5` (mesh/prepared.py)."""
+    from ..mesh.prepared import prepare
+    if a.level is not None or a.size is not None or a.refine or a.graded or a.order != 1:
+        raise UserError("hyperelastic mesh --prepare: takes a mesh file and -o only (mesh it first, then prepare it)")
+    st = prepare(a.geometry, a.output)
+    print(f"{a.output}: {st['vertices']} vertices, {st['cells']} tets, {st['boundary_facets']} boundary facets, "
+          "ordered along a Z-curve; a run with -mesh reads it in slices, every rank its own")
+    for name, kind, n in st["groups"]:
+        print(f"  {name}: {n} {kind}")
     return 0
 
 

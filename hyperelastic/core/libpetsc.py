@@ -175,3 +175,45 @@ def plex_cones(dm):
     cones = np.ctypeslib.as_array(ctypes.cast(ptr, ctypes.POINTER(_INT)), shape=(total,)).astype(np.int64)
     nc, nf = 4 * (c1 - c0), 3 * (f1 - f0)
     return cones[:nc].reshape(-1, 4), cones[nc:nc + nf].reshape(-1, 3), cones[nc + nf:].reshape(-1, 2)
+
+
+def _petsc_free(ptr):
+    """PetscFree of memory PETSc allocated for us (PetscFree is a macro over the function pointer PetscTrFree)."""
+    fp = ctypes.c_void_p.in_dll(lib(), "PetscTrFree").value
+    free = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p, ctypes.c_int, ctypes.c_char_p, ctypes.c_char_p)(fp)
+    if free(ptr, 0, b"plex_from_slices", b"libpetsc.py"):
+        raise RuntimeError("PetscFree failed")
+
+
+def plex_from_slices(comm, cells, n_owned, n_vertices, coords):
+    """A distributed, uninterpolated DMPlex of tetrahedra built from every rank's slice (collective;
+    DMPlexBuildFromCellListParallel + DMPlexBuildCoordinatesFromCellListParallel, which petsc4py does not wrap):
+    cells (nc, 4) this rank's cells by global vertex number, its local cells in that order; n_owned: the vertices
+    this rank holds, a contiguous range in rank order (coords (n_owned, 3) their positions), n_vertices: all.
+    Returns (dm, the global vertex number of each of the DM's local vertices, in their order)."""
+    L = lib()
+    for fn, args in (("DMPlexBuildFromCellListParallel", [ctypes.c_void_p] + [_INT] * 4 +
+                      [ctypes.c_void_p, ctypes.POINTER(ctypes.c_void_p), ctypes.POINTER(ctypes.c_void_p)]),
+                     ("DMPlexBuildCoordinatesFromCellListParallel", [ctypes.c_void_p, _INT, ctypes.c_void_p,
+                                                                     ctypes.c_void_p]),
+                     ("PetscSFDestroy", [ctypes.POINTER(ctypes.c_void_p)])):
+        getattr(L, fn).argtypes = args
+    dm = PETSc.DMPlex().create(comm=comm)
+    dm.setDimension(3)
+    c = np.ascontiguousarray(cells, np.int32)
+    x = np.ascontiguousarray(coords, np.float64)
+    sf, adj = ctypes.c_void_p(), ctypes.c_void_p()
+    err = L.DMPlexBuildFromCellListParallel(ctypes.c_void_p(dm.handle), len(c), int(n_owned), int(n_vertices), 4,
+                                            c.ctypes.data_as(ctypes.c_void_p), ctypes.byref(sf), ctypes.byref(adj))
+    if err:
+        raise RuntimeError(f"DMPlexBuildFromCellListParallel: {error_message(err)}")
+    v0, v1 = dm.getDepthStratum(0)
+    vertices = (np.ctypeslib.as_array(ctypes.cast(adj, ctypes.POINTER(_INT)), shape=(v1 - v0,)).astype(np.int64)
+                if v1 > v0 else np.zeros(0, np.int64))
+    _petsc_free(adj)
+    err = L.DMPlexBuildCoordinatesFromCellListParallel(ctypes.c_void_p(dm.handle), 3, sf,
+                                                       x.ctypes.data_as(ctypes.c_void_p))
+    L.PetscSFDestroy(ctypes.byref(sf))
+    if err:
+        raise RuntimeError(f"DMPlexBuildCoordinatesFromCellListParallel: {error_message(err)}")
+    return dm, vertices

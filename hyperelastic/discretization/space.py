@@ -49,6 +49,26 @@ def set_labels(dm, labels, corder, point_of_input):
                                                                   comm=PETSc.COMM_SELF))
 
 
+def share_stratum(dm, lab, value):
+    """Complete stratum `value` of label `lab` over the ranks: a point any rank has in it is in it on every rank
+    that has the point (through the point SF: the ranks' marks reduced to the point's owner, then sent back)."""
+    n = dm.getChart()[1]
+    mark = np.zeros(n, np.int64)
+    if lab.hasStratum(value):
+        mark[lab.getStratumIS(value).getIndices()] = 1
+        lab.clearStratum(value)
+    sf = dm.getPointSF()
+    owner = mark.copy()
+    sf.reduceBegin(MPI.INT64_T, mark, owner, MPI.MAX)
+    sf.reduceEnd(MPI.INT64_T, mark, owner, MPI.MAX)
+    sf.bcastBegin(MPI.INT64_T, owner, mark, MPI.REPLACE)
+    sf.bcastEnd(MPI.INT64_T, owner, mark, MPI.REPLACE)
+    mark |= owner
+    pts = np.flatnonzero(mark)
+    if len(pts):
+        lab.setStratumIS(value, PETSc.IS().createGeneral(pts.astype(PETSc.IntType), comm=PETSc.COMM_SELF))
+
+
 def pull(sf, rootdata, n, width=1):
     """Each rank's copy of per-point data of the serial DMPlex (rootdata: (points, width) on rank 0, empty
     elsewhere) for its n local points, through the distribution's migration star forest (PetscSFBcast: every rank
@@ -68,10 +88,13 @@ def pull(sf, rootdata, n, width=1):
     return leaf
 
 
-def make_space(comm, element, mesh=None, labels=None, partitioner=partition.DEFAULT):
+def make_space(comm, element, mesh=None, labels=None, partitioner=partition.DEFAULT, dm=None):
     """The distributed space of the element (element.reference.Element: its order picks P1 or P2) on the checked
     input mesh of rank 0 (a mesh.sets.Mesh at that order; None on the other ranks) with its labels, its cells
-    split among the ranks by `partitioner` (partition.py)."""
+    split among the ranks by `partitioner` (partition.py). dm: the DMPlex every rank built from its slice of a
+    prepared mesh (mesh: this rank's mesh.prepared.SliceMesh, labels its own cells' and vertices'; P1)."""
+    if dm is not None:
+        return Space(comm, element, labels=labels, partitioner=partitioner, sliced=(mesh, dm))
     points, tets, nodes = (mesh.points, mesh.tets, mesh.nodes) if mesh is not None else (None, None, None)
     boundary = len(mesh.facet_cell) if mesh is not None else None
     if element.order == 1:
@@ -83,16 +106,21 @@ class Space:
     """P1: 3 dofs per vertex (make_space builds the space of the run's element)."""
 
     def __init__(self, comm, element, points=None, tets=None, labels=None, partitioner=partition.DEFAULT,
-                 boundary_faces=None):
+                 boundary_faces=None, sliced=None):
         """element: the run's (order 1); points/tets: the checked input mesh on rank 0 (ignored on other ranks);
         labels (rank 0): {label name: {value: ("cells" | "vertices", input indices)}}, set on the serial DMPlex and
         carried through distribution (see sets.py for the facet sets' values); partitioner: partition.py's name;
-        boundary_faces (rank 0): the mesh's boundary facet count (for the partition's cut faces)."""
+        boundary_faces (rank 0): the mesh's boundary facet count (for the partition's cut faces). sliced: (this
+        rank's SliceMesh, the DMPlex built from the slices) of a prepared mesh instead of points/tets, labels then
+        every rank's own {name: {value: ("cells" | "vertices", its local cells or vertices)}} (make_space)."""
         self.element = element
         self.comm = comm
         self.mpi = comm.tompi4py()
         self.partitioner, self._boundary_faces = partitioner, boundary_faces
-        serial_input, sf = self._distribute(points, tets, labels or {})
+        if sliced is None:
+            serial_input, sf = self._distribute(points, tets, labels or {})
+        else:
+            serial_input, sf = self._adopt(*sliced, labels or {})
         dm = self.dm
         vStart, vEnd = dm.getDepthStratum(0)
         self.nlv = nlv = vEnd - vStart
@@ -175,6 +203,34 @@ class Space:
         self.dm = dm
         dm.viewFromOptions("-dm_view")
         return serial_input, sf
+
+    def _adopt(self, mesh, dm, labels):
+        """The DMPlex every rank built from its slice of a prepared mesh, with the labels of its own points (a facet
+        set's vertices completed across the ranks: a rank may hold a vertex of a facet another rank's cell has),
+        redistributed where a PETSc graph partitioner was asked for (the slices are the Morton parts already);
+        returns (each point's input index, the migration SF or None) as _distribute does."""
+        self.nv_total, self.nc_total, self._boundary_faces = mesh.totals
+        (c0, c1), (v0, v1) = dm.getHeightStratum(0), dm.getDepthStratum(0)
+        local = np.full(dm.getChart()[1], -1, np.int64)
+        local[c0:c1], local[v0:v1] = mesh.cell_ids, mesh.ids
+        for name, strata in labels.items():
+            dm.createLabel(name)
+            lab = dm.getLabel(name)
+            for value, (kind, idx) in strata.items():
+                pts = (c0 if kind == "cells" else v0) + np.sort(np.asarray(idx, np.int64))
+                if len(pts):
+                    lab.setStratumIS(int(value), PETSc.IS().createGeneral(pts.astype(PETSc.IntType),
+                                                                          comm=PETSc.COMM_SELF))
+            if name.startswith(facet_label("")):
+                share_stratum(dm, lab, VERTEX_VALUE)
+        self.label_names = list(labels)
+        sf = None
+        if self.partitioner in partition.PETSC_OWN:
+            partition.apply(dm, self.partitioner, None, self.mpi.size)
+            sf = dm.distribute(overlap=0)
+        self.dm = dm
+        dm.viewFromOptions("-dm_view")
+        return local, sf
 
     @staticmethod
     def _set_labels(dm, labels, corder, vperm):

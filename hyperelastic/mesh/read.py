@@ -12,6 +12,7 @@ from ..core.data import cache_dir
 from ..core.errors import UserError
 from ..core.files import completed_frames, is_output, require_parts
 from ..element.reference import EDGES, TET_RULES, tet_shapes
+from .prepared import is_prepared, read_whole
 from .sets import FACE_VERTICES, Mesh, NamedSet, face_incidence, signed_volumes
 
 # the reference nodes of a quadratic tetrahedron (element.py's order)
@@ -37,6 +38,8 @@ def read_mesh(path, frame=-1):
         path = os.path.splitext(path)[0] + ".h5"
     if path.lower().endswith((".h5", ".hdf5")) and is_output(path):
         return _read_output(path, frame)
+    if path.lower().endswith((".h5", ".hdf5")) and is_prepared(path):
+        return read_whole(path)
     cached = _parsed(path)
     if cached is not None:
         return cached

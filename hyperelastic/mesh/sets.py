@@ -100,6 +100,17 @@ class Mesh:
     facet_k: np.ndarray = None
     groups: dict = field(default_factory=dict)     # name -> NamedSet (physical surfaces and volumes)
     nodes: np.ndarray = None    # (nc, 10) of quadratic cells (element.py's node order), None for linear
+    ids: np.ndarray = None      # each point's input-mesh index where `points` is not the input's numbering
+
+    # a Mesh is the whole mesh; a subclass may hold one rank's part of it (mesh.prepared.SliceMesh): these hooks
+    # then make counts, measures and the bounding box the whole mesh's (collective there)
+    def total(self, n, op="sum"):
+        """n (a count or measure of this part) over the whole mesh."""
+        return n
+
+    def extent(self):
+        """(lo, hi): the whole mesh's bounding box."""
+        return self.points.min(axis=0), self.points.max(axis=0)
 
     @property
     def order(self):
@@ -133,16 +144,17 @@ class Mesh:
 
     def area(self, idx):
         """The facets' area (curved 6-node facets of a quadratic mesh by the face rule)."""
-        return float(faces.areas(self.points, self.facets(idx) if self.nodes is None else self.face_nodes(idx)).sum())
+        tri = self.facets(idx) if self.nodes is None else self.face_nodes(idx)
+        return self.total(float(faces.areas(self.points, tri).sum()))
 
     def volume(self, cells):
         """The cells' volume (quadratic cells by the degree-5 rule: their curved volume)."""
         if self.nodes is None:
-            return float(np.abs(signed_volumes(self.points, self.tets[cells])).sum())
+            return self.total(float(np.abs(signed_volumes(self.points, self.tets[cells])).sum()))
         pts, w = TET_RULES[5]
         nodes = self.nodes[np.atleast_1d(cells)]
         det = np.linalg.det(np.einsum("cai,qaj->cqij", self.points[nodes], tet_shapes(2, pts)[1]))
-        return float((np.abs(det) @ w).sum())
+        return self.total(float((np.abs(det) @ w).sum()))
 
     # --- named sets --------------------------------------------------------------------------
     def _read_groups(self, m):
@@ -195,12 +207,7 @@ class Mesh:
 
     def box_facets(self, name):
         """Boundary facets on a bounding-box plane: all three vertices within BOX_TOL of the diagonal."""
-        axis, side = BOX[name]
-        lo, hi = self.points.min(axis=0), self.points.max(axis=0)
-        tol = BOX_TOL * float(np.linalg.norm(hi - lo))
-        ref = lo[axis] if side == "min" else hi[axis]
-        on = np.abs(self.points[:, axis] - ref) <= tol
-        return np.flatnonzero(on[self.facets()].all(axis=1))
+        return box_pick(self.points[self.facets()], name, *self.extent())
 
     def find(self, spec, kind, option):
         """The NamedSet `spec` names: a physical group's name or tag, or (facets) a box face name.
@@ -223,37 +230,20 @@ class Mesh:
     def select(self, spec, option):
         """The boundary facets a geometric selector picks (SELECTORS; sets' module docstring); UserError
         for a malformed one or one that picks nothing (with the part's extent)."""
-        key, _, arg = spec.partition("=")
-        nums = [float(v) for v in re.findall(NUMBER, arg)] if re.fullmatch(f"{NUMBER}(;{NUMBER})*", arg) else None
-        lo, hi = self.points.min(axis=0), self.points.max(axis=0)
-        tol = BOX_TOL * float(np.linalg.norm(hi - lo))
-        corners = self.points[self.facets()]                                     # (n, 3, 3)
-        if key in ("x", "y", "z") and nums and len(nums) == 1:
-            on = np.abs(corners[:, :, "xyz".index(key)] - nums[0]) <= tol
-            picked = np.flatnonzero(on.all(axis=1))
-        elif key == "box" and nums and len(nums) == 6:
-            a, b = np.minimum(nums[:3], nums[3:]), np.maximum(nums[:3], nums[3:])
-            picked = np.flatnonzero(((corners >= a - tol) & (corners <= b + tol)).all(axis=(1, 2)))
-        elif key == "normal" and (re.fullmatch("[-+][xyz]", arg) or (nums and len(nums) == 3 and any(nums))):
-            d = np.eye(3)["xyz".index(arg[1])] * (1 if arg[0] == "+" else -1) if nums is None else np.array(nums)
-            n = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
-            cos = n @ (d / np.linalg.norm(d)) / np.linalg.norm(n, axis=1)
-            picked = np.flatnonzero(cos >= math.cos(math.radians(NORMAL_TOL_DEG)))
-        else:
-            raise UserError(f"option -{option}: '{spec}' is not a surface selector ({SELECTORS})")
-        if not len(picked):
-            ext = ", ".join(f"{c} {lo[i]:.6g}..{hi[i]:.6g}" for i, c in enumerate("xyz"))
-            raise UserError(f"option -{option}: '{spec}' selects no boundary facet (the part spans {ext})")
+        lo, hi = self.extent()
+        picked = select_pick(self.points[self.facets()], spec, option, lo, hi)
+        if not self.total(len(picked)):
+            raise none_selected(spec, option, lo, hi)
         return picked
 
     def describe(self, s):
         """One line about a set: name, size and area or volume."""
         if s.kind == "facets":
-            line = f"{s.name}: {len(s.items)} facets, area {self.area(s.items):.6g}"
+            line = f"{s.name}: {self.total(len(s.items))} facets, area {self.area(s.items):.6g}"
             if s.ignored:
                 line += f" ({s.ignored} interior triangles of the group ignored)"
             return line
-        return f"{s.name}: {len(s.items)} tets, volume {self.volume(s.items):.6g}"
+        return f"{s.name}: {self.total(len(s.items))} tets, volume {self.volume(s.items):.6g}"
 
     def face_nodes(self, idx=None):
         """(n, 6) nodes of boundary facets `idx` of a quadratic mesh: the corners as facets() orders them,
@@ -268,19 +258,61 @@ class Mesh:
         mids = [self.nodes[cell, edge[local[:, a], local[:, b]]] for a, b in ((0, 1), (1, 2), (0, 2))]
         return np.column_stack([tri] + mids)
 
+    def facet_mask(self, items):
+        """(nc,) the bitmask of each cell's facets among boundary facets `items`: bit j is the face without the
+        cell's corner of j-th smallest input vertex id (so any cone order gives the same faces)."""
+        cell, k = self.facet_cell[items], self.facet_k[items]
+        ids = self.tets[cell] if self.ids is None else self.ids[self.tets[cell]]
+        rank = (ids < ids[np.arange(len(k)), k][:, None]).sum(axis=1)
+        masks = np.zeros(len(self.tets), np.int64)
+        np.bitwise_or.at(masks, cell, 1 << rank)
+        return masks
+
     def label_strata(self, s):
         """{value: input cell or node indices} of a facet set as a DMPlex label: each cell holding
         facets of the set gets the bitmask of which of its faces (bit j: the face without the cell's
         j-th smallest input vertex id, so any cone order gives the same faces), the set's nodes (its
         vertices, and the edge nodes of a quadratic mesh) get VERTEX_VALUE."""
-        cell, k = self.facet_cell[s.items], self.facet_k[s.items]
-        excluded = self.tets[cell, k]
-        rank = (self.tets[cell] < excluded[:, None]).sum(axis=1)
-        masks = np.zeros(len(self.tets), np.int64)
-        np.bitwise_or.at(masks, cell, 1 << rank)
+        masks = self.facet_mask(s.items)
+        cell = self.facet_cell[s.items]
         out = {int(v): np.flatnonzero(masks == v) for v in np.unique(masks[cell])}
         out[VERTEX_VALUE] = np.unique(self.facets(s.items) if self.nodes is None else self.face_nodes(s.items))
         return out
+
+
+def box_pick(corners, name, lo, hi):
+    """The facets (corners (n, 3, 3)) on bounding-box face `name` (BOX) of the box lo..hi: all three corners within
+    BOX_TOL of its diagonal."""
+    axis, side = BOX[name]
+    tol = BOX_TOL * float(np.linalg.norm(hi - lo))
+    ref = lo[axis] if side == "min" else hi[axis]
+    return np.flatnonzero((np.abs(corners[:, :, axis] - ref) <= tol).all(axis=1))
+
+
+def select_pick(corners, spec, option, lo, hi):
+    """The facets (corners (n, 3, 3), outward order) a geometric selector picks, in a part spanning lo..hi;
+    UserError for a malformed selector (an empty pick is the caller's to report: none_selected)."""
+    key, _, arg = spec.partition("=")
+    nums = [float(v) for v in re.findall(NUMBER, arg)] if re.fullmatch(f"{NUMBER}(;{NUMBER})*", arg) else None
+    tol = BOX_TOL * float(np.linalg.norm(hi - lo))
+    if key in ("x", "y", "z") and nums and len(nums) == 1:
+        on = np.abs(corners[:, :, "xyz".index(key)] - nums[0]) <= tol
+        return np.flatnonzero(on.all(axis=1))
+    if key == "box" and nums and len(nums) == 6:
+        a, b = np.minimum(nums[:3], nums[3:]), np.maximum(nums[:3], nums[3:])
+        return np.flatnonzero(((corners >= a - tol) & (corners <= b + tol)).all(axis=(1, 2)))
+    if key == "normal" and (re.fullmatch("[-+][xyz]", arg) or (nums and len(nums) == 3 and any(nums))):
+        d = np.eye(3)["xyz".index(arg[1])] * (1 if arg[0] == "+" else -1) if nums is None else np.array(nums)
+        n = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+        cos = n @ (d / np.linalg.norm(d)) / np.linalg.norm(n, axis=1)
+        return np.flatnonzero(cos >= math.cos(math.radians(NORMAL_TOL_DEG)))
+    raise UserError(f"option -{option}: '{spec}' is not a surface selector ({SELECTORS})")
+
+
+def none_selected(spec, option, lo, hi):
+    """The UserError of a selector that picks no boundary facet of a part spanning lo..hi."""
+    ext = ", ".join(f"{c} {lo[i]:.6g}..{hi[i]:.6g}" for i, c in enumerate("xyz"))
+    return UserError(f"option -{option}: '{spec}' selects no boundary facet (the part spans {ext})")
 
 
 def orient_outward(points, tri, opp):
