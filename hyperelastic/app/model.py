@@ -129,7 +129,7 @@ def in_slices(scene):
     """Whether every rank reads its slice of the scene's mesh: a prepared mesh (mesh/prepared.py) run with linear
     tetrahedra and our own partitioners but METIS (which partitions the whole dual graph on rank 0); otherwise rank 0
     reads it whole (read_mesh reads a prepared mesh too)."""
-    return (bool(scene.mesh) and is_prepared(scene.mesh) and scene.order in (None, 1)
+    return (bool(scene.mesh) and is_prepared(scene.mesh) and scene.order in (0, 1)
             and scene.partitioner != "metis")
 
 

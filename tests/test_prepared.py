@@ -1,0 +1,133 @@
+"""Prepared meshes read in slices (issue 44 item 4): `hyperelastic mesh MESH --prepare -o F.h5` writes a checked,
+Z-ordered mesh that every rank of a run reads its own slice of; the run is the one on the source mesh (bitwise on
+one rank, to round-off on 2 and 4), its sets and regions the same, a damaged file one line."""
+import os
+
+import h5py
+import numpy as np
+import pytest
+
+from conftest import ROOT, hyperelastic, read_h5, run_ok
+
+OPTS = os.path.join(ROOT, "examples", "bimaterial.opts")
+
+
+@pytest.fixture(scope="module")
+def meshes(tmp_path_factory):
+    """The two-material bar (physical surfaces and volumes) as .msh, and prepared."""
+    d = tmp_path_factory.mktemp("prepared")
+    run_ok(["mesh", os.path.join(ROOT, "examples", "bimaterial.geo"), "--size", "0.08", "-o", d / "bi.msh"])
+    p = run_ok(["mesh", d / "bi.msh", "--prepare", "-o", d / "bi.h5"])
+    assert "end_soft: " in p.stdout and "soft: " in p.stdout
+    return d
+
+
+def test_the_prepared_file_is_the_source_mesh(meshes):
+    """Read whole, a prepared mesh gives the source's checked arrays and named sets exactly; its own rows are the
+    Z-order (cells ascending along the curve, vertices by first use)."""
+    from hyperelastic.mesh.read import read_mesh
+    a, b = read_mesh(str(meshes / "bi.msh")), read_mesh(str(meshes / "bi.h5"))
+    for k in ("points", "tets", "facet_cell", "facet_k"):
+        assert np.array_equal(getattr(a, k), getattr(b, k)), k
+    assert set(a.groups) == set(b.groups) == {"soft", "stiff", "end_soft", "end_stiff"}
+    for name, g in a.groups.items():
+        h = b.groups[name]
+        assert (g.kind, g.tag, g.ignored) == (h.kind, h.tag, h.ignored) and np.array_equal(g.items, h.items), name
+    with h5py.File(meshes / "bi.h5") as f:
+        cells = f["cells"][:]
+        first = np.unique(cells.ravel(), return_index=True)[1]
+        assert (np.diff(first) > 0).all()                     # vertex k is first used before vertex k + 1
+
+
+def _run(meshes, mesh, out, nprocs, *extra):
+    p = run_ok(["run", OPTS, "-mesh", meshes / mesh, "-output", meshes / out, "-final_time", 0.5, *extra],
+               nprocs=nprocs)
+    return p, read_h5(meshes / out, frames=True)
+
+
+def test_runs_read_in_slices_give_the_source_meshs_answer(meshes):
+    """-mesh F.h5 on 1, 2 and 4 ranks (oversubscribed) against -mesh F.msh: bitwise on one rank (the same order,
+    the same DM), to round-off on more; the same set and region lines (counts and measures summed over the ranks)."""
+    p_ref, ref = _run(meshes, "bi.msh", "ref.h5", 1)
+    sets = [ln for ln in p_ref.stderr.splitlines() if ln.startswith("set ")]
+    assert len(sets) == 6 and any("front" in s for s in sets)
+    for n in (1, 2, 4):
+        p, got = _run(meshes, "bi.h5", f"sl{n}.h5", n)
+        assert [ln for ln in p.stderr.splitlines() if ln.startswith("set ")] == sets, n
+        assert got["attrs"]["mesh_read"] == "slices" and ref["attrs"]["mesh_read"] == "rank 0"
+        assert np.array_equal(got["tetra"], ref["tetra"]) and np.array_equal(got["points"], ref["points"])
+        err = np.abs(got["x"] - ref["x"]).max() / np.abs(ref["x"]).max()
+        assert err == 0 if n == 1 else err < 1e-12, (n, err)
+        for a, b in zip(got["frames"], ref["frames"]):
+            for k in b:
+                assert np.abs(a[k] - b[k]).max() <= 1e-9 * max(1.0, np.abs(b[k]).max()), (n, k)
+
+
+def test_selectors_and_unknown_sets_on_slices(meshes):
+    """A geometric selector picks the same facets from the ranks' parts (the bounding box is the whole mesh's), and
+    an unknown surface or an empty selector is the same one line as on the source mesh, once, on 2 ranks."""
+    p, got = _run(meshes, "bi.h5", "x0.h5", 2, "-fix", "x=0")
+    q, ref = _run(meshes, "bi.msh", "x0ref.h5", 1, "-fix", "x=0")
+    line = [ln for ln in q.stderr.splitlines() if ln.startswith("set x=0")]
+    assert line and line == [ln for ln in p.stderr.splitlines() if ln.startswith("set x=0")]
+    assert np.abs(got["x"] - ref["x"]).max() < 1e-12 * np.abs(ref["x"]).max()
+    for spec, want in (("nosuch", "has no surface 'nosuch'"), ("x=5", "'x=5' selects no boundary facet")):
+        a = hyperelastic(["run", OPTS, "-mesh", meshes / "bi.h5", "-fix", spec, "-output", meshes / "e.h5"], 2)
+        b = hyperelastic(["run", OPTS, "-mesh", meshes / "bi.msh", "-fix", spec, "-output", meshes / "e.h5"], 1)
+        assert a.returncode == b.returncode == 2
+        assert a.stderr.count("error:") == 1 and want in a.stderr
+        assert a.stderr.replace("bi.h5", "bi.msh") == b.stderr
+
+
+def _damaged(meshes, name, edit):
+    path = meshes / name
+    path.write_bytes((meshes / "bi.h5").read_bytes())
+    with h5py.File(path, "r+") as f:
+        edit(f)
+    return path
+
+
+@pytest.mark.parametrize("edit, want", [
+    (lambda f: f.__delitem__("boundary"), "prepared dataset 'boundary' is missing"),
+    (lambda f: f["cells"].__setitem__((7, 0), 10 ** 6), r"has a vertex index out of range"),
+    (lambda f: f["cells"].__setitem__(-3, f["cells"][-3][[1, 0, 2, 3]]), "is inverted"),
+    (lambda f: f["points"].__setitem__(5, [np.nan, 0, 0]), "non-finite"),
+    (lambda f: f.attrs.__setitem__("version", 99), "prepared mesh version 99"),
+])
+def test_a_damaged_prepared_file_is_one_line(meshes, edit, want):
+    """A prepared file edited by hand or cut short: one error line (from whichever rank holds the bad rows), exit
+    2, on 2 ranks; the inverted cell is named by its index in the source mesh."""
+    path = _damaged(meshes, "bad.h5", edit)
+    p = hyperelastic(["run", OPTS, "-mesh", path, "-output", meshes / "e.h5"], 2)
+    assert p.returncode == 2 and p.stderr.count("error:") == 1 and want in p.stderr, p.stderr
+    if want == "is inverted":
+        with h5py.File(meshes / "bi.h5") as f:
+            assert f"tetrahedron {f['cell_input_index'][-3]} is inverted" in p.stderr
+
+
+def test_prepare_refuses_what_it_cannot_write(meshes, tmp_path):
+    """--prepare takes a linear mesh and an .h5 output; a refusal writes nothing and leaves an earlier file whole."""
+    keep = tmp_path / "keep.h5"
+    keep.write_bytes((meshes / "bi.h5").read_bytes())
+    for args, want in (([meshes / "bi.msh", "--prepare", "-o", tmp_path / "x.msh"], "must end in .h5"),
+                       ([meshes / "bi.msh", "--prepare", "--size", "1", "-o", keep], "takes a mesh file"),
+                       ([tmp_path / "none.msh", "--prepare", "-o", keep], "none.msh")):
+        p = hyperelastic(["mesh", *args])
+        assert p.returncode == 2 and want in p.stderr, p.stderr
+    assert keep.read_bytes() == (meshes / "bi.h5").read_bytes() and not (tmp_path / "x.msh").exists()
+    q2 = tmp_path / "q2.msh"
+    run_ok(["mesh", os.path.join(ROOT, "examples", "bimaterial.geo"), "--size", "0.2", "--order", "2", "-o", q2])
+    p = hyperelastic(["mesh", q2, "--prepare", "-o", keep])
+    assert p.returncode == 2 and "quadratic" in p.stderr and keep.read_bytes() == (meshes / "bi.h5").read_bytes()
+
+
+def test_order_2_and_metis_read_a_prepared_mesh_whole(meshes):
+    """What slices do not serve yet (quadratic elements, METIS' serial graph) reads the prepared mesh whole on rank
+    0, with the source mesh's answer."""
+    _, ref = _run(meshes, "bi.msh", "p2ref.h5", 2, "-order", "2")
+    _, got = _run(meshes, "bi.h5", "p2.h5", 2, "-order", "2")
+    assert got["attrs"]["mesh_read"] == "rank 0"
+    assert np.abs(got["x"] - ref["x"]).max() < 1e-12 * np.abs(ref["x"]).max()
+    _, ref = _run(meshes, "bi.msh", "mref.h5", 2, "-partitioner", "metis")
+    _, got = _run(meshes, "bi.h5", "m.h5", 2, "-partitioner", "metis")
+    assert np.array_equal(got["x"], ref["x"])
