@@ -78,7 +78,7 @@ def main(scene, options, state_file):
     sp = m.space
     if sp.mpi.rank == 0:                 # a restart's state: an (nv, 3) array in a file, rows in input order
         with h5py.File(state_file, "w") as f:
-            f["x"] = m.points
+            f["x"] = m.whole_mesh()[0]
     sp.mpi.Barrier()
     mine = sp.read_state(StateRows(state_file, "x", sp.nv_total, 3))
     assert np.array_equal(mine.reshape(-1, 3), sp.X), "read_state: a rank received another node's row"

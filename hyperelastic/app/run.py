@@ -6,6 +6,8 @@ import resource
 import signal
 import sys
 
+import numpy as np
+
 from mpi4py import MPI
 from petsc4py import PETSc
 
@@ -139,6 +141,7 @@ def _integrate(integ, writer, comm, scene):
     finally:
         writer.set_attr("steps_completed", integ.step)
         writer.set_attr("peak_rss_mb", peak_rss_mb(comm))
+        writer.set_attr("peak_rss_mb_per_rank", peak_rss_mb(comm, every=True))
         writer.close(keep=ended)
 
 
@@ -178,7 +181,9 @@ def _check_restart(state, model, scene, path):
                         f"(-final_time {scene.final_time:g}); give a later -final_time to continue")
 
 
-def peak_rss_mb(comm):
-    """Peak resident memory [MB] of the most loaded rank so far (getrusage: KiB on Linux)."""
+def peak_rss_mb(comm, every=False):
+    """Peak resident memory [MB] of the most loaded rank so far (getrusage: KiB on Linux); every: each rank's."""
     kib = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    if every:
+        return np.array(comm.tompi4py().allgather(kib)) / 1024.0
     return comm.tompi4py().allreduce(kib, op=MPI.MAX) / 1024.0
