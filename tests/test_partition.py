@@ -12,7 +12,8 @@ from conftest import ROOT, read_h5, run_mpi_script, run_ok
 
 from hyperelastic.discretization import partition
 from hyperelastic.mesh.generate import cached_bar
-from hyperelastic.mesh.read import read_mesh, spatial_order
+from hyperelastic.mesh.order import spatial_order
+from hyperelastic.mesh.read import read_mesh
 
 
 @pytest.fixture(scope="module")

@@ -131,3 +131,24 @@ def test_order_2_and_metis_read_a_prepared_mesh_whole(meshes):
     _, ref = _run(meshes, "bi.msh", "mref.h5", 2, "-partitioner", "metis")
     _, got = _run(meshes, "bi.h5", "m.h5", 2, "-partitioner", "metis")
     assert np.array_equal(got["x"], ref["x"])
+
+
+def test_a_per_rank_output_is_read_in_slices(meshes):
+    """-mesh of a per-rank output (issue 45 item 4): every rank reads its slice of the output's rows (its boundary
+    found by counting faces over the ranks), on 2 and 3 ranks; the same sets, regions and answer as rank 0 reading
+    it whole (-partitioner metis), to the solver tolerance (other partitions)."""
+    run_ok(["run", OPTS, "-mesh", meshes / "bi.msh", "-output", meshes / "o2.h5", "-final_time", 0.5], nprocs=2)
+    opts = ["-fix", "x=0", "-traction_face", "right", "-mesh_frame", 0, "-final_time", 0.5]
+    whole, got = {}, {}
+    p = run_ok(["run", OPTS, "-mesh", meshes / "o2.h5", "-output", meshes / "w.h5", "-partitioner", "metis", *opts],
+               nprocs=2)
+    whole = read_h5(meshes / "w.h5")
+    sets = [ln for ln in p.stderr.splitlines() if ln.startswith("set ")]
+    assert len(sets) == 4 and whole["attrs"]["mesh_read"] == "rank 0"
+    for n in (2, 3):
+        q = run_ok(["run", OPTS, "-mesh", meshes / "o2.h5", "-output", meshes / f"s{n}.h5", *opts], nprocs=n)
+        got = read_h5(meshes / f"s{n}.h5")
+        assert got["attrs"]["mesh_read"] == "slices"
+        assert [ln for ln in q.stderr.splitlines() if ln.startswith("set ")] == sets
+        assert np.array_equal(got["points"], whole["points"]) and np.array_equal(got["tetra"], whole["tetra"])
+        assert np.abs(got["x"] - whole["x"]).max() < 1e-9 * np.abs(whole["x"]).max()

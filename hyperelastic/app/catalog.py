@@ -35,8 +35,9 @@ def _material_list():
 
 HEAD = (
     Row(("mesh", "mesh_frame"), "-mesh FILE", "any tetrahedral mesh meshio reads (.msh with physical groups, .vtu, "
-        ".mesh …), or an output of this application (.h5 or its .xdmf: the configuration of frame `-mesh_frame N`, "
-        "default the last, becomes the reference; regions kept)", "cached bar at `-level`"),
+        ".mesh …), an output of this application (.h5 or its .xdmf: the configuration of frame `-mesh_frame N`, "
+        "default the last, becomes the reference; regions kept), or a prepared mesh (`hyperelastic mesh MESH --prepare "
+        "-o FILE.h5`), which every rank reads its own slice of", "cached bar at `-level`"),
     Row(("level",), "-level N", "bar mesh level: 1..8 = thesis L1..L8 (edge 0.80 … 0.30), 9.. finer (≈2× tets each)",
         f"{_S.level}"),
     Row(("partitioner",), "-partitioner NAME", "how the cells are split among the MPI ranks: `morton` (equal "

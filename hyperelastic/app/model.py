@@ -15,7 +15,7 @@ from ..element.reference import Element
 from ..formulations import choose
 from ..formulations.base import Problem
 from ..mesh.generate import cached_bar
-from ..mesh.prepared import is_prepared, read_slice, read_whole
+from ..discretization.slices import read_slice, sliceable
 from ..mesh.read import CURVED_ANGLES, bent_edges, corners, elevate, read_mesh
 from ..mesh.sets import MATERIAL_LABEL, REGION_LABEL, VERTEX_VALUE, cell_label, facet_label
 from ..physics import effects as effects_pkg
@@ -93,7 +93,7 @@ class Model:
         """(points, tets) of the whole input mesh in its own numbering on rank 0 (None elsewhere), for the gathered
         output: a mesh read in slices is read whole here, on rank 0, only where that output asks for it."""
         if self.points is None and self.sliced_from and self.space.mpi.rank == 0:
-            m = read_whole(self.sliced_from)
+            m = read_mesh(self.sliced_from, self.scene.mesh_frame)
             self.points, self.tets = m.points, m.tets
         return self.points, self.tets
 
@@ -126,17 +126,16 @@ def load_mesh(scene):
 
 
 def in_slices(scene):
-    """Whether every rank reads its slice of the scene's mesh: a prepared mesh (mesh/prepared.py) run with linear
-    tetrahedra and our own partitioners but METIS (which partitions the whole dual graph on rank 0); otherwise rank 0
-    reads it whole (read_mesh reads a prepared mesh too)."""
-    return (bool(scene.mesh) and is_prepared(scene.mesh) and scene.order in (0, 1)
-            and scene.partitioner != "metis")
+    """Whether every rank reads its slice of the scene's mesh: a prepared mesh (mesh/prepared.py) or a per-rank output
+    of linear cells (output/ranks.py), run with linear tetrahedra and a partitioner but METIS (which partitions the
+    whole dual graph on rank 0); otherwise rank 0 reads it whole (read_mesh reads both too)."""
+    return bool(scene.mesh) and scene.order in (0, 1) and scene.partitioner != "metis" and sliceable(scene.mesh)
 
 
 def load_slices(scene, comm):
     """(this rank's SliceMesh, the DMPlex built from the slices, Element, its labels, the set report, notes) of a
     prepared mesh, every rank reading its own slice (collective; errors raised on every rank)."""
-    mesh, dm = read_slice(scene.mesh, comm)
+    mesh, dm = read_slice(scene.mesh, comm, scene.mesh_frame)
     element = Element.decide(scene.order, scene.quadrature, 1)
     check_index_range(mesh.totals[0], scene.mesh)
     labels, report = mesh_labels(scene, mesh)

@@ -251,10 +251,12 @@ def mesh_cmd(argv):
 
 def prepare_cmd(a):
     """`hyperelastic mesh MESH --prepare -o OUT.h5` (mesh/prepared.py)."""
-    from ..mesh.prepared import prepare
+    from ..mesh.prepared import check_prepare_output, prepare
+    from ..mesh.read import read_mesh
     if a.level is not None or a.size is not None or a.refine or a.graded or a.order != 1:
         raise UserError("hyperelastic mesh --prepare: takes a mesh file and -o only (mesh it first, then prepare it)")
-    st = prepare(a.geometry, a.output)
+    check_prepare_output(a.geometry, a.output)
+    st = prepare(read_mesh(a.geometry), a.output)
     print(f"{a.output}: {st['vertices']} vertices, {st['cells']} tets, {st['boundary_facets']} boundary facets, "
           "ordered along a Z-curve; a run with -mesh reads it in slices, every rank its own")
     for name, kind, n in st["groups"]:

@@ -10,7 +10,7 @@ import numpy as np
 from mpi4py import MPI
 
 
-def _alltoallv(mpi, send, counts, dtype=np.int64, width=1):
+def alltoallv(mpi, send, counts, dtype=np.int64, width=1):
     """send (sum(counts) rows of `width`), grouped by destination rank in rank order, counts per destination ->
     (received rows grouped by source rank, counts per source)."""
     counts = np.asarray(counts, np.int64)
@@ -45,11 +45,11 @@ class Exchange:
         order = np.argsort(directory(have), kind="stable")
         counts = np.bincount(directory(have), minlength=size)
         rows = np.stack([have[order], np.full(len(have), mpi.rank), order], axis=1)
-        known, _ = _alltoallv(mpi, rows, counts, width=3)
+        known, _ = alltoallv(mpi, rows, counts, width=3)
         # 2. the directory is asked for the wanted keys, and answers (rank, slot) in the order asked
         order_w = np.argsort(directory(want), kind="stable")
         counts_w = np.bincount(directory(want), minlength=size)
-        asked, asked_counts = _alltoallv(mpi, want[order_w], counts_w)
+        asked, asked_counts = alltoallv(mpi, want[order_w], counts_w)
         known = known.reshape(-1, 3)
         by_key = np.argsort(known[:, 0], kind="stable")
         pos = np.searchsorted(known[by_key, 0], asked)
@@ -59,7 +59,7 @@ class Exchange:
         answer = np.full((len(asked), 2), -1, np.int64)
         if found:
             answer[hit] = known[by_key[pos[hit]], 1:]
-        back, _ = _alltoallv(mpi, answer, asked_counts, width=2)
+        back, _ = alltoallv(mpi, answer, asked_counts, width=2)
         where = np.empty((len(want), 2), np.int64)
         where[order_w] = back.reshape(-1, 2)
         self.missing = int(mpi.allreduce(int((where[:, 0] < 0).sum()), op=MPI.SUM))
@@ -69,7 +69,7 @@ class Exchange:
         by_src = np.argsort(where[:, 0], kind="stable")
         self._recv_order = by_src                        # received row j goes to wanted position by_src[j]
         self._recv_counts = np.bincount(where[:, 0], minlength=size)
-        slots, self._send_counts = _alltoallv(mpi, where[by_src, 1], self._recv_counts)
+        slots, self._send_counts = alltoallv(mpi, where[by_src, 1], self._recv_counts)
         self._send_slots = slots
         self.identity = bool(mpi.allreduce(
             int(np.array_equal(self._recv_counts, np.bincount([mpi.rank] * len(want), minlength=size))
@@ -84,7 +84,7 @@ class Exchange:
         width = int(np.prod(tail)) if tail else 1
         kind = np.int64 if rows.dtype.kind in "iu" else np.float64
         flat = rows.reshape(len(rows), width)[self._send_slots]
-        got, _ = _alltoallv(self.mpi, flat, self._send_counts, kind, width)
+        got, _ = alltoallv(self.mpi, flat, self._send_counts, kind, width)
         out = np.empty((self.n_want, width), kind)
         out[self._recv_order] = got.reshape(-1, width)
         return out.reshape((self.n_want,) + tail)

@@ -1,6 +1,6 @@
 """How the cells are split among the ranks (-partitioner), on rank 0's serial mesh before DMPlex distributes it.
 
-- `morton`: the cells in the order of a Z-curve through their centroids (mesh.read.spatial_order: the serial mesh is
+- `morton`: the cells in the order of a Z-curve through their centroids (mesh.order.spatial_order: the serial mesh is
   always built in that order), cut into equal contiguous ranges: PETSc's `simple` partitioner.
 - `metis`: METIS (the `pymetis` wheel) on the mesh's dual graph (cells joined by a shared face), seeded, so the
   same mesh on the same rank count gets the same parts; handed to DMPlex through PETSc's `shell` partitioner.

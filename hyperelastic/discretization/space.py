@@ -22,7 +22,7 @@ from .exchange import Exchange
 from .kernels import IDX, Cells, ElementCells
 from ..core.errors import UserError
 from ..core.libpetsc import plex_cones
-from ..mesh.read import spatial_order
+from ..mesh.order import spatial_order
 from ..mesh.sets import FACE_VERTICES, VERTEX_VALUE, cell_label, facet_label, orient_outward
 
 
@@ -92,7 +92,7 @@ def make_space(comm, element, mesh=None, labels=None, partitioner=partition.DEFA
     """The distributed space of the element (element.reference.Element: its order picks P1 or P2) on the checked
     input mesh of rank 0 (a mesh.sets.Mesh at that order; None on the other ranks) with its labels, its cells
     split among the ranks by `partitioner` (partition.py). dm: the DMPlex every rank built from its slice of a
-    prepared mesh (mesh: this rank's mesh.prepared.SliceMesh, labels its own cells' and vertices'; P1)."""
+    prepared mesh (mesh: this rank's slices.SliceMesh, labels its own cells' and vertices'; P1)."""
     if dm is not None:
         return Space(comm, element, labels=labels, partitioner=partitioner, sliced=(mesh, dm))
     points, tets, nodes = (mesh.points, mesh.tets, mesh.nodes) if mesh is not None else (None, None, None)

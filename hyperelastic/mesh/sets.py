@@ -51,7 +51,7 @@ def cell_label(name):
     return f"cells:{name}"
 
 
-def _keys(tris):
+def face_keys(tris):
     """One int64 (or row) key per triangle of sorted vertex ids."""
     t = np.sort(tris, axis=1).astype(np.int64)
     if t.size and t.max() < 2 ** 21:
@@ -66,7 +66,7 @@ def face_incidence(tets, path="mesh"):
     A triangle of three or more tetrahedra (duplicate or overlapping cells) is a UserError."""
     small = tets.size == 0 or int(tets.max()) < 2 ** 31
     faces = (tets.astype(np.int32) if small else tets)[:, FACE_VERTICES].reshape(-1, 3)
-    key = _keys(faces)
+    key = face_keys(faces)
     order = np.argsort(key, kind="stable")
     key = key[order]
     same = key[1:] == key[:-1]
@@ -102,8 +102,8 @@ class Mesh:
     nodes: np.ndarray = None    # (nc, 10) of quadratic cells (element.py's node order), None for linear
     ids: np.ndarray = None      # each point's input-mesh index where `points` is not the input's numbering
 
-    # a Mesh is the whole mesh; a subclass may hold one rank's part of it (mesh.prepared.SliceMesh): these hooks
-    # then make counts, measures and the bounding box the whole mesh's (collective there)
+    # a Mesh is the whole mesh; a subclass may hold one rank's part of it (discretization.slices.SliceMesh):
+    # these hooks then make counts, measures and the bounding box the whole mesh's (collective there)
     def total(self, n, op="sum"):
         """n (a count or measure of this part) over the whole mesh."""
         return n
@@ -192,10 +192,10 @@ class Mesh:
                         if len(sel):
                             tet_sets.setdefault((name, None), []).append(off + sel)
                         off += len(block.data)
-        bkeys = _keys(self.facets())
+        bkeys = face_keys(self.facets())
         order = np.argsort(bkeys)
         for (name, tag), parts in tri_sets.items():
-            k = _keys(np.concatenate(parts).astype(np.int64))
+            k = face_keys(np.concatenate(parts).astype(np.int64))
             pos = np.clip(np.searchsorted(bkeys[order], k), 0, len(order) - 1)
             found = bkeys[order][pos] == k
             self.groups[name] = NamedSet(name, tag, "facets", np.unique(order[pos[found]]), int((~found).sum()))

@@ -1,0 +1,237 @@
+"""Every rank reads its own slice of a prepared mesh (mesh/prepared.py) and the ranks build one distributed DMPlex
+from the slices: rank r reads the r-th contiguous range of cells (the ranges PETSc's `simple` partitioner would cut,
+so the parts are the Morton partition of the source mesh) and the vertices they use first; the DM is built by
+DMPlexBuildFromCellListParallel (core/libpetsc.py) and the vertices the ranks share get their positions and input
+indices by an exchange (exchange.py). No rank reads more than its share and a few neighbouring rows. Each rank checks
+its own part; a bad row is one error line on every rank (the first failing rank's)."""
+import json
+
+import h5py
+import numpy as np
+from mpi4py import MPI
+
+from ..core.errors import UserError
+from ..core.files import completed_frames, is_output, require_parts
+from ..core.libpetsc import plex_from_slices
+from ..mesh.prepared import faces_of, is_prepared, open_prepared, read_groups
+from ..mesh.sets import FACE_VERTICES, Mesh, NamedSet, face_keys, signed_volumes
+from .exchange import Exchange, alltoallv
+
+
+class SliceMesh(Mesh):
+    """One rank's part of a prepared mesh (read_slice): its cells (`tets`, into its local vertices `points`), its
+    boundary facets and groups as a sets.Mesh does, with `ids` the local vertices' source indices; counts, measures
+    and the bounding box are the whole mesh's (collective), so sets are found and described as on the whole mesh.
+    vertices: each local vertex's prepared (global) number, the DM's local vertex order; cell_ids: each local cell's
+    source index; totals: (vertices, cells, boundary facets) of the whole mesh."""
+
+    def total(self, n, op="sum"):
+        return self.mpi.allreduce(n, op={"sum": MPI.SUM, "max": MPI.MAX, "min": MPI.MIN}[op])
+
+    def extent(self):
+        if self._extent is None:
+            lo = self.points.min(axis=0) if len(self.points) else np.full(3, np.inf)
+            hi = self.points.max(axis=0) if len(self.points) else np.full(3, -np.inf)
+            glo, ghi = np.empty(3), np.empty(3)
+            self.mpi.Allreduce(np.ascontiguousarray(lo), glo, op=MPI.MIN)
+            self.mpi.Allreduce(np.ascontiguousarray(hi), ghi, op=MPI.MAX)
+            self._extent = (glo, ghi)
+        return self._extent
+
+
+def cell_ranges(nc, size):
+    """The first cell of each rank's slice (size + 1 offsets): the ranges of PETSc's `simple` partitioner."""
+    sizes = np.full(size, nc // size) + (np.arange(size) < nc % size)
+    return np.concatenate([[0], np.cumsum(sizes)])
+
+
+def _first_error(mpi, message):
+    """Raise on every rank the first (by rank) of the ranks' error lines, if any (collective)."""
+    lines = mpi.allgather(message)
+    first = next((m for m in lines if m is not None), None)
+    if first is not None:
+        raise UserError(first)
+
+
+def check_slice(mpi, path, points, cells, cell_ids, nv):
+    """Each rank's checks of its own part (collective; the first failing rank's line raised on all): finite
+    coordinates, vertex indices in range, no repeated vertex, no flat or inverted cell (named by source index)."""
+    msg = None
+    bad = np.flatnonzero(~np.isfinite(points).all(axis=1) | (np.abs(points) > 1e30).any(axis=1))
+    if len(bad):
+        msg = f"mesh '{path}': a vertex has a non-finite or huge coordinate {points[bad[0]].tolist()}"
+    _first_error(mpi, msg)
+    bad = np.flatnonzero(((cells < 0) | (cells >= nv)).any(axis=1))
+    if len(bad):
+        msg = (f"mesh '{path}': tetrahedron {cell_ids[bad[0]]} has a vertex index out of range "
+               f"{cells[bad[0]].tolist()} (the mesh has {nv} vertices)")
+    _first_error(mpi, msg)
+    s = np.sort(cells, axis=1)
+    bad = np.flatnonzero((s[:, 1:] == s[:, :-1]).any(axis=1))
+    if len(bad):
+        msg = f"mesh '{path}': tetrahedron {cell_ids[bad[0]]} repeats a vertex"
+    _first_error(mpi, msg)
+
+
+def check_volumes(mpi, path, points, cells, cell_ids):
+    """No flat or inverted cell among this rank's (collective; points: local vertex positions, cells into them)."""
+    msg = None
+    if len(cells):
+        V = signed_volumes(points, cells)
+        e = np.stack([points[cells[:, b]] - points[cells[:, a]] for a, b in ((0, 1), (0, 2), (0, 3), (1, 2))])
+        lmax = np.linalg.norm(e, axis=-1).max(axis=0)
+        tiny = np.flatnonzero(np.abs(V) <= 1e-12 * lmax ** 3)
+        neg = np.flatnonzero(V < 0)
+        if len(tiny):
+            msg = f"mesh '{path}': tetrahedron {cell_ids[tiny[0]]} has zero volume"
+        elif len(neg):
+            msg = (f"mesh '{path}': tetrahedron {cell_ids[neg[0]]} is inverted (negative volume "
+                   f"{V[neg[0]]:.3g})")
+    _first_error(mpi, msg)
+
+
+class PreparedSource:
+    """The rows of a prepared mesh (mesh/prepared.py): vertices numbered by first use, boundaries and groups stored."""
+
+    def __init__(self, path):
+        self.path = path
+        with open_prepared(path) as f:
+            self.nv, self.nc = int(f.attrs["vertices"]), int(f.attrs["cells"])
+            self.boundary_facets = int(f.attrs["boundary_facets"])
+
+    def open(self):
+        return open_prepared(self.path)
+
+    def cells(self, f, lo, hi):
+        """(cells by vertex row, their source indices, their boundary bitmasks or None) of rows lo:hi."""
+        return (f["cells"][lo:hi].astype(np.int64), f["cell_input_index"][lo:hi].astype(np.int64),
+                f["boundary"][lo:hi].astype(np.int64))
+
+    def points(self, f, a, b):
+        """(positions, source indices) of vertex rows a:b."""
+        return f["points"][a:b], f["input_index"][a:b].astype(np.int64)
+
+    def groups(self, mpi, f, lo, hi):
+        return read_groups(f, lo, hi)
+
+
+class OutputSource:
+    """The rows of a per-rank output of this application (output/ranks.py) at frame `frame` (None: the reference):
+    its rows are its numbering (as rank 0's reader of an output takes them), its regions its groups, its boundary
+    found by counting faces over the ranks (boundary_masks)."""
+
+    def __init__(self, path, frame):
+        self.path, self.boundary_facets = path, None
+        with h5py.File(path, "r") as f:
+            require_parts(f, path, f"mesh '{path}'")
+            nf = completed_frames(f)
+            if frame is not None and nf and not -nf <= frame < nf:
+                raise UserError(f"mesh '{path}': has no frame {frame} (it has {nf}: 0..{nf - 1})")
+            self.frame = None if frame is None or nf == 0 else frame % nf
+            self.nv, self.nc = f["mesh/points"].shape[0], f["mesh/tetra"].shape[0]
+            try:
+                self.named = {int(s["tag"]): s["name"] for s in json.loads(f.attrs.get("sets", "[]"))
+                              if s["kind"] == "tets"}
+            except (ValueError, KeyError, TypeError):
+                self.named = {}
+
+    def open(self):
+        return h5py.File(self.path, "r")
+
+    def cells(self, f, lo, hi):
+        return f["mesh/tetra"][lo:hi].astype(np.int64), np.arange(lo, hi, dtype=np.int64), None
+
+    def points(self, f, a, b):
+        x = f["mesh/points"][a:b] if self.frame is None else f["x"][self.frame, a:b]
+        return x, np.arange(a, b, dtype=np.int64)
+
+    def groups(self, mpi, f, lo, hi):
+        """Its regions (mesh/region's tags, named as the run's `sets` attribute names them): 1 on their cells."""
+        region = f["mesh/region"][lo:hi].astype(np.int64) if "mesh/region" in f else np.zeros(hi - lo, np.int64)
+        tags = sorted(set().union(*mpi.allgather(set(np.unique(region[region != 0]).tolist()))))
+        return [(self.named.get(t, str(t)), t, "tets", 0, (region == t).astype(np.int64)) for t in tags]
+
+
+def sliceable(path):
+    """Whether `path` can be read in slices: a prepared mesh, or a per-rank output of linear cells."""
+    if is_prepared(path):
+        return True
+    if not (path.lower().endswith((".h5", ".hdf5")) and is_output(path)):
+        return False
+    with h5py.File(path, "r") as f:
+        return f.attrs.get("output_layout") == "ranks" and f["mesh/tetra"].shape[1:] == (4,)
+
+
+def boundary_masks(mpi, path, cells, ids, cell_ids, nv):
+    """Each cell's boundary-facet bitmask (bit j: the face without its corner of j-th smallest id), its faces counted
+    over every rank's cells at a directory rank chosen by the face's smallest vertex (collective; cells by global
+    vertex row, ids those rows' ids). A face of three or more cells is one error line, as rank 0's check says it.
+    Returns (masks, the mesh's boundary facet count)."""
+    size = mpi.size
+    tri = np.sort(cells[:, FACE_VERTICES], axis=2).reshape(-1, 3)          # face 4 c + k: without corner k
+    dest = np.minimum(tri[:, 0] * size // max(nv, 1), size - 1)
+    order = np.argsort(dest, kind="stable")
+    got, got_counts = alltoallv(mpi, tri[order], np.bincount(dest, minlength=size), width=3)
+    _, inverse, counts = np.unique(face_keys(got.reshape(-1, 3)), return_inverse=True, return_counts=True)
+    back, _ = alltoallv(mpi, counts[inverse.reshape(-1)], got_counts)
+    n = np.empty(len(tri), np.int64)
+    n[order] = back
+    n = n.reshape(-1, 4)
+    bad = np.flatnonzero((n >= 3).any(axis=1))
+    _first_error(mpi, f"mesh '{path}': tetrahedron {cell_ids[bad[0]]} shares a face with two others (duplicate or "
+                      "overlapping tetrahedra)" if len(bad) else None)
+    rank = np.argsort(np.argsort(ids, axis=1, kind="stable"), axis=1)       # rank of corner k among the cell's
+    masks = ((n == 1) << rank).sum(axis=1)
+    return masks, int(mpi.allreduce(int((n == 1).sum()), op=MPI.SUM))
+
+
+def read_slice(path, comm, frame=-1):
+    """(SliceMesh of this rank's part, the distributed DMPlex built from the slices) of a prepared mesh or a per-rank
+    output (at frame `frame`, as rank 0's reader) `path` (collective; module docstring)."""
+    mpi = comm.tompi4py()
+    size, rank = mpi.size, mpi.rank
+    try:
+        src = PreparedSource(path) if is_prepared(path) else OutputSource(path, frame)
+        nv, nc = src.nv, src.nc
+        if nc < size:
+            raise UserError(f"mesh '{path}': {nc} tetrahedra for {size} MPI ranks (each rank needs cells: run "
+                            "on fewer ranks or refine the mesh)")
+        off = cell_ranges(nc, size)
+        lo, hi = int(off[rank]), int(off[rank + 1])
+        with src.open() as f:
+            cells, cell_ids, bmask = src.cells(f, lo, hi)
+        err = None
+    except UserError as e:
+        err, cells = str(e), np.zeros((0, 4), np.int64)
+    _first_error(mpi, err)
+    # the vertices this rank holds for DMPlex, a contiguous range in rank order ending at nv: those its cells use
+    # first where vertices are numbered by first use in the cells' order (a prepared mesh), else a valid range
+    top = int(cells.max()) if len(cells) else -1
+    first = mpi.exscan(top, op=MPI.MAX)
+    a = 0 if rank == 0 else max(int(first) + 1, 0)
+    b = nv if rank == size - 1 else max(a, min(top + 1, nv))
+    with src.open() as f:
+        held_points, held_ids = src.points(f, a, b)
+        groups = src.groups(mpi, f, lo, hi)
+    check_slice(mpi, path, held_points, cells, cell_ids, nv)
+    dm, vertices = plex_from_slices(comm, cells, b - a, nv, held_points)
+    ex = Exchange(mpi, np.arange(a, b), vertices, nv)
+    if ex.missing:
+        raise UserError(f"mesh '{path}': {ex.missing} vertices have no row in it (a damaged file: prepare it again)")
+    X, ids = ex.move(held_points), ex.move(held_ids)
+    local = np.searchsorted(vertices, cells)                                    # (vertices: ascending)
+    check_volumes(mpi, path, X, local, cell_ids)
+    nb = src.boundary_facets
+    if bmask is None:
+        bmask, nb = boundary_masks(mpi, path, cells, ids[local], cell_ids, nv)
+    boundary = faces_of(ids[local], bmask)
+    mesh = SliceMesh.from_meshio(path, X, local, boundary)
+    mesh.ids, mesh.mpi, mesh._extent = ids, mpi, None
+    mesh.vertices, mesh.cell_ids, mesh.totals = vertices, cell_ids, (nv, nc, nb)
+    for name, tag, kind, ignored, mask in groups:
+        if kind == "facets":
+            items = np.searchsorted(boundary, faces_of(ids[local], mask))
+        else:
+            items = np.flatnonzero(mask)
+        mesh.groups[name] = NamedSet(name, tag, kind, items, ignored)
+    return mesh, dm
