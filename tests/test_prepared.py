@@ -152,3 +152,24 @@ def test_a_per_rank_output_is_read_in_slices(meshes):
         assert [ln for ln in q.stderr.splitlines() if ln.startswith("set ")] == sets
         assert np.array_equal(got["points"], whole["points"]) and np.array_equal(got["tetra"], whole["tetra"])
         assert np.abs(got["x"] - whole["x"]).max() < 1e-9 * np.abs(whole["x"]).max()
+
+
+def test_the_ranks_face_count_finds_boundaries_and_overlaps(petsc):
+    """discretization.slices.boundary_masks (the checks of faces made where the faces meet, not on rank 0): two tets
+    on opposite sides of a shared face have 3 boundary facets each; with the second's apex moved to the first's side
+    (both still positive) they overlap; a third tet on the shared face is a face of three cells."""
+    from mpi4py import MPI
+    from hyperelastic.core.errors import UserError
+    from hyperelastic.discretization.slices import boundary_masks
+    P = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1], [0, 0, -1], [0.1, 0.1, 0.5]], float)
+    cells = np.array([[0, 1, 2, 3], [0, 2, 1, 4]])
+    ids = cells.copy()
+    masks, nb = boundary_masks(MPI.COMM_WORLD, "m", cells, P[cells], ids, np.arange(2), len(P))
+    assert nb == 6 and [bin(m).count("1") for m in masks] == [3, 3]
+    assert all(m & (1 << 3) == 0 for m in masks)           # the shared face 0-1-2 omits each cell's largest id
+    same = np.array([[0, 1, 2, 3], [0, 1, 2, 5]])           # both positive, both above the face 0-1-2
+    with pytest.raises(UserError, match="same side"):
+        boundary_masks(MPI.COMM_WORLD, "m", same, P[same], same, np.arange(2), len(P))
+    three = np.array([[0, 1, 2, 3], [0, 2, 1, 4], [0, 1, 2, 5]])
+    with pytest.raises(UserError, match="shares a face with two others"):
+        boundary_masks(MPI.COMM_WORLD, "m", three, P[three], three, np.arange(3), len(P))

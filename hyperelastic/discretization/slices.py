@@ -162,24 +162,40 @@ def sliceable(path):
         return f.attrs.get("output_layout") == "ranks" and f["mesh/tetra"].shape[1:] == (4,)
 
 
-def boundary_masks(mpi, path, cells, ids, cell_ids, nv):
+def boundary_masks(mpi, path, cells, corners, ids, cell_ids, nv):
     """Each cell's boundary-facet bitmask (bit j: the face without its corner of j-th smallest id), its faces counted
     over every rank's cells at a directory rank chosen by the face's smallest vertex (collective; cells by global
-    vertex row, ids those rows' ids). A face of three or more cells is one error line, as rank 0's check says it.
+    vertex row, corners (nc, 4, 3) their positions, ids the rows' ids). The checks rank 0 makes of a whole mesh's
+    faces, made there: a face of three or more cells, or two cells on the same side of their face (each cell sends
+    the side its opposite corner lies on, the face's corners taken in one order by all), is one error line.
     Returns (masks, the mesh's boundary facet count)."""
     size = mpi.size
-    tri = np.sort(cells[:, FACE_VERTICES], axis=2).reshape(-1, 3)          # face 4 c + k: without corner k
+    order_k = np.argsort(cells[:, FACE_VERTICES], axis=2, kind="stable")
+    tri = np.take_along_axis(cells[:, FACE_VERTICES], order_k, axis=2)       # face 4 c + k: without corner k
+    at = np.take_along_axis(np.broadcast_to(FACE_VERTICES, tri.shape), order_k, axis=2)
+    rows = np.arange(len(cells))[:, None, None]
+    a, b, c = (corners[rows[..., 0], at[..., i]] for i in range(3))
+    opp = corners                                                            # (face k: its opposite corner k)
+    side = np.sign(np.einsum("fkx,fkx->fk", np.cross(b - a, c - a), opp - a)).astype(np.int64)
+    tri = tri.reshape(-1, 3)
     dest = np.minimum(tri[:, 0] * size // max(nv, 1), size - 1)
     order = np.argsort(dest, kind="stable")
-    got, got_counts = alltoallv(mpi, tri[order], np.bincount(dest, minlength=size), width=3)
-    _, inverse, counts = np.unique(face_keys(got.reshape(-1, 3)), return_inverse=True, return_counts=True)
-    back, _ = alltoallv(mpi, counts[inverse.reshape(-1)], got_counts)
+    send = np.column_stack([tri, side.reshape(-1)])[order]
+    got, got_counts = alltoallv(mpi, send, np.bincount(dest, minlength=size), width=4)
+    got = got.reshape(-1, 4)
+    _, inverse, counts = np.unique(face_keys(got[:, :3]), return_inverse=True, return_counts=True)
+    inverse = inverse.reshape(-1)
+    same = (counts == 2) & (np.abs(np.bincount(inverse, weights=got[:, 3], minlength=len(counts))) == 2)
+    back, _ = alltoallv(mpi, counts[inverse] + 8 * same[inverse], got_counts)
     n = np.empty(len(tri), np.int64)
     n[order] = back
     n = n.reshape(-1, 4)
-    bad = np.flatnonzero((n >= 3).any(axis=1))
+    bad = np.flatnonzero(((n & 7) >= 3).any(axis=1))
     _first_error(mpi, f"mesh '{path}': tetrahedron {cell_ids[bad[0]]} shares a face with two others (duplicate or "
                       "overlapping tetrahedra)" if len(bad) else None)
+    bad = np.flatnonzero((n >= 8).any(axis=1))
+    _first_error(mpi, f"mesh '{path}': tetrahedron {cell_ids[bad[0]]} and its neighbour across a face lie on the "
+                      "same side of it (overlapping tetrahedra)" if len(bad) else None)
     rank = np.argsort(np.argsort(ids, axis=1, kind="stable"), axis=1)       # rank of corner k among the cell's
     masks = ((n == 1) << rank).sum(axis=1)
     return masks, int(mpi.allreduce(int((n == 1).sum()), op=MPI.SUM))
@@ -223,7 +239,7 @@ def read_slice(path, comm, frame=-1):
     check_volumes(mpi, path, X, local, cell_ids)
     nb = src.boundary_facets
     if bmask is None:
-        bmask, nb = boundary_masks(mpi, path, cells, ids[local], cell_ids, nv)
+        bmask, nb = boundary_masks(mpi, path, cells, X[local], ids[local], cell_ids, nv)
     boundary = faces_of(ids[local], bmask)
     mesh = SliceMesh.from_meshio(path, X, local, boundary)
     mesh.ids, mesh.mpi, mesh._extent = ids, mpi, None
