@@ -121,16 +121,20 @@ def test_prepare_refuses_what_it_cannot_write(meshes, tmp_path):
     assert p.returncode == 2 and "quadratic" in p.stderr and keep.read_bytes() == (meshes / "bi.h5").read_bytes()
 
 
-def test_order_2_and_metis_read_a_prepared_mesh_whole(meshes):
-    """What slices do not serve yet (quadratic elements, METIS' serial graph) reads the prepared mesh whole on rank
-    0, with the source mesh's answer."""
-    _, ref = _run(meshes, "bi.msh", "p2ref.h5", 2, "-order", "2")
-    _, got = _run(meshes, "bi.h5", "p2.h5", 2, "-order", "2")
-    assert got["attrs"]["mesh_read"] == "rank 0"
-    assert np.abs(got["x"] - ref["x"]).max() < 1e-12 * np.abs(ref["x"]).max()
+def test_order_2_in_slices_and_metis_whole(meshes):
+    """-order 2 elevates the slices (each edge's node at its midpoint, numbered as rank 0 numbers an elevated mesh:
+    the same mesh/tetra and nodes through input_index) with the .msh run's answer, bitwise on one rank; METIS'
+    serial graph reads the prepared mesh whole on rank 0, with the same answer."""
+    for n in (1, 2):
+        _, ref = _run(meshes, "bi.msh", f"p2ref{n}.h5", n, "-order", "2")
+        _, got = _run(meshes, "bi.h5", f"p2_{n}.h5", n, "-order", "2")
+        assert got["attrs"]["mesh_read"] == "slices" and got["tetra"].shape[1] == 10
+        assert np.array_equal(got["tetra"], ref["tetra"]) and np.array_equal(got["points"], ref["points"])
+        err = np.abs(got["x"] - ref["x"]).max() / np.abs(ref["x"]).max()
+        assert err == 0 if n == 1 else err < 1e-12, (n, err)
     _, ref = _run(meshes, "bi.msh", "mref.h5", 2, "-partitioner", "metis")
     _, got = _run(meshes, "bi.h5", "m.h5", 2, "-partitioner", "metis")
-    assert np.array_equal(got["x"], ref["x"])
+    assert got["attrs"]["mesh_read"] == "rank 0" and np.array_equal(got["x"], ref["x"])
 
 
 def test_a_per_rank_output_is_read_in_slices(meshes):

@@ -94,7 +94,8 @@ class Model:
         output: a mesh read in slices is read whole here, on rank 0, only where that output asks for it."""
         if self.points is None and self.sliced_from and self.space.mpi.rank == 0:
             m = read_mesh(self.sliced_from, self.scene.mesh_frame)
-            self.points, self.tets = m.points, m.tets
+            m = elevate(m) if self.element.order == 2 else m         # (the slices were elevated the same way)
+            self.points, self.tets = m.points, m.cell_nodes
         return self.points, self.tets
 
     def set_lines(self):
@@ -127,9 +128,9 @@ def load_mesh(scene):
 
 def in_slices(scene):
     """Whether every rank reads its slice of the scene's mesh: a prepared mesh (mesh/prepared.py) or a per-rank output
-    of linear cells (output/ranks.py), run with linear tetrahedra and a partitioner but METIS (which partitions the
-    whole dual graph on rank 0); otherwise rank 0 reads it whole (read_mesh reads both too)."""
-    return bool(scene.mesh) and scene.order in (0, 1) and scene.partitioner != "metis" and sliceable(scene.mesh)
+    of linear cells (output/ranks.py; -order 2 elevates their cells), with a partitioner but METIS (which partitions
+    the whole dual graph on rank 0); otherwise rank 0 reads it whole (read_mesh reads both too)."""
+    return bool(scene.mesh) and scene.partitioner != "metis" and sliceable(scene.mesh)
 
 
 def load_slices(scene, comm):
@@ -137,7 +138,7 @@ def load_slices(scene, comm):
     prepared mesh, every rank reading its own slice (collective; errors raised on every rank)."""
     mesh, dm = read_slice(scene.mesh, comm, scene.mesh_frame)
     element = Element.decide(scene.order, scene.quadrature, 1)
-    check_index_range(mesh.totals[0], scene.mesh)
+    check_index_range(mesh.totals[0] * (7 if element.order == 2 else 1), scene.mesh)   # (P2: ~6 edges a vertex)
     labels, report = mesh_labels(scene, mesh)
     return mesh, dm, element, labels, report, []
 

@@ -49,6 +49,25 @@ def set_labels(dm, labels, corder, point_of_input):
                                                                   comm=PETSc.COMM_SELF))
 
 
+def set_slice_labels(dm, labels, c0, v0, more=None):
+    """Labels on a DMPlex built from slices: {name: {value: ("cells" | "vertices", this rank's local cells or
+    vertices)}} (cells from point c0, vertices from v0); more(strata): further points of a facet set's nodes (P2's
+    edges); a facet set's nodes are then completed over the ranks (share_stratum)."""
+    for name, strata in labels.items():
+        dm.createLabel(name)
+        lab = dm.getLabel(name)
+        for value, (kind, idx) in strata.items():
+            pts = (c0 if kind == "cells" else v0) + np.asarray(idx, np.int64)
+            if kind == "vertices" and more is not None:
+                pts = np.concatenate([pts, more(strata)])
+            pts = np.unique(pts)
+            if len(pts):
+                lab.setStratumIS(int(value), PETSc.IS().createGeneral(pts.astype(PETSc.IntType),
+                                                                      comm=PETSc.COMM_SELF))
+        if name.startswith(facet_label("")):
+            share_stratum(dm, lab, VERTEX_VALUE)
+
+
 def share_stratum(dm, lab, value):
     """Complete stratum `value` of label `lab` over the ranks: a point any rank has in it is in it on every rank
     that has the point (through the point SF: the ranks' marks reduced to the point's owner, then sent back)."""
@@ -92,9 +111,12 @@ def make_space(comm, element, mesh=None, labels=None, partitioner=partition.DEFA
     """The distributed space of the element (element.reference.Element: its order picks P1 or P2) on the checked
     input mesh of rank 0 (a mesh.sets.Mesh at that order; None on the other ranks) with its labels, its cells
     split among the ranks by `partitioner` (partition.py). dm: the DMPlex every rank built from its slice of a
-    prepared mesh (mesh: this rank's slices.SliceMesh, labels its own cells' and vertices'; P1)."""
-    if dm is not None:
+    prepared mesh (mesh: this rank's slices.SliceMesh of linear cells, labels its own cells' and vertices'; at order 2
+    the cells get a node at every edge's midpoint, numbered as mesh.read.elevate numbers them)."""
+    if dm is not None and element.order == 1:
         return Space(comm, element, labels=labels, partitioner=partitioner, sliced=(mesh, dm))
+    if dm is not None:
+        return QuadraticSpace(comm, element, labels=labels, partitioner=partitioner, sliced=(mesh, dm))
     points, tets, nodes = (mesh.points, mesh.tets, mesh.nodes) if mesh is not None else (None, None, None)
     boundary = len(mesh.facet_cell) if mesh is not None else None
     if element.order == 1:
@@ -213,16 +235,7 @@ class Space:
         (c0, c1), (v0, v1) = dm.getHeightStratum(0), dm.getDepthStratum(0)
         local = np.full(dm.getChart()[1], -1, np.int64)
         local[c0:c1], local[v0:v1] = mesh.cell_ids, mesh.ids
-        for name, strata in labels.items():
-            dm.createLabel(name)
-            lab = dm.getLabel(name)
-            for value, (kind, idx) in strata.items():
-                pts = (c0 if kind == "cells" else v0) + np.sort(np.asarray(idx, np.int64))
-                if len(pts):
-                    lab.setStratumIS(int(value), PETSc.IS().createGeneral(pts.astype(PETSc.IntType),
-                                                                          comm=PETSc.COMM_SELF))
-            if name.startswith(facet_label("")):
-                share_stratum(dm, lab, VERTEX_VALUE)
+        set_slice_labels(dm, labels, c0, v0)
         self.label_names = list(labels)
         sf = None
         if self.partitioner in partition.PETSC_OWN:
@@ -452,15 +465,19 @@ class QuadraticSpace(Space):
     a linear mesh's with a node at every edge midpoint, mesh.elevate)."""
 
     def __init__(self, comm, element, points=None, tets=None, labels=None, nodes=None, partitioner=partition.DEFAULT,
-                 boundary_faces=None):
+                 boundary_faces=None, sliced=None):
         """element: the run's (order 2, its stiffness rule); points, tets (corners), nodes (nc, 10): the checked
         quadratic input mesh on rank 0; labels as Space's, the sets' nodes ("vertices" kind) being vertices and
-        edge nodes; partitioner, boundary_faces as Space's."""
+        edge nodes; partitioner, boundary_faces as Space's; sliced: (SliceMesh, DM) of a prepared linear mesh, as
+        Space's, its cells elevated (a node at each edge's midpoint)."""
         self.element = element
         self.comm = comm
         self.mpi = comm.tompi4py()
         self.partitioner, self._boundary_faces = partitioner, boundary_faces
-        serial = self._distribute_quadratic(points, tets, nodes, labels or {})
+        if sliced is None:
+            serial = self._distribute_quadratic(points, tets, nodes, labels or {})
+        else:
+            serial = self._adopt_elevated(*sliced, labels or {})
         dm = self.dm
         cf, fe, ev = plex_cones(dm)
         (c0, c1), (f0, f1), (e0, e1), (v0, v1) = (dm.getHeightStratum(h) for h in range(4))
@@ -534,6 +551,59 @@ class QuadraticSpace(Space):
         self.dm = dm
         dm.viewFromOptions("-dm_view")
         return out
+
+    def _adopt_elevated(self, mesh, dm, labels):
+        """The DMPlex built from the slices of a prepared linear mesh, interpolated, its cells elevated: each edge's
+        node at its midpoint, numbered after the vertices as mesh.read.elevate numbers it (slices.edge_numbers: the
+        same numbers on any rank count), a facet set's nodes its facets' vertices and edges; returns what
+        _distribute_quadratic returns (no migration SF: the slices are the Morton parts)."""
+        from .slices import edge_numbers
+        nv, nc, self._boundary_faces = mesh.totals
+        dm.interpolate()
+        _, _, ev = plex_cones(dm)
+        (c0, c1), (e0, e1), (v0, v1) = dm.getHeightStratum(0), dm.getDepthStratum(1), dm.getDepthStratum(0)
+        ids = mesh.ids
+        corner_ids = ids[mesh.tets]                                       # (the input's corner order)
+        ends = np.sort(np.stack([corner_ids[:, [i, j]] for i, j in EDGES], axis=1), axis=2).reshape(-1, 2)
+        number = edge_numbers(self.mpi, ends, (mesh.cell_ids[:, None] * 6 + np.arange(6)).reshape(-1), nv, 6 * nc)
+        key = ends[:, 0] * nv + ends[:, 1]
+        ukey, first = np.unique(key, return_index=True)
+        dm_ends = np.sort(ids[ev - v0], axis=1)
+        at = np.searchsorted(ukey, dm_ends[:, 0] * nv + dm_ends[:, 1])
+        if not np.array_equal(ukey[np.minimum(at, len(ukey) - 1)], dm_ends[:, 0] * nv + dm_ends[:, 1]):
+            raise RuntimeError("an edge of the DMPlex is not an edge of this rank's cells")
+        n_edges = self.mpi.allreduce(int(number.max()) + 1 if len(number) else 0, op=MPI.MAX)
+        self.nv_total, self.nc_total = nv + n_edges, nc
+        point_input = np.full(dm.getChart()[1], -1, np.int64)
+        rank = np.argsort(np.argsort(corner_ids, axis=1, kind="stable"), axis=1)
+        point_input[c0:c1] = mesh.cell_ids * CORNER_CODE + rank @ (4 ** np.arange(4))
+        point_input[v0:v1], point_input[e0:e1] = ids, nv + number[first[at]]
+        position = np.zeros((len(point_input), 3))
+        position[v0:v1] = mesh.points
+        position[e0:e1] = 0.5 * (mesh.points[ev[:, 0] - v0] + mesh.points[ev[:, 1] - v0])
+        edge_keys = dm_ends[:, 0] * nv + dm_ends[:, 1]
+        order = np.argsort(edge_keys)
+
+        def set_edges(strata):                         # the edges of a facet set's facets, as DM points
+            tri = []
+            cells = [(v, np.asarray(idx, np.int64)) for v, (kind, idx) in strata.items() if kind == "cells"]
+            for v, idx in cells:
+                r = np.argsort(np.argsort(corner_ids[idx], axis=1, kind="stable"), axis=1)
+                for k in range(4):
+                    sel = ((v >> r[:, k]) & 1) == 1                # face k (without corner k) in the set
+                    if sel.any():
+                        tri.append(corner_ids[idx[sel]][:, FACE_VERTICES[k]])
+            if not tri:
+                return np.zeros(0, np.int64)
+            t = np.concatenate(tri)
+            pairs = np.sort(np.concatenate([t[:, [0, 1]], t[:, [1, 2]], t[:, [0, 2]]]), axis=1)
+            want = pairs[:, 0] * nv + pairs[:, 1]
+            return e0 + order[np.searchsorted(edge_keys[order], want)]
+        set_slice_labels(dm, labels, c0, v0, set_edges)
+        self.label_names = list(labels)
+        self.dm = dm
+        dm.viewFromOptions("-dm_view")
+        return {"input": point_input, "position": position, "sf": None}
 
     def _node_section(self, v0, v1, e0, e1):
         """3 dofs on each vertex and each edge; their offsets follow the chart (vertices, then edges)."""
