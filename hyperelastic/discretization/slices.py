@@ -54,8 +54,9 @@ def _first_error(mpi, message):
 
 
 def check_slice(mpi, path, points, cells, cell_ids, nv):
-    """Each rank's checks of its own part (collective; the first failing rank's line raised on all): finite
-    coordinates, vertex indices in range, no repeated vertex, no flat or inverted cell (named by source index)."""
+    """Each rank's checks of its own rows (collective; the first failing rank's line raised on all): finite
+    coordinates, vertex indices in range, no repeated vertex (cells named by source index; check_volumes follows once
+    the positions of its cells' vertices are known)."""
     msg = None
     bad = np.flatnonzero(~np.isfinite(points).all(axis=1) | (np.abs(points) > 1e30).any(axis=1))
     if len(bad):
