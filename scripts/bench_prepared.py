@@ -1,7 +1,7 @@
 """Set-up time and memory per rank of a mesh read by rank 0 (.msh) against a prepared mesh every rank reads its slice
 of (issue 44 item 4), against mesh size and rank count.
 
-    python scripts/bench_prepared.py OUT [--boxes 50x20x20,100x40x40] [--ranks 1,2,4] [--setup-only]
+    python scripts/bench_prepared.py OUT [--boxes 50x20x20,100x40x40] [--ranks 1,2,4] [--setup-only] [--order 2]
         [--mpiexec mpiexec]
 
 Each box: a Kuhn-split box of NXxNYxNZ hexes (6 tets each; scripts/bench_output_ranks.py) written as .msh, then
@@ -10,7 +10,7 @@ Each box: a Kuhn-split box of NXxNYxNZ hexes (6 tets each; scripts/bench_output_
 run: tets, ranks, input, the Setup stage's seconds (PETSc's max over ranks: reading, checking, distributing, the
 space, the operator's set-up), wall, and the peak resident memory of rank 0 and of the median and smallest rank (MB,
 getrusage; the output's peak_rss_mb_per_rank). Ranks beyond the cores are oversubscribed: their seconds are not a
-machine's, their memory is. --setup-only: no step (-final_time 0: the model, the output's first frame, no Krylov
+machine's, their memory is. --order 2: the box's cells elevated (10-node, straight-sided). --setup-only: no step (-final_time 0: the model, the output's first frame, no Krylov
 solve nor preconditioner), for memory on many oversubscribed ranks."""
 import argparse
 import json
@@ -44,6 +44,7 @@ def main():
     ap.add_argument("--boxes", default="50x20x20,100x40x40")
     ap.add_argument("--ranks", default="1,2,4")
     ap.add_argument("--setup-only", action="store_true")
+    ap.add_argument("--order", type=int, default=1, help="2: quadratic tetrahedra (the linear box elevated)")
     ap.add_argument("--mpiexec", default=os.path.join(os.path.dirname(sys.executable), "mpiexec"))
     a = ap.parse_args()
     out = os.path.abspath(a.out)
@@ -61,7 +62,7 @@ def main():
                 res, log = os.path.join(out, f"run_{box}_{n}_{kind}.h5"), os.path.join(out, "log.txt")
                 end = "0" if a.setup_only else "0.01"
                 cmd = EXE + ["run", "bend", "-mesh", mesh, "-dt", "0.01", "-final_time", end, "-ksp_type", "cg",
-                       "-pc_type", "gamg", "-output", res, "-log_view", f":{log}"]
+                       "-pc_type", "gamg", "-order", str(a.order), "-output", res, "-log_view", f":{log}"]
                 wall = run(([a.mpiexec, "-n", str(n)] if n > 1 else []) + cmd)
                 with h5py.File(res) as f:
                     mem = np.asarray(f.attrs["peak_rss_mb_per_rank"], float)
