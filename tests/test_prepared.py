@@ -177,3 +177,18 @@ def test_the_ranks_face_count_finds_boundaries_and_overlaps(petsc):
     three = np.array([[0, 1, 2, 3], [0, 2, 1, 4], [0, 1, 2, 5]])
     with pytest.raises(UserError, match="shares a face with two others"):
         boundary_masks(MPI.COMM_WORLD, "m", three, P[three], three, np.arange(3), len(P))
+
+
+def test_a_run_on_a_prepared_mesh_restarts_on_another_rank_count(meshes):
+    """A run read in slices on 2 ranks, restarted on 1 and 3: the restart reads the prepared mesh in slices again
+    (its recorded -mesh) and continues to the uninterrupted run's answer."""
+    full = ["run", OPTS, "-mesh", meshes / "bi.h5", "-checkpoint_every", 1, "-final_time", 0.75]
+    run_ok([*full, "-output", meshes / "full.h5"], nprocs=2)
+    ref = read_h5(meshes / "full.h5")
+    for n in (1, 3):
+        cut = meshes / f"cut{n}.h5"
+        run_ok([*full[:-2], "-final_time", 0.5, "-output", cut], nprocs=2)
+        run_ok(["run", "--restart", cut, "-final_time", 0.75], nprocs=n)
+        got = read_h5(cut)
+        assert got["attrs"]["mesh_read"] == "slices" and len(got["x"]) == len(ref["x"])
+        assert np.abs(got["x"] - ref["x"]).max() < 1e-12 * np.abs(ref["x"]).max(), n
