@@ -94,7 +94,7 @@ class Model:
         output: a mesh read in slices is read whole here, on rank 0, only where that output asks for it."""
         if self.points is None and self.sliced_from and self.space.mpi.rank == 0:
             m = read_mesh(self.sliced_from, self.scene.mesh_frame)
-            m = elevate(m) if self.element.order == 2 else m         # (the slices were elevated the same way)
+            m = elevate(m) if self.element.order == 2 and m.order == 1 else m     # (as the slices were)
             self.points, self.tets = m.points, m.cell_nodes
         return self.points, self.tets
 
@@ -130,14 +130,17 @@ def in_slices(scene):
     """Whether every rank reads its slice of the scene's mesh: a prepared mesh (mesh/prepared.py) or a per-rank output
     of linear cells (output/ranks.py; -order 2 elevates their cells), with a partitioner but METIS (which partitions
     the whole dual graph on rank 0); otherwise rank 0 reads it whole (read_mesh reads both too)."""
-    return bool(scene.mesh) and scene.partitioner != "metis" and sliceable(scene.mesh)
+    if not scene.mesh or scene.partitioner == "metis":
+        return False
+    order = sliceable(scene.mesh)
+    return bool(order) and not (order == 2 and scene.order == 1)     # (-order 1 of a quadratic mesh: rank 0)
 
 
 def load_slices(scene, comm):
     """(this rank's SliceMesh, the DMPlex built from the slices, Element, its labels, the set report, notes) of a
     prepared mesh, every rank reading its own slice (collective; errors raised on every rank)."""
     mesh, dm = read_slice(scene.mesh, comm, scene.mesh_frame)
-    element = Element.decide(scene.order, scene.quadrature, 1)
+    element = Element.decide(scene.order, scene.quadrature, 1 if mesh.quadratic_edges is None else 2)
     check_index_range(mesh.totals[0] * (7 if element.order == 2 else 1), scene.mesh)   # (P2: ~6 edges a vertex)
     labels, report = mesh_labels(scene, mesh)
     return mesh, dm, element, labels, report, []

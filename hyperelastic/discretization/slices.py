@@ -99,6 +99,7 @@ class PreparedSource:
         with open_prepared(path) as f:
             self.nv, self.nc = int(f.attrs["vertices"]), int(f.attrs["cells"])
             self.boundary_facets = int(f.attrs["boundary_facets"])
+            self.order, self.n_nodes = int(f.attrs.get("order", 1)), int(f.attrs.get("nodes", self.nv))
 
     def open(self):
         return open_prepared(self.path)
@@ -115,6 +116,23 @@ class PreparedSource:
     def groups(self, mpi, f, lo, hi):
         return read_groups(f, lo, hi)
 
+    def edges(self, mpi, f, lo, hi):
+        """A quadratic mesh's edge nodes of cells lo:hi: (input ids (nc, 6), positions (nc, 6, 3)), every rank
+        reading a slice of the edge rows and the rows travelling to the ranks whose cells have them; None when
+        linear (collective)."""
+        if f.attrs.get("order") != 2:
+            return None
+        rows = f["cell_edges"][lo:hi].astype(np.int64)
+        ne, size, rank = f["edge_points"].shape[0], mpi.size, mpi.rank
+        a, b = ne * rank // size, ne * (rank + 1) // size
+        want, each = np.unique(rows, return_inverse=True)
+        ex = Exchange(mpi, np.arange(a, b), want, ne)
+        if ex.missing:
+            raise UserError(f"mesh '{self.path}': {ex.missing} edge nodes have no row in it (prepare it again)")
+        ids, X = ex.move(f["edge_input_index"][a:b].astype(np.int64)), ex.move(f["edge_points"][a:b])
+        each = each.reshape(rows.shape)
+        return ids[each], X[each]
+
 
 class OutputSource:
     """The rows of a per-rank output of this application (output/ranks.py) at frame `frame` (None: the reference):
@@ -122,7 +140,7 @@ class OutputSource:
     found by counting faces over the ranks (boundary_masks)."""
 
     def __init__(self, path, frame):
-        self.path, self.boundary_facets = path, None
+        self.path, self.boundary_facets, self.order = path, None, 1
         with h5py.File(path, "r") as f:
             require_parts(f, path, f"mesh '{path}'")
             nf = completed_frames(f)
@@ -130,6 +148,7 @@ class OutputSource:
                 raise UserError(f"mesh '{path}': has no frame {frame} (it has {nf}: 0..{nf - 1})")
             self.frame = None if frame is None or nf == 0 else frame % nf
             self.nv, self.nc = f["mesh/points"].shape[0], f["mesh/tetra"].shape[0]
+            self.n_nodes = self.nv
             try:
                 self.named = {int(s["tag"]): s["name"] for s in json.loads(f.attrs.get("sets", "[]"))
                               if s["kind"] == "tets"}
@@ -146,6 +165,9 @@ class OutputSource:
         x = f["mesh/points"][a:b] if self.frame is None else f["x"][self.frame, a:b]
         return x, np.arange(a, b, dtype=np.int64)
 
+    def edges(self, mpi, f, lo, hi):
+        return None                                 # (a quadratic output is read whole on rank 0: sliceable)
+
     def groups(self, mpi, f, lo, hi):
         """Its regions (mesh/region's tags, named as the run's `sets` attribute names them): 1 on their cells."""
         region = f["mesh/region"][lo:hi].astype(np.int64) if "mesh/region" in f else np.zeros(hi - lo, np.int64)
@@ -154,13 +176,15 @@ class OutputSource:
 
 
 def sliceable(path):
-    """Whether `path` can be read in slices: a prepared mesh, or a per-rank output of linear cells."""
+    """The order of the cells of `path` where it can be read in slices (a prepared mesh: its own; a per-rank output
+    of linear cells: 1), else 0."""
     if is_prepared(path):
-        return True
+        with h5py.File(path, "r") as f:
+            return int(f.attrs.get("order", 1))
     if not (path.lower().endswith((".h5", ".hdf5")) and is_output(path)):
-        return False
+        return 0
     with h5py.File(path, "r") as f:
-        return f.attrs.get("output_layout") == "ranks" and f["mesh/tetra"].shape[1:] == (4,)
+        return int(f.attrs.get("output_layout") == "ranks" and f["mesh/tetra"].shape[1:] == (4,))
 
 
 def boundary_masks(mpi, path, cells, corners, ids, cell_ids, nv):
@@ -230,6 +254,7 @@ def read_slice(path, comm, frame=-1):
     with src.open() as f:
         held_points, held_ids = src.points(f, a, b)
         groups = src.groups(mpi, f, lo, hi)
+        edges = src.edges(mpi, f, lo, hi)
     check_slice(mpi, path, held_points, cells, cell_ids, nv)
     dm, vertices = plex_from_slices(comm, cells, b - a, nv, held_points)
     ex = Exchange(mpi, np.arange(a, b), vertices, nv)
@@ -245,6 +270,7 @@ def read_slice(path, comm, frame=-1):
     mesh = SliceMesh.from_meshio(path, X, local, boundary)
     mesh.ids, mesh.mpi, mesh._extent = ids, mpi, None
     mesh.vertices, mesh.cell_ids, mesh.totals = vertices, cell_ids, (nv, nc, nb)
+    mesh.quadratic_edges, mesh.n_nodes = edges, src.n_nodes
     for name, tag, kind, ignored, mask in groups:
         if kind == "facets":
             items = np.searchsorted(boundary, faces_of(ids[local], mask))

@@ -553,35 +553,46 @@ class QuadraticSpace(Space):
         return out
 
     def _adopt_elevated(self, mesh, dm, labels):
-        """The DMPlex built from the slices of a prepared linear mesh, interpolated, its cells elevated: each edge's
-        node at its midpoint, numbered after the vertices as mesh.read.elevate numbers it (slices.edge_numbers: the
-        same numbers on any rank count), a facet set's nodes its facets' vertices and edges; returns what
-        _distribute_quadratic returns (no migration SF: the slices are the Morton parts)."""
+        """The DMPlex built from the slices of a prepared mesh, interpolated: a quadratic mesh's edge nodes where it
+        has them (read in slices), else each edge's node at its midpoint, numbered after the vertices as
+        mesh.read.elevate numbers it (slices.edge_numbers: the same numbers on any rank count); a facet set's nodes
+        its facets' vertices and edges; returns what _distribute_quadratic returns (no migration SF: the slices are
+        the Morton parts)."""
         from .slices import edge_numbers
         nv, nc, self._boundary_faces = mesh.totals
+        given = mesh.quadratic_edges                    # a quadratic mesh's own edge nodes (else midpoints)
+        span = mesh.n_nodes                             # input ids are below it: keys of id pairs
         dm.interpolate()
         _, _, ev = plex_cones(dm)
         (c0, c1), (e0, e1), (v0, v1) = dm.getHeightStratum(0), dm.getDepthStratum(1), dm.getDepthStratum(0)
         ids = mesh.ids
         corner_ids = ids[mesh.tets]                                       # (the input's corner order)
         ends = np.sort(np.stack([corner_ids[:, [i, j]] for i, j in EDGES], axis=1), axis=2).reshape(-1, 2)
-        number = edge_numbers(self.mpi, ends, (mesh.cell_ids[:, None] * 6 + np.arange(6)).reshape(-1), nv, 6 * nc)
-        key = ends[:, 0] * nv + ends[:, 1]
+        if given is None:
+            number = edge_numbers(self.mpi, ends, (mesh.cell_ids[:, None] * 6 + np.arange(6)).reshape(-1), nv, 6 * nc)
+        key = ends[:, 0] * span + ends[:, 1]
         ukey, first = np.unique(key, return_index=True)
         dm_ends = np.sort(ids[ev - v0], axis=1)
-        at = np.searchsorted(ukey, dm_ends[:, 0] * nv + dm_ends[:, 1])
-        if not np.array_equal(ukey[np.minimum(at, len(ukey) - 1)], dm_ends[:, 0] * nv + dm_ends[:, 1]):
+        at = np.searchsorted(ukey, dm_ends[:, 0] * span + dm_ends[:, 1])
+        if not np.array_equal(ukey[np.minimum(at, len(ukey) - 1)], dm_ends[:, 0] * span + dm_ends[:, 1]):
             raise RuntimeError("an edge of the DMPlex is not an edge of this rank's cells")
-        n_edges = self.mpi.allreduce(int(number.max()) + 1 if len(number) else 0, op=MPI.MAX)
-        self.nv_total, self.nc_total = nv + n_edges, nc
+        if given is None:
+            n_edges = self.mpi.allreduce(int(number.max()) + 1 if len(number) else 0, op=MPI.MAX)
+            self.nv_total, self.nc_total = nv + n_edges, nc
+        else:
+            self.nv_total, self.nc_total = mesh.n_nodes, nc
         point_input = np.full(dm.getChart()[1], -1, np.int64)
         rank = np.argsort(np.argsort(corner_ids, axis=1, kind="stable"), axis=1)
         point_input[c0:c1] = mesh.cell_ids * CORNER_CODE + rank @ (4 ** np.arange(4))
-        point_input[v0:v1], point_input[e0:e1] = ids, nv + number[first[at]]
         position = np.zeros((len(point_input), 3))
         position[v0:v1] = mesh.points
-        position[e0:e1] = 0.5 * (mesh.points[ev[:, 0] - v0] + mesh.points[ev[:, 1] - v0])
-        edge_keys = dm_ends[:, 0] * nv + dm_ends[:, 1]
+        if given is None:
+            point_input[v0:v1], point_input[e0:e1] = ids, nv + number[first[at]]
+            position[e0:e1] = 0.5 * (mesh.points[ev[:, 0] - v0] + mesh.points[ev[:, 1] - v0])
+        else:
+            point_input[v0:v1], point_input[e0:e1] = ids, given[0].reshape(-1)[first[at]]
+            position[e0:e1] = given[1].reshape(-1, 3)[first[at]]
+        edge_keys = dm_ends[:, 0] * span + dm_ends[:, 1]
         order = np.argsort(edge_keys)
 
         def set_edges(strata):                         # the edges of a facet set's facets, as DM points
@@ -597,13 +608,17 @@ class QuadraticSpace(Space):
                 return np.zeros(0, np.int64)
             t = np.concatenate(tri)
             pairs = np.sort(np.concatenate([t[:, [0, 1]], t[:, [1, 2]], t[:, [0, 2]]]), axis=1)
-            want = pairs[:, 0] * nv + pairs[:, 1]
+            want = pairs[:, 0] * span + pairs[:, 1]
             return e0 + order[np.searchsorted(edge_keys[order], want)]
         set_slice_labels(dm, labels, c0, v0, set_edges)
         self.label_names = list(labels)
+        sf = None
+        if self.partitioner in partition.PETSC_OWN:
+            partition.apply(dm, self.partitioner, None, self.mpi.size)
+            sf = dm.distribute(overlap=0)
         self.dm = dm
         dm.viewFromOptions("-dm_view")
-        return {"input": point_input, "position": position, "sf": None}
+        return {"input": point_input, "position": position, "sf": sf}
 
     def _node_section(self, v0, v1, e0, e1):
         """3 dofs on each vertex and each edge; their offsets follow the chart (vertices, then edges)."""

@@ -5,6 +5,7 @@ spatially (mesh/order.py: cells along a Z-curve, vertices numbered by first use)
 
     points (nv, 3) float64, input_index (nv,) int64     the vertices in that order, each its index in the source
     cells (nc, 4) int64, cell_input_index (nc,) int64   the cells in that order (into points), each its source index
+    edge_points, edge_input_index, cell_edges (nc, 6)  a quadratic mesh's edge nodes (by first use), each cell's six
     boundary (nc,) uint8                                each cell's boundary facets: bit j is its face without the
                                                         corner of j-th smallest input index (sets.Mesh.facet_mask)
     groups/<i> (nc,) uint8, attrs name, tag, kind       the physical surfaces (the bitmask of their facets) and
@@ -17,7 +18,8 @@ and the vertices they use first, the ranks build one distributed DMPlex (DMPlexB
 exchange the input indices and positions of the vertices they share (discretization/exchange.py); no rank reads more
 than its share and a few neighbouring rows. Each rank checks its own part (finite coordinates, indices in range, no
 repeated, flat or inverted cell); the checks that need the whole mesh (faces shared by three cells, overlapping
-pieces, unused vertices) ran when the file was prepared. `read_whole` gives the whole Mesh back in the source's
+pieces, unused vertices) ran when the file was prepared. A quadratic mesh keeps its edge nodes (each rank then reads
+those of its cells). `read_whole` gives the whole Mesh back in the source's
 numbering (the gathered output, `report`, the serial path of quadratic runs)."""
 import os
 
@@ -56,21 +58,30 @@ def check_prepare_output(src, out):
 def prepare(mesh, out):
     """Write the prepared file of the checked mesh `mesh` (sets.Mesh, as mesh.read.read_mesh gives) to `out` (.h5),
     atomically (a temporary file renamed: an existing `out` stays whole until the new one is). Returns {vertices,
-    cells, boundary_facets, groups}."""
+    cells, boundary_facets, groups}. A quadratic mesh keeps its edge nodes (edge_points, edge_input_index, and
+    cell_edges: each cell's six in element.EDGES order)."""
     src = mesh.path
-    if mesh.order != 1:
-        raise UserError(f"mesh '{src}': quadratic (10-node) cells cannot be prepared yet; prepare a linear mesh (a "
-                        "run at -order 2 elevates it, reading it whole on rank 0)")
-    p, t, vperm, corder = spatial_order(mesh.points, mesh.tets)
+    used, compact = np.unique(mesh.tets, return_inverse=True)               # (a quadratic mesh: its corners)
+    p, t, vperm, corder = spatial_order(mesh.points[used], compact.reshape(mesh.tets.shape))
+    vertex_input = used[vperm]
     tmp = f"{out}.{os.getpid()}.tmp"
     try:
         with h5py.File(tmp, "w") as f:
-            f.attrs.update(format=FORMAT, version=VERSION, source=os.path.abspath(src), order=1,
-                           vertices=len(p), cells=len(t), boundary_facets=len(mesh.facet_cell))
+            f.attrs.update(format=FORMAT, version=VERSION, source=os.path.abspath(src), order=mesh.order,
+                           vertices=len(p), cells=len(t), boundary_facets=len(mesh.facet_cell), nodes=len(mesh.points))
             f.create_dataset("points", data=p)
-            f.create_dataset("input_index", data=vperm.astype(np.int64))
+            f.create_dataset("input_index", data=vertex_input.astype(np.int64))
             f.create_dataset("cells", data=t.astype(np.int64))
             f.create_dataset("cell_input_index", data=corder.astype(np.int64))
+            if mesh.order == 2:           # the edge nodes: numbered by first use too, each cell's six into them
+                edge = mesh.nodes[corder, 4:]
+                uniq, first, inv = np.unique(edge.ravel(), return_index=True, return_inverse=True)
+                by_use = np.argsort(first, kind="stable")
+                number = np.empty(len(uniq), np.int64)
+                number[by_use] = np.arange(len(uniq))
+                f.create_dataset("edge_points", data=mesh.points[uniq[by_use]])
+                f.create_dataset("edge_input_index", data=uniq[by_use].astype(np.int64))
+                f.create_dataset("cell_edges", data=number[inv.reshape(-1)].reshape(-1, 6))
             f.create_dataset("boundary", data=mesh.facet_mask(slice(None))[corder].astype(np.uint8))
             for i, g in enumerate(mesh.groups.values()):
                 if g.kind == "facets":
@@ -85,7 +96,7 @@ def prepare(mesh, out):
     finally:
         if os.path.exists(tmp):
             os.remove(tmp)
-    return {"vertices": len(p), "cells": len(t), "boundary_facets": len(mesh.facet_cell),
+    return {"vertices": len(p), "cells": len(t), "boundary_facets": len(mesh.facet_cell), "nodes": len(mesh.points),
             "groups": [(g.name, g.kind, len(g.items)) for g in mesh.groups.values()]}
 
 
@@ -108,6 +119,12 @@ def open_prepared(path):
                 got = "missing" if d is None else f"{d.dtype} {d.shape}"
                 raise UserError(f"mesh '{path}': prepared dataset '{name}' is {got}, expected {shape} "
                                 "(a damaged or hand-edited file: prepare it again)")
+        if f.attrs.get("order") == 2:
+            ne = f["edge_points"].shape[0] if "edge_points" in f else -1
+            for name, shape in (("edge_points", (ne, 3)), ("edge_input_index", (ne,)), ("cell_edges", (nc, 6))):
+                if name not in f or f[name].shape != shape:
+                    raise UserError(f"mesh '{path}': prepared dataset '{name}' is missing or malformed (a damaged "
+                                    "or hand-edited file: prepare it again)")
         for key, d in f.get("groups", {}).items():
             if d.shape != (nc,) or "name" not in d.attrs or d.attrs.get("kind") not in ("facets", "tets"):
                 raise UserError(f"mesh '{path}': prepared group '{key}' is malformed (prepare it again)")
@@ -141,15 +158,22 @@ def read_whole(path):
     the source's numbering (the same arrays read_mesh gives of the source)."""
     with open_prepared(path) as f:
         vin, cin = f["input_index"][:], f["cell_input_index"][:]
-        points = np.empty((len(vin), 3))
+        points = np.empty((int(f.attrs.get("nodes", len(vin))), 3))
         points[vin] = f["points"][:]
         tets = np.empty((len(cin), 4), np.int64)
         tets[cin] = vin[f["cells"][:]]
+        nodes = None
+        if f.attrs.get("order") == 2:
+            ein = f["edge_input_index"][:]
+            points[ein] = f["edge_points"][:]
+            nodes = np.empty((len(cin), 10), np.int64)
+            nodes[:, :4] = tets
+            nodes[cin, 4:] = ein[f["cell_edges"][:]]
         bmask = np.empty(len(cin), np.int64)
         bmask[cin] = f["boundary"][:]
         groups = read_groups(f)
     boundary = faces_of(tets, bmask)
-    mesh = Mesh.from_meshio(path, points, tets, boundary)
+    mesh = Mesh.from_meshio(path, points, tets, boundary, nodes=nodes)
     for name, tag, kind, ignored, mask in groups:
         m = np.empty_like(mask)
         m[cin] = mask
