@@ -10,8 +10,9 @@ Each box: a Kuhn-split box of NXxNYxNZ hexes (6 tets each; scripts/bench_output_
 run: tets, ranks, input, the Setup stage's seconds (PETSc's max over ranks: reading, checking, distributing, the
 space, the operator's set-up), wall, and the peak resident memory of rank 0 and of the median and smallest rank (MB,
 getrusage; the output's peak_rss_mb_per_rank). Ranks beyond the cores are oversubscribed: their seconds are not a
-machine's, their memory is. --order 2: the box's cells elevated (10-node, straight-sided). --setup-only: no step (-final_time 0: the model, the output's first frame, no Krylov
-solve nor preconditioner), for memory on many oversubscribed ranks."""
+machine's, their memory is. --order 2: the box's cells elevated (10-node, straight-sided). --setup-only: no step
+(-final_time 0: the model, the output's first frame, no Krylov solve nor preconditioner), for memory on many
+oversubscribed ranks."""
 import argparse
 import json
 import os

@@ -47,7 +47,8 @@ def _run(meshes, mesh, out, nprocs, *extra):
 
 def test_runs_read_in_slices_give_the_source_meshs_answer(meshes):
     """-mesh F.h5 on 1 and 2 ranks against -mesh F.msh: bitwise on one rank (the same order, the same DM), to
-    round-off on 2 (3 ranks: the output test below; 4: tests/test_partition.py's memory test); the same set and region lines (counts and measures summed over the ranks)."""
+    round-off on 2 (3 ranks: the output test below; 4: tests/test_partition.py's memory test); the same set and
+    region lines (counts and measures summed over the ranks)."""
     p_ref, ref = _run(meshes, "bi.msh", "ref.h5", 1)
     sets = [ln for ln in p_ref.stderr.splitlines() if ln.startswith("set ")]
     assert len(sets) == 6 and any("front" in s for s in sets)

@@ -10,12 +10,12 @@ from petsc4py import PETSc
 
 from ..core.errors import UserError
 from ..discretization.kernels import RegionKernels
+from ..discretization.slices import read_slice, sliceable
 from ..discretization.space import Space, make_space
 from ..element.reference import Element
 from ..formulations import choose
 from ..formulations.base import Problem
 from ..mesh.generate import cached_bar
-from ..discretization.slices import read_slice, sliceable
 from ..mesh.read import CURVED_ANGLES, bent_edges, corners, elevate, read_mesh
 from ..mesh.sets import MATERIAL_LABEL, REGION_LABEL, VERTEX_VALUE, cell_label, facet_label
 from ..physics import effects as effects_pkg
@@ -87,7 +87,8 @@ class Model:
     v0: np.ndarray
     sets: list = None           # [{name, kind, count, measure, ...}] of the sets the run uses (all ranks)
     notes: list = None          # what the start-up report says of the model's choices, one line each
-    sliced_from: str = None     # the prepared mesh every rank read its slice of (points, tets: None everywhere)
+    sliced_from: str = None     # the mesh file every rank read its slice of (a prepared mesh or a per-rank output;
+                                # points, tets: then None everywhere)
 
     def whole_mesh(self):
         """(points, tets) of the whole input mesh in its own numbering on rank 0 (None elsewhere), for the gathered
@@ -138,7 +139,7 @@ def in_slices(scene):
 
 def load_slices(scene, comm):
     """(this rank's SliceMesh, the DMPlex built from the slices, Element, its labels, the set report, notes) of a
-    prepared mesh, every rank reading its own slice (collective; errors raised on every rank)."""
+    prepared mesh or a per-rank output, every rank reading its own slice (collective; errors raised on every rank)."""
     mesh, dm = read_slice(scene.mesh, comm, scene.mesh_frame)
     element = Element.decide(scene.order, scene.quadrature, 1 if mesh.quadratic_edges is None else 2)
     check_index_range(mesh.totals[0] * (7 if element.order == 2 else 1), scene.mesh)   # (P2: ~6 edges a vertex)
@@ -202,8 +203,8 @@ def check_index_range(nodes, name, index_bits=None):
 
 
 def _set_line(mesh, s, kind, measure):
-    return {"name": s.name, "kind": kind, "tag": None if s.tag is None else int(s.tag), "count": mesh.total(len(s.items)),
-            "measure": measure, "line": mesh.describe(s)}
+    return {"name": s.name, "kind": kind, "tag": None if s.tag is None else int(s.tag),
+            "count": mesh.total(len(s.items)), "measure": measure, "line": mesh.describe(s)}
 
 
 def material_regions(scene, mesh, labels, report):

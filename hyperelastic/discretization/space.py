@@ -2,14 +2,15 @@
 
 Rank 0 reads the mesh, orders it spatially and builds the serial DMPlex; `distribute` with the run's
 partitioner (partition.py: by default the `simple` one, a contiguous range of the spatially ordered cells per
-rank) hands each rank its cells. Every rank then knows, for its local vertices (owned + ghosts): the local dof
-offsets, reference coordinates, the index of the vertex in the input mesh, and ownership. Per-cell Dm^-1 and
-volumes are computed once here.
+rank) hands each rank its cells. A prepared mesh or a per-rank output is instead read by every rank in slices
+(slices.py) and the space adopts the DMPlex the ranks built from them (`_adopt`, `_adopt_elevated`). Every rank
+then knows, for its local vertices (owned + ghosts): the local dof offsets, reference coordinates, the index of the
+vertex in the input mesh, and ownership. Per-cell Dm^-1 and volumes are computed once here.
 
-No rank but rank 0 (while it reads the mesh) holds an array of the whole mesh: what each rank needs of the
+No rank but rank 0 (while it reads a mesh whole) holds an array of the whole mesh: what each rank needs of the
 serial mesh (input indices, P2 node positions) travels point by point through the distribution's migration star
-forest (`pull`), a restart's state is read by every rank in slices and sent to the ranks whose nodes the rows are (`read_state`), and the output's gather plan
-is built on rank 0 when the output first gathers.
+forest (`pull`), a restart's state is read by every rank in slices and sent to the ranks whose nodes the rows are
+(`read_state`), and the output's gather plan is built on rank 0 when the output first gathers.
 """
 import numpy as np
 from petsc4py import PETSc

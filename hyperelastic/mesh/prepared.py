@@ -10,17 +10,17 @@ spatially (mesh/order.py: cells along a Z-curve, vertices numbered by first use)
                                                         corner of j-th smallest input index (sets.Mesh.facet_mask)
     groups/<i> (nc,) uint8, attrs name, tag, kind       the physical surfaces (the bitmask of their facets) and
                                                         volumes (1 on their cells), attrs ignored (as sets.NamedSet)
-    attrs: format, version, source, order, vertices, cells, boundary_facets
+    attrs: format, version, source, order, vertices, cells, boundary_facets, nodes (all of a quadratic mesh)
 
-A run given `-mesh FILE.h5` reads it in slices (discretization/slices.py: `read_slice`, collective): rank r reads the r-th contiguous range of
-cells (the ranges PETSc's `simple` partitioner would cut: the same parts as the Morton partition of the source mesh)
-and the vertices they use first, the ranks build one distributed DMPlex (DMPlexBuildFromCellListParallel) and
-exchange the input indices and positions of the vertices they share (discretization/exchange.py); no rank reads more
-than its share and a few neighbouring rows. Each rank checks its own part (finite coordinates, indices in range, no
-repeated, flat or inverted cell); the checks that need the whole mesh (faces shared by three cells, overlapping
-pieces, unused vertices) ran when the file was prepared. A quadratic mesh keeps its edge nodes (each rank then reads
-those of its cells). `read_whole` gives the whole Mesh back in the source's
-numbering (the gathered output, `report`, the serial path of quadratic runs)."""
+A run given `-mesh FILE.h5` reads it in slices (discretization/slices.py: `read_slice`, collective): rank r reads
+the r-th contiguous range of cells (the ranges PETSc's `simple` partitioner would cut: the same parts as the Morton
+partition of the source mesh) and the vertices they use first, the ranks build one distributed DMPlex
+(DMPlexBuildFromCellListParallel) and exchange the input indices and positions of the vertices they share
+(discretization/exchange.py); no rank reads more than its share and a few neighbouring rows. Each rank checks its
+own part (finite coordinates, indices in range, no repeated, flat or inverted cell); the checks that need the whole
+mesh (faces shared by three cells, overlapping pieces, unused vertices) ran when the file was prepared. A quadratic
+mesh keeps its edge nodes (each rank then reads those of its cells). `read_whole` gives the whole Mesh back in the
+source's numbering (the gathered output, `report`, `-partitioner metis`)."""
 import os
 
 import h5py
