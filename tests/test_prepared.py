@@ -104,6 +104,9 @@ def test_a_damaged_prepared_file_is_one_line(meshes, edit, want):
     if want == "is inverted":
         with h5py.File(meshes / "bi.h5") as f:
             assert f"tetrahedron {f['cell_input_index'][-3]} is inverted" in p.stderr
+    # read whole by rank 0 (METIS' path): checked as any mesh, one line too
+    q = hyperelastic(["run", OPTS, "-mesh", path, "-partitioner", "metis", "-output", meshes / "e.h5"], 2)
+    assert q.returncode == 2 and q.stderr.count("error:") == 1 and "internal" not in q.stderr, q.stderr
 
 
 def test_prepare_refuses_what_it_cannot_write(meshes, tmp_path):

@@ -153,22 +153,39 @@ def faces_of(ids, masks):
     return np.flatnonzero(has.reshape(-1))
 
 
+def _check_numbering(path, node_ids, n_nodes, cell_ids, cells, nv, cell_edges, ne):
+    """The source indices are a numbering (each node and cell once) and the cells' rows are in range: one line."""
+    for what, ids, n in (("node", node_ids, n_nodes), ("cell", cell_ids, len(cell_ids))):
+        if len(ids) != n or (len(ids) and (ids.min() < 0 or ids.max() >= n or len(np.unique(ids)) != n)):
+            raise UserError(f"mesh '{path}': its {what} indices are not a numbering of the source's {n} {what}s "
+                            "(a damaged or hand-edited file: prepare it again)")
+    for what, rows, n in (("cells", cells, nv), ("cell_edges", cell_edges, ne)):
+        if rows.size and (rows.min() < 0 or rows.max() >= n):
+            raise UserError(f"mesh '{path}': '{what}' refers to rows beyond its {n} (a damaged or hand-edited file: "
+                            "prepare it again)")
+
+
 def read_whole(path):
     """The whole prepared mesh as the checked source's sets.Mesh: its points, cells, boundary facets and groups in
     the source's numbering (the same arrays read_mesh gives of the source)."""
     with open_prepared(path) as f:
         vin, cin = f["input_index"][:], f["cell_input_index"][:]
-        points = np.empty((int(f.attrs.get("nodes", len(vin))), 3))
+        n_nodes = int(f.attrs.get("nodes", len(vin)))
+        quadratic = f.attrs.get("order") == 2
+        ein = f["edge_input_index"][:] if quadratic else np.zeros(0, np.int64)
+        cells = f["cells"][:]
+        cell_edges = f["cell_edges"][:] if quadratic else np.zeros((len(cin), 0), np.int64)
+        _check_numbering(path, np.concatenate([vin, ein]), n_nodes, cin, cells, len(vin), cell_edges, len(ein))
+        points = np.empty((n_nodes, 3))
         points[vin] = f["points"][:]
         tets = np.empty((len(cin), 4), np.int64)
-        tets[cin] = vin[f["cells"][:]]
+        tets[cin] = vin[cells]
         nodes = None
-        if f.attrs.get("order") == 2:
-            ein = f["edge_input_index"][:]
+        if quadratic:
             points[ein] = f["edge_points"][:]
             nodes = np.empty((len(cin), 10), np.int64)
             nodes[:, :4] = tets
-            nodes[cin, 4:] = ein[f["cell_edges"][:]]
+            nodes[cin, 4:] = ein[cell_edges]
         bmask = np.empty(len(cin), np.int64)
         bmask[cin] = f["boundary"][:]
         groups = read_groups(f)

@@ -39,7 +39,12 @@ def read_mesh(path, frame=-1):
     if path.lower().endswith((".h5", ".hdf5")) and is_output(path):
         return _read_output(path, frame)
     if path.lower().endswith((".h5", ".hdf5")) and is_prepared(path):
-        return read_whole(path)
+        mesh = read_whole(path)                # (checked as any mesh: rank 0 reads it whole only on a fallback path)
+        if mesh.nodes is None:
+            check(mesh.points, mesh.tets, path)
+        else:
+            check_quadratic(mesh.points, mesh.nodes, path)
+        return mesh
     cached = _parsed(path)
     if cached is not None:
         return cached
