@@ -4,17 +4,16 @@ so the parts are the Morton partition of the source mesh) and the vertices they 
 DMPlexBuildFromCellListParallel (core/libpetsc.py) and the vertices the ranks share get their positions and input
 indices by an exchange (exchange.py). No rank reads more than its share and a few neighbouring rows. Each rank checks
 its own part; a bad row is one error line on every rank (the first failing rank's)."""
-import json
-
 import h5py
 import numpy as np
 from mpi4py import MPI
 
 from ..core.errors import UserError
-from ..core.files import completed_frames, is_output, require_parts
+from ..core.files import is_output, require_parts
 from ..core.libpetsc import plex_from_slices
-from ..mesh.prepared import faces_of, is_prepared, open_prepared, read_groups
-from ..mesh.sets import FACE_VERTICES, Mesh, NamedSet, face_keys, signed_volumes
+from ..mesh.prepared import add_group, faces_of, is_prepared, open_prepared, read_groups
+from ..mesh.read import flat_or_inverted, output_frame, region_names
+from ..mesh.sets import FACE_VERTICES, Mesh, face_keys
 from .exchange import Exchange, alltoallv
 
 
@@ -78,16 +77,12 @@ def check_volumes(mpi, path, points, cells, cell_ids):
     """No flat or inverted cell among this rank's (collective; points: local vertex positions, cells into them)."""
     msg = None
     if len(cells):
-        V = signed_volumes(points, cells)
-        e = np.stack([points[cells[:, b]] - points[cells[:, a]] for a, b in ((0, 1), (0, 2), (0, 3), (1, 2))])
-        lmax = np.linalg.norm(e, axis=-1).max(axis=0)
-        tiny = np.flatnonzero(np.abs(V) <= 1e-12 * lmax ** 3)
-        neg = np.flatnonzero(V < 0)
-        if len(tiny):
-            msg = f"mesh '{path}': tetrahedron {cell_ids[tiny[0]]} has zero volume"
-        elif len(neg):
-            msg = (f"mesh '{path}': tetrahedron {cell_ids[neg[0]]} is inverted (negative volume "
-                   f"{V[neg[0]]:.3g})")
+        V, tiny, negative = flat_or_inverted(points, cells)
+        if tiny is not None:
+            msg = f"mesh '{path}': tetrahedron {cell_ids[tiny]} has zero volume"
+        elif negative is not None:
+            msg = (f"mesh '{path}': tetrahedron {cell_ids[negative]} is inverted (negative volume "
+                   f"{V[negative]:.3g})")
     _first_error(mpi, msg)
 
 
@@ -143,17 +138,10 @@ class OutputSource:
         self.path, self.boundary_facets, self.order = path, None, 1
         with h5py.File(path, "r") as f:
             require_parts(f, path, f"mesh '{path}'")
-            nf = completed_frames(f)
-            if frame is not None and nf and not -nf <= frame < nf:
-                raise UserError(f"mesh '{path}': has no frame {frame} (it has {nf}: 0..{nf - 1})")
-            self.frame = None if frame is None or nf == 0 else frame % nf
+            self.frame = output_frame(f, path, frame)
             self.nv, self.nc = f["mesh/points"].shape[0], f["mesh/tetra"].shape[0]
             self.n_nodes = self.nv
-            try:
-                self.named = {int(s["tag"]): s["name"] for s in json.loads(f.attrs.get("sets", "[]"))
-                              if s["kind"] == "tets"}
-            except (ValueError, KeyError, TypeError):
-                self.named = {}
+            self.named = region_names(f)
 
     def open(self):
         return h5py.File(self.path, "r")
@@ -266,17 +254,12 @@ def read_slice(path, comm, frame=-1):
     nb = src.boundary_facets
     if bmask is None:
         bmask, nb = boundary_masks(mpi, path, cells, X[local], ids[local], cell_ids, nv)
-    boundary = faces_of(ids[local], bmask)
-    mesh = SliceMesh.from_meshio(path, X, local, boundary)
+    mesh = SliceMesh.from_meshio(path, X, local, faces_of(ids[local], bmask))
     mesh.ids, mesh.mpi, mesh._extent = ids, mpi, None
     mesh.vertices, mesh.cell_ids, mesh.totals = vertices, cell_ids, (nv, nc, nb)
     mesh.quadratic_edges, mesh.n_nodes = edges, src.n_nodes
-    for name, tag, kind, ignored, mask in groups:
-        if kind == "facets":
-            items = np.searchsorted(boundary, faces_of(ids[local], mask))
-        else:
-            items = np.flatnonzero(mask)
-        mesh.groups[name] = NamedSet(name, tag, kind, items, ignored)
+    for group in groups:
+        add_group(mesh, *group)
     return mesh, dm
 
 

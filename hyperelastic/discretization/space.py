@@ -25,6 +25,7 @@ from .kernels import IDX, Cells, ElementCells
 from ..core.errors import UserError
 from ..core.libpetsc import plex_cones
 from ..mesh.order import spatial_order
+from ..mesh.prepared import faces_of
 from ..mesh.sets import FACE_VERTICES, VERTEX_VALUE, cell_label, facet_label, orient_outward
 
 
@@ -237,7 +238,12 @@ class Space:
         (c0, c1), (v0, v1) = dm.getHeightStratum(0), dm.getDepthStratum(0)
         local = np.full(dm.getChart()[1], -1, np.int64)
         local[c0:c1], local[v0:v1] = mesh.cell_ids, mesh.ids
-        set_slice_labels(dm, labels, c0, v0)
+        return local, self._take_slices_dm(dm, labels, c0, v0)
+
+    def _take_slices_dm(self, dm, labels, c0, v0, more=None):
+        """Adopt a DMPlex built from slices: its labels (set_slice_labels), redistributed where a PETSc graph
+        partitioner was asked for (the slices are the Morton parts already); the migration SF, or None."""
+        set_slice_labels(dm, labels, c0, v0, more)
         self.label_names = list(labels)
         sf = None
         if self.partitioner in partition.PETSC_OWN:
@@ -245,7 +251,7 @@ class Space:
             sf = dm.distribute(overlap=0)
         self.dm = dm
         dm.viewFromOptions("-dm_view")
-        return local, sf
+        return sf
 
     @staticmethod
     def _set_labels(dm, labels, corder, vperm):
@@ -597,28 +603,16 @@ class QuadraticSpace(Space):
         order = np.argsort(edge_keys)
 
         def set_edges(strata):                         # the edges of a facet set's facets, as DM points
-            tri = []
-            cells = [(v, np.asarray(idx, np.int64)) for v, (kind, idx) in strata.items() if kind == "cells"]
-            for v, idx in cells:
-                r = np.argsort(np.argsort(corner_ids[idx], axis=1, kind="stable"), axis=1)
-                for k in range(4):
-                    sel = ((v >> r[:, k]) & 1) == 1                # face k (without corner k) in the set
-                    if sel.any():
-                        tri.append(corner_ids[idx[sel]][:, FACE_VERTICES[k]])
-            if not tri:
-                return np.zeros(0, np.int64)
-            t = np.concatenate(tri)
+            mask = np.zeros(len(corner_ids), np.int64)
+            for v, (kind, idx) in strata.items():
+                if kind == "cells":
+                    mask[np.asarray(idx, np.int64)] = v
+            face = faces_of(corner_ids, mask)               # 4 c + k: cell c's face without corner k
+            t = corner_ids[face // 4][np.arange(len(face))[:, None], FACE_VERTICES[face % 4]]
             pairs = np.sort(np.concatenate([t[:, [0, 1]], t[:, [1, 2]], t[:, [0, 2]]]), axis=1)
             want = pairs[:, 0] * span + pairs[:, 1]
             return e0 + order[np.searchsorted(edge_keys[order], want)]
-        set_slice_labels(dm, labels, c0, v0, set_edges)
-        self.label_names = list(labels)
-        sf = None
-        if self.partitioner in partition.PETSC_OWN:
-            partition.apply(dm, self.partitioner, None, self.mpi.size)
-            sf = dm.distribute(overlap=0)
-        self.dm = dm
-        dm.viewFromOptions("-dm_view")
+        sf = self._take_slices_dm(dm, labels, c0, v0, set_edges)
         return {"input": point_input, "position": position, "sf": sf}
 
     def _node_section(self, v0, v1, e0, e1):

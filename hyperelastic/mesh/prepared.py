@@ -165,6 +165,16 @@ def _check_numbering(path, node_ids, n_nodes, cell_ids, cells, nv, cell_edges, n
                             "prepare it again)")
 
 
+def add_group(mesh, name, tag, kind, ignored, mask):
+    """A prepared group (read_groups) as mesh's NamedSet: a facet set's items its facets' positions among the mesh's
+    boundary facets (faces_of of its cells' bitmasks), a volume's its cells; mask: one value per cell of `mesh`, whose
+    corners' input ids are mesh.ids[mesh.tets] (mesh.tets where ids is None)."""
+    ids = mesh.tets if mesh.ids is None else mesh.ids[mesh.tets]
+    boundary = 4 * mesh.facet_cell + mesh.facet_k
+    items = np.searchsorted(boundary, faces_of(ids, mask)) if kind == "facets" else np.flatnonzero(mask)
+    mesh.groups[name] = NamedSet(name, tag, kind, items, ignored)
+
+
 def read_whole(path):
     """The whole prepared mesh as the checked source's sets.Mesh: its points, cells, boundary facets and groups in
     the source's numbering (the same arrays read_mesh gives of the source)."""
@@ -189,14 +199,9 @@ def read_whole(path):
         bmask = np.empty(len(cin), np.int64)
         bmask[cin] = f["boundary"][:]
         groups = read_groups(f)
-    boundary = faces_of(tets, bmask)
-    mesh = Mesh.from_meshio(path, points, tets, boundary, nodes=nodes)
+    mesh = Mesh.from_meshio(path, points, tets, faces_of(tets, bmask), nodes=nodes)
     for name, tag, kind, ignored, mask in groups:
         m = np.empty_like(mask)
         m[cin] = mask
-        if kind == "facets":
-            items = np.searchsorted(boundary, faces_of(tets, m))
-        else:
-            items = np.flatnonzero(m)
-        mesh.groups[name] = NamedSet(name, tag, kind, items, ignored)
+        add_group(mesh, name, tag, kind, ignored, m)
     return mesh

@@ -120,19 +120,11 @@ def _read_output(path, frame):
     (mesh/region, named as the run's attribute `sets` names them) are kept."""
     with h5py.File(path, "r") as f:
         require_parts(f, path, f"mesh '{path}'")
-        nf = completed_frames(f)
-        if nf == 0 or frame is None:
-            points = f["mesh/points"][:]
-        elif not -nf <= frame < nf:
-            raise UserError(f"mesh '{path}': has no frame {frame} (it has {nf}: 0..{nf - 1})")
-        else:
-            points = f["x"][frame % nf]
+        row = output_frame(f, path, frame)
+        points = f["mesh/points"][:] if row is None else f["x"][row]
         cells = f["mesh/tetra"][:].astype(np.int64)
         region = f["mesh/region"][:] if "mesh/region" in f else np.zeros(len(cells), np.int64)
-        try:
-            named = {int(s["tag"]): s["name"] for s in json.loads(f.attrs.get("sets", "[]")) if s["kind"] == "tets"}
-        except (ValueError, KeyError, TypeError):
-            named = {}
+        named = region_names(f)
     if cells.ndim != 2 or cells.shape[1] not in (4, 10):
         raise UserError(f"mesh '{path}': mesh/tetra has shape {cells.shape} (4 or 10 nodes per cell expected)")
     if cells.shape[1] == 10:
@@ -310,6 +302,35 @@ def interpolate(tets, cells, weights, values):
     return np.einsum("ka,ka...->k...", weights, values[tets[cells]])
 
 
+def flat_or_inverted(points, tets):
+    """(signed volumes, the first cell of zero volume (|V| <= 1e-12 of its longest edge cubed) or None, the first
+    inverted cell or None) of cells `tets`: check()'s test, and each rank's of its own cells (discretization.slices)."""
+    V = signed_volumes(points, tets)
+    e = np.stack([points[tets[:, b]] - points[tets[:, a]] for a, b in ((0, 1), (0, 2), (0, 3), (1, 2))])
+    lmax = np.linalg.norm(e, axis=-1).max(axis=0)
+    tiny, negative = np.flatnonzero(np.abs(V) <= 1e-12 * lmax ** 3), np.flatnonzero(V < 0)
+    return V, int(tiny[0]) if len(tiny) else None, int(negative[0]) if len(negative) else None
+
+
+def output_frame(f, path, frame):
+    """The row of x an open output's frame `frame` is (negative: from the last), or None for its reference
+    configuration (frame None, or an output without frames); UserError where it has no such frame."""
+    nf = completed_frames(f)
+    if nf == 0 or frame is None:
+        return None
+    if not -nf <= frame < nf:
+        raise UserError(f"mesh '{path}': has no frame {frame} (it has {nf}: 0..{nf - 1})")
+    return frame % nf
+
+
+def region_names(f):
+    """{tag: name} of an open output's regions (its `sets` attribute's volumes; {} where it cannot be read)."""
+    try:
+        return {int(s["tag"]): s["name"] for s in json.loads(f.attrs.get("sets", "[]")) if s["kind"] == "tets"}
+    except (ValueError, KeyError, TypeError):
+        return {}
+
+
 def check(points, tets, path):
     """One line for whatever makes (points, tets) not a mesh of a solid; else its boundary face indices."""
     if points.ndim != 2 or points.shape[1] < 3 or len(points) == 0:
@@ -343,15 +364,11 @@ def check(points, tets, path):
     if len(dup):
         a, b = sorted((int(order[dup[0]]), int(order[dup[0] + 1])))
         raise UserError(f"mesh '{path}': vertices {a} and {b} are duplicates at {points[a].tolist()}")
-    V = signed_volumes(points, tets)
-    e = np.stack([points[tets[:, b]] - points[tets[:, a]] for a, b in ((0, 1), (0, 2), (0, 3), (1, 2))])
-    lmax = np.linalg.norm(e, axis=-1).max(axis=0)
-    tiny = np.abs(V) <= 1e-12 * lmax ** 3
-    if tiny.any():
-        i = int(np.flatnonzero(tiny)[0])
-        raise UserError(f"mesh '{path}': tetrahedron {i} has zero volume (vertices {tets[i].tolist()})")
-    if (V < 0).any():
-        i = int(np.flatnonzero(V < 0)[0])
+    V, tiny, negative = flat_or_inverted(points, tets)
+    if tiny is not None:
+        raise UserError(f"mesh '{path}': tetrahedron {tiny} has zero volume (vertices {tets[tiny].tolist()})")
+    if negative is not None:
+        i = negative
         raise UserError(f"mesh '{path}': tetrahedron {i} is inverted (negative volume {V[i]:.3g}, "
                         f"vertices {tets[i].tolist()})")
     boundary = check_faces(points, tets, path)
