@@ -5,10 +5,7 @@
 # $OUT/prepared.txt.
 #   run: command "bash scripts/scale_prepared.sh", carry [".scale"]
 set -u
-S=$PWD/.scale; R=/tmp/rt; mkdir -p $R && tar -xJf $S/site.tar.xz -C $R || exit 1
-export PYTHONPATH=$R/sp:$PWD LD_LIBRARY_PATH=$R/lib:$R/lib/mpich:$R/sp/petsc/lib PATH=$R/bin:$PATH OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1
-O=${OUT:-/tmp/out}; mkdir -p $O
-PY=$(command -v python3); echo "python $($PY -V 2>&1); nproc $(nproc); $(lscpu | grep 'Model name')" | tee $O/prepared.txt
+source scripts/device_env.sh prepared.txt
 B="$PY scripts/bench_prepared.py /tmp/bpr --mpiexec $(command -v mpiexec)"
 $B --boxes ${BIG:-100x40x40} --ranks ${RANKS_BIG:-1,4,16} 2>&1 | grep -v Warning | tee -a $O/prepared.txt
 $B --boxes ${BIGGER:-125x50x50} --ranks ${RANKS_BIGGER:-16} 2>&1 | grep -v Warning | tee -a $O/prepared.txt
