@@ -16,6 +16,7 @@ from ..core.errors import Interrupted, UserError
 from ..core.files import StateRows, check_output_path, output_names
 from ..solving.forces import record, surface_forces, table
 from ..solving.integrators import BackwardEuler
+from ..solving.rigid import line as rigid_line
 from .model import build_model, collective
 from ..core.options import Options
 from ..output.ranks import RankWriter
@@ -81,7 +82,7 @@ def run_scene(scene_arg, options_files, restart=None, restart_path=None):
     forces = _integrate(integ, writer, comm, scene)
     if not quiet and comm.getRank() == 0:
         if forces:
-            print("\n".join(table(forces, integ.t)), file=sys.stderr)
+            print("\n".join(table(forces, integ.t) + getattr(integ, "rigid_lines", [])), file=sys.stderr)
         print(f"wrote {out} ({integ.step} steps, {writer.nframes} frames)", file=sys.stderr)
         advice = solver.advice()
         if advice:
@@ -114,6 +115,9 @@ def _solver(scene, model, comm):
                     objective=scene.objective and ts is None, snes=ts.getSNES() if ts else None,
                     reuse_pc=scene.reuse_preconditioner, storage=scene.operator_storage,
                     plan=model.formulation.solver_plan(model.system))
+    if ts is not None and any(rb.free.any() for rb in model.system.rigid):
+        raise UserError("option -integrator ts: a rigid face with loads (-rigid_fx ... -rigid_mz) is balanced around "
+                        "each step's solve by backward Euler or quasi-static steps; under TS give it motions only")
     if ts is not None:
         ts.setFromOptions()      # (again when the integrator is set up) so that its options count as used
         check_energy_momentum(ts, scene)
@@ -134,6 +138,10 @@ def _integrate(integ, writer, comm, scene):
         if isinstance(integ, BackwardEuler):
             forces = surface_forces(scene, integ.system, integ.x)
             writer.set_attr("forces", json.dumps({"t": integ.t, "forces": record(forces)}))
+            for rb in integ.system.rigid:          # the rigid face's reference point and its reaction about it
+                text, rec = rigid_line(integ.system, rb, integ.x)
+                integ.rigid_lines = getattr(integ, "rigid_lines", []) + [text]
+                writer.set_attr("rigid", json.dumps(dict(rec, t=integ.t)))
         return forces
     except Interrupted:
         ended = True          # stopped on request with a checkpoint: keep it, even before a first step

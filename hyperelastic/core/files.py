@@ -238,6 +238,8 @@ CHECKPOINT_ATTRS = ("t", "step", "n", "h_try", "streak", "rejections", "nframes"
 CHECKPOINT_OPTIONAL = ("t_end", "regrow_wait", "regrown")      # (step control's memory: see integrators.py)
 
 
+# optional state of fixed length: a rigid face's reference point (its accepted motion and rate, physics/effects/rigid.py)
+CHECKPOINT_VECTORS = {"rigid": 12}
 CHECKPOINT_NODAL = ("pressure",)     # optional scalar state per node (the mixed formulation's pressure)
 
 
@@ -291,6 +293,12 @@ def read_checkpoint(path):
                         k == "t_end" and v < state["t"]):
                     raise UserError(f"--restart '{path}': checkpoint attribute {k} = {v!r} is out of range")
                 state[k] = v.item()
+        for k, n in CHECKPOINT_VECTORS.items():
+            if k in g.attrs:
+                v = np.asarray(g.attrs[k])
+                if v.shape != (n,) or v.dtype.kind not in "iuf" or not np.isfinite(v).all():
+                    raise UserError(f"--restart '{path}': checkpoint attribute {k} is not {n} finite numbers")
+                state[k] = v.astype(float)
         nstats = min((f["stats"][k].shape[0] for k in f["stats"]), default=0)
         limits = {"t": (0, None), "step": (0, None), "n": (0, None), "h_try": (0, None), "streak": (0, None),
                   "rejections": (0, None), "nframes": (1, f["time"].shape[0]), "nstats": (0, nstats)}

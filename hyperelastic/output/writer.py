@@ -25,7 +25,7 @@ from petsc4py import PETSc
 from .. import __version__
 from ..core.errors import UserError
 from .fields import DEFAULT_FIELDS, NODAL, cell_fields, cell_quantities, finish, is_point_field, reference_volumes
-from ..core.files import CHECKPOINT_ATTRS, CHECKPOINT_OPTIONAL, PARTIAL, RANK_FILE, RANKS
+from ..core.files import CHECKPOINT_ATTRS, CHECKPOINT_OPTIONAL, CHECKPOINT_VECTORS, PARTIAL, RANK_FILE, RANKS
 from ..core.options import all_options
 from ..solving.stats import column_type
 
@@ -351,7 +351,7 @@ class Writer:
         """A checkpoint slot's data written: its attributes, a flush, then the root attribute that names it."""
         for k in CHECKPOINT_ATTRS:
             g.attrs[k] = state[k]
-        for k in CHECKPOINT_OPTIONAL:          # (the slot may hold an older checkpoint's)
+        for k in (*CHECKPOINT_OPTIONAL, *CHECKPOINT_VECTORS):     # (the slot may hold an older checkpoint's)
             if state.get(k) is not None:
                 g.attrs[k] = state[k]
             elif k in g.attrs:

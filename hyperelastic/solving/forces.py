@@ -48,11 +48,12 @@ def surface_forces(scene, system, x):
 
 
 def constrained_sets(scene):
-    """The surfaces the scene holds (-fix, -prescribe_faces), in order, each once."""
+    """The surfaces the scene holds (-fix, -prescribe_faces, -rigid), in order, each once."""
     names = []
-    for effect in ("fixed", "prescribed"):
+    for effect in ("fixed", "prescribed", "rigid"):
         params = scene.effects.get(effect)
-        for name, _ in (getattr(params, "faces", None) or ()):
+        faces = [(params.surface, "xyz")] if effect == "rigid" and params is not None else getattr(params, "faces", None)
+        for name, _ in (faces or ()):
             if name not in names:
                 names.append(name)
     return names

@@ -11,6 +11,7 @@ from petsc4py import PETSc
 
 from ..core.errors import Interrupted, SolveError
 from .forces import surface_forces
+from . import rigid
 from .stats import effect_column, energy_sum, force_columns
 
 
@@ -169,7 +170,13 @@ class Integrator:
         self.writer.checkpoint(self.x, self.carried_v(), nodal=self.system.nodal_state(), t=self.t, step=self.step, n=n,
                                h_try=self.h_try, streak=self.streak, rejections=self.rejections,
                                nframes=self.writer.nframes, nstats=self.writer.nstats, t_end=t_end,
-                               regrow_wait=self.regrow_wait, regrown=int(self.regrown))
+                               regrow_wait=self.regrow_wait, regrown=int(self.regrown),
+                               rigid=self._rigid_state())
+
+    def _rigid_state(self):
+        """A rigid face's accepted motion and rate (checkpoint attribute `rigid`), or None."""
+        rb = self.system.rigid[0] if self.system.rigid else None
+        return None if rb is None else rb.state()
 
     def carried_v(self):
         """What a checkpoint stores as v: the velocities."""
@@ -202,6 +209,10 @@ class BackwardEuler(Integrator):
         # quasi-static: the last accepted step's rate dx/dt, the predictor of a step that moves prescribed nodes
         # (_initial_guess); a checkpoint stores it in v (a quasi-static run has no velocities)
         self.rate = np.zeros_like(x0)
+        # a rigid face with loaded components: its reference point balanced around every step's solve (rigid.py)
+        self.rigid = system.rigid[0] if system.rigid else None
+        self.balance = rigid.Balance(system, solver, self.rigid) if self.rigid is not None and self.rigid.free.any() \
+            else None
         if checkpoint is not None:
             self._resume(checkpoint)
 
@@ -210,6 +221,8 @@ class BackwardEuler(Integrator):
 
     def _resume(self, state):
         super()._resume(state)
+        if self.rigid is not None and state.get("rigid") is not None:
+            self.rigid.resume(state["rigid"])
         if self.scene.quasistatic:
             self.rate, self.v = self.v, np.zeros_like(self.v)
 
@@ -309,13 +322,22 @@ class BackwardEuler(Integrator):
         sysm = self.system
         c0 = self._counters()
         w0 = time.perf_counter()
+        if self.rigid is not None:
+            self.rigid.predict(h)          # (its loaded components along their last rate)
         sysm.begin_step(t1, h, self.x, self.v)
         self._initial_guess(h)
         reason = self.solver.solve(self.X)
         snes = self.solver.snes
         stats = {"step": self.step + 1, "time": t1, "dt": h, "snes_reason": int(reason),
                  "newton_its": snes.getIterationNumber(), "ksp_its": snes.getLinearSolveIterations(),
-                 **self._counter_stats(c0), "rejected": 1}
+                 "rejected": 1}
+        if reason > 0 and self.balance is not None:
+            ok, why, its, newton, ksp = self.balance.run(self.X, t1)
+            stats.update(rigid_its=its, newton_its=stats["newton_its"] + newton, ksp_its=stats["ksp_its"] + ksp)
+            if not ok:
+                stats.update(self._counter_stats(c0), why=why)
+                return self._rejected(stats, w0)
+        stats.update(self._counter_stats(c0))
         if reason <= 0:
             name = self.solver.reason_name(reason)
             ksp = self.solver.ksp_reason_name() if name == "DIVERGED_LINEAR_SOLVE" else ""
@@ -340,6 +362,9 @@ class BackwardEuler(Integrator):
             self.rate = (x1 - self.x) / h
         self.x, self.v, self.t = x1, v1, t1
         sysm.accept(self.X)
+        if self.rigid is not None:
+            self.rigid.accept(h)
+            stats.update(rigid.columns(sysm, self.rigid, self.X))
         self.step += 1
         if self.writer is not None and self.scene.step_forces:   # the step's reactions and load resultants
             stats.update(force_columns(surface_forces(self.scene, sysm, x1)))

@@ -7,6 +7,7 @@ part in energy_total).
 import numpy as np
 
 from ..physics.effects import energies
+from .rigid import COLUMNS as RIGID_COLUMNS
 
 # column: (type, meaning)
 COLUMNS = {
@@ -32,6 +33,7 @@ COLUMNS = {
     "dt_next": (float, "-integrator ts: the step size chosen for the next step [s]"),
 }
 COLUMNS.update({e.column: (float, e.meaning) for e in energies().values()})
+COLUMNS.update(RIGID_COLUMNS)      # a run with a rigid face (-rigid)
 ENERGY_TERMS = tuple((e.column, e.sign, e.work) for e in energies().values() if e.sign)   # energy_total's parts
 # effect_<name>_<kind>, for every effect the run built
 EFFECT_COLUMNS = {

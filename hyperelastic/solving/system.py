@@ -33,6 +33,7 @@ class System:
             mask[c.dofs] = True
         self.cmask = mask
         self.cdofs = np.flatnonzero(mask)
+        self.rigid = [c for c in constraints if c.name == "rigid"]    # rigid faces (their loads: solving/rigid.py)
         owned_mask = mask.reshape(-1, 3)[space.lvid_of_owned].ravel()
         self.c_owned_pos = np.flatnonzero(owned_mask)          # positions in the global (owned) array
         self.g = np.zeros(n)                                    # prescribed positions (local)
@@ -114,6 +115,12 @@ class System:
         elif err:
             raise UserError(err)
         self.g_owned_c = self.space.owned_array(self.g)[self.c_owned_pos]   # targets of the owned rows
+
+    def retarget(self, constraint, positions):
+        """The held targets of one constraint set to (n, 3) positions of its vertices (a rigid face whose reference
+        point moved inside a step: solving/rigid.py)."""
+        self.g[constraint.dofs] = positions[constraint.comps]
+        self.g_owned_c = self.space.owned_array(self.g)[self.c_owned_pos]
 
     def begin_stage(self, t_stage, t1, h, xn, vn, alpha_f):
         """The second-order (PETSc TS, generalized-alpha) form at the stage time t_stage of a step of size h

@@ -7,7 +7,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ...core.errors import UserError
-from . import body_force, damping, dirichlet, elasticity, follower, force, gravity, inertia, loads, pressure, spring, traction
+from . import (body_force, damping, dirichlet, elasticity, follower, force, gravity, inertia, loads, pressure, rigid,
+               spring, traction)
 
 # Every effect, in the order their options are listed and implied effects are added to a scene; -loads takes as its
 # kinds the effects before it that declare a LoadKind (traction, pressure, force, spring).
@@ -28,6 +29,7 @@ REGISTRY = _EFFECTS + (
     loads.spec([s for s in _EFFECTS if s.load is not None]),
     dirichlet.FIXED,
     dirichlet.PRESCRIBED,
+    rigid.SPEC,
 )
 SPECS = {s.name: s for s in REGISTRY}
 NAMES = tuple(SPECS)
@@ -62,12 +64,13 @@ def build(scene, ctx):
     for name, params in scene.effects.items():
         for item in SPECS[name].build(params, ctx):
             (constraints if isinstance(item, dirichlet.Constraint) else effects).append(item)
-    if len(constraints) == 2:         # -fix and -prescribe_faces: no component may be held by both
-        both = ctx.space.mpi.allreduce(len(np.intersect1d(constraints[0].dofs, constraints[1].dofs)))
-        if both:
-            raise UserError("options -fix and -prescribe_faces hold the same components of some vertices (a "
-                            "shared surface or edge): give each component of a vertex one condition (e.g. "
-                            "-fix S:xz with -prescribe_faces S:y)")
+    for i, a in enumerate(constraints):       # no component may be held by two conditions
+        for b in constraints[i + 1:]:
+            both = ctx.space.mpi.allreduce(len(np.intersect1d(a.dofs, b.dofs)))
+            if both:
+                raise UserError(f"options {a.option} and {b.option} hold the same components of some vertices (a "
+                                "shared surface or edge): give each component of a vertex one condition (e.g. "
+                                "-fix S:xz with -prescribe_faces S:y)")
     return effects, constraints
 
 

@@ -13,6 +13,7 @@ class Constraint:
     bool says which components of each vertex are held (default: all three; e.g. a symmetry plane
     x = 0 holds x only). Imposed by the system (see system.py) by elimination, not as a residual term."""
     name = "constraint"
+    option = "-fix"        # the option that holds it (error lines)
     evaluates = False      # values(t) may raise (an expression not finite at some vertices)
 
     def __init__(self, X, vertices, comps=None):
@@ -57,6 +58,7 @@ class Prescribed(Constraint):
     X, Y, Z and the amount A) giving the position or the displacement; evaluated vectorized over the
     set's vertices. The presets above are the thesis' four motions."""
     name = "prescribed"
+    option = "-prescribe_faces"
     evaluates = True
 
     def __init__(self, X, vertices, expressions, amount=1.0, comps=None):
