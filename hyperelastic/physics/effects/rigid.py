@@ -212,7 +212,7 @@ SPEC = Spec(
               "(`-rigid_rz \"pi/2*t\"`: a quarter turn about z); a component given neither a motion nor a load is "
               "held at 0"),
           Row(tuple(f"rigid_{f}" for f in LOADS) + ("rigid_rtol", "rigid_max_it"),
-              "-rigid_fx … -rigid_mz EXPR, -rigid_rtol r, -rigid_max_it n",
+              "-rigid_fx -rigid_fy -rigid_fz -rigid_mx -rigid_my -rigid_mz EXPR, -rigid_rtol r, -rigid_max_it n",
               "a force [N] or a moment about the reference point [N m] on the face as expressions of `t`: that "
               "component is free and found by the step's balance of the point (Newton on the loaded components, "
               "to r of the face's force and moment scales, default 1e-8, at most n iterations, default 25; "
