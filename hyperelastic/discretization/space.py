@@ -395,6 +395,18 @@ class Space:
         out[order] = np.concatenate(parts)
         return out
 
+    def gather_rows(self, owned_rows):
+        """(nv, ...) array of the owned nodes' rows (in the owned nodes' order, as sum_owned gives them) in the input
+        mesh's node order on rank 0; None elsewhere."""
+        order, _ = self._gather_plan()
+        parts = self.mpi.gather(np.ascontiguousarray(owned_rows), root=0)
+        if self.mpi.rank != 0:
+            return None
+        cat = np.concatenate(parts)
+        out = np.empty((self.nv_total,) + cat.shape[1:])
+        out[order] = cat
+        return out
+
     def gather_cells(self, local_array):
         """(nc_total, ...) array of per-cell values in the input mesh's cell order on rank 0; None elsewhere."""
         _, corder = self._gather_plan()

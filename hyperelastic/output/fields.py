@@ -7,6 +7,15 @@ the material is undefined (J <= 0 for Neo-Hookean) the energy density and stress
 each field is its mean over the cell's quadrature points weighted by their weights (|det J| w_q: the cell
 integral divided by the cell's volume).
 
+`stress_recovered` (on request, a point field): the Cauchy stress recovered at the nodes at the element's accuracy. On
+each cell the stress at its quadrature points is fitted by a linear field of the reference coordinates (the 4-point
+rule of P2: interpolated; the gradient of a P2 displacement is linear on a straight cell) and evaluated at the cell's
+nodes, then each node takes the volume-weighted mean of its cells' values: the extrapolate-and-average recovery that
+Abaqus uses for nodal output (Abaqus Analysis User's Guide, "Output variables: nodal averaging"; for recovery in
+general Zienkiewicz & Zhu, IJNME 33, 1992). Its error at the nodes falls as h^2 on P2 where a cell's mean falls as h
+(tests/test_recovery.py on Rivlin's torsion); on P1 cells the stress is constant and it equals `stress_nodal`.
+`von_mises_recovered` is the von Mises stress of it. With the mixed formulation its mean is the pressure at the node.
+
 On request (-output_fields): `stress` the Cauchy stress tensor and `strain` the Green–Lagrange strain
 E = (F^T F - I)/2 (Bonet & Wood, eq. 3.15), each as XDMF's Tensor6 (xx, xy, xz, yy, yz, zz);
 `principal_stress` the Cauchy stress's eigenvalues, largest first; `NAME_nodal` a cell field averaged at
@@ -17,6 +26,7 @@ averaged over the cell's corners), not the material's volumetric response to J.
 import numpy as np
 
 from ..core.errors import UserError
+from ..element.reference import EDGES
 
 
 POINT_FIELDS = ("displacement", "velocity")
@@ -26,14 +36,16 @@ TENSOR_FIELDS = ("stress", "strain")              # Tensor6 cell fields, on requ
 EXTRA_CELL_FIELDS = TENSOR_FIELDS + ("principal_stress",)
 NODAL = "_nodal"
 NODAL_OF = CELL_FIELDS + EXTRA_CELL_FIELDS        # the cell fields that have a NAME_nodal
-OUTPUT_FIELDS = POINT_FIELDS + CELL_FIELDS + EXTRA_CELL_FIELDS + tuple(n + NODAL for n in NODAL_OF)
+RECOVERED = ("stress_recovered", "von_mises_recovered")    # point fields recovered from the quadrature points
+AT_NODES = "stress_at_nodes"        # (the cell quantity they need: each cell's stress at its nodes, (nc, nn * 6))
+OUTPUT_FIELDS = POINT_FIELDS + CELL_FIELDS + EXTRA_CELL_FIELDS + tuple(n + NODAL for n in NODAL_OF) + RECOVERED
 DEFAULT_FIELDS = POINT_FIELDS + CELL_FIELDS
 TENSOR6 = ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))
 
 
 def is_point_field(name):
     """Whether the written field `name` has a value per node (else per cell)."""
-    return name in POINT_FIELDS + POINT_SCALARS or name.endswith(NODAL)
+    return name in POINT_FIELDS + POINT_SCALARS + RECOVERED or name.endswith(NODAL)
 
 
 def output_fields(words):
@@ -57,11 +69,18 @@ def output_fields(words):
 
 def cell_quantities(fields):
     """What the cells must evaluate for `fields`: names among CELL_FIELDS + TENSOR_FIELDS (the principal
-    stresses come from the stress)."""
+    stresses come from the stress) and AT_NODES (the recovered fields)."""
     base = {n[:-len(NODAL)] if n.endswith(NODAL) else n for n in fields}
     if "principal_stress" in base:
         base.add("stress")
-    return tuple(n for n in CELL_FIELDS + TENSOR_FIELDS if n in base)
+    if base & set(RECOVERED):
+        base.add(AT_NODES)
+    return tuple(n for n in CELL_FIELDS + TENSOR_FIELDS + (AT_NODES,) if n in base)
+
+
+def needs_volumes(fields):
+    """Whether `fields` are averaged at the nodes (weighted by the cells' reference volumes)."""
+    return any(n.endswith(NODAL) or n in RECOVERED for n in fields)
 
 
 def finish(cells, fields, tets=None, volume=None, pressure=None, total=None):
@@ -79,6 +98,8 @@ def finish(cells, fields, tets=None, volume=None, pressure=None, total=None):
         for k in (0, 3, 5):
             s[:, k] += p - mean
         out["stress"] = s
+    if AT_NODES in out and set(fields) & set(RECOVERED):
+        out.update(recover(out[AT_NODES], tets, volume, pressure, total))
     if "principal_stress" in fields:
         S = np.empty((len(out["stress"]), 3, 3))
         for k, (i, j) in enumerate(TENSOR6):
@@ -93,23 +114,47 @@ def finish(cells, fields, tets=None, volume=None, pressure=None, total=None):
     return {n: out[n] for n in fields if n in out}
 
 
-def nodal_average(values, tets, volume, total=None):
+def recover(at_nodes, cells, volume, pressure=None, total=None):
+    """{stress_recovered, von_mises_recovered} at the nodes from each cell's stress at its nodes (nc, nn * 6; the
+    cells' own node order: `cells` must be the cells the values were computed on), averaged with the cells' volumes
+    (total: over the ranks, into the owned nodes' rows, as in finish); pressure: the mixed formulation's at the
+    nodes, which becomes the mean there."""
+    sn = at_nodes.reshape(len(cells), cells.shape[1], 6)
+    if pressure is not None:
+        sn = sn.copy()
+        mean = (sn[:, :, 0] + sn[:, :, 3] + sn[:, :, 5]) / 3.0
+        for k in (0, 3, 5):
+            sn[:, :, k] += pressure[cells] - mean
+    rec = nodal_average(sn, cells, volume, total, per_node=True)
+    dev = rec.copy()
+    mean = (rec[:, 0] + rec[:, 3] + rec[:, 5]) / 3.0
+    for k in (0, 3, 5):
+        dev[:, k] -= mean
+    vm = np.sqrt(1.5 * (dev[:, 0] ** 2 + dev[:, 3] ** 2 + dev[:, 5] ** 2)
+                 + 3.0 * (dev[:, 1] ** 2 + dev[:, 2] ** 2 + dev[:, 4] ** 2))
+    return {"stress_recovered": rec, "von_mises_recovered": vm}
+
+
+def nodal_average(values, tets, volume, total=None, per_node=False):
     """Cell values averaged at every node of the cells (weights: the cells' volumes); NaN cells left out. total:
-    sums the (nodes, k + 1) numerators and weights over the ranks (see finish): the owned nodes' averages."""
+    sums the (nodes, k + 1) numerators and weights over the ranks (see finish): the owned nodes' averages.
+    per_node: values (nc, nn, ...) hold each cell's value at each of its nodes (else one per cell)."""
     nv = int(tets.max()) + 1 if len(tets) else 0
-    v = values.reshape(len(values), -1)
-    w = np.where(np.isfinite(v).all(axis=1), volume, 0.0)
-    num = np.zeros((nv, v.shape[1]))
+    nn = tets.shape[1]
+    v = values.reshape(len(values), nn, -1) if per_node else values.reshape(len(values), 1, -1)
+    ok = np.isfinite(v).all(axis=(1, 2))
+    w = np.where(ok, volume, 0.0)
+    num = np.zeros((nv, v.shape[2]))
     den = np.zeros(nv)
-    for a in range(tets.shape[1]):
-        np.add.at(num, tets[:, a], np.nan_to_num(v) * w[:, None])
+    for a in range(nn):
+        np.add.at(num, tets[:, a], np.nan_to_num(v[:, a if per_node else 0]) * w[:, None])
         np.add.at(den, tets[:, a], w)
     if total is not None:
         both = total(np.concatenate([num, den[:, None]], axis=1), nv)
         num, den = both[:, :-1], both[:, -1]
     with np.errstate(all="ignore"):
         out = num / den[:, None]
-    return out.reshape((len(out),) + values.shape[1:])
+    return out.reshape((len(out),) + values.shape[2 if per_node else 1:])
 
 
 def reference_volumes(points, tets):
@@ -145,7 +190,9 @@ CHUNK = 32768     # cells per vectorized evaluation: the (n,3,3) temporaries sta
 def cell_fields(kernels, x, names=CELL_FIELDS):
     """{name: (nc,) or (nc, 6) array} of `names` (CELL_FIELDS, TENSOR_FIELDS) on the local cells of `kernels`
     at positions x (with a material per region: each region's cells by its material), CHUNK cells at a time."""
-    out = {k: np.full((kernels.nc, 6) if k in TENSOR_FIELDS else kernels.nc, np.nan) for k in names}
+    nn = kernels.parts[0][1].nn if kernels.parts else 4
+    shape = {**{k: (kernels.nc, 6) for k in TENSOR_FIELDS}, AT_NODES: (kernels.nc, 6 * nn)}
+    out = {k: np.full(shape.get(k, kernels.nc), np.nan) for k in names}
     for idx, k in kernels.parts:             # one material (CellKernels), or one per region
         cells = np.arange(kernels.nc)[idx]   # the local cells of this material
         for lo in range(0, k.nc, CHUNK):
@@ -163,8 +210,13 @@ def _element_fields(k, x, lo, hi, names):
     G = np.einsum("cqmj,qam->cqaj", geo[:, :, :9].reshape(-1, nq, 3, 3), k.geometry.dN)
     F = np.einsum("cai,cqaj->cqij", x.reshape(-1, 3)[k.cells[lo:hi]], G).reshape(-1, 3, 3)
     w = geo[:, :, 9]
-    point = _point_fields(F, k, names)
+    point = _point_fields(F, k, tuple(n for n in names if n != AT_NODES) + (("stress",) if AT_NODES in names else ()))
     out = {}
+    if AT_NODES in names:                # each cell's stress at its nodes: the quadrature points' linear fit
+        at_q = point["stress"].reshape(-1, nq, 6)
+        out[AT_NODES] = np.einsum("aq,cqk->cak", extrapolation(k.geometry.element), at_q).reshape(len(at_q), -1)
+        if "stress" not in names:
+            del point["stress"]
     for name, v in point.items():
         v = v.reshape((-1, nq) + v.shape[1:])
         out[name] = np.einsum("cq...,cq->c...", v, w) / w.sum(axis=1).reshape((-1,) + (1,) * (v.ndim - 2))
@@ -177,9 +229,24 @@ COMPILED = {"J": 0, "energy_density": 1, "von_mises": 2, "stress": slice(3, 9), 
 
 def _compiled_fields(k, x, lo, hi, names=CELL_FIELDS):
     """The fields of P1 cells lo..hi-1 of CellKernels k by the material's compiled loop (its C stress; ~10x the
-    numpy reference's speed, which _cell_fields keeps for the tests)."""
+    numpy reference's speed, which _cell_fields keeps for the tests); AT_NODES: the cell's constant stress at its
+    four nodes."""
     out = k.part(lo, hi).fields(x) if (lo, hi) != (0, k.nc) else k.fields(x)
-    return {n: out[:, COMPILED[n]] for n in names}
+    res = {n: out[:, COMPILED[n]] for n in names if n != AT_NODES}
+    if AT_NODES in names:
+        res[AT_NODES] = np.tile(out[:, COMPILED["stress"]], (1, 4))
+    return res
+
+
+def extrapolation(element):
+    """(nn, nq): a cell's values at its nodes from its values at the stiffness rule's points, through the linear
+    field of the reference coordinates that fits them (by least squares where the rule has more than 4 points)."""
+    pts, _ = element.rule()
+    corners = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]])
+    nodes = corners if element.order == 1 else np.concatenate([corners] + [
+        (corners[[i]] + corners[[j]]) / 2 for i, j in EDGES])
+    fit = np.linalg.pinv(np.column_stack([np.ones(len(pts)), pts]))      # (4, nq)
+    return np.column_stack([np.ones(len(nodes)), nodes]) @ fit
 
 
 def _cell_fields(cells, Dminv, kernels, x, names=CELL_FIELDS):

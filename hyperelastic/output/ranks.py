@@ -28,7 +28,7 @@ from h5py import h5d, h5p, h5s, h5t
 from ..core.errors import UserError
 from ..core.files import RANKS, parts, rank_file
 from ..discretization.exchange import Exchange
-from .fields import NODAL, cell_fields, cell_quantities, finish, reference_volumes
+from .fields import cell_fields, cell_quantities, finish, is_point_field, needs_volumes, reference_volumes
 from .writer import (EVENTS, FIELD_LINKS, FRAME_LINKS, ROOM_ATTR, ROOM_ATTR_BYTES, STATS_EVERY_S, Guard, Writer,
                      _compact_group, room_for, trim)
 
@@ -297,12 +297,12 @@ class RankWriter(Writer):
         if self.kernels is not None:
             EVENTS.Fields.begin()
             local = cell_fields(self.kernels, x_local, cell_quantities(self.fields))
-            nodal = any(n.endswith(NODAL) for n in self.fields)          # (the volumes weigh nodal averages)
+            nodal = needs_volumes(self.fields)          # (the volumes weigh nodal averages)
             done = finish(local, self.fields, sp.cells, self._volumes() if nodal else None, scalars.get("pressure"),
                           total=lambda a, n: sp.sum_owned(a, n))
             EVENTS.Fields.end()
             for k, a in done.items():
-                (nodes if k.endswith(NODAL) else cells)[k] = a
+                (nodes if is_point_field(k) else cells)[k] = a
         for k, a in scalars.items():
             nodes[k] = self._owned(a, 1)
         rows = {"x": self._node_rows(x)}

@@ -24,7 +24,8 @@ from petsc4py import PETSc
 
 from .. import __version__
 from ..core.errors import UserError
-from .fields import DEFAULT_FIELDS, NODAL, cell_fields, cell_quantities, finish, is_point_field, reference_volumes
+from .fields import (AT_NODES, DEFAULT_FIELDS, cell_fields, cell_quantities, finish, is_point_field,
+                     needs_volumes, recover, reference_volumes)
 from ..core.files import CHECKPOINT_ATTRS, CHECKPOINT_OPTIONAL, CHECKPOINT_VECTORS, PARTIAL, RANK_FILE, RANKS
 from ..core.options import all_options
 from ..solving.stats import column_type
@@ -369,9 +370,15 @@ class Writer:
             EVENTS.Fields.begin()
             local = cell_fields(self.kernels, x_local, cell_quantities(self.fields))
             EVENTS.Fields.end()
+        scalars = self.point_scalars() if self.point_scalars is not None else {}    # (the mixed formulation's pressure)
+        if self.kernels is not None:
+            if AT_NODES in local:         # recovered on each rank's own cells (their node order), then gathered
+                sp = self.space
+                rec = recover(local.pop(AT_NODES), sp.cells, self._local_volumes(), scalars.get("pressure"),
+                              total=lambda a, n: sp.sum_owned(a, n))
+                nodal.update({k: sp.gather_rows(a) for k, a in rec.items() if k in self.fields})
             cells = {k: self.space.gather_cells(a) for k, a in local.items()}
-        if self.point_scalars is not None:             # (the mixed formulation's pressure)
-            nodal = {k: self.space.gather_nodal(a) for k, a in self.point_scalars().items()}
+        nodal.update({k: self.space.gather_nodal(a) for k, a in scalars.items()})
         if self.root:
             if self.kernels is not None:
                 cells = finish(cells, self.fields, self._tets, self._volumes(), nodal.get("pressure"))
@@ -504,10 +511,16 @@ class Writer:
             self.f.attrs[key] = value
 
     def _needs_tets(self):
-        return any(n.endswith(NODAL) for n in self.fields) or "stress" in cell_quantities(self.fields)
+        return needs_volumes(self.fields) or "stress" in cell_quantities(self.fields)
+
+    def _local_volumes(self):
+        """The reference volumes of this rank's own cells (the weights of the recovered fields)."""
+        if getattr(self, "_local_volume", None) is None:
+            self._local_volume = reference_volumes(self.space.X.reshape(-1, 3), self.space.cells)
+        return self._local_volume
 
     def _volumes(self):
-        if self._volume is None and self._tets is not None and any(n.endswith(NODAL) for n in self.fields):
+        if self._volume is None and self._tets is not None and needs_volumes(self.fields):
             self._volume = reference_volumes(self.points, self._tets)
         return self._volume
 
