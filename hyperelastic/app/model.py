@@ -15,6 +15,7 @@ from ..discretization.space import Space, make_space
 from ..element.reference import Element
 from ..formulations import choose
 from ..formulations.base import Problem
+from ..formulations.mixed import volume_bound
 from ..mesh.generate import cached_bar
 from ..mesh.read import CURVED_ANGLES, bent_edges, corners, elevate, read_mesh
 from ..mesh.sets import MATERIAL_LABEL, REGION_LABEL, VERTEX_VALUE, cell_label, facet_label
@@ -286,6 +287,7 @@ def build_model(scene, comm):
     effects, constraints = effects_pkg.build(scene, ctx)
     x0, v0 = initial_state(scene, space)
     system = formulation.system(problem, space, k, effects, constraints, x0, v0)
+    system.volume_bound = volume_bound(problem, scene.incompressible)     # (every accepted state is checked)
     points, cells = (mesh.points, mesh.cell_nodes) if mesh is not None else (None, None)
     return Model(scene, element, formulation, points, cells, space, k, system, x0, v0, report, mesh_notes + notes,
                  scene.mesh if sliced else None)

@@ -38,6 +38,26 @@ SNES_HINTS = {
 }
 
 
+def volume_refusal(stats, system):
+    """Why a converged state is not a solution of its material, judged by its volume ratios (the statistics' J_min and
+    J_max): a cell inverted in a material undefined there, or |ln J| beyond the bound a solid of its compressibility
+    keeps (system.volume_bound, formulations/mixed: volume_bound); "" where neither."""
+    lo, hi = stats.get("J_min"), stats.get("J_max")
+    if lo is None or hi is None:
+        return ""
+    if lo <= 0:
+        return (f"a converged solve left cells inverted (J_min = {lo:.3g}) in a material undefined there: not a "
+                "solution" if system.check_domain else "")
+    if system.volume_bound is None:
+        return ""
+    bound, ratio = system.volume_bound
+    worst = max(-math.log(lo), math.log(hi))
+    if worst <= bound:
+        return ""
+    return (f"a converged solve left volume ratios J in [{lo:.3g}, {hi:.3g}] (|ln J| up to {worst:.3g}), beyond the "
+            f"{bound:.3g} a solid with kappa/mu = {ratio:.3g} keeps: not a solution (a false convergence)")
+
+
 class Integrator:
     """What every time integrator of a run shares: the state (x, v, t, step), frames, statistics
     rows, checkpoints, clean stops on SIGINT/SIGTERM and the progress line."""
@@ -357,6 +377,10 @@ class BackwardEuler(Integrator):
         v1 = np.zeros_like(x1) if self.scene.quasistatic else (x1 - self.x) / h
         if not self._energy_stats(x1, v1, stats):   # a NaN/Inf state never reaches the output
             stats["why"] = "non-finite positions or energies after a converged solve"
+            return self._rejected(stats, w0)
+        why = volume_refusal(stats, self.system)
+        if why:
+            stats["why"] = why
             return self._rejected(stats, w0)
         if self.scene.quasistatic:
             self.rate = (x1 - self.x) / h

@@ -69,6 +69,23 @@ def bulk_to_shear(solid):
     return 2 * (1 + nu) / (3 * (1 - 2 * nu))
 
 
+# A converged state's volume check (issue 47: a quasi-static step of a rubber at kappa/mu = 1e4 was accepted at J_min
+# 0.107, J_max 2.05). A solid's pressure kappa |ln J| is held by its shear stresses and the loads, a few mu to a few
+# hundred mu in any rubber part (a pressure of 1000 mu is 500 MPa in a rubber of mu = 0.5 MPa); and where the volume is a
+# constraint (the mixed formulation, -incompressible), J is 1 up to the discretization: 1 +- 1% on the rod's 588 P2
+# tets at kappa/mu = 1e4. So a state with |ln J| beyond max(0.5, VOLUME_LIMIT / (kappa/mu)) in some cell is refused
+# (step control retries it smaller). For the most compressible solid of the run; compressible solids (nu = 0.3:
+# |ln J| <= 460) are never refused.
+VOLUME_LIMIT = 1000.0
+
+
+def volume_bound(problem, incompressible=False):
+    """(the largest |ln J| a converged state may have, kappa/mu it follows from: the most compressible solid's)."""
+    ratio = min(math.inf if incompressible and sol.material.volumetric else bulk_to_shear(sol)
+                for _, sol in problem.solids)
+    return max(0.5, VOLUME_LIMIT / ratio), ratio
+
+
 class Mixed(Formulation):
     name = "mixed"
     summary = ("a continuous linear pressure beside quadratic displacements (Taylor–Hood P2–P1, needs `-order 2`) "
