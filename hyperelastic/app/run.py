@@ -114,6 +114,7 @@ def _solver(scene, model, comm):
     solver = Solver(model.system, scene.jacobian, scene.assembly, guard=scene.inversion_guard,
                     objective=scene.objective and ts is None, snes=ts.getSNES() if ts else None,
                     reuse_pc=scene.reuse_preconditioner, storage=scene.operator_storage,
+                    diverging=scene.diverging_newton,
                     plan=model.formulation.solver_plan(model.system))
     if ts is not None and any(rb.free.any() for rb in model.system.rigid):
         raise UserError("option -integrator ts: a rigid face with loads (-rigid_fx ... -rigid_mz) is balanced around "

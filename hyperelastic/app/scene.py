@@ -67,6 +67,7 @@ class Scene:
     output_fields: tuple = DEFAULT_FIELDS   # what each frame holds (fields.OUTPUT_FIELDS)
     output_layout: str = "auto"             # gather (one file, rank 0) | ranks (a file per rank + FILE.h5's VDS)
     reuse_preconditioner: str = "auto"  # auto: keep a GAMG set-up until the Krylov iterations grow (solver.py)
+    diverging_newton: int = 3           # full Newton steps: stop an attempt after this many diverging ones (solver.py)
     integrator: str = "beuler"    # beuler: backward Euler (thesis); ts: PETSc TS (-ts_type alpha2)
     energy_momentum: bool = False  # -integrator ts at rho_inf = 1: the discrete-gradient elastic force
     regions: list = field(default_factory=list)  # [Region]: a material per physical volume (-regions)
@@ -228,6 +229,7 @@ def _read_solver(s, opts):
     s.operator_storage = opts.choice("operator_storage", STORAGES, s.operator_storage)
     s.hessian_projection = opts.flag("hessian_projection", s.hessian_projection)
     s.reuse_preconditioner = opts.choice("reuse_preconditioner", ("auto", "never"), s.reuse_preconditioner)
+    s.diverging_newton = opts.integer("diverging_newton", s.diverging_newton, minimum=0)
     s.objective = opts.flag("objective", s.objective)
     s.inversion_guard = opts.flag("inversion_guard",
                                   not all(m.defined_when_inverted for m in s.materials()))
