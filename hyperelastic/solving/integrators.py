@@ -287,6 +287,7 @@ class BackwardEuler(Integrator):
             stats = self.advance(h, t_end if last else self.t + h)
             why = stats.pop("why", None)
             linear_only, hint = stats.pop("linear_only", False), stats.pop("hint", "")
+            indefinite = stats.pop("indefinite", False)
             moves = stats.pop("moves_prescribed", False)
             # at the step's first Newton iteration the load step's size does not change the tangent, so halving
             # the step would not help (issue 34); at a later one the tangent is taken at an iterate that a smaller
@@ -305,7 +306,7 @@ class BackwardEuler(Integrator):
                 self.h_try = 0.5 * h
                 if regrown:              # it failed where it had just regrown to: wait twice as long next time
                     self.regrow_wait *= 2
-                note = self.solver.escalate() if linear_only else ""
+                note = self.solver.escalate() if linear_only else self.solver.project_hessians() if indefinite else ""
                 if note:                 # the same step again, with a preconditioner that fits a static stiffness
                     self._note(note)
                     self.h_try = h
@@ -346,8 +347,10 @@ class BackwardEuler(Integrator):
             self.rigid.predict(h)          # (its loaded components along their last rate)
         sysm.begin_step(t1, h, self.x, self.v)
         self._initial_guess(h)
+        indefinite = self.solver.indefinite_solves
         reason = self.solver.solve(self.X)
         snes = self.solver.snes
+        indefinite = self.solver.indefinite_solves - indefinite
         stats = {"step": self.step + 1, "time": t1, "dt": h, "snes_reason": int(reason),
                  "newton_its": snes.getIterationNumber(), "ksp_its": snes.getLinearSolveIterations(),
                  "rejected": 1}
@@ -366,6 +369,8 @@ class BackwardEuler(Integrator):
             # a Krylov solve that ran out of iterations on a quasi-static step: a preconditioner for a static
             # stiffness may fix it (Solver.escalate); halving the step may not (the caller)
             stats["linear_only"] = self.scene.quasistatic and ksp in RAN_OUT
+            # most Newton directions from CG stopped at negative curvature: the tangent is indefinite (Solver.project_hessians)
+            stats["indefinite"] = self.scene.quasistatic and indefinite > 0.5 * max(stats["newton_its"], 1)
             stats["moves_prescribed"] = sysm.moves_prescribed(self.x)
             hints = self.solver.plan.ksp_hints or KSP_HINTS
             stats["hint"] = hints.get(ksp, "") if ksp else SNES_HINTS.get(name, "")

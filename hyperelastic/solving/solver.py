@@ -188,6 +188,7 @@ class Solver:
         self.plan.configure(self)
         self.reuse = None
         self.linear_solves, self.linear_its = 0, 0
+        self.indefinite_solves = 0       # Krylov solves that stopped at negative curvature (DIVERGED_INDEFINITE_MAT)
         if self.op is not None:
             self.snes.getKSP().setPostSolve(self._after_linear_solve)
         self._setup_reuse(reuse_pc)
@@ -262,6 +263,25 @@ class Solver:
                 f"it with {name} (rigid-body modes; -options_file options/{recipe}.opts from the start saves the "
                 "failed attempt)")
 
+    def project_hessians(self):
+        """A quasi-static attempt failed with most of its CG solves stopped at negative curvature (an indefinite tangent:
+        a P2 rubber twisted with -formulation displacement took 50-100 Newton iterations a step and failed steps):
+        switch the elastic tangent to its cells' positive semi-definite projections (-hessian_projection) for the rest
+        of the run and say so; the caller retries the step. The minimizer is the same (the projection changes Newton's
+        direction, not the energy). Only with the energy merit, where -hessian_projection was not given, and once.
+        Returns the note, or ""."""
+        if self.merit != MERITS[0] or PETSc.Options().hasName("hessian_projection"):
+            return ""
+        turned = [e for e in self.system.effects if getattr(e, "projection", True) is False]
+        if not turned:
+            return ""
+        for e in turned:
+            e.projection = True
+        self.notes.append("switched to -hessian_projection 1")
+        return ("CG stopped at negative curvature in most Newton iterations of a failed quasi-static step (an "
+                "indefinite tangent): retrying it with the cells' tangents projected to positive semi-definite "
+                "(-hessian_projection 1 from the start saves the failed attempt)")
+
     def rebuild_preconditioner(self):
         """Set the preconditioner up again at the next Jacobian (also where a restart would begin, so
         that a restarted run and the uninterrupted one build it at the same point)."""
@@ -273,6 +293,8 @@ class Solver:
         its = ksp.getIterationNumber()
         self.linear_solves += 1
         self.linear_its += its
+        if ksp.getConvergedReason() == PETSc.KSP.ConvergedReason.DIVERGED_INDEFINITE_MAT:
+            self.indefinite_solves += 1
         r = self.reuse
         if r is None:
             return
