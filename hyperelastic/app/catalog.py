@@ -122,7 +122,7 @@ TAIL = (
     Row(("diverging_newton",), "-diverging_newton K", "with full Newton steps (the mixed formulation's default, "
         "`-snes_linesearch_type basic`): an attempt whose residual norm stays above 10× the smallest it has had for "
         "K Newton iterations in a row is stopped as diverged (step control halves it) instead of running to "
-        "`-snes_max_it`; 0: never", _S.diverging_newton),
+        "`-snes_max_it`; 0: never", str(_S.diverging_newton)),
     Row(("output",), "-output FILE.h5", "output file (an `.xdmf` is written beside it); it may not be an input",
         "output/SCENE.h5"),
     Row(("output_fields",), "-output_fields LIST", "what each frame holds besides `x`: `displacement`, "
