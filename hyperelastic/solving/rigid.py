@@ -73,7 +73,6 @@ class Balance:
     def __init__(self, system, solver, rb):
         self.system, self.solver, self.rb = system, solver, rb
         self.free = np.flatnonzero(rb.free)
-        mpi = system.space.mpi
         self.wl = np.zeros(3 * system.space.nlv)        # (a local array: one direction at a time)
 
     def error(self, X, q, t, impose=True):
