@@ -235,3 +235,19 @@ def test_the_three_accuracy_plans():
     assert sorted({r.h for r in quick.runs if r.mode == "seed_fd"}) == [0.05, 0.1]
     assert {r.config for r in smoke.runs} <= {r.config for r in quick.runs} and len(smoke.runs) < len(quick.runs) / 2
     assert len(full.runs) > 10 * len(quick.runs)
+
+
+def test_an_empty_figure_warns_nothing():
+    """A study whose runs give nothing to plot draws an empty panel without matplotlib's "No artists with labels"
+    warning on stderr (issue 47: it leaked into a study's output); a panel with a labelled line keeps its legend."""
+    import warnings
+    from hyperelastic.output.figures import legend, pyplot
+    plt = pyplot()
+    fig, (a, b) = plt.subplots(1, 2)
+    b.plot([1, 2], [1, 2], label="runs")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        legend(a, fontsize=7)
+        legend(b, fontsize=7)
+    assert a.get_legend() is None and b.get_legend() is not None
+    plt.close(fig)

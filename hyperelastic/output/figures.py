@@ -8,3 +8,10 @@ def pyplot():
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     return plt
+
+
+def legend(ax, **kw):
+    """The axes' legend where something in them has a label (matplotlib warns on stderr otherwise: a study whose
+    runs gave nothing to plot printed "No artists with labels found to put in legend", issue 47)."""
+    if ax.get_legend_handles_labels()[0]:
+        ax.legend(**kw)

@@ -14,7 +14,7 @@ import os
 from ..core.errors import UserError
 from .experiments.runner import last_line, parallel_map, run_hyperelastic
 from .experiments.table import write_csv
-from ..output.figures import pyplot
+from ..output.figures import legend, pyplot
 from ..mesh.generate import generate
 from .stability import fmt
 from .measure import read_cost, slope
@@ -159,7 +159,7 @@ def part_report(rows, out_dir, command, part, scene, watch):
     for a, yl in ((a1, watch), (a2, "change against the finest mesh")):
         a.set_xlabel("target edge length h")
         a.set_ylabel(yl)
-        a.legend(fontsize=7)
+        legend(a, fontsize=7)
     fig.suptitle(f"{os.path.basename(part)} with {os.path.basename(scene)}", fontsize=9)
     fig.tight_layout()
     fig.savefig(os.path.join(out_dir, "refinement.png"), dpi=110)

@@ -2,10 +2,11 @@
 (estimated error against solve time, the Pareto front, the target) and price.md, whose first paragraph is
 the answer: the cheapest setting found that meets the target, its error by source, its time, and how much
 cheaper it is than the defaults and than the other element order."""
+import math
 import os
 
 from .experiments.table import write_csv
-from ..output.figures import pyplot
+from ..output.figures import legend, pyplot
 from .stability import fmt
 from .price import Setting
 
@@ -156,7 +157,7 @@ def price_report(search, out_dir, command):
 def _figure(search, s, out_dir):
     plt = pyplot()
     fig, ax = plt.subplots(figsize=(7, 4.6))
-    pts = [r for r in search.rows if r.get("est_total") is not None and r.get("solve_s")]
+    pts = [r for r in search.rows if r.get("est_total") is not None and math.isfinite(r["est_total"]) and r.get("solve_s")]
     for o, mk in ((1, "o"), (2, "s")):
         sel = [r for r in pts if r["order"] == o]
         if sel:
@@ -175,7 +176,7 @@ def _figure(search, s, out_dir):
                 label="cheapest meeting the target")
     ax.set_xlabel("solve time (s)")
     ax.set_ylabel(f"estimated relative error in {search.w.spec}")
-    ax.legend(fontsize=7)
+    legend(ax, fontsize=7)
     fig.tight_layout()
     fig.savefig(os.path.join(out_dir, "price.png"), dpi=110)
     plt.close(fig)

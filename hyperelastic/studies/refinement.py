@@ -7,7 +7,7 @@ import numpy as np
 
 from .experiments.runner import last_line, parallel_map, run_hyperelastic
 from .experiments.table import write_csv
-from ..output.figures import pyplot
+from ..output.figures import legend, pyplot
 from ..mesh.read import read
 from ..mesh.generate import cached_bar, level_size
 from .stability import fmt
@@ -125,7 +125,7 @@ def refinement_report(rows, out_dir, command):
     a1.set_xlabel("target edge length h_mesh [m]")
     a1.set_ylabel("|u - u_finest| [m]")
     a1.set_title(f"displacement error vs mesh size (finest: L{ok[-1]['level'] if ok else '-'})", fontsize=9)
-    a1.legend(fontsize=7)
+    legend(a1, fontsize=7)
     for n in (1, 2):
         rs = [r for r in rows if r["outcome"] == "finished" and r["nprocs"] == n]
         if rs:
@@ -134,7 +134,7 @@ def refinement_report(rows, out_dir, command):
     a2.set_xlabel("tets")
     a2.set_ylabel("solve time per load step [s]")
     a2.set_title(f"time per step vs tets (fitted exponent {t_exp:.2f})", fontsize=9)
-    a2.legend(fontsize=7)
+    legend(a2, fontsize=7)
     fig.tight_layout()
     fig.savefig(os.path.join(out_dir, "refinement.png"), dpi=110)
     plt.close(fig)

@@ -3,7 +3,7 @@ headline, the findings, the cheapest settings, cost vs E, references, mesh error
 import math
 import os
 
-from ..output.figures import pyplot
+from ..output.figures import legend, pyplot
 from .stability import fmt
 from .measure import slope
 from .plan import COST_TARGET, DISC_H, FPS, POINT_NAMES, REF_FACTOR, REF_SNES_RTOL, TARGETS, E_NAMES
@@ -80,7 +80,7 @@ def figures(rows, out_dir):
         ax.set_xlabel("solve time [s]")
         ax.set_ylabel("relative error (trajectory max)")
         ax.set_title(cfg_name(cfg), fontsize=9)
-        ax.legend(fontsize=6)
+        legend(ax, fontsize=6)
     for ax in list(axes.flat)[len(cfgs):]:
         ax.axis("off")
     fig.tight_layout()
@@ -98,7 +98,7 @@ def figures(rows, out_dir):
     ax.set_yscale("log")
     ax.set_xlabel("Young's modulus E [Pa]")
     ax.set_ylabel(f"cheapest solve time for {COST_TARGET:g} relative error [s]")
-    ax.legend(fontsize=6)
+    legend(ax, fontsize=6)
     fig.tight_layout()
     fig.savefig(os.path.join(out_dir, "accuracy_cost_vs_E.png"), dpi=110)
     plt.close(fig)
