@@ -117,6 +117,11 @@ class System:
             raise UserError(err)
         self.g_owned_c = self.space.owned_array(self.g)[self.c_owned_pos]   # targets of the owned rows
 
+    def set_held(self, values):
+        """The targets of every held dof (local, in the order of cdofs) set to `values` (the linearized predictor)."""
+        self.g[self.cdofs] = values
+        self.g_owned_c = self.space.owned_array(self.g)[self.c_owned_pos]
+
     def retarget(self, constraint, positions):
         """The held targets of one constraint set to (n, 3) positions of its vertices (a rigid face whose reference
         point moved inside a step: solving/rigid.py)."""
