@@ -438,39 +438,24 @@ class BackwardEuler(Integrator):
         iterate from x^n with only the boundary moved failed its Krylov solve twice (3,000 GMRES iterations, 80 s);
         this solve is at the undistorted x^n. False (self.X untouched) where its Krylov solve fails."""
         sysm, sp = self.system, self.sp
-        snes = self.solver.snes
         c = sysm.cdofs
         g = sysm.g[c].copy()
-        d = g - self.x[c]
+        xc = self.x[c]
+        d = g - xc
         dmax = sp.mpi.allreduce(float(np.abs(d).max(initial=0.0)), op=MPI.MAX)
         lo, hi = sp.bbox
-        delta = self.LINEARIZED_STEP * float(np.linalg.norm(hi - lo)) / dmax
         X0 = sysm.unknown_vec()
         try:
-            sysm.set_held(self.x[c])
+            sysm.set_held(xc)
             sysm.set_guess(X0, self.x)
-            Rp, Rm = X0.duplicate(), X0.duplicate()
-            sysm.set_held(self.x[c] + delta * d)
-            sysm.residual(X0, Rp)
-            sysm.set_held(self.x[c] - delta * d)
-            sysm.residual(X0, Rm)
-            sysm.set_held(self.x[c])
-            Rm.axpy(-1.0, Rp)
-            Rm.scale(0.5 / delta)                      # -J_fc d_c
-            Rm.getArray()[sysm.c_owned_pos] = 0.0
-            J, P = snes.getJacobian()[:2]
-            snes.computeJacobian(X0, J, P)
-            ksp = snes.getKSP()
-            Rp.zeroEntries()
-            ksp.solve(Rm, Rp)
-            self.guess_ksp = ksp.getIterationNumber()
-            if ksp.getConvergedReason() < 0:
-                return False
-            X0.axpy(1.0, Rp)
-            Rp.destroy()
-            Rm.destroy()
+            Z, self.guess_ksp, ok = self.solver.held_response(
+                X0, lambda s: sysm.set_held(xc + s * d), self.LINEARIZED_STEP * float(np.linalg.norm(hi - lo)) / dmax)
         finally:
             sysm.set_held(g)
+        if not ok:
+            return False
+        X0.axpy(1.0, Z)
+        Z.destroy()
         sysm.impose_global(X0)
         X0.copy(self.X)
         return True

@@ -125,36 +125,21 @@ class Balance:
         """(de/dq_f (nf, nf), [w_j + z_j as unknown vectors], Krylov iterations) at the solve X, or the reason a
         Krylov solve failed."""
         rb, sysm, sp = self.rb, self.system, self.system.space
-        snes = self.solver.snes
-        J, P = snes.getJacobian()[:2]
-        snes.computeJacobian(X, J, P)
-        ksp = snes.getKSP()
         q0 = rb.q.copy()
         g0 = rb.place(q0)
-        Rp, Rm, B, Z = (X.duplicate() for _ in range(4))
         A = np.empty((len(self.free), len(self.free)))
         D, its = [], 0
         for k, j in enumerate(self.free):
             w = rb.direction(j, q0)
             wmax = sp.mpi.allreduce(float(np.abs(w).max(initial=0.0)), op=MPI.MAX) or 1.0
             delta = STEP * rb.extent / wmax
-            sysm.retarget(rb, g0 + delta * w)
-            sysm.residual(X, Rp)
-            sysm.retarget(rb, g0 - delta * w)
-            sysm.residual(X, Rm)
-            sysm.retarget(rb, g0)
-            B.waxpy(-1.0, Rp, Rm)
-            B.scale(0.5 / delta)
-            B.getArray()[sysm.c_owned_pos] = 0.0          # (the held rows: z is zero there)
-            Z.zeroEntries()
-            ksp.solve(B, Z)
-            its += ksp.getIterationNumber()
-            if ksp.getConvergedReason() < 0:
+            Dj, n, ok = self.solver.held_response(X, lambda s: sysm.retarget(rb, g0 + s * w), delta, tangent=k == 0)
+            its += n
+            if not ok:
                 return (f"rigid face {rb.surface}: the Krylov solve of its stiffness did not converge "
                         f"({self.solver.ksp_reason_name()})")
             self.wl[:] = 0.0
             self.wl.reshape(-1, 3)[rb.vertices] = w
-            Dj = Z.copy()
             owned = sp.owned_array(self.wl)
             Dj.getArray()[:len(owned)] += owned
             D.append(Dj)
@@ -167,6 +152,4 @@ class Balance:
             em, _ = self.error(Xs, q0 - dq, t, impose=False)
             A[:, k] = (ep - em) / (2.0 * delta)
             Xs.destroy()
-        for v in (Rp, Rm, B, Z):
-            v.destroy()
         return A, D, its

@@ -282,6 +282,33 @@ class Solver:
                 "indefinite tangent): retrying it with the cells' tangents projected to positive semi-definite "
                 "(-hessian_projection 1 from the start saves the failed attempt)")
 
+    def held_response(self, X, move, delta, tangent=True):
+        """(Z, Krylov iterations, converged): the free dofs' linear response at X to moving the held targets along a
+        direction, J(X) Z = -(R(X; +delta) - R(X; -delta)) / (2 delta) with the held rows zero (J_fc applied by a
+        central difference of the residual in the targets). move(s) sets the targets s along the direction (move(0):
+        back where they were); tangent: compute the Jacobian at X first (else the one computed last). Used by the
+        first step's linearized start (integrators.py) and a rigid face's balance (rigid.py)."""
+        sysm, snes = self.system, self.snes
+        Rp, B = X.duplicate(), X.duplicate()
+        try:
+            move(delta)
+            sysm.residual(X, Rp)
+            move(-delta)
+            sysm.residual(X, B)
+        finally:
+            move(0.0)
+        B.axpy(-1.0, Rp)
+        B.scale(0.5 / delta)
+        B.getArray()[sysm.c_owned_pos] = 0.0
+        if tangent:
+            J, P = snes.getJacobian()[:2]
+            snes.computeJacobian(X, J, P)
+        ksp = snes.getKSP()
+        Rp.zeroEntries()
+        ksp.solve(B, Rp)
+        B.destroy()
+        return Rp, ksp.getIterationNumber(), ksp.getConvergedReason() >= 0
+
     def rebuild_preconditioner(self):
         """Set the preconditioner up again at the next Jacobian (also where a restart would begin, so
         that a restarted run and the uninterrupted one build it at the same point)."""
