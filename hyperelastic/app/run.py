@@ -79,10 +79,10 @@ def run_scene(scene_arg, options_files, restart=None, restart_path=None):
         integ = BackwardEuler(scene, model.system, solver, writer, model.x0, model.v0, checkpoint=restart,
                               quiet=quiet)
     integ.run_notes = [n for n in attrs["notes"].splitlines() if n]     # the start-up's; the run's own follow
-    forces = _integrate(integ, writer, comm, scene)
+    forces, rigid_lines = _integrate(integ, writer, comm, scene)
     if not quiet and comm.getRank() == 0:
         if forces:
-            print("\n".join(table(forces, integ.t) + getattr(integ, "rigid_lines", [])), file=sys.stderr)
+            print("\n".join(table(forces, integ.t) + rigid_lines), file=sys.stderr)
         print(f"wrote {out} ({integ.step} steps, {writer.nframes} frames)", file=sys.stderr)
         advice = solver.advice()
         if advice:
@@ -128,22 +128,23 @@ def _solver(scene, model, comm):
 def _integrate(integ, writer, comm, scene):
     """Run the integrator with SIGINT/SIGTERM honoured at the next frame; the file is closed whatever
     happens, kept when the run ended or stopped on request with a checkpoint. Returns the forces on the
-    body at the end (forces.py; backward Euler and quasi-static runs), also recorded in the file."""
+    body at the end (forces.py; backward Euler and quasi-static runs) and the rigid face's line (solving/rigid.py),
+    also recorded in the file."""
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, lambda signum, frame: integ.request_stop(signum))
     ended = False
-    forces = None
+    forces, lines = None, []
     try:
         integ.run()
         ended = True
         if isinstance(integ, BackwardEuler):
             forces = surface_forces(scene, integ.system, integ.x)
             writer.set_attr("forces", json.dumps({"t": integ.t, "forces": record(forces)}))
-            for rb in integ.system.rigid:          # the rigid face's reference point and its reaction about it
-                text, rec = rigid_line(integ.system, rb, integ.x)
-                integ.rigid_lines = getattr(integ, "rigid_lines", []) + [text]
+            if integ.rigid is not None:          # the rigid face's reference point and its reaction about it
+                text, rec = rigid_line(integ.system, integ.rigid, integ.x)
+                lines.append(text)
                 writer.set_attr("rigid", json.dumps(dict(rec, t=integ.t)))
-        return forces
+        return forces, lines
     except Interrupted:
         ended = True          # stopped on request with a checkpoint: keep it, even before a first step
         raise

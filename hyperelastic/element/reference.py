@@ -25,6 +25,9 @@ from ..core.errors import UserError
 
 EDGES = ((0, 1), (1, 2), (0, 2), (0, 3), (1, 3), (2, 3))
 FACE_EDGES = ((0, 1), (1, 2), (0, 2))
+# the reference nodes of a quadratic tetrahedron (the corners, then the midpoints of EDGES); a linear one's: the first 4
+REFERENCE_NODES = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1], [.5, 0, 0], [.5, .5, 0], [0, .5, 0],
+                            [0, 0, .5], [.5, 0, .5], [0, .5, .5]])
 ORDERS = (1, 2)
 
 

@@ -11,14 +11,9 @@ import numpy as np
 from ..core.data import cache_dir
 from ..core.errors import UserError
 from ..core.files import completed_frames, is_output, require_parts
-from ..element.reference import EDGES, TET_RULES, tet_shapes
+from ..element.reference import EDGES, REFERENCE_NODES, TET_RULES, tet_shapes
 from .prepared import is_prepared, read_whole
 from .sets import FACE_VERTICES, Mesh, NamedSet, face_incidence, signed_volumes
-
-# the reference nodes of a quadratic tetrahedron (element.py's order)
-REFERENCE_NODES = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1], [.5, 0, 0], [.5, .5, 0], [0, .5, 0],
-                            [0, 0, .5], [.5, 0, .5], [0, .5, .5]])
-
 
 def read(path):
     """Read a tetrahedral mesh with meshio and check it; returns (points (n,3) float64, tets (m,4) int64).

@@ -26,7 +26,7 @@ averaged over the cell's corners), not the material's volumetric response to J.
 import numpy as np
 
 from ..core.errors import UserError
-from ..element.reference import EDGES
+from ..element.reference import REFERENCE_NODES
 
 
 POINT_FIELDS = ("displacement", "velocity")
@@ -91,13 +91,7 @@ def finish(cells, fields, tets=None, volume=None, pressure=None, total=None):
     only `fields` are kept."""
     out = dict(cells)
     if "stress" in out and pressure is not None:
-        s = out["stress"]
-        mean = (s[:, 0] + s[:, 3] + s[:, 5]) / 3.0
-        p = pressure[tets[:, :4]].mean(axis=1)
-        s = s.copy()
-        for k in (0, 3, 5):
-            s[:, k] += p - mean
-        out["stress"] = s
+        out["stress"] = with_mean(out["stress"], pressure[tets[:, :4]].mean(axis=1))
     if AT_NODES in out and set(fields) & set(RECOVERED):
         out.update(recover(out[AT_NODES], tets, volume, pressure, total))
     if "principal_stress" in fields:
@@ -121,18 +115,22 @@ def recover(at_nodes, cells, volume, pressure=None, total=None):
     nodes, which becomes the mean there."""
     sn = at_nodes.reshape(len(cells), cells.shape[1], 6)
     if pressure is not None:
-        sn = sn.copy()
-        mean = (sn[:, :, 0] + sn[:, :, 3] + sn[:, :, 5]) / 3.0
-        for k in (0, 3, 5):
-            sn[:, :, k] += pressure[cells] - mean
+        sn = with_mean(sn, pressure[cells])
     rec = nodal_average(sn, cells, volume, total, per_node=True)
-    dev = rec.copy()
-    mean = (rec[:, 0] + rec[:, 3] + rec[:, 5]) / 3.0
-    for k in (0, 3, 5):
-        dev[:, k] -= mean
+    dev = with_mean(rec, 0.0)
     vm = np.sqrt(1.5 * (dev[:, 0] ** 2 + dev[:, 3] ** 2 + dev[:, 5] ** 2)
                  + 3.0 * (dev[:, 1] ** 2 + dev[:, 2] ** 2 + dev[:, 4] ** 2))
     return {"stress_recovered": rec, "von_mises_recovered": vm}
+
+
+def with_mean(s, p):
+    """Tensor6 stresses s (..., 6) with their mean (xx + yy + zz)/3 replaced by p (the mixed formulation's pressure;
+    0: the deviator), a copy."""
+    s = s.copy()
+    shift = p - (s[..., 0] + s[..., 3] + s[..., 5]) / 3.0
+    for k in (0, 3, 5):
+        s[..., k] += shift
+    return s
 
 
 def nodal_average(values, tets, volume, total=None, per_node=False):
@@ -242,9 +240,7 @@ def extrapolation(element):
     """(nn, nq): a cell's values at its nodes from its values at the stiffness rule's points, through the linear
     field of the reference coordinates that fits them (by least squares where the rule has more than 4 points)."""
     pts, _ = element.rule()
-    corners = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]])
-    nodes = corners if element.order == 1 else np.concatenate([corners] + [
-        (corners[[i]] + corners[[j]]) / 2 for i, j in EDGES])
+    nodes = REFERENCE_NODES[:element.nodes]
     fit = np.linalg.pinv(np.column_stack([np.ones(len(pts)), pts]))      # (4, nq)
     return np.column_stack([np.ones(len(nodes)), nodes]) @ fit
 

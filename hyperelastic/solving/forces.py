@@ -15,6 +15,8 @@ balance line sums that row and the loads.
 import numpy as np
 from mpi4py import MPI
 
+from ..physics.effects import SPECS
+
 TOTAL = "all_held"         # the row of every held component once (surfaces sharing held nodes count them in both rows;
                            # a name without spaces or parentheses: it is also a statistics column's, reaction_all_held_Fz)
 TOTALS = (TOTAL, "(all held)")   # (its name in outputs written before 2026-11-26, which report still reads)
@@ -51,9 +53,8 @@ def constrained_sets(scene):
     """The surfaces the scene holds (-fix, -prescribe_faces, -rigid), in order, each once."""
     names = []
     for effect in ("fixed", "prescribed", "rigid"):
-        params = scene.effects.get(effect)
-        faces = [(params.surface, "xyz")] if effect == "rigid" and params is not None else getattr(params, "faces", None)
-        for name, _ in (faces or ()):
+        uses = SPECS[effect].set_uses(scene.effects[effect]) if effect in scene.effects else []
+        for _, name, _ in uses:
             if name not in names:
                 names.append(name)
     return names

@@ -79,6 +79,7 @@ class Integrator:
         self.regrow_wait = scene.dt_grow_after
         self.regrown = False
         self.n0 = 0            # nominal steps already done (a restart starts later)
+        self.rigid = system.rigid[0] if system.rigid else None     # a rigid face (one per run), or None
         self.stages = {k: PETSc.Log.Stage(k) for k in ("Step", "Output")}
         system.begin_step(0.0, scene.dt, x0, v0)
         self.energy0 = energy_sum(system.energies(x0, v0))   # for energy_dissipated
@@ -191,12 +192,7 @@ class Integrator:
                                h_try=self.h_try, streak=self.streak, rejections=self.rejections,
                                nframes=self.writer.nframes, nstats=self.writer.nstats, t_end=t_end,
                                regrow_wait=self.regrow_wait, regrown=int(self.regrown),
-                               rigid=self._rigid_state())
-
-    def _rigid_state(self):
-        """A rigid face's accepted motion and rate (checkpoint attribute `rigid`), or None."""
-        rb = self.system.rigid[0] if self.system.rigid else None
-        return None if rb is None else rb.state()
+                               rigid=None if self.rigid is None else self.rigid.state())
 
     def carried_v(self):
         """What a checkpoint stores as v: the velocities."""
@@ -230,7 +226,6 @@ class BackwardEuler(Integrator):
         # (_initial_guess); a checkpoint stores it in v (a quasi-static run has no velocities)
         self.rate = np.zeros_like(x0)
         # a rigid face with loaded components: its reference point balanced around every step's solve (rigid.py)
-        self.rigid = system.rigid[0] if system.rigid else None
         self.balance = rigid.Balance(system, solver, self.rigid) if self.rigid is not None and self.rigid.free.any() \
             else None
         if checkpoint is not None:
@@ -458,6 +453,7 @@ class BackwardEuler(Integrator):
         Z.destroy()
         sysm.impose_global(X0)
         X0.copy(self.X)
+        X0.destroy()
         return True
 
     def _rejected(self, stats, w0):

@@ -33,8 +33,8 @@ class System:
             mask[c.dofs] = True
         self.cmask = mask
         self.cdofs = np.flatnonzero(mask)
-        self.rigid = [c for c in constraints if c.name == "rigid"]
-        self.volume_bound = None         # (|ln J| bound, kappa/mu) a converged state must keep (integrators.py)    # rigid faces (their loads: solving/rigid.py)
+        self.rigid = [c for c in constraints if c.name == "rigid"]    # rigid faces (their loads: solving/rigid.py)
+        self.volume_bound = None         # (|ln J| bound, kappa/mu) a converged state must keep (integrators.py)
         owned_mask = mask.reshape(-1, 3)[space.lvid_of_owned].ravel()
         self.c_owned_pos = np.flatnonzero(owned_mask)          # positions in the global (owned) array
         self.g = np.zeros(n)                                    # prescribed positions (local)
