@@ -40,6 +40,12 @@ HEAD = (
         "-o FILE.h5`), which every rank reads its own slice of", "cached bar at `-level`"),
     Row(("level",), "-level N", "bar mesh level: 1..8 = thesis L1..L8 (edge 0.80 … 0.30), 9.. finer (≈2× tets each)",
         f"{_S.level}"),
+    Row(("refine",), "-refine K", "refine the mesh K times uniformly after distributing it coarse: every rank splits "
+        "each of its tetrahedra into 8 (new vertices at edge midpoints; at the first level of a quadratic mesh its "
+        "edge nodes), so no rank holds the whole fine mesh and set-up scales with the ranks; physical surfaces, "
+        "volumes and regions follow exactly (4 facets per facet, 8 cells per cell a level); the same numbering on "
+        "any rank count. Curved surfaces stay as faceted as the coarse mesh (a quadratic coarse mesh: as its edge "
+        "nodes place them). Not with `-partitioner metis`", f"{_S.refine}"),
     Row(("partitioner",), "-partitioner NAME", "how the cells are split among the MPI ranks: `morton` (equal "
         "contiguous ranges along a Z-curve through the cells: PETSc's `simple` partitioner on the spatially ordered "
         "mesh), `metis` (METIS on the cells' face graph, through PETSc's `shell` partitioner; seeded); PETSc's "

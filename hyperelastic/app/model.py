@@ -10,15 +10,17 @@ from petsc4py import PETSc
 
 from ..core.errors import UserError
 from ..discretization.kernels import RegionKernels
-from ..discretization.slices import read_slice, sliceable
+from ..discretization.refine import refine_whole
+from ..discretization.slices import MemorySource, read_slice, sliceable
 from ..discretization.space import Space, make_space
 from ..element.reference import Element
 from ..formulations import choose
 from ..formulations.base import Problem
 from ..formulations.mixed import volume_bound
 from ..mesh.generate import cached_bar
+from ..mesh.prepared import prepared_arrays
 from ..mesh.read import CURVED_ANGLES, bent_edges, corners, elevate, read_mesh
-from ..mesh.sets import MATERIAL_LABEL, REGION_LABEL, VERTEX_VALUE, cell_label, facet_label
+from ..mesh.sets import MATERIAL_LABEL, REGION_LABEL, VERTEX_VALUE, Mesh, cell_label, facet_label
 from ..physics import effects as effects_pkg
 from ..solving.system import System
 
@@ -90,15 +92,34 @@ class Model:
     notes: list = None          # what the start-up report says of the model's choices, one line each
     sliced_from: str = None     # the mesh file every rank read its slice of (a prepared mesh or a per-rank output;
                                 # points, tets: then None everywhere)
+    refined: object = None      # -refine on one rank: its SliceMesh, the whole fine mesh
 
     def whole_mesh(self):
         """(points, tets) of the whole input mesh in its own numbering on rank 0 (None elsewhere), for the gathered
         output: a mesh read in slices is read whole here, on rank 0, only where that output asks for it."""
-        if self.points is None and self.sliced_from and self.space.mpi.rank == 0:
+        if self.points is None and self.scene.refine and self.space.mpi.rank == 0:
+            self.points, self.tets = self._whole_refined()
+        elif self.points is None and self.sliced_from and self.space.mpi.rank == 0:
             m = read_mesh(self.sliced_from, self.scene.mesh_frame)
             m = elevate(m) if self.element.order == 2 and m.order == 1 else m     # (as the slices were)
             self.points, self.tets = m.points, m.cell_nodes
         return self.points, self.tets
+
+    def _whole_refined(self):
+        """(points, cells) of the whole -refine'd mesh on rank 0: the one rank's own part, else the coarse mesh read
+        and refined again here (refine.refine_whole: the parts' numbering), at the run's order."""
+        if self.refined is not None:
+            m = self.refined
+            points = np.empty((m.totals[0], 3))
+            points[m.ids] = m.points
+            tets = np.empty((m.totals[1], 4), np.int64)
+            tets[m.cell_ids] = m.ids[m.tets]
+        else:
+            points, tets = refine_whole(read_coarse(self.scene), self.scene.refine)
+        if self.element.order == 1:
+            return points, tets
+        m = elevate(Mesh(self.sliced_from, points, tets))
+        return m.points, m.cell_nodes
 
     def set_lines(self):
         """One line per set: name, facets or tets, area or volume."""
@@ -110,7 +131,7 @@ def load_mesh(scene):
     decided here once (-order, else the mesh's own; -quadrature_degree), and the mesh at its order (a linear mesh
     elevated to straight-sided quadratic cells, a quadratic one reduced to its corners where the order asks); the
     facet and cell sets its effects name (an unknown name is a UserError listing the mesh's) and its regions."""
-    mesh = read_mesh(scene.mesh, scene.mesh_frame) if scene.mesh else read_mesh(cached_bar(scene.level))
+    mesh = read_coarse(scene)
     ranks = MPI.COMM_WORLD.size
     if len(mesh.tets) < ranks:
         name = scene.mesh or f"bar L{scene.level}"
@@ -128,10 +149,18 @@ def load_mesh(scene):
     return mesh, element, labels, report, notes
 
 
+def read_coarse(scene):
+    """The scene's mesh read whole and checked (before -refine; -mesh, else the built-in bar at -level)."""
+    return read_mesh(scene.mesh, scene.mesh_frame) if scene.mesh else read_mesh(cached_bar(scene.level))
+
+
 def in_slices(scene):
     """Whether every rank reads its slice of the scene's mesh: a prepared mesh (mesh/prepared.py) or a per-rank output
     of linear cells (output/ranks.py; -order 2 elevates their cells), with a partitioner but METIS (which partitions
-    the whole dual graph on rank 0); otherwise rank 0 reads it whole (read_mesh reads both too)."""
+    the whole dual graph on rank 0); otherwise rank 0 reads it whole (read_mesh reads both too). A mesh to -refine
+    is always distributed in slices (rank 0 reads a file that is neither, and scatters them: load_slices)."""
+    if scene.refine:
+        return True
     if not scene.mesh or scene.partitioner == "metis":
         return False
     order = sliceable(scene.mesh)
@@ -140,12 +169,40 @@ def in_slices(scene):
 
 def load_slices(scene, comm):
     """(this rank's SliceMesh, the DMPlex built from the slices, Element, its labels, the set report, notes) of a
-    prepared mesh or a per-rank output, every rank reading its own slice (collective; errors raised on every rank)."""
-    mesh, dm = read_slice(scene.mesh, comm, scene.mesh_frame)
-    element = Element.decide(scene.order, scene.quadrature, 1 if mesh.quadratic_edges is None else 2)
-    check_index_range(mesh.totals[0] * (7 if element.order == 2 else 1), scene.mesh)   # (P2: ~6 edges a vertex)
+    prepared mesh or a per-rank output, every rank reading its own slice (collective; errors raised on every rank);
+    -refine: each rank's part refined where it lies (discretization/refine.py), a mesh that cannot be read in slices
+    read and checked whole on rank 0 and scattered coarse (slices.MemorySource)."""
+    mpi, name = comm.tompi4py(), scene.mesh or f"bar L{scene.level}"
+    source, notes = None, []
+    if scene.refine and not (scene.mesh and sliceable(scene.mesh)):
+        def coarse():
+            mesh = read_coarse(scene)
+            return prepared_arrays(mesh), (straight_sided_note(mesh, scene.refine) if mesh.order == 1 else [])
+        data, notes = collective(comm, coarse) or (None, None)
+        notes = mpi.bcast(notes, root=0)
+        source = MemorySource(mpi, data, name)
+    mesh, dm = read_slice(scene.mesh, comm, scene.mesh_frame, source, scene.refine,
+                          lambda nv: check_index_range(nv, name))
+    element = Element.decide(scene.order, scene.quadrature, mesh.source_order)
+    check_index_range(mesh.totals[0] * (7 if element.order == 2 else 1), name)         # (P2: ~6 edges a vertex)
     labels, report = mesh_labels(scene, mesh)
-    return mesh, dm, element, labels, report, []
+    if scene.refine:
+        notes = [refine_note(scene, mesh)] + notes
+    return mesh, dm, element, labels, report, notes
+
+
+def refine_note(scene, mesh):
+    """The start-up report's line on -refine: what it made, where and how fast."""
+    nv, nc, _ = mesh.totals
+    seconds = mesh.mpi.allreduce(mesh.refine_seconds, op=MPI.MAX)
+    if mesh.source_order == 2:
+        where = ("the quadratic mesh's edge nodes" + (", then at edge midpoints" if scene.refine > 1 else "") +
+                 ": curved surfaces are as faithful as its edge nodes make them")
+    else:
+        where = "edge midpoints: curved surfaces stay as faceted as the coarse mesh's"
+    return (f"-refine {scene.refine}: {nc // 8 ** scene.refine} -> {nc} tetrahedra, {nv} vertices, refined on "
+            f"{mesh.mpi.size} rank(s) in {seconds:.2f} s ({nc / max(seconds, 1e-9) / mesh.mpi.size / 1e3:.0f}k "
+            f"tetrahedra/s a rank); new vertices at {where}")
 
 
 def mesh_labels(scene, mesh):
@@ -179,13 +236,19 @@ def mesh_labels(scene, mesh):
     return labels, report
 
 
-def straight_sided_note(mesh):
-    """A note where a linear mesh run at order 2 has a boundary that looks curved (mesh.read.bent_edges): its cells
-    get straight edges, so the curved surfaces stay faceted at the linear mesh's resolution."""
+def straight_sided_note(mesh, refine=0):
+    """A note where a linear mesh run at order 2, or refined (-refine), has a boundary that looks curved
+    (mesh.read.bent_edges): its cells get straight edges, so the curved surfaces stay faceted at the linear mesh's
+    resolution."""
     bent, edges = bent_edges(mesh)
     if bent == 0 or bent < 0.01 * edges:
         return []
     lo, hi = CURVED_ANGLES
+    if refine:
+        return [f"-refine {refine} of a linear mesh: new vertices at straight edges' midpoints, and {bent} of its "
+                f"{edges} boundary edges bend by {lo:g}-{hi:g} degrees (a faceted curved surface): the geometry stays "
+                "as faceted as the coarse mesh; `hyperelastic mesh GEOMETRY --order 2` gives a coarse mesh whose edge "
+                "nodes lie on the curved geometry, and -refine puts the first level's vertices there"]
     return [f"-order 2 on a linear mesh: the 10-node cells get straight edges, and {bent} of its {edges} boundary "
             f"edges bend by {lo:g}-{hi:g} degrees (a faceted curved surface): the geometry stays as faceted as the "
             "linear mesh (a twisted rod's torque came out 3.9% low that way); `hyperelastic mesh GEOMETRY --order 2` "
@@ -268,10 +331,11 @@ def build_model(scene, comm):
     """Read the scene's mesh (rank 0) and decide its element, distribute it with the sets the scene uses, choose
     the formulation, build the effects the scene names and the formulation's System, calibrated at the initial
     state. The scene is read, never written."""
-    sliced = in_slices(scene)
+    sliced, refined = in_slices(scene), None
     if sliced:
         mesh, dm, element, labels, report, mesh_notes = load_slices(scene, comm)
         space = make_space(comm, element, mesh, labels, scene.partitioner, dm=dm)
+        refined = mesh if scene.refine and comm.getSize() == 1 else None
         mesh = None                                 # (Model.whole_mesh reads it whole where the output needs it)
     else:
         loaded = collective(comm, lambda: load_mesh(scene))
@@ -290,4 +354,4 @@ def build_model(scene, comm):
     system.volume_bound = volume_bound(problem, scene.incompressible)     # (every accepted state is checked)
     points, cells = (mesh.points, mesh.cell_nodes) if mesh is not None else (None, None)
     return Model(scene, element, formulation, points, cells, space, k, system, x0, v0, report, mesh_notes + notes,
-                 scene.mesh if sliced else None)
+                 scene.mesh if sliced else None, refined)

@@ -33,6 +33,7 @@ class Scene:
     mesh: str = None            # path, or None for the cached bar at `level`
     mesh_frame: int = -1        # the frame of an output file given as -mesh (default: the last)
     level: int = 1
+    refine: int = 0             # uniform refinements of the mesh, made on the ranks after distributing it coarse
     partitioner: str = partition.DEFAULT    # how the cells are split among the ranks (discretization/partition.py)
     order: int = 0              # element order as given: 1 (4-node) or 2 (10-node) tetrahedra; 0: the mesh's own
     quadrature: int = 0         # degree of the stiffness rule as given (element.reference.TET_RULES); 0: the default
@@ -98,6 +99,7 @@ class Region:
         return self.solid.describe()
 
 
+MAX_REFINE = 8                     # 8^8 = 1.7e7 tetrahedra from each coarse one
 MAX_STEPS, MAX_FRAMES = 1e9, 1e6   # a run beyond these is a typo, not a simulation on this machine
 JACOBIANS = ("assembled", "shell", "seed_fd", "seed_fd2")
 INTEGRATORS = ("beuler", "ts")
@@ -130,11 +132,18 @@ def _read_material(s, opts):
     if s.mesh is not None and opts.has("level"):
         raise UserError(f"options -mesh and -level: -level picks the built-in bar, -mesh {s.mesh} replaces it; give "
                         "one")
+    s.refine = opts.integer("refine", s.refine, minimum=0)
+    if s.refine > MAX_REFINE:
+        raise UserError(f"option -refine: {s.refine}: at most {MAX_REFINE} (each level makes 8x the tetrahedra)")
     if opts.has("partitioner"):
         s.partitioner = opts.string("partitioner")
         why = partition.refusal(s.partitioner)
         if why:
             raise UserError(f"option -partitioner: {why}")
+    if s.refine and s.partitioner == "metis":
+        raise UserError("options -refine and -partitioner metis: -refine splits the coarse mesh into contiguous ranges "
+                        "of its Morton order and refines them where they lie; METIS partitions a whole mesh on one "
+                        "rank (give -partitioner morton, or a PETSc graph partitioner where this PETSc has one)")
     s.order = opts.integer("order", s.order) if opts.has("order") else s.order
     if opts.has("order") and s.order not in ORDERS:
         raise UserError(f"option -order: {s.order}: give 1 (linear, 4-node) or 2 (quadratic, 10-node tetrahedra)")

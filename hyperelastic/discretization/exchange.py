@@ -4,7 +4,9 @@ each key's directory rank is key * size // n_keys), then any number of moves wit
 
 Used where a rank must receive rows that others hold in another order: a restart's state read in slices of the file
 (the rows of slice k go to the ranks whose nodes they are) and the per-rank output of a run restarted on another
-rank count (each rank's nodes go to the rank writing that part of the file's order)."""
+rank count (each rank's nodes go to the rank writing that part of the file's order). `edge_numbers` numbers a
+distributed mesh's edges as a whole mesh's would be numbered, by the same kind of rendezvous (P2 nodes of a mesh read
+in slices, -refine's new vertices)."""
 import numpy as np
 
 from mpi4py import MPI
@@ -88,3 +90,40 @@ class Exchange:
         out = np.empty((self.n_want, width), kind)
         out[self._recv_order] = got.reshape(-1, width)
         return out.reshape((self.n_want,) + tail)
+
+
+def edge_numbers(mpi, ends, occurrence, n_vertices, n_slots):
+    """The global number of each edge (ends: (m, 2) its vertices' input ids, ascending; occurrence: where this rank
+    meets it, cell * 6 + its edge in element.EDGES, unique per (cell, edge) over the ranks; slots: 6 * cells), as
+    mesh.read.elevate numbers a linear mesh's edges: in the order of their first appearance, from 0. Collective: the
+    edges meet at a directory rank by their smaller end (each keeps its first appearance), which sends that to the
+    rank holding its range of appearances; those ranks sort, count, and the numbers travel back."""
+    size = mpi.size
+    ends = np.asarray(ends, np.int64).reshape(-1, 2)
+    mine, each = np.unique(ends[:, 0] * n_vertices + ends[:, 1], return_inverse=True)   # this rank's edges once
+    each = each.reshape(-1)
+    occurrence_of = np.full(len(mine), np.iinfo(np.int64).max)
+    np.minimum.at(occurrence_of, each, np.asarray(occurrence, np.int64))
+    ends, occurrence = np.column_stack([mine // n_vertices, mine % n_vertices]), occurrence_of
+    d1 = np.minimum(ends[:, 0] * size // max(n_vertices, 1), size - 1)
+    o1 = np.argsort(d1, kind="stable")
+    got, got1 = alltoallv(mpi, np.column_stack([ends, occurrence])[o1], np.bincount(d1, minlength=size), width=3)
+    got = got.reshape(-1, 3)
+    key = got[:, 0] * n_vertices + got[:, 1]
+    ukey, inverse = np.unique(key, return_inverse=True)
+    inverse = inverse.reshape(-1)
+    first = np.full(len(ukey), np.iinfo(np.int64).max)
+    np.minimum.at(first, inverse, got[:, 2])
+    d2 = np.minimum(first * size // max(n_slots, 1), size - 1)
+    o2 = np.argsort(d2, kind="stable")
+    slots, got2 = alltoallv(mpi, first[o2], np.bincount(d2, minlength=size))
+    pos = np.argsort(slots, kind="stable")
+    number = np.empty(len(slots), np.int64)
+    number[pos] = np.arange(len(slots)) + (mpi.exscan(len(slots), op=MPI.SUM) or 0)
+    back, _ = alltoallv(mpi, number, got2)
+    edge_number = np.empty(len(ukey), np.int64)
+    edge_number[o2] = back
+    out, _ = alltoallv(mpi, edge_number[inverse], got1)
+    result = np.empty(len(ends), np.int64)
+    result[o1] = out
+    return result[each]

@@ -4,6 +4,10 @@ so the parts are the Morton partition of the source mesh) and the vertices they 
 DMPlexBuildFromCellListParallel (core/libpetsc.py) and the vertices the ranks share get their positions and input
 indices by an exchange (exchange.py). No rank reads more than its share and a few neighbouring rows. Each rank checks
 its own part; a bad row is one error line on every rank (the first failing rank's)."""
+import contextlib
+import time
+from dataclasses import dataclass
+
 import h5py
 import numpy as np
 from mpi4py import MPI
@@ -15,6 +19,7 @@ from ..mesh.prepared import add_group, faces_of, is_prepared, open_prepared, rea
 from ..mesh.read import flat_or_inverted, output_frame, region_names
 from ..mesh.sets import FACE_VERTICES, Mesh, face_keys
 from .exchange import Exchange, alltoallv
+from .refine import Part, first_use_rows, refine
 
 
 class SliceMesh(Mesh):
@@ -214,87 +219,156 @@ def boundary_masks(mpi, path, cells, corners, ids, cell_ids, nv):
     return masks, int(mpi.allreduce(int((n == 1).sum()), op=MPI.SUM))
 
 
-def read_slice(path, comm, frame=-1):
-    """(SliceMesh of this rank's part, the distributed DMPlex built from the slices) of a prepared mesh or a per-rank
-    output (at frame `frame`, as rank 0's reader) `path` (collective; module docstring)."""
-    mpi = comm.tompi4py()
+class MemorySource(PreparedSource):
+    """A mesh rank 0 has read and checked whole (a .msh, a geometry, the built-in bar) served in the prepared layout
+    (mesh/prepared.py `prepared_arrays`, on rank 0; None elsewhere) by scatters, so that -refine distributes it coarse:
+    every read is collective (each rank asks for its rows, rank 0 sends each its own)."""
+
+    def __init__(self, mpi, data, name):
+        self.mpi, self.data, self.path = mpi, data, name
+        a = mpi.bcast(data["attrs"] if mpi.rank == 0 else None, root=0)
+        self.nv, self.nc, self.boundary_facets = int(a["vertices"]), int(a["cells"]), int(a["boundary_facets"])
+        self.order, self.n_nodes = int(a["order"]), int(a["nodes"])
+        self.group_keys = mpi.bcast([g[:4] for g in data["groups"]] if mpi.rank == 0 else None, root=0)
+
+    def open(self):
+        return contextlib.nullcontext(self.data)
+
+    def _rows(self, get, wanted):
+        """Each rank's rows `wanted` (a slice, or row numbers) of the array get(data) of rank 0."""
+        asked = self.mpi.gather(wanted, root=0)
+        return self.mpi.scatter([get(self.data)[w] for w in asked] if self.mpi.rank == 0 else None, root=0)
+
+    def cells(self, f, lo, hi):
+        return tuple(self._rows(lambda d: d[k], slice(lo, hi)).astype(np.int64)
+                     for k in ("cells", "cell_input_index", "boundary"))
+
+    def points(self, f, a, b):
+        return self._rows(lambda d: d["points"], slice(a, b)), self._rows(lambda d: d["input_index"], slice(a, b))
+
+    def groups(self, mpi, f, lo, hi):
+        return [key + (self._rows(lambda d: d["groups"][i][4], slice(lo, hi)).astype(np.int64),)
+                for i, key in enumerate(self.group_keys)]
+
+    def edges(self, mpi, f, lo, hi):
+        if self.order != 2:
+            return None
+        rows = self._rows(lambda d: d["cell_edges"], slice(lo, hi))
+        want, each = np.unique(rows, return_inverse=True)
+        each = each.reshape(rows.shape)
+        return (self._rows(lambda d: d["edge_input_index"], want)[each],
+                self._rows(lambda d: d["edge_points"], want)[each])
+
+
+@dataclass
+class Rows:
+    """A rank's rows of a mesh read in slices: its cells by vertex row and their source ids, boundary bitmasks (None:
+    to be found) and groups; the contiguous vertex rows a:b it holds for DMPlex (their positions and ids); a quadratic
+    mesh's edge nodes of its cells (or None); the whole mesh's vertex, cell and boundary facet counts and nodes."""
+    cells: np.ndarray
+    cell_ids: np.ndarray
+    bmask: np.ndarray
+    groups: list
+    a: int
+    b: int
+    held_points: np.ndarray
+    held_ids: np.ndarray
+    edges: tuple
+    nv: int
+    nc: int
+    nb: int
+    n_nodes: int
+
+
+def _read_rows(path, mpi, src):
+    """This rank's Rows of the source `src` (collective; errors raised on every rank)."""
     size, rank = mpi.size, mpi.rank
     try:
-        src = PreparedSource(path) if is_prepared(path) else OutputSource(path, frame)
-        nv, nc = src.nv, src.nc
-        if nc < size:
-            raise UserError(f"mesh '{path}': {nc} tetrahedra for {size} MPI ranks (each rank needs cells: run "
+        if src.nc < size:
+            raise UserError(f"mesh '{path}': {src.nc} tetrahedra for {size} MPI ranks (each rank needs cells: run "
                             "on fewer ranks or refine the mesh)")
-        off = cell_ranges(nc, size)
-        lo, hi = int(off[rank]), int(off[rank + 1])
-        with src.open() as f:
-            cells, cell_ids, bmask = src.cells(f, lo, hi)
         err = None
     except UserError as e:
-        err, cells = str(e), np.zeros((0, 4), np.int64)
+        err = str(e)
     _first_error(mpi, err)
+    off = cell_ranges(src.nc, size)
+    lo, hi = int(off[rank]), int(off[rank + 1])
+    with src.open() as f:
+        cells, cell_ids, bmask = src.cells(f, lo, hi)
     # the vertices this rank holds for DMPlex, a contiguous range in rank order ending at nv: those its cells use
     # first where vertices are numbered by first use in the cells' order (a prepared mesh), else a valid range
     top = int(cells.max()) if len(cells) else -1
     first = mpi.exscan(top, op=MPI.MAX)
     a = 0 if rank == 0 else max(int(first) + 1, 0)
-    b = nv if rank == size - 1 else max(a, min(top + 1, nv))
+    b = src.nv if rank == size - 1 else max(a, min(top + 1, src.nv))
     with src.open() as f:
         held_points, held_ids = src.points(f, a, b)
         groups = src.groups(mpi, f, lo, hi)
         edges = src.edges(mpi, f, lo, hi)
-    check_slice(mpi, path, held_points, cells, cell_ids, nv)
-    dm, vertices = plex_from_slices(comm, cells, b - a, nv, held_points)
-    ex = Exchange(mpi, np.arange(a, b), vertices, nv)
+    return Rows(cells, cell_ids, bmask, groups, a, b, held_points, np.asarray(held_ids, np.int64), edges, src.nv,
+                src.nc, src.boundary_facets, src.n_nodes)
+
+
+def _positions(mpi, path, rows, vertices):
+    """(positions, ids) of the vertex rows `vertices` (collective), from the ranks holding them."""
+    ex = Exchange(mpi, np.arange(rows.a, rows.b), vertices, rows.nv)
     if ex.missing:
         raise UserError(f"mesh '{path}': {ex.missing} vertices have no row in it (a damaged file: prepare it again)")
-    X, ids = ex.move(held_points), ex.move(held_ids)
-    local = np.searchsorted(vertices, cells)                                    # (vertices: ascending)
-    check_volumes(mpi, path, X, local, cell_ids)
-    nb = src.boundary_facets
+    return ex.move(rows.held_points), ex.move(rows.held_ids)
+
+
+def _refined(mpi, path, rows, levels, check):
+    """The Rows of this rank's part of the mesh refined `levels` times (refine.py; collective): the coarse part's
+    corners gathered and checked first, the fine vertices held by the lowest rank that uses them."""
+    vertices, local = np.unique(rows.cells, return_inverse=True)
+    X, ids = _positions(mpi, path, rows, vertices)
+    local = local.reshape(rows.cells.shape)
+    check_volumes(mpi, path, X, local, rows.cell_ids)
+    bmask, nb = rows.bmask, rows.nb
     if bmask is None:
-        bmask, nb = boundary_masks(mpi, path, cells, X[local], ids[local], cell_ids, nv)
+        bmask, nb = boundary_masks(mpi, path, rows.cells, X[local], ids[local], rows.cell_ids, rows.nv)
+    edges = rows.edges
+    part = Part(ids[local], X[local], rows.cell_ids, bmask, rows.groups, rows.n_nodes if edges else rows.nv,
+                rows.nc, nb)
+    t0 = time.perf_counter()
+    part = refine(mpi, part, levels, edges, check)
+    cells, a, held_points, held_ids = first_use_rows(mpi, part)
+    seconds = time.perf_counter() - t0
+    fine = Rows(cells, part.cell_ids, part.bmask, part.groups, a, a + len(held_ids), held_points, held_ids, None,
+                part.nv, part.nc, part.nb, part.nv)
+    return fine, seconds
+
+
+def read_slice(path, comm, frame=-1, source=None, refine_levels=0, check=None):
+    """(SliceMesh of this rank's part, the distributed DMPlex built from the slices) of a prepared mesh or a per-rank
+    output (at frame `frame`, as rank 0's reader) `path`, or of `source` (MemorySource) (collective; module
+    docstring); refine_levels: the part refined that many times first (refine.py; check: refine's), its time in
+    the SliceMesh's `refine_seconds`."""
+    mpi = comm.tompi4py()
+    try:
+        src = source or (PreparedSource(path) if is_prepared(path) else OutputSource(path, frame))
+        err = None
+    except UserError as e:
+        err, src = str(e), None
+    _first_error(mpi, err)
+    rows = _read_rows(path, mpi, src)
+    check_slice(mpi, path, rows.held_points, rows.cells, rows.cell_ids, rows.nv)
+    seconds = 0.0
+    if refine_levels:
+        rows, seconds = _refined(mpi, path, rows, refine_levels, check)
+    dm, vertices = plex_from_slices(comm, rows.cells, rows.b - rows.a, rows.nv, rows.held_points)
+    X, ids = _positions(mpi, path, rows, vertices)
+    local = np.searchsorted(vertices, rows.cells)                                # (vertices: ascending)
+    if not refine_levels:
+        check_volumes(mpi, path, X, local, rows.cell_ids)
+    bmask, nb = rows.bmask, rows.nb
+    if bmask is None:
+        bmask, nb = boundary_masks(mpi, path, rows.cells, X[local], ids[local], rows.cell_ids, rows.nv)
     mesh = SliceMesh.from_meshio(path, X, local, faces_of(ids[local], bmask))
     mesh.ids, mesh.mpi, mesh._extent = ids, mpi, None
-    mesh.vertices, mesh.cell_ids, mesh.totals = vertices, cell_ids, (nv, nc, nb)
-    mesh.quadratic_edges, mesh.n_nodes = edges, src.n_nodes
-    for group in groups:
+    mesh.vertices, mesh.cell_ids, mesh.totals = vertices, rows.cell_ids, (rows.nv, rows.nc, nb)
+    mesh.quadratic_edges, mesh.n_nodes = rows.edges, rows.n_nodes
+    mesh.source_order, mesh.refine_seconds = 1 if src.order == 1 else 2, seconds
+    for group in rows.groups:
         add_group(mesh, *group)
     return mesh, dm
-
-
-def edge_numbers(mpi, ends, occurrence, n_vertices, n_slots):
-    """The global number of each edge (ends: (m, 2) its vertices' input ids, ascending; occurrence: where this rank
-    meets it, cell * 6 + its edge in element.EDGES, unique per (cell, edge) over the ranks; slots: 6 * cells), as
-    mesh.read.elevate numbers a linear mesh's edges: in the order of their first appearance, from 0. Collective: the
-    edges meet at a directory rank by their smaller end (each keeps its first appearance), which sends that to the
-    rank holding its range of appearances; those ranks sort, count, and the numbers travel back."""
-    size = mpi.size
-    ends = np.asarray(ends, np.int64).reshape(-1, 2)
-    mine, each = np.unique(ends[:, 0] * n_vertices + ends[:, 1], return_inverse=True)   # this rank's edges once
-    each = each.reshape(-1)
-    occurrence_of = np.full(len(mine), np.iinfo(np.int64).max)
-    np.minimum.at(occurrence_of, each, np.asarray(occurrence, np.int64))
-    ends, occurrence = np.column_stack([mine // n_vertices, mine % n_vertices]), occurrence_of
-    d1 = np.minimum(ends[:, 0] * size // max(n_vertices, 1), size - 1)
-    o1 = np.argsort(d1, kind="stable")
-    got, got1 = alltoallv(mpi, np.column_stack([ends, occurrence])[o1], np.bincount(d1, minlength=size), width=3)
-    got = got.reshape(-1, 3)
-    key = got[:, 0] * n_vertices + got[:, 1]
-    ukey, inverse = np.unique(key, return_inverse=True)
-    inverse = inverse.reshape(-1)
-    first = np.full(len(ukey), np.iinfo(np.int64).max)
-    np.minimum.at(first, inverse, got[:, 2])
-    d2 = np.minimum(first * size // max(n_slots, 1), size - 1)
-    o2 = np.argsort(d2, kind="stable")
-    slots, got2 = alltoallv(mpi, first[o2], np.bincount(d2, minlength=size))
-    pos = np.argsort(slots, kind="stable")
-    number = np.empty(len(slots), np.int64)
-    number[pos] = np.arange(len(slots)) + (mpi.exscan(len(slots), op=MPI.SUM) or 0)
-    back, _ = alltoallv(mpi, number, got2)
-    edge_number = np.empty(len(ukey), np.int64)
-    edge_number[o2] = back
-    out, _ = alltoallv(mpi, edge_number[inverse], got1)
-    result = np.empty(len(ends), np.int64)
-    result[o1] = out
-    return result[each]

@@ -20,7 +20,7 @@ from mpi4py import MPI
 from ..element.reference import EDGES
 from . import partition
 from .exchange import Exchange
-from .slices import edge_numbers
+from .exchange import edge_numbers
 from .kernels import IDX, Cells, ElementCells
 from ..core.errors import UserError
 from ..core.libpetsc import plex_cones
@@ -575,7 +575,7 @@ class QuadraticSpace(Space):
     def _adopt_elevated(self, mesh, dm, labels):
         """The DMPlex built from the slices of a prepared mesh, interpolated: a quadratic mesh's edge nodes where it
         has them (read in slices), else each edge's node at its midpoint, numbered after the vertices as
-        mesh.read.elevate numbers it (slices.edge_numbers: the same numbers on any rank count); a facet set's nodes
+        mesh.read.elevate numbers it (exchange.edge_numbers: the same numbers on any rank count); a facet set's nodes
         its facets' vertices and edges; returns what _distribute_quadratic returns (a migration SF only where a
         PETSc graph partitioner redistributes the slices, which are the Morton parts)."""
         nv, nc, self._boundary_faces = mesh.totals

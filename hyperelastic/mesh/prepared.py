@@ -55,48 +55,56 @@ def check_prepare_output(src, out):
         raise UserError(f"hyperelastic mesh --prepare: the output '{out}' is the input")
 
 
-def prepare(mesh, out):
-    """Write the prepared file of the checked mesh `mesh` (sets.Mesh, as mesh.read.read_mesh gives) to `out` (.h5),
-    atomically (a temporary file renamed: an existing `out` stays whole until the new one is). Returns {vertices,
-    cells, boundary_facets, groups}. A quadratic mesh keeps its edge nodes (edge_points, edge_input_index, and
-    cell_edges: each cell's six in element.EDGES order)."""
-    src = mesh.path
+def prepared_arrays(mesh):
+    """The prepared layout of the checked mesh `mesh` (sets.Mesh, as mesh.read.read_mesh gives) as arrays: {attrs,
+    the datasets by name, groups: [(name, tag, kind, ignored, mask)]} (the module's text). A quadratic mesh keeps its
+    edge nodes (edge_points, edge_input_index, and cell_edges: each cell's six in element.EDGES order)."""
     used, compact = np.unique(mesh.tets, return_inverse=True)               # (a quadratic mesh: its corners)
     p, t, vperm, corder = spatial_order(mesh.points[used], compact.reshape(mesh.tets.shape))
-    vertex_input = used[vperm]
+    out = {"attrs": dict(format=FORMAT, version=VERSION, source=os.path.abspath(mesh.path), order=mesh.order,
+                         vertices=len(p), cells=len(t), boundary_facets=len(mesh.facet_cell), nodes=len(mesh.points)),
+           "points": p, "input_index": used[vperm].astype(np.int64), "cells": t.astype(np.int64),
+           "cell_input_index": corder.astype(np.int64),
+           "boundary": mesh.facet_mask(slice(None))[corder].astype(np.uint8), "groups": []}
+    if mesh.order == 2:                   # the edge nodes: numbered by first use too, each cell's six into them
+        edge = mesh.nodes[corder, 4:]
+        uniq, first, inv = np.unique(edge.ravel(), return_index=True, return_inverse=True)
+        by_use = np.argsort(first, kind="stable")
+        number = np.empty(len(uniq), np.int64)
+        number[by_use] = np.arange(len(uniq))
+        out.update(edge_points=mesh.points[uniq[by_use]], edge_input_index=uniq[by_use].astype(np.int64),
+                   cell_edges=number[inv.reshape(-1)].reshape(-1, 6))
+    for g in mesh.groups.values():
+        if g.kind == "facets":
+            mask = mesh.facet_mask(g.items)
+        else:
+            mask = np.zeros(len(t), np.int64)
+            mask[g.items] = 1
+        out["groups"].append((g.name, g.tag, g.kind, int(g.ignored), mask[corder].astype(np.uint8)))
+    return out
+
+
+def prepare(mesh, out):
+    """Write the prepared file of the checked mesh `mesh` (prepared_arrays) to `out` (.h5), atomically (a temporary
+    file renamed: an existing `out` stays whole until the new one is). Returns {vertices, cells, boundary_facets,
+    nodes, groups}."""
+    data = prepared_arrays(mesh)
     tmp = f"{out}.{os.getpid()}.tmp"
     try:
         with h5py.File(tmp, "w") as f:
-            f.attrs.update(format=FORMAT, version=VERSION, source=os.path.abspath(src), order=mesh.order,
-                           vertices=len(p), cells=len(t), boundary_facets=len(mesh.facet_cell), nodes=len(mesh.points))
-            f.create_dataset("points", data=p)
-            f.create_dataset("input_index", data=vertex_input.astype(np.int64))
-            f.create_dataset("cells", data=t.astype(np.int64))
-            f.create_dataset("cell_input_index", data=corder.astype(np.int64))
-            if mesh.order == 2:           # the edge nodes: numbered by first use too, each cell's six into them
-                edge = mesh.nodes[corder, 4:]
-                uniq, first, inv = np.unique(edge.ravel(), return_index=True, return_inverse=True)
-                by_use = np.argsort(first, kind="stable")
-                number = np.empty(len(uniq), np.int64)
-                number[by_use] = np.arange(len(uniq))
-                f.create_dataset("edge_points", data=mesh.points[uniq[by_use]])
-                f.create_dataset("edge_input_index", data=uniq[by_use].astype(np.int64))
-                f.create_dataset("cell_edges", data=number[inv.reshape(-1)].reshape(-1, 6))
-            f.create_dataset("boundary", data=mesh.facet_mask(slice(None))[corder].astype(np.uint8))
-            for i, g in enumerate(mesh.groups.values()):
-                if g.kind == "facets":
-                    mask = mesh.facet_mask(g.items)
-                else:
-                    mask = np.zeros(len(t), np.int64)
-                    mask[g.items] = 1
-                d = f.create_dataset(f"groups/{i}", data=mask[corder].astype(np.uint8))
-                d.attrs.update(name=g.name, tag=-1 if g.tag is None else int(g.tag), kind=g.kind,
-                               ignored=int(g.ignored))
+            f.attrs.update(data["attrs"])
+            for name, value in data.items():
+                if name not in ("attrs", "groups"):
+                    f.create_dataset(name, data=value)
+            for i, (name, tag, kind, ignored, mask) in enumerate(data["groups"]):
+                d = f.create_dataset(f"groups/{i}", data=mask)
+                d.attrs.update(name=name, tag=-1 if tag is None else int(tag), kind=kind, ignored=ignored)
         os.replace(tmp, out)
     finally:
         if os.path.exists(tmp):
             os.remove(tmp)
-    return {"vertices": len(p), "cells": len(t), "boundary_facets": len(mesh.facet_cell), "nodes": len(mesh.points),
+    return {"vertices": data["attrs"]["vertices"], "cells": data["attrs"]["cells"],
+            "boundary_facets": len(mesh.facet_cell), "nodes": len(mesh.points),
             "groups": [(g.name, g.kind, len(g.items)) for g in mesh.groups.values()]}
 
 
