@@ -371,6 +371,11 @@ def mesh_cases(rng):
         add(f"index_out_of_range@{c}", P, t, (f"tetrahedron {c}",), fmt="vtu")
     add("unused_vertex", np.vstack([P, [[5, 5, 5]]]), T, ("not used",))
     add("flat", np.c_[P[:, :2], np.zeros(len(P))], T, fmt="vtu")
+    inverted = T.copy()
+    inverted[3] = inverted[3][[0, 2, 1, 3]]
+    out.append(Case("mesh:inverted_refined@3", "meshes", BEND + ["-mesh", "m.msh", "-refine", "1"],
+                    setup=lambda d: write_msh(os.path.join(d, "m.msh"), P, inverted),
+                    words=("tetrahedron 3", "inverted")))
 
     def text_mesh(name, mutate, words=()):
         def setup(d):
@@ -741,6 +746,10 @@ def contract_cases(rng):
                                              "-prescribe_uz", "-t*Z"], ("read as an option", "(-t*Z)"), None),
         ("partitioner_unknown", BEND + ["-partitioner", "scotch"], ("-partitioner", "morton, metis"), None),
         ("partitioner_not_built", BEND + ["-partitioner", "parmetis"], ("-partitioner", "built without it"), None),
+        ("refine_negative", BEND + ["-refine", "-1"], ("-refine", ">= 0"), None),
+        ("refine_too_deep", BEND + ["-refine", "9"], ("-refine", "at most 8"), None),
+        ("refine_metis", BEND + ["-refine", "1", "-partitioner", "metis"], ("-refine", "metis"), None),
+        ("refine_not_integer", BEND + ["-refine", "two"], ("-refine", "not an integer"), None),
         ("pmg_on_p1", BEND + ["-pc_type", "mg"], ("-pc_type mg", "-order 2"), None),
         ("pmg_levels", BEND + ["-order", "2", "-pc_type", "mg", "-pc_mg_levels", "3"], ("-pc_mg_levels 3",), None),
         ("pmg_galerkin", BEND + ["-order", "2", "-pc_type", "mg", "-pc_mg_galerkin", "both"], ("-pc_mg_galerkin",),
