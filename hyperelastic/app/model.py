@@ -2,6 +2,7 @@
 formulation -> effects -> the formulation's System, with the initial state the System is calibrated at. Shared by
 the command line, the tests and the scripts (PETSc must already be initialized). The solver, the integrator and the
 output build on it (app/run.py)."""
+import time
 from dataclasses import dataclass
 
 import numpy as np
@@ -173,26 +174,30 @@ def load_slices(scene, comm):
     -refine: each rank's part refined where it lies (discretization/refine.py), a mesh that cannot be read in slices
     read and checked whole on rank 0 and scattered coarse (slices.MemorySource)."""
     mpi, name = comm.tompi4py(), scene.mesh or f"bar L{scene.level}"
-    source, notes = None, []
+    source, notes, serial = None, [], 0.0
     if scene.refine and not (scene.mesh and sliceable(scene.mesh)):
+        t0 = time.perf_counter()
+
         def coarse():
             mesh = read_coarse(scene)
             return prepared_arrays(mesh), (straight_sided_note(mesh, scene.refine) if mesh.order == 1 else [])
         data, notes = collective(comm, coarse) or (None, None)
         notes = mpi.bcast(notes, root=0)
         source = MemorySource(mpi, data, name)
+        serial = time.perf_counter() - t0
     mesh, dm = read_slice(scene.mesh, comm, scene.mesh_frame, source, scene.refine,
                           lambda nv: check_index_range(nv, name))
     element = Element.decide(scene.order, scene.quadrature, mesh.source_order)
     check_index_range(mesh.totals[0] * (7 if element.order == 2 else 1), name)         # (P2: ~6 edges a vertex)
     labels, report = mesh_labels(scene, mesh)
     if scene.refine:
-        notes = [refine_note(scene, mesh)] + notes
+        notes = [refine_note(scene, mesh, serial)] + notes
     return mesh, dm, element, labels, report, notes
 
 
-def refine_note(scene, mesh):
-    """The start-up report's line on -refine: what it made, where and how fast."""
+def refine_note(scene, mesh, serial):
+    """The start-up report's line on -refine: what it made, where and how fast (serial: the seconds rank 0 read the
+    coarse mesh whole, where it did)."""
     nv, nc, _ = mesh.totals
     seconds = mesh.mpi.allreduce(mesh.refine_seconds, op=MPI.MAX)
     if mesh.source_order == 2:
@@ -202,7 +207,8 @@ def refine_note(scene, mesh):
         where = "edge midpoints: curved surfaces stay as faceted as the coarse mesh's"
     return (f"-refine {scene.refine}: {nc // 8 ** scene.refine} -> {nc} tetrahedra, {nv} vertices, refined on "
             f"{mesh.mpi.size} rank(s) in {seconds:.2f} s ({nc / max(seconds, 1e-9) / mesh.mpi.size / 1e3:.0f}k "
-            f"tetrahedra/s a rank); new vertices at {where}")
+            f"tetrahedra/s a rank{f'; the coarse mesh read on rank 0 in {serial:.2f} s' if serial else ''}); "
+            f"new vertices at {where}")
 
 
 def mesh_labels(scene, mesh):

@@ -23,7 +23,7 @@ from .exchange import Exchange
 from .exchange import edge_numbers
 from .kernels import IDX, Cells, ElementCells
 from ..core.errors import UserError
-from ..core.libpetsc import plex_cones
+from ..core.libpetsc import cell_cones, plex_cones
 from ..mesh.order import spatial_order
 from ..mesh.prepared import faces_of
 from ..mesh.sets import FACE_VERTICES, VERTEX_VALUE, cell_label, facet_label, orient_outward
@@ -127,6 +127,16 @@ def make_space(comm, element, mesh=None, labels=None, partitioner=partition.DEFA
     return QuadraticSpace(comm, element, points, tets, labels, nodes, partitioner, boundary)
 
 
+def _vertex_offsets(section, vStart, vEnd):
+    """The offsets of the vertices vStart:vEnd in a section of 3 values each: 3 (v - vStart) where the section lays
+    them out contiguously in chart order (checked at both ends and by its size), else asked point by point."""
+    n = vEnd - vStart
+    if n and section.getOffset(vStart) == 0 and section.getOffset(vEnd - 1) == 3 * (n - 1) \
+            and section.getStorageSize() == 3 * n:
+        return 3 * np.arange(n, dtype=np.int64)
+    return np.array([section.getOffset(v) for v in range(vStart, vEnd)], dtype=np.int64)
+
+
 class Space:
     """P1: 3 dofs per vertex (make_space builds the space of the run's element)."""
 
@@ -151,20 +161,18 @@ class Space:
         self.nlv = nlv = vEnd - vStart
         self.section = self._dof_section(vStart, vEnd)
         # local vertex index of each point (vertices are numbered by their dof offset / 3)
-        lvid = np.array([self.section.getOffset(v) // 3 for v in range(vStart, vEnd)], dtype=np.int64)
+        lvid = _vertex_offsets(self.section, vStart, vEnd) // 3
         self._lvid, self._vStart = lvid, vStart
         cStart, cEnd = dm.getHeightStratum(0)
         self._cStart = cStart
-        self.cells = np.empty((cEnd - cStart, 4), dtype=IDX)
-        for c in range(cStart, cEnd):
-            self.cells[c - cStart] = lvid[dm.getCone(c) - vStart]
+        cones = cell_cones(dm)
+        if cones is None:
+            cones = np.array([dm.getCone(c) for c in range(cStart, cEnd)], np.int64).reshape(-1, 4)
+        self.cells = lvid[cones - vStart].astype(IDX)
         # reference coordinates of local vertices
-        csec = dm.getCoordinateSection()
         carr = dm.getCoordinatesLocal().getArray(readonly=True)
         X = np.empty((nlv, 3))
-        for v in range(vStart, vEnd):
-            o = csec.getOffset(v)
-            X[lvid[v - vStart]] = carr[o:o + 3]
+        X[lvid] = carr[_vertex_offsets(dm.getCoordinateSection(), vStart, vEnd)[:, None] + np.arange(3)]
         self.X = X
         self.orig = self._input_indices(lvid, vStart, vEnd, serial_input, sf)
         self.owned = self._ownership(lvid, vStart, vEnd)
