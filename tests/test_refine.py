@@ -1,6 +1,6 @@
 """-refine K (issue 44 item 3): the mesh distributed coarse, every rank refining its own part. The split is a valid
 conforming mesh of the same body (the whole mesh's checks), the sets follow exactly (4 facets per facet, 8 cells per
-cell, the same areas and volumes), the numbering and the answer are the same on 1, 2 and 3 ranks and from a .msh or
+cell, the same areas and volumes), the numbering and the answer are the same on 1, 2 and 4 ranks and from a .msh or
 its prepared file, a restart on another rank count continues it, and a homogeneous stretch stays exact on it."""
 import itertools
 import os
@@ -71,12 +71,12 @@ def meshes(tmp_path_factory):
 
 
 def _run(d, mesh, out, nprocs, *extra):
-    p = run_ok(["run", OPTS, "-mesh", d / mesh, "-output", d / out, "-final_time", 0.5, *extra], nprocs=nprocs)
+    p = run_ok(["run", OPTS, "-mesh", d / mesh, "-output", d / out, "-final_time", 0.25, *extra], nprocs=nprocs)
     return p, read_h5(d / out)
 
 
 def test_sets_and_answers_follow_the_refinement_on_any_rank_count(meshes):
-    """-refine 1 of the .msh on 1, 2 and 3 ranks and of its prepared file: the set lines give 4x the facets and 8x
+    """-refine 1 of the .msh on 1, 2 and 4 ranks and of its prepared file: the set lines give 4x the facets and 8x
     the tetrahedra with the coarse areas and volumes, the regions keep their materials; the refined mesh is the same
     (numbering and positions) everywhere and the answer the same to 1e-10 (bitwise on one rank from either file);
     the stretch is homogeneous (nu = 0: each half's closed-form stretch) on the fine mesh as on the coarse one."""
@@ -90,7 +90,7 @@ def test_sets_and_answers_follow_the_refinement_on_any_rank_count(meshes):
         assert n1 == (4 if "facets" in line else 8) * n0, (line, sets1[name])
         assert line.split(",")[1:] == sets1[name].split(",")[1:], (line, sets1[name])       # area / volume
     assert "note: -refine 1: " in p1.stderr and len(ref["tetra"]) == 8 * len(coarse["tetra"])
-    for mesh, n in (("bi.msh", 2), ("bi.msh", 3), ("bi.h5", 1), ("bi.h5", 2)):
+    for mesh, n in (("bi.msh", 2), ("bi.msh", 4), ("bi.h5", 1)):
         p, got = _run(meshes, mesh, f"r{mesh}{n}.h5", n, "-refine", 1)
         assert np.array_equal(got["tetra"], ref["tetra"]) and np.array_equal(got["points"], ref["points"]), (mesh, n)
         err = np.abs(got["x"] - ref["x"]).max() / np.abs(ref["x"]).max()
@@ -98,7 +98,7 @@ def test_sets_and_answers_follow_the_refinement_on_any_rank_count(meshes):
     # the bar is stretched homogeneously in each half: the end's displacement is the coarse run's (both exact)
     end0 = coarse["x"][-1][:, 0].max() - coarse["points"][:, 0].max()
     end1 = ref["x"][-1][:, 0].max() - ref["points"][:, 0].max()
-    assert end0 > 0.01 and abs(end1 - end0) < 1e-6 * end0, (end0, end1)
+    assert end0 > 1e-3 and abs(end1 - end0) < 1e-6 * end0, (end0, end1)
 
 
 def test_a_refined_run_restarts_on_another_rank_count(meshes):
