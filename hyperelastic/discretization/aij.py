@@ -7,6 +7,7 @@ import numpy as np
 from petsc4py import PETSc
 
 from .kernels import add_blocks, gather_blocks, scatter_blocks
+from ..core.arrays import unique
 from ..core.libpetsc import SeqAIJRowIJ, SeqAIJValues, mpiaij_off_diagonal
 
 
@@ -43,14 +44,14 @@ def exact_pattern(sp):
     g = sp.lgmap.getBlockIndices().astype(np.int64)       # global vertex of each local vertex
     N = int(sp.nv_total)
     c = g[sp.cells.astype(np.int64)]
-    keys = np.unique((c[:, :, None] * N + c[:, None, :]).ravel())       # sorted by row vertex, column
+    keys = unique((c[:, :, None] * N + c[:, None, :]).ravel())       # sorted by row vertex, column
     del c
     starts = np.zeros(mpi.size + 1, np.int64)
     starts[1:] = np.cumsum(mpi.allgather(sp.n_owned))
     if mpi.size > 1:
         cut = np.searchsorted(keys, starts * N)                          # the rows' owners, in rank order
         recv = mpi.alltoall([keys[cut[r]:cut[r + 1]] for r in range(mpi.size)])
-        keys = np.unique(np.concatenate(recv))
+        keys = unique(np.concatenate(recv))
         del recv
     row, col = keys // N - starts[mpi.rank], keys % N
     del keys

@@ -22,6 +22,7 @@ from . import partition
 from .exchange import Exchange
 from .exchange import edge_numbers
 from .kernels import IDX, Cells, ElementCells
+from ..core.arrays import unique
 from ..core.errors import UserError
 from ..core.libpetsc import cell_cones, plex_cones
 from ..mesh.order import spatial_order
@@ -63,7 +64,7 @@ def set_slice_labels(dm, labels, c0, v0, more=None):
             pts = (c0 if kind == "cells" else v0) + np.asarray(idx, np.int64)
             if kind == "vertices" and more is not None:
                 pts = np.concatenate([pts, more(strata)])
-            pts = np.unique(pts)
+            pts = unique(pts)
             if len(pts):
                 lab.setStratumIS(int(value), PETSc.IS().createGeneral(pts.astype(PETSc.IntType),
                                                                       comm=PETSc.COMM_SELF))

@@ -7,6 +7,7 @@ import os
 import numpy as np
 
 from ..core.data import GEO_DIR, cache_dir
+from ..core.arrays import unique
 from ..core.errors import UserError
 from ..core.files import check_output_path
 from ..element.reference import ORDERS
@@ -94,7 +95,7 @@ def generate(name, level, out, size=None, refine=0, order=1, graded=False):
     for i, (o, tmp, m) in enumerate(zip(outs, tmps, meshes)):
         os.replace(tmp, o)
         stats.append(describe(m.points, m.tets) | {"level": level, "target_size": size / 2 ** i, "file": o,
-                                                   "vertices": len(np.unique(m.tets)), "nodes": len(m.points),
+                                                   "vertices": len(unique(m.tets)), "nodes": len(m.points),
                                                    "order": m.order, "auto_named": auto_named,
                                                    "graded": graded, "flattened": flattened,
                                                    "surfaces": surface_rows(m) if i == 0 else []})

@@ -26,6 +26,7 @@ import os
 import h5py
 import numpy as np
 
+from ..core.arrays import unique
 from ..core.errors import UserError
 from .order import spatial_order
 from .sets import Mesh, NamedSet
@@ -164,7 +165,7 @@ def faces_of(ids, masks):
 def _check_numbering(path, node_ids, n_nodes, cell_ids, cells, nv, cell_edges, ne):
     """The source indices are a numbering (each node and cell once) and the cells' rows are in range: one line."""
     for what, ids, n in (("node", node_ids, n_nodes), ("cell", cell_ids, len(cell_ids))):
-        if len(ids) != n or (len(ids) and (ids.min() < 0 or ids.max() >= n or len(np.unique(ids)) != n)):
+        if len(ids) != n or (len(ids) and (ids.min() < 0 or ids.max() >= n or len(unique(ids)) != n)):
             raise UserError(f"mesh '{path}': its {what} indices are not a numbering of the source's {n} {what}s "
                             "(a damaged or hand-edited file: prepare it again)")
     for what, rows, n in (("cells", cells, nv), ("cell_edges", cell_edges, ne)):

@@ -10,6 +10,7 @@ import numpy as np
 
 from ..core.data import cache_dir
 from ..core.errors import UserError
+from ..core.arrays import unique
 from ..core.files import completed_frames, is_output, require_parts
 from ..element.reference import EDGES, REFERENCE_NODES, TET_RULES, tet_shapes
 from .prepared import is_prepared, read_whole
@@ -184,7 +185,7 @@ def check_quadratic(points, nodes, path):
         raise UserError(f"mesh '{path}': tetrahedron {c} gives edge {key[inv.ravel()[bad[0]]].tolist()} another "
                         f"node ({edge_nodes[bad[0]]}) than a neighbour does ({edge_nodes[first][inv.ravel()][bad[0]]})")
     enodes = edge_nodes[first]
-    if len(np.unique(enodes)) != len(enodes) or np.isin(enodes, used).any():
+    if len(unique(enodes)) != len(enodes) or np.isin(enodes, used).any():
         raise UserError(f"mesh '{path}': an edge node is also a corner or another edge's node")
     if len(used) + len(enodes) != len(points):
         raise UserError(f"mesh '{path}': {len(points) - len(used) - len(enodes)} nodes belong to no tetrahedron")

@@ -18,6 +18,7 @@ import numpy as np
 
 from ..element import faces
 from ..element.reference import EDGES, TET_RULES, tet_shapes
+from ..core.arrays import unique
 from ..core.errors import UserError
 
 BOX = {"left": (0, "min"), "right": (0, "max"), "front": (1, "min"), "back": (1, "max"),
@@ -276,7 +277,7 @@ class Mesh:
         masks = self.facet_mask(s.items)
         cell = self.facet_cell[s.items]
         out = {int(v): np.flatnonzero(masks == v) for v in np.unique(masks[cell])}
-        out[VERTEX_VALUE] = np.unique(self.facets(s.items) if self.nodes is None else self.face_nodes(s.items))
+        out[VERTEX_VALUE] = unique(self.facets(s.items) if self.nodes is None else self.face_nodes(s.items))
         return out
 
 

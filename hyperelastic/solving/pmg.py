@@ -15,6 +15,7 @@ operator with its near null space) and the levels' count where it is not given."
 import numpy as np
 from petsc4py import PETSc
 
+from ..core.arrays import unique
 from ..core.errors import UserError
 from ..element.reference import EDGES
 
@@ -50,7 +51,7 @@ def coarse_numbers(space):
     owned vertices of each rank numbered consecutively in rank order, the ghosts' numbers from their owners (one
     global-to-local scatter of the fine space)."""
     vertex = np.zeros(space.nlv, bool)
-    vertex[np.unique(space.cells[:, :4])] = True
+    vertex[unique(space.cells[:, :4])] = True
     owned_v = np.flatnonzero(vertex & space.owned)
     first = space.mpi.exscan(len(owned_v)) or 0
     local = np.zeros(3 * space.nlv)
