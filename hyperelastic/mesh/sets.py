@@ -21,6 +21,7 @@ from ..element.reference import EDGES, TET_RULES, tet_shapes
 from ..core.arrays import unique
 from ..core.errors import UserError
 
+WHOLE_BOUNDARY = "boundary"     # (facets) every boundary facet, where no physical surface has that name
 BOX = {"left": (0, "min"), "right": (0, "max"), "front": (1, "min"), "back": (1, "max"),
        "bottom": (2, "min"), "top": (2, "max")}
 BOX_TOL = 1e-6                 # of the bounding box diagonal
@@ -218,13 +219,16 @@ class Mesh:
                 return g
         if kind == "facets" and spec in BOX:
             return NamedSet(spec, None, "facets", self.box_facets(spec))
+        if kind == "facets" and spec == WHOLE_BOUNDARY:
+            return NamedSet(spec, None, "facets", np.arange(len(self.facet_cell)))
         if kind == "facets" and "=" in spec:
             return NamedSet(spec, None, "facets", self.select(spec, option))
         have = [f"{g.name}" + (f" ({g.tag})" if g.tag is not None and str(g.tag) != g.name else "")
                 for g in self.groups.values() if g.kind == kind]
         what = "surfaces" if kind == "facets" else "volumes"
         listed = ", ".join(have) if have else "none"
-        extra = f"; box faces: {', '.join(BOX)}; or by geometry: {SELECTORS}" if kind == "facets" else ""
+        extra = (f"; box faces: {', '.join(BOX)}; {WHOLE_BOUNDARY} (all of it); or by geometry: {SELECTORS}"
+                 if kind == "facets" else "")
         raise UserError(f"option -{option}: mesh '{self.path}' has no {what[:-1]} '{spec}' "
                         f"(physical {what}: {listed}{extra})")
 

@@ -169,12 +169,13 @@ class Integrator:
     def _counters(self):
         s = self.system
         return (s.effect_counters(), s.residual_evals, s.residual_seconds, s.objective_evals, s.objective_seconds,
-                self.solver.inversion_cuts)
+                self.solver.inversion_cuts, self.solver.contact_cuts)
 
     def _counter_stats(self, c0):
         """The counters' increments since the snapshot c0 (_counters) as statistics columns."""
         c1 = self._counters()
-        keys = ("residual_evals", "residual_seconds", "objective_evals", "objective_seconds", "inversion_cuts")
+        keys = ("residual_evals", "residual_seconds", "objective_evals", "objective_seconds", "inversion_cuts",
+                "contact_cuts")
         stats = {k: b - a for k, a, b in zip(keys, c0[1:], c1[1:])}
         for name, (ev, ap, sec) in c1[0].items():
             e0 = c0[0][name]
@@ -409,10 +410,11 @@ class BackwardEuler(Integrator):
         # (every condition the same on every rank: defined_at is collective)
         if self.scene.quasistatic:
             guesses = []
-            if sysm.moves_prescribed(self.x):
+            moving = sysm.moves_obstacles()         # (moving obstacles: the body carried along as the last step did)
+            if moving or sysm.moves_prescribed(self.x):
                 if self.sp.mpi.allreduce(bool(self.rate.any()), op=MPI.LOR):
                     guesses = [self.x + h * self.rate]
-                elif not all(e.linear for e in sysm.effects) and self._linearized_guess():
+                elif not moving and not all(e.linear for e in sysm.effects) and self._linearized_guess():
                     guesses = [None]           # (in self.X already; a linear problem's first iterate is the same solve)
         else:
             guesses = [self.x + h * self.v] if self.sp.mpi.allreduce(bool(self.v.any()), op=MPI.LOR) else []

@@ -177,10 +177,11 @@ class Solver:
         if self.op is not None and own:
             snes.setJacobian(self._jacobian, self.op.operator, self.op.mat)
         self.inversion_cuts = 0   # Newton updates shortened so that no element inverts
+        self.contact_cuts = 0     # ... so that no contact node reaches an obstacle (effects with max_step)
         self.levels = None        # p-multigrid's levels (pmg.py), where the run uses them
-        self.guard = None
-        if guard:
-            self.guard = system.elastic_kernels()
+        self.guard = system.elastic_kernels() if guard else None
+        self.limiters = [e for e in system.effects if hasattr(e, "max_step")]
+        if self.guard is not None or self.limiters:
             snes.setLineSearchPreCheck(self._precheck)
         self.plan.before_options(self)
         if own:
@@ -395,16 +396,20 @@ class Solver:
 
     def _precheck(self, X, Y):
         """Shorten the Newton update (X_new = X - lambda Y) so that no element inverts: the material
-        is undefined there (-inversion_guard; on by default for Neo-Hookean). The factor is the same
-        on every rank."""
+        is undefined there (-inversion_guard; on by default for Neo-Hookean), and no contact node reaches an
+        obstacle (the contact effect's max_step: continuous collision detection along the update). The factor is
+        the same on every rank."""
         sysm = self.system
         x = sysm.impose(sysm.local(X, sysm.xl).copy())
         d = -sysm.local(Y, sysm.vl).copy()
         d[sysm.cdofs] = 0.0
-        t = sysm.space.mpi.allreduce(self.guard.max_step(x, d), op=MPI.MIN)
-        if t < 1.0:
-            Y.scale(t)
-            self.inversion_cuts += 1
+        mpi = sysm.space.mpi
+        t = mpi.allreduce(self.guard.max_step(x, d), op=MPI.MIN) if self.guard is not None else 1.0
+        c = mpi.allreduce(min(e.max_step(x, d) for e in self.limiters), op=MPI.MIN) if self.limiters else 1.0
+        if min(t, c) < 1.0:
+            Y.scale(min(t, c))
+            self.inversion_cuts += t < 1.0 and t <= c
+            self.contact_cuts += c < t
             return True
         return False
 
@@ -427,10 +432,11 @@ class Solver:
     def solve(self, X):
         """Solve for the step's state in X; SNES's converged reason, or GUARDED_SNORM (refused)."""
         self.system.set_objective_base(None)
-        cuts = self.inversion_cuts
+        cuts = self.inversion_cuts + self.contact_cuts
         self.snes.solve(None, X)
         reason = self.snes.getConvergedReason()
-        if reason == PETSc.SNES.ConvergedReason.CONVERGED_SNORM_RELATIVE and self.inversion_cuts > cuts:
+        guarded = self.inversion_cuts + self.contact_cuts > cuts
+        if reason == PETSc.SNES.ConvergedReason.CONVERGED_SNORM_RELATIVE and guarded:
             return self.GUARDED_SNORM
         return reason
 

@@ -22,6 +22,7 @@ COLUMNS = {
     "objective_evals": (int, "evaluations of the incremental potential (the energy line search's merit)"),
     "objective_seconds": (float, "wall time in objective evaluations [s]"),
     "inversion_cuts": (int, "Newton updates the inversion guard shortened"),
+    "contact_cuts": (int, "Newton updates shortened so that no contact node reaches an obstacle (-obstacle)"),
     "rejected": (int, "1: step control refused the attempt (the state did not move); 0: accepted"),
     "wall_s": (float, "wall time of the attempt [s]"),
     "energy_total": (float, "the sum of the energies below with their signs (kinetic + elastic + potentials "

@@ -150,6 +150,10 @@ class System:
         moved = bool(len(c)) and not np.array_equal(self.g[c], x[c])
         return self.space.mpi.allreduce(moved, op=MPI.LOR)
 
+    def moves_obstacles(self):
+        """Whether an effect moves the body's surroundings with time (contact's -obstacle_motion)."""
+        return any(getattr(e, "moving", False) for e in self.effects)
+
     def set_rate_weights(self, shift_v, shift_a):
         """Jacobian weights of the damping (shift_v) and inertia (shift_a) effects."""
         for e in self.effects:
@@ -338,9 +342,11 @@ class System:
         return total
 
     def defined_at(self, X):
-        """Whether the material is defined in every cell at X (constrained dofs imposed), on all ranks."""
+        """Whether the material is defined in every cell at X (constrained dofs imposed), and every other domain
+        effect (contact: no node at or through an obstacle) there, on all ranks."""
         x = self.impose(self.local(X, self.xl).copy())
         bad = sum(e.kernels.energy(x)[3] for e in self.effects if e.kernels is not None)
+        bad += sum(e.undefined_at(x) for e in self.domain_effects if e.kernels is None)
         return self.space.mpi.allreduce(bad, op=MPI.SUM) == 0
 
     def undefined_cells(self):

@@ -7,8 +7,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ...core.errors import UserError
-from . import (body_force, damping, dirichlet, elasticity, follower, force, gravity, inertia, loads, pressure, rigid,
-               spring, traction)
+from . import (body_force, contact, damping, dirichlet, elasticity, follower, force, gravity, inertia, loads, pressure,
+               rigid, spring, traction)
 
 # Every effect, in the order their options are listed and implied effects are added to a scene; -loads takes as its
 # kinds the effects before it that declare a LoadKind (traction, pressure, force, spring).
@@ -30,6 +30,7 @@ REGISTRY = _EFFECTS + (
     dirichlet.FIXED,
     dirichlet.PRESCRIBED,
     rigid.SPEC,
+    contact.SPEC,
 )
 SPECS = {s.name: s for s in REGISTRY}
 NAMES = tuple(SPECS)
@@ -49,13 +50,15 @@ def energies():
 class Context:
     """What an effect is built from: the distributed space, the elastic cell kernels of the material(s),
     the cells' geometry (kernels.Cells, for mass matrices and body forces), the density (a scalar, or one
-    per local cell with -regions), the mass matrix kind and -hessian_projection."""
+    per local cell with -regions), the mass matrix kind, -hessian_projection and the largest Young's modulus of the
+    solids in use (a stiffness scale: the contact barrier's default)."""
     space: object
     kernels: object
     cells: object
     density: object
     lumped: bool = False
     projection: bool = False
+    modulus: float = 1.0
 
 
 def build(scene, ctx):

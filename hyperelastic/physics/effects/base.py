@@ -163,6 +163,10 @@ class Effect:
     def coo_values(self, out):
         """Fill the values of the extra COO entries."""
 
+    def undefined_at(self, x):
+        """Where a `domain` effect without cell kernels is undefined at local positions x (a count, this rank's)."""
+        return 0
+
     def potential(self, x):
         """This effect's part of the incremental potential at local positions x, whose gradient is its
         residual (additive over ranks like the residual). Only for conservative effects."""

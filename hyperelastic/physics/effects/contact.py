@@ -1,0 +1,294 @@
+"""Contact with rigid obstacles (issue 46, its first part): planes and spheres, each moving by a translation of t,
+that the body's boundary may touch and press on but never pass through.
+
+Energy: IPC's barrier (Li et al., "Incremental Potential Contact", ACM Trans. Graph. 39(4), 2020, eq. 6) of each
+contact node's distance d to each obstacle,
+    b(d) = -(d - dhat)^2 ln(d / dhat) for 0 < d < dhat, 0 beyond (C2 at dhat, infinite as d -> 0),
+weighted by the node's share A_a of the contact surface's reference area: E = kappa sum_a A_a sum_k b(d_ak), so that
+-kappa b'(d) is a contact pressure, independent of the mesh. Residual kappa A_a b'(d) grad d; tangent
+kappa A_a (b'' g g^T + b' H_d) with g = grad d: a plane's H_d is 0 (exact), a sphere's (I - g g^T)/rho has the
+negative factor b' and is dropped (the positive semi-definite projection IPC makes), so each node adds one 3x3 block
+on the diagonal: the cell pattern already holds it, every Jacobian mode takes it.
+Never through: the energy is +infinity at d <= 0 (the SNES objective refuses such an iterate, the residual reports a
+domain error) and `max_step` gives the largest fraction of a Newton update that keeps every node at least
+(1 - CCD_MARGIN) of the way to its first contact along the update (a node moving on a line against a fixed plane or
+sphere: the exact time of impact), which the solver's line-search pre-check applies as it applies the inversion
+guard. An obstacle moves between steps only (its position at the step's end time), so an obstacle that moves into a
+node within one step makes that step's start infeasible and the step is retried shorter.
+Defaults: dhat 1e-3 of the part's bounding-box diagonal (IPC's), kappa = KAPPA_SCALE E / dhat (E the largest Young's
+modulus of the solids): the pressure at d = dhat/2 is then 0.12 E, at dhat/10 1.2 E.
+Each rank sums its owned nodes: the same answer on any rank count, no surface gathered (a node meets an analytic
+obstacle alone). Not yet: self-contact and contact between pieces of the mesh (ipctk's broad phase, point-triangle
+and edge-edge barriers), triangulated obstacles, friction, -integrator ts."""
+import re
+from dataclasses import dataclass
+
+import numpy as np
+
+from ...core.errors import UserError
+from ...core.expressions import TimeFunction
+from ...core.options import Row, facet_sets
+from ...element import faces
+from .base import Effect, Energy, Spec, timed
+
+CCD_MARGIN = 0.1            # a Newton update stops this fraction short of the first contact along it
+KAPPA_SCALE = 0.1           # kappa = KAPPA_SCALE E / dhat by default
+DHAT_SCALE = 1e-3           # dhat = DHAT_SCALE x the bounding-box diagonal by default
+KINDS = {"plane": "NX,NY,NZ,D: the half-space NX x + NY y + NZ z > D is free (the normal points into the body)",
+         "sphere": "CX,CY,CZ,R: a rigid ball of radius R (the body stays outside)"}
+
+
+def barrier(d, dhat):
+    """(b, b', b'') of IPC's barrier at distances d (0 where d >= dhat; b = +inf where d <= 0)."""
+    d = np.asarray(d, float)
+    on = d < dhat
+    s = np.where(on & (d > 0), d, dhat)
+    ln, e = np.log(s / dhat), s - dhat
+    b = np.where(on, -e * e * ln, 0.0)
+    b1 = np.where(on, -2 * e * ln - e * e / s, 0.0)
+    b2 = np.where(on, -2 * ln - 4 * e / s + e * e / (s * s), 0.0)
+    bad = on & (d <= 0)
+    return np.where(bad, np.inf, b), np.where(bad, np.nan, b1), np.where(bad, np.nan, b2)
+
+
+@dataclass(frozen=True)
+class Obstacle:
+    kind: str                 # "plane" | "sphere"
+    values: tuple             # a plane's unit normal and offset; a sphere's centre and radius
+    motion: tuple = None      # three TimeFunctions of its translation, or None (fixed)
+    text: str = ""
+
+    def at(self, t):
+        """(kind, values) at time t: a plane's offset and a sphere's centre moved by the translation."""
+        u = np.zeros(3) if self.motion is None else np.array([m(t) for m in self.motion])
+        v = np.array(self.values, float)
+        if self.kind == "plane":
+            v[3] += float(v[:3] @ u)
+        else:
+            v[:3] += u
+        return v
+
+
+def distances(kind, v, x):
+    """(d, g, rho) of nodes x (n, 3) to one obstacle at values v: the distance, its gradient (unit) and, for a sphere,
+    the distance to its centre (None for a plane)."""
+    if kind == "plane":
+        return x @ v[:3] - v[3], np.broadcast_to(v[:3], x.shape), None
+    r = x - v[:3]
+    rho = np.linalg.norm(r, axis=1)
+    return rho - v[3], r / np.maximum(rho, 1e-300)[:, None], rho
+
+
+def time_of_impact(kind, v, x, dx):
+    """Per node, the fraction s > 0 of the straight move dx at which it first touches the obstacle (inf if never)."""
+    if kind == "plane":
+        rate = dx @ v[:3]
+        d = x @ v[:3] - v[3]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return np.where(rate < 0, d / -rate, np.inf)
+    r = x - v[:3]
+    a, b, c = (dx * dx).sum(axis=1), 2 * (r * dx).sum(axis=1), (r * r).sum(axis=1) - v[3] ** 2
+    disc = b * b - 4 * a * c
+    with np.errstate(divide="ignore", invalid="ignore"):
+        s = (-b - np.sqrt(np.maximum(disc, 0))) / (2 * a)
+    return np.where((disc >= 0) & (b < 0) & (a > 0), np.maximum(s, 0.0), np.inf)
+
+
+class Contact(Effect):
+    """The barrier of the contact nodes (this rank's owned nodes of the contact surfaces) against the obstacles."""
+    name = "contact"
+    linear = False
+    conservative = True
+    symmetric = True
+    domain = True            # undefined (d <= 0) is counted as the elastic kernels count inverted cells
+
+    def __init__(self, nodes, area, X, input_ids, obstacles, dhat, kappa):
+        super().__init__()
+        self.nodes, self.area = np.asarray(nodes, np.int64), np.asarray(area, float)
+        self.obstacles, self.dhat, self.kappa = tuple(obstacles), float(dhat), float(kappa)
+        self.now = [o.at(0.0) for o in self.obstacles]
+        self.moving = any(o.motion is not None for o in self.obstacles)
+        self.blocks = np.zeros((len(self.nodes), 3, 3))
+        x = np.asarray(X, float).reshape(-1, 3)[self.nodes]
+        for o, v in zip(self.obstacles, self.now):                       # a start inside an obstacle: one line
+            d = distances(o.kind, v, x)[0]
+            if len(d) and d.min() <= 0:
+                i = int(np.argmin(d))
+                raise UserError(f"-obstacle {o.text}: node {int(input_ids[i])} of the contact surface at "
+                                f"{x[i].tolist()} lies {'inside' if d[i] < 0 else 'on'} it at the start (distance "
+                                f"{d[i]:.3g}): a start state must be free of contact")
+
+    def begin_step(self, t, h, xn, vn):
+        self.now = [o.at(t) for o in self.obstacles]
+
+    def _terms(self, x):
+        """Per obstacle: (d, g, rho) of the contact nodes at local positions x."""
+        xc = x.reshape(-1, 3)[self.nodes]
+        return [distances(o.kind, v, xc) for o, v in zip(self.obstacles, self.now)]
+
+    def potential(self, x):
+        total = 0.0
+        for d, _, _ in self._terms(x):
+            b = barrier(d, self.dhat)[0]
+            total += float(self.kappa * (self.area * b).sum())
+        return total
+
+    @timed("evals")
+    def residual(self, x, r):
+        self.undefined = 0
+        rn = r.reshape(-1, 3)
+        for d, g, _ in self._terms(x):
+            self.undefined += int((d <= 0).sum())
+            b1 = barrier(d, self.dhat)[1]
+            np.add.at(rn, self.nodes, (self.kappa * self.area * b1)[:, None] * g)
+
+    def undefined_at(self, x):
+        return sum(int((d <= 0).sum()) for d, _, _ in self._terms(x))
+
+    def linearize(self, x):
+        self.blocks[:] = 0.0
+        for d, g, _ in self._terms(x):
+            b2 = np.nan_to_num(barrier(d, self.dhat)[2], nan=0.0)
+            self.blocks += (self.kappa * self.area * b2)[:, None, None] * g[:, :, None] * g[:, None, :]
+
+    @timed("applies")
+    def apply(self, v, y):
+        vn = v.reshape(-1, 3)[self.nodes]
+        np.add.at(y.reshape(-1, 3), self.nodes, np.einsum("nij,nj->ni", self.blocks, vn))
+
+    @timed("applies")
+    def diag(self, d):
+        np.add.at(d.reshape(-1, 3), self.nodes, np.einsum("nii->ni", self.blocks))
+
+    def coo_pattern(self):
+        dofs = 3 * self.nodes[:, None] + np.arange(3)                      # (n, 3)
+        rows = np.broadcast_to(dofs[:, :, None], (len(self.nodes), 3, 3))
+        cols = np.broadcast_to(dofs[:, None, :], (len(self.nodes), 3, 3))
+        return rows.ravel().copy(), cols.ravel().copy()
+
+    def coo_values(self, out):
+        out[:] = self.blocks.ravel()
+
+    def max_step(self, x, dx):
+        """The largest fraction (<= 1) of the update dx from x that no contact node crosses an obstacle along: each
+        node stops CCD_MARGIN short of its time of impact (this rank's nodes; the solver takes the ranks' minimum)."""
+        xc, dc = x.reshape(-1, 3)[self.nodes], dx.reshape(-1, 3)[self.nodes]
+        s = 1.0
+        for o, v in zip(self.obstacles, self.now):
+            toi = time_of_impact(o.kind, v, xc, dc)
+            if len(toi):
+                s = min(s, (1.0 - CCD_MARGIN) * float(toi.min()))
+        return s
+
+    def energy(self, x, v):
+        terms = self._terms(x)
+        active = sum(int((d < self.dhat).sum()) for d, _, _ in terms)
+        dmin = min((float(d.min()) for d, _, _ in terms if len(d)), default=np.inf)
+        return {"contact_energy": self.potential(x), "contact_nodes": active, "contact_dmin": dmin}
+
+
+@dataclass(frozen=True)
+class ContactParams:
+    obstacles: tuple          # Obstacle, in the order -obstacle lists them
+    faces: tuple              # the contact surfaces ((set, components) as facet_sets gives them)
+    dhat: float               # None: DHAT_SCALE x the bounding-box diagonal
+    kappa: float              # None: KAPPA_SCALE E / dhat
+
+
+def split_top(text, sep):
+    """text split at `sep` outside parentheses (an expression's own commas stay)."""
+    out, depth, cur = [], 0, ""
+    for ch in text:
+        depth += (ch == "(") - (ch == ")")
+        if ch == sep and depth == 0:
+            out.append(cur)
+            cur = ""
+        else:
+            cur += ch
+    return out + [cur]
+
+
+def _obstacle(text, motion):
+    m = re.fullmatch(r"\s*(\w+)\s*:\s*(.*?)\s*", text)
+    kind = m.group(1) if m else ""
+    if kind not in KINDS:
+        raise UserError(f"option -obstacle: '{text}' is not an obstacle (give " +
+                        "; ".join(f"{k}:{v}" for k, v in KINDS.items()) + ", several separated by ';')")
+    try:
+        vals = [float(s) for s in m.group(2).split(",")]
+    except ValueError:
+        vals = []
+    if len(vals) != 4 or not np.all(np.isfinite(vals)):
+        raise UserError(f"option -obstacle: '{text}': {kind} takes four numbers, {KINDS[kind]}")
+    if kind == "plane":
+        n = np.linalg.norm(vals[:3])
+        if n == 0:
+            raise UserError(f"option -obstacle: '{text}': the plane's normal is zero")
+        vals = [v / n for v in vals]
+    elif vals[3] <= 0:
+        raise UserError(f"option -obstacle: '{text}': the sphere's radius must be > 0")
+    return Obstacle(kind, tuple(vals), motion, text.strip())
+
+
+def _read(opts, where):
+    texts = [t for t in split_top(opts.string("obstacle", "") or "", ";") if t.strip()]
+    if not texts:
+        raise UserError(f"{where}: effect 'contact' needs -obstacle (" +
+                        "; ".join(f"{k}:{v}" for k, v in KINDS.items()) + ": self-contact is not built yet)")
+    motions = [None] * len(texts)
+    if opts.has("obstacle_motion"):
+        given = split_top(opts.string("obstacle_motion"), ";")
+        if len(given) != len(texts):
+            raise UserError(f"option -obstacle_motion: {len(given)} translations for {len(texts)} obstacles (one "
+                            "'EX,EY,EZ' of t per obstacle, separated by ';')")
+        for i, g in enumerate(given):
+            parts = split_top(g, ",")
+            if len(parts) != 3:
+                raise UserError(f"option -obstacle_motion: '{g}' is not three expressions of t (EX,EY,EZ)")
+            motions[i] = tuple(TimeFunction(p, "option -obstacle_motion") for p in parts)
+            for f in motions[i]:
+                f(0.0)
+    obstacles = tuple(_obstacle(t, m) for t, m in zip(texts, motions))
+    faces_ = tuple(facet_sets(opts, "contact_faces", default="boundary"))
+    return ContactParams(obstacles, faces_, opts.real("contact_dhat", None, minimum=0),
+                         opts.real("contact_kappa", None, minimum=0))
+
+
+def build_contact(p, ctx):
+    sp = ctx.space
+    tris = sp.set_triangles([n for n, _ in p.faces])
+    X = sp.X.reshape(-1, 3)
+    corners = tris[:, :3]
+    area = 0.5 * np.linalg.norm(np.cross(X[corners[:, 1]] - X[corners[:, 0]], X[corners[:, 2]] - X[corners[:, 0]]),
+                                axis=1) if len(tris) else np.zeros(0)
+    share = np.zeros(len(X))
+    np.add.at(share, tris, np.repeat((area / tris.shape[1])[:, None], tris.shape[1], axis=1) if len(tris) else 0)
+    owned_share = sp.sum_owned(share[:, None]).ravel()          # every rank's facets at a node, in its owner's row
+    nodes = sp.lvid_of_owned[owned_share > 0]
+    lo, hi = sp.bbox
+    dhat = p.dhat if p.dhat is not None else DHAT_SCALE * float(np.linalg.norm(np.asarray(hi) - np.asarray(lo)))
+    kappa = p.kappa if p.kappa is not None else KAPPA_SCALE * ctx.modulus / dhat
+    return [Contact(nodes, owned_share[owned_share > 0], X, sp.orig[nodes], p.obstacles, dhat, kappa)]
+
+
+def _uses(p):
+    return [("contact_faces", name, "facets") for name, _ in p.faces]
+
+
+SPEC = Spec(
+    "contact", "rigid obstacles (planes, spheres) the boundary touches but never passes through (IPC barrier)",
+    implied_by=("obstacle", "contact_dhat", "contact_kappa", "contact_faces"), read=_read, sets=_uses,
+    build=build_contact,
+    energies=(Energy("contact_energy", 1, "the contact barrier's energy"),
+              Energy("contact_nodes", 0, "contact nodes within dhat of an obstacle"),
+              Energy("contact_dmin", 0, "the smallest distance of a contact node to an obstacle", combine="min")),
+    rows=(Row(("obstacle", "obstacle_motion"), "-obstacle KIND:VALUES[;…]",
+              "rigid obstacles: `plane:NX,NY,NZ,D` (the half-space N·x > D is free: the normal points into the "
+              "body), `sphere:CX,CY,CZ,R`; `-obstacle_motion EX,EY,EZ[;…]`: each one's translation, expressions of "
+              "t. The boundary never passes through them (IPC's barrier in the energy, each Newton update stopped "
+              "short of the first impact); frictionless; no self-contact yet"),
+          Row(("contact_faces",), "-contact_faces S1,S2,…", "the surfaces that touch the obstacles", "boundary"),
+          Row(("contact_dhat", "contact_kappa"), "-contact_dhat d -contact_kappa k",
+              "the barrier's reach [m] (default 1e-3 of the bounding box's diagonal: forces act at distances below "
+              "it, so it is the contact's accuracy) and stiffness [Pa/m] (default 0.1 E / dhat: a pressure of "
+              "0.12 E at dhat/2)")))

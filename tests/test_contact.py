@@ -1,0 +1,149 @@
+"""Contact with rigid obstacles (issue 46, first part): IPC's barrier as the IPC authors' toolkit computes it, a
+residual that is the barrier energy's gradient and a tangent that is the residual's derivative, an update stopped
+short of the first impact, a frictionless plate pressing the bar equal to prescribing its end at the same place, a
+dropped bar that never passes through the floor (checked from the output alone, at every frame), the same answer on
+1 and 2 ranks, and bad input refused in one line."""
+import os
+
+import numpy as np
+import pytest
+
+from conftest import ROOT, hyperelastic, read_h5, run_ok
+
+from hyperelastic.physics.effects.contact import Contact, Obstacle, barrier, time_of_impact
+
+
+def test_the_barrier_is_the_ipc_toolkits():
+    """b, b', b'' against ipctk's (Li et al. 2020's barrier, the IPC authors' code) over (0, dhat], 0 beyond; +inf at
+    d <= 0."""
+    ipctk = pytest.importorskip("ipctk")
+    dhat = 0.3
+    d = np.concatenate([np.geomspace(1e-6, dhat, 40), [0.31, 1.0]])
+    b, b1, b2 = barrier(d, dhat)
+    for i, di in enumerate(d):
+        want = (ipctk.barrier(di, dhat), ipctk.barrier_first_derivative(di, dhat),
+                ipctk.barrier_second_derivative(di, dhat))
+        assert np.allclose((b[i], b1[i], b2[i]), want, rtol=1e-12, atol=1e-300), (di, (b[i], b1[i], b2[i]), want)
+    assert barrier(np.array([0.0, -1.0]), dhat)[0].tolist() == [np.inf, np.inf]
+
+
+def _effect():
+    """A contact effect on 40 random nodes near a plane and a sphere (a fixed and a moving one)."""
+    rng = np.random.default_rng(3)
+    X = rng.uniform([-1, -1, 0.01], [1, 1, 0.2], (40, 3))
+    sphere_c = np.array([0.0, 0.0, 0.9])
+    plane = Obstacle("plane", (0.0, 0.0, 1.0, 0.0), text="plane:0,0,1,0")
+    sphere = Obstacle("sphere", (*sphere_c, 0.6), (lambda t: 0.0, lambda t: 0.0, lambda t: -0.05 * t),
+                      "sphere:0,0,0.9,0.6")
+    X = X[(np.linalg.norm(X - sphere_c, axis=1) > 0.62) & (np.linalg.norm(X - sphere_c + [0, 0, 0.05], axis=1) > 0.62)]
+    c = Contact(np.arange(len(X)), rng.uniform(0.5, 1.5, len(X)), X, np.arange(len(X)), (plane, sphere), 0.15, 1e3)
+    c.begin_step(1.0, 0.1, None, None)
+    return c, X.ravel()
+
+
+def test_residual_and_tangent_are_the_energys_derivatives():
+    """Central differences: the residual is the potential's gradient (plane and sphere terms), and for the plane terms
+    (an exact Hessian) the tangent is the residual's derivative; the sphere's curvature term is dropped, so there
+    the tangent is the positive semi-definite part (every block's eigenvalues >= 0)."""
+    c, x = _effect()
+    r = np.zeros_like(x)
+    c.residual(x, r)
+    assert np.abs(r).max() > 0 and c.undefined == 0
+    h = 1e-7
+    rng = np.random.default_rng(1)
+    for i in rng.choice(len(x), 12, replace=False):
+        e = np.zeros_like(x)
+        e[i] = h
+        fd = (c.potential(x + e) - c.potential(x - e)) / (2 * h)
+        assert abs(fd - r[i]) <= 1e-6 * max(1.0, abs(r[i])), (i, fd, r[i])
+    plane_only = Contact(c.nodes, c.area, x, c.nodes, c.obstacles[:1], c.dhat, c.kappa)
+    plane_only.linearize(x)
+    v = rng.normal(size=x.shape)
+    y = np.zeros_like(x)
+    plane_only.apply(v, y)
+    rp, rm = np.zeros_like(x), np.zeros_like(x)
+    plane_only.residual(x + 1e-7 * v, rp)
+    plane_only.residual(x - 1e-7 * v, rm)
+    assert np.allclose((rp - rm) / 2e-7, y, rtol=1e-5, atol=1e-6 * np.abs(y).max())
+    c.linearize(x)
+    assert np.linalg.eigvalsh(c.blocks).min() >= -1e-9 * np.abs(c.blocks).max()
+
+
+def test_an_update_stops_short_of_the_first_impact():
+    """max_step: a node moving straight through the plane or into the sphere stops CCD_MARGIN short of the exact time
+    of impact; moving away, the whole update; the time of impact of a ray and a sphere is the quadratic's root."""
+    c, x = _effect()
+    down = np.zeros_like(x).reshape(-1, 3)
+    down[:, 2] = -1.0
+    s = c.max_step(x, down.ravel())
+    z = x.reshape(-1, 3)[:, 2]
+    assert np.isclose(s, 0.9 * z.min()) and c.max_step(x, -down.ravel()) <= 1.0
+    toi = time_of_impact("sphere", np.array([0, 0, 0, 1.0]), np.array([[3.0, 0, 0]]), np.array([[-4.0, 0, 0]]))
+    assert np.isclose(toi[0], 0.5)
+
+
+OPTS = """-quasistatic
+-effects elasticity,fixed,{end}
+-fix left:x,front:y,bottom:z
+-dt 0.25
+{extra}
+"""
+
+
+def _forces(stderr, row):
+    line = next(ln for ln in stderr.splitlines() if ln.strip().startswith(row))
+    return np.array([float(v) for v in line.split("F = (")[1].split(")")[0].split(",")])
+
+
+def test_a_plate_pressing_the_bar_is_the_end_prescribed_there(tmp_path):
+    """`press` (a frictionless plate moving in against the end on rollers) against prescribing the end's x at the
+    place the plate left it: the contact force equals the reaction and the positions agree (a homogeneous
+    compression either way); the contact force balances the rollers' reaction; no node ever crossed the plate."""
+    p = run_ok(["run", "press", "-dt", 0.25, "-output", tmp_path / "c.h5"])
+    got = read_h5(tmp_path / "c.h5", frames=True)
+    x, X = got["x"], got["points"]
+    end = x[-1][np.isclose(X[:, 0], X[:, 0].max()), 0]
+    assert end.max() - end.min() < 1e-9 and 2.99 < end.mean() < 3.0          # a flat end, a gap below dhat
+    for t, xf in zip(got["time"], x):                                        # the plate: x < 5.005 - 2 min(t, 1)
+        assert xf[:, 0].max() < 5.005 - 2 * min(t, 1)
+    f_contact = _forces(p.stderr, "load contact")
+    (tmp_path / "pp.opts").write_text(OPTS.format(end="prescribed", extra=f"-prescribe_faces right:x\n"
+                                                  f"-prescribe_ux ({float(end.mean() - 5)!r})*min(t,1)"))
+    q = run_ok(["run", tmp_path / "pp.opts", "-output", tmp_path / "p.h5"])
+    ref = read_h5(tmp_path / "p.h5")
+    f_reaction = _forces(q.stderr, "reaction right")
+    assert abs(f_contact[0] - f_reaction[0]) < 1e-5 * abs(f_reaction[0]), (f_contact, f_reaction)   # (6 digits)
+    assert np.abs(ref["x"][-1] - x[-1]).max() < 1e-8
+    assert abs(_forces(p.stderr, "reaction left")[0] + f_contact[0]) < 1e-5 * abs(f_contact[0])
+    st = got["stats"]
+    ok = st["rejected"] == 0                     # (a rejected attempt's row has no energies)
+    assert st["contact_dmin"][ok].min() > 0 and st["contact_nodes"][ok][-1] > 0 and st["contact_energy"][ok][-1] > 0
+
+
+def test_a_dropped_bar_never_passes_through_the_floor_on_1_and_2_ranks(tmp_path):
+    """`drop_floor` to after the bounce: no node below the floor in any frame (from the output alone); the contact
+    force holds the bar (it decelerates); the same answer on 2 ranks."""
+    args = ["run", "drop_floor", "-final_time", 0.5, "-frames_per_second", 40]
+    run_ok(args + ["-output", tmp_path / "d1.h5"])
+    run_ok(args + ["-output", tmp_path / "d2.h5"], nprocs=2)
+    one, two = read_h5(tmp_path / "d1.h5"), read_h5(tmp_path / "d2.h5")
+    z = one["x"][:, :, 2]
+    assert z.min() > -2.5 and z.min() < -2.5 + 0.02 and one["stats"]["contact_nodes"].max() > 0
+    assert np.abs(one["x"] - two["x"]).max() < 1e-8 * np.abs(one["x"]).max()
+
+
+@pytest.mark.parametrize("extra,words", [
+    (["-obstacle", "plane:0,0,1,0"], ("inside", "start")),
+    (["-obstacle", "cone:0,0,1,0"], ("-obstacle", "plane:")),
+    (["-obstacle", "sphere:0,0,9,-1"], ("radius",)),
+    (["-obstacle", "plane:0,0,0,1"], ("normal",)),
+    (["-obstacle", "plane:0,0,1,-3", "-obstacle_motion", "0,0"], ("-obstacle_motion",)),
+    (["-obstacle", "plane:0,0,1,-3", "-contact_dhat", "0"], ("-contact_dhat",)),
+    (["-obstacle", "plane:0,0,1,-3", "-integrator", "ts"], ("-integrator ts",)),
+])
+def test_bad_contact_input_is_one_line(tmp_path, extra, words):
+    p = hyperelastic(["run", "bend", "-output", tmp_path / "o.h5", "-final_time", 0.01] + extra)
+    lines = [ln for ln in p.stderr.splitlines() if ln.strip()]
+    assert p.returncode != 0 and len(lines) == 1 and lines[0].startswith("hyperelastic: error:"), p.stderr
+    assert all(w in lines[0] for w in words), lines[0]
+    assert not os.path.exists(tmp_path / "o.h5")
