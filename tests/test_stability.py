@@ -255,7 +255,7 @@ def test_a_small_step_after_an_inversion_cut_is_not_convergence():
             self.solver, self.reason, self.cut = solver, reason, cut
 
         def solve(self, b, X):
-            self.solver.inversion_cuts += self.cut
+            setattr(self.solver, counter, getattr(self.solver, counter) + self.cut)
 
         def getConvergedReason(self):
             return self.reason
@@ -264,10 +264,11 @@ def test_a_small_step_after_an_inversion_cut_is_not_convergence():
         def set_objective_base(self, X):
             pass
     s = Solver.__new__(Solver)
-    s.system, s.inversion_cuts = System(), 0
-    for reason, cut, want in ((R.CONVERGED_SNORM_RELATIVE, 1, Solver.GUARDED_SNORM),
-                              (R.CONVERGED_SNORM_RELATIVE, 0, R.CONVERGED_SNORM_RELATIVE),
-                              (R.CONVERGED_FNORM_RELATIVE, 1, R.CONVERGED_FNORM_RELATIVE)):
-        s.snes = Snes(s, reason, cut)
-        assert s.solve(None) == want
+    s.system, s.inversion_cuts, s.contact_cuts = System(), 0, 0
+    for counter in ("inversion_cuts", "contact_cuts"):        # (contact's never-through cut is refused the same way)
+        for reason, cut, want in ((R.CONVERGED_SNORM_RELATIVE, 1, Solver.GUARDED_SNORM),
+                                  (R.CONVERGED_SNORM_RELATIVE, 0, R.CONVERGED_SNORM_RELATIVE),
+                                  (R.CONVERGED_FNORM_RELATIVE, 1, R.CONVERGED_FNORM_RELATIVE)):
+            s.snes = Snes(s, reason, cut)
+            assert s.solve(None) == want, (counter, reason, cut)
     assert Solver.GUARDED_SNORM < 0 and "not convergence" in s.reason_name(Solver.GUARDED_SNORM)
