@@ -25,7 +25,6 @@ P2 6k -> 49k; --quick: P1 16k -> 125k, P2 2k -> 17k), so fixed costs are not cou
 import argparse
 import math
 import os
-import re
 import subprocess
 import sys
 

@@ -8,7 +8,7 @@ import os
 import numpy as np
 import pytest
 
-from conftest import ROOT, hyperelastic, read_h5, run_ok
+from conftest import hyperelastic, read_h5, run_ok
 
 from hyperelastic.physics.effects.contact import Contact, Obstacle, barrier, time_of_impact
 

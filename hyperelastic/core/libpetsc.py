@@ -181,7 +181,7 @@ def cell_cones(dm):
     """The corners of an uninterpolated DMPlex's tetrahedra, (nc, 4) point numbers, from DMPlexGetCones in one call
     (petsc4py's getCone per cell costs ~3 us a cell in the space's set-up); None where the layout is not cells, then
     vertices."""
-    (c0, c1), (v0, v1) = dm.getHeightStratum(0), dm.getDepthStratum(0)
+    (c0, c1), v0 = dm.getHeightStratum(0), dm.getDepthStratum(0)[0]
     if dm.getDepth() != 1 or c0 != 0 or v0 != c1 or c1 == c0:
         return None
     ptr = ctypes.c_void_p()

@@ -28,7 +28,6 @@ import numpy as np
 from ...core.errors import UserError
 from ...core.expressions import TimeFunction
 from ...core.options import Row, facet_sets
-from ...element import faces
 from .base import Effect, Energy, Spec, timed
 
 CCD_MARGIN = 0.1            # a Newton update stops this fraction short of the first contact along it
