@@ -404,7 +404,10 @@ class BackwardEuler(Integrator):
         that moves prescribed nodes starts from x^n + h r^n, r^n the last accepted step's rate (the interior carried
         along with its boundary, as the last step moved it: the first iterate no longer puts the whole boundary
         increment into the layer of cells beside them, issue 47), or, where there is no rate yet (the first step),
-        from the linearized answer to the boundary's increment (_linearized_guess); other quasi-static steps from x^n."""
+        from the linearized answer to the boundary's increment (_linearized_guess); other quasi-static steps from x^n.
+        Where obstacles move (contact), the step's start must not lie inside one: the rate's start, else (and in
+        dynamics after x^n + h v^n) the start with the nodes an obstacle reached pushed ahead of it
+        (System.pushed_by_obstacles); a start that is still infeasible is refused and the step retried shorter."""
         sysm = self.system
         self.guess_ksp = 0
         # (every condition the same on every rank: defined_at is collective)
@@ -414,10 +417,14 @@ class BackwardEuler(Integrator):
             if moving or sysm.moves_prescribed(self.x):
                 if self.sp.mpi.allreduce(bool(self.rate.any()), op=MPI.LOR):
                     guesses = [self.x + h * self.rate]
-                elif not moving and not all(e.linear for e in sysm.effects) and self._linearized_guess():
+                if moving:
+                    guesses += [g for g in [sysm.pushed_by_obstacles(self.x)] if g is not None]
+                elif not guesses and not all(e.linear for e in sysm.effects) and self._linearized_guess():
                     guesses = [None]           # (in self.X already; a linear problem's first iterate is the same solve)
         else:
             guesses = [self.x + h * self.v] if self.sp.mpi.allreduce(bool(self.v.any()), op=MPI.LOR) else []
+            if sysm.moves_obstacles():
+                guesses += [g for g in [sysm.pushed_by_obstacles(guesses[0] if guesses else self.x)] if g is not None]
         for guess in guesses + [self.x]:
             if guess is not None:
                 sysm.set_guess(self.X, guess)

@@ -154,6 +154,16 @@ class System:
         """Whether an effect moves the body's surroundings with time (contact's -obstacle_motion)."""
         return any(getattr(e, "moving", False) for e in self.effects)
 
+    def pushed_by_obstacles(self, x):
+        """x with the nodes that moving obstacles reach pushed ahead of them (contact.Contact.pushed), or None where
+        a push would be too long for the cells beside it on some rank (collective)."""
+        ok = True
+        for e in self.effects:
+            if getattr(e, "moving", False):
+                x, fits = e.pushed(x)
+                ok = ok and fits
+        return x if self.space.mpi.allreduce(ok, op=MPI.LAND) else None
+
     def set_rate_weights(self, shift_v, shift_a):
         """Jacobian weights of the damping (shift_v) and inertia (shift_a) effects."""
         for e in self.effects:

@@ -31,6 +31,8 @@ from ...core.options import Row, facet_sets
 from .base import Effect, Energy, Spec, timed
 
 CCD_MARGIN = 0.1            # a Newton update stops this fraction short of the first contact along it
+PUSH_LIMIT = 0.3            # a step's start pushes contact nodes ahead of a moving obstacle by at most this fraction
+                            # of their shortest surface edge (else the step is retried shorter)
 KAPPA_SCALE = 0.1           # kappa = KAPPA_SCALE E / dhat by default
 DHAT_SCALE = 1e-3           # dhat = DHAT_SCALE x the bounding-box diagonal by default
 KINDS = {"plane": "NX,NY,NZ,D: the half-space NX x + NY y + NZ z > D is free (the normal points into the body)",
@@ -101,11 +103,12 @@ class Contact(Effect):
     symmetric = True
     domain = True            # undefined (d <= 0) is counted as the elastic kernels count inverted cells
 
-    def __init__(self, nodes, area, X, input_ids, obstacles, dhat, kappa):
+    def __init__(self, nodes, area, X, input_ids, obstacles, dhat, kappa, edge=None):
         super().__init__()
         self.nodes, self.area = np.asarray(nodes, np.int64), np.asarray(area, float)
+        self.edge = np.full(len(self.nodes), np.inf) if edge is None else np.asarray(edge, float)
         self.obstacles, self.dhat, self.kappa = tuple(obstacles), float(dhat), float(kappa)
-        self.now = [o.at(0.0) for o in self.obstacles]
+        self.now = self.before = [o.at(0.0) for o in self.obstacles]
         self.moving = any(o.motion is not None for o in self.obstacles)
         self.blocks = np.zeros((len(self.nodes), 3, 3))
         x = np.asarray(X, float).reshape(-1, 3)[self.nodes]
@@ -118,7 +121,29 @@ class Contact(Effect):
                                 f"{d[i]:.3g}): a start state must be free of contact")
 
     def begin_step(self, t, h, xn, vn):
+        self.before = [o.at(t - h) for o in self.obstacles]       # (where the step starts: an attempt's retry too)
         self.now = [o.at(t) for o in self.obstacles]
+
+    def pushed(self, x):
+        """(x with every contact node that the obstacles' move since the step's start brought closer moved out along
+        the distance's gradient to its distance before the move, whether every push stays within PUSH_LIMIT of the
+        node's shortest surface edge): the integrator's start where the last step's rate does not carry the body
+        along (a plate moved into the gap pushes the nodes it would reach; the cells beside them take the strain
+        until Newton relaxes it, which a push of a cell's size would invert)."""
+        out = x.copy()
+        on = out.reshape(-1, 3)
+        ok = True
+        for o, old, new in zip(self.obstacles, self.before, self.now):
+            if o.motion is None:
+                continue
+            xc = on[self.nodes]
+            d_old = distances(o.kind, old, xc)[0]
+            d_new, g, _ = distances(o.kind, new, xc)
+            closer = d_new < d_old
+            push = (d_old - d_new)[closer]
+            ok = ok and bool((push <= PUSH_LIMIT * self.edge[closer]).all())
+            on[self.nodes[closer]] += push[:, None] * g[closer]
+        return out, ok
 
     def _terms(self, x):
         """Per obstacle: (d, g, rho) of the contact nodes at local positions x."""
@@ -264,10 +289,18 @@ def build_contact(p, ctx):
     np.add.at(share, tris, np.repeat((area / tris.shape[1])[:, None], tris.shape[1], axis=1) if len(tris) else 0)
     owned_share = sp.sum_owned(share[:, None]).ravel()          # every rank's facets at a node, in its owner's row
     nodes = sp.lvid_of_owned[owned_share > 0]
+    edge = np.full(len(X), np.inf)                                # each node's shortest edge among this rank's facets
+    for a, b in ((0, 1), (1, 2), (2, 0)):
+        length = np.linalg.norm(X[corners[:, a]] - X[corners[:, b]], axis=1)
+        for end in (a, b):
+            np.minimum.at(edge, corners[:, end], length)
+    if tris.shape[1] == 6:                                        # (a quadratic facet's edge nodes: half an edge)
+        for k, (a, b) in enumerate(((0, 1), (1, 2), (0, 2))):
+            np.minimum.at(edge, tris[:, 3 + k], 0.5 * np.linalg.norm(X[corners[:, a]] - X[corners[:, b]], axis=1))
     lo, hi = sp.bbox
     dhat = p.dhat if p.dhat is not None else DHAT_SCALE * float(np.linalg.norm(np.asarray(hi) - np.asarray(lo)))
     kappa = p.kappa if p.kappa is not None else KAPPA_SCALE * ctx.modulus / dhat
-    return [Contact(nodes, owned_share[owned_share > 0], X, sp.orig[nodes], p.obstacles, dhat, kappa)]
+    return [Contact(nodes, owned_share[owned_share > 0], X, sp.orig[nodes], p.obstacles, dhat, kappa, edge[nodes])]
 
 
 def _uses(p):
