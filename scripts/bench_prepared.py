@@ -32,11 +32,12 @@ EXE = [sys.executable, "-m", "hyperelastic"]      # (the device machine runs the
 
 
 def run(cmd):
+    """(wall seconds, standard error) of a command that must succeed (else the script exits with its error)."""
     t = time.perf_counter()
     p = subprocess.run(cmd, capture_output=True, text=True)
     if p.returncode:
-        sys.exit(f"failed: {' '.join(cmd)}\n{p.stderr[-2000:]}")
-    return time.perf_counter() - t
+        sys.exit(f"failed: {' '.join(map(str, cmd))}\n{p.stderr[-2000:]}")
+    return time.perf_counter() - t, p.stderr
 
 
 def main():
@@ -56,7 +57,7 @@ def main():
         nx, ny, nz = map(int, box.split("x"))
         msh, prep = os.path.join(out, f"box_{box}.msh"), os.path.join(out, f"box_{box}.h5")
         tets = kuhn_box(nx, ny, nz, msh)
-        t_prep = run(EXE + ["mesh", msh, "--prepare", "-o", prep])
+        t_prep, _ = run(EXE + ["mesh", msh, "--prepare", "-o", prep])
         print(f"# {tets} tets: --prepare {t_prep:.1f} s (once per mesh)", flush=True)
         for n in map(int, a.ranks.split(",")):
             for kind, mesh in (("msh", msh), ("prepared", prep)):
@@ -64,7 +65,7 @@ def main():
                 end = "0" if a.setup_only else "0.01"
                 cmd = EXE + ["run", "bend", "-mesh", mesh, "-dt", "0.01", "-final_time", end, "-ksp_type", "cg",
                        "-pc_type", "gamg", "-order", str(a.order), "-output", res, "-log_view", f":{log}"]
-                wall = run(([a.mpiexec, "-n", str(n)] if n > 1 else []) + cmd)
+                wall, _ = run(([a.mpiexec, "-n", str(n)] if n > 1 else []) + cmd)
                 with h5py.File(res) as f:
                     mem = np.asarray(f.attrs["peak_rss_mb_per_rank"], float)
                     assert f.attrs["mesh_read"] == ("slices" if kind == "prepared" else "rank 0")

@@ -15,9 +15,7 @@ machine's, their seconds are not."""
 import argparse
 import os
 import re
-import subprocess
 import sys
-import time
 
 import h5py
 import numpy as np
@@ -26,18 +24,11 @@ sys.path.append(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))    
 
 from scripts.bench_output import stages  # noqa: E402
 from scripts.bench_output_ranks import kuhn_box  # noqa: E402
+from scripts.bench_prepared import run  # noqa: E402
 
 EXE = [sys.executable, "-m", "hyperelastic"]      # (the device machine runs the package from PYTHONPATH)
 NOTE = re.compile(r"refined on \d+ rank\(s\) in ([0-9.]+) s \(([0-9]+)k tetrahedra/s a rank(?:; the coarse mesh "
                   r"read on rank 0 in ([0-9.]+) s)?")
-
-
-def run(cmd):
-    t = time.perf_counter()
-    p = subprocess.run(cmd, capture_output=True, text=True)
-    if p.returncode:
-        sys.exit(f"failed: {' '.join(map(str, cmd))}\n{p.stderr[-2000:]}")
-    return time.perf_counter() - t, p.stderr
 
 
 def main():

@@ -25,7 +25,6 @@ P2 6k -> 49k; --quick: P1 16k -> 125k, P2 2k -> 17k), so fixed costs are not cou
 import argparse
 import math
 import os
-import subprocess
 import sys
 
 import h5py
@@ -35,6 +34,7 @@ sys.path.append(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))    
 
 from scripts.bench_output import stages  # noqa: E402
 from scripts.bench_output_ranks import kuhn_box  # noqa: E402
+from scripts.bench_prepared import run  # noqa: E402
 from scripts.bench_refine import NOTE  # noqa: E402
 
 EXE = [sys.executable, "-m", "hyperelastic"]
@@ -58,12 +58,10 @@ def run_once(out, coarse, order, refine):
     """One rank's costs of `bend` on the coarse mesh refined `refine` times (one step): {tets, nodes, seconds per
     part, Krylov iterations and reductions per Newton step, peak memory}."""
     res, log = os.path.join(out, f"m{order}_{refine}.h5"), os.path.join(out, f"m{order}_{refine}.log")
-    p = subprocess.run(EXE + ["run", "bend", "-mesh", coarse, "-refine", str(refine), "-order", str(order), "-dt",
-                              "0.01", "-final_time", "0.01", "-ksp_type", "cg", "-pc_type", "gamg", "-output", res,
-                              "-log_view", f":{log}"], capture_output=True, text=True)
-    if p.returncode:
-        sys.exit(p.stderr[-2000:])
-    m = NOTE.search(p.stderr)
+    _, err = run(EXE + ["run", "bend", "-mesh", coarse, "-refine", str(refine), "-order", str(order), "-dt", "0.01",
+                        "-final_time", "0.01", "-ksp_type", "cg", "-pc_type", "gamg", "-output", res, "-log_view",
+                        f":{log}"])
+    m = NOTE.search(err)
     with h5py.File(res) as f:
         tets, nodes = f["mesh/tetra"].shape[0], f["mesh/points"].shape[0]
         its, newton = int(f["stats/ksp_its"][:].sum()), int(f["stats/newton_its"][:].sum())

@@ -92,6 +92,13 @@ class Exchange:
         return out.reshape((self.n_want,) + tail)
 
 
+def cell_edge_numbers(mpi, ends, cell_ids, n_vertices, n_cells):
+    """edge_numbers of the cells' edges (ends: element.reference.cell_edges of the cells whose input ids are cell_ids; n_cells: the
+    whole mesh's), each met at cell id * 6 + its place in EDGES: the order of first appearance in the cells' order."""
+    occurrence = (np.asarray(cell_ids, np.int64)[:, None] * 6 + np.arange(6)).reshape(-1)
+    return edge_numbers(mpi, ends, occurrence, n_vertices, 6 * n_cells)
+
+
 def edge_numbers(mpi, ends, occurrence, n_vertices, n_slots):
     """The global number of each edge (ends: (m, 2) its vertices' input ids, ascending; occurrence: where this rank
     meets it, cell * 6 + its edge in element.EDGES, unique per (cell, edge) over the ranks; slots: 6 * cells), as

@@ -9,8 +9,8 @@ are its own edge nodes, so a curved boundary is sampled where the quadratic mesh
 and on a linear mesh, at straight midpoints (a curved surface stays as faceted as that mesh).
 
 Numbering, the same on any rank count: a child of cell c is cell 8 c + j; the new vertices are numbered after the
-level's vertices in the order of their edges' first appearance in that cell order (exchange.edge_numbers: the numbers
-mesh.read.elevate gives a whole mesh), so the whole fine mesh refined on one rank (`refine_whole`) has the same
+level's vertices in the order of their edges' first appearance in that cell order (exchange.cell_edge_numbers: the
+numbers mesh.read.elevate gives a whole mesh), so the whole fine mesh refined on one rank (`refine_whole`) has the same
 vertex and cell numbers, positions and cells as the union of the ranks' parts. Sets follow exactly: a child's face
 on its parent's face inherits that face's boundary and surface bits (4 facets per facet a level), a volume's children
 are in it (8 per cell). Each rank computes the positions of its cells' new vertices itself (a midpoint is the same
@@ -20,8 +20,9 @@ from dataclasses import dataclass
 import numpy as np
 from mpi4py import MPI
 
-from ..element.reference import EDGES
-from .exchange import Exchange, alltoallv, edge_numbers
+from ..element.reference import EDGES, cell_edges
+from ..mesh.prepared import face_flags, face_mask
+from .exchange import Exchange, alltoallv, cell_edge_numbers
 
 
 def _tables():
@@ -79,21 +80,13 @@ class Part:
     nb: int
 
 
-def _face_flags(ids, mask):
-    """(nc, 4) whether face k (without corner k) is in the bitmask `mask` (bit j: the face without the corner of j-th
-    smallest id), and the corners' ranks."""
-    rank = np.argsort(np.argsort(ids, axis=1, kind="stable"), axis=1)
-    return ((np.asarray(mask, np.int64)[:, None] >> rank) & 1).astype(bool), rank
-
-
 def _child_masks(ids, child_ids, face_of, mask):
     """The children's bitmasks of the parents' bitmask `mask` (face_of: (nc, 8, 4) each child face's parent face,
     -1 inside)."""
-    flags, _ = _face_flags(ids, mask)
+    flags = face_flags(ids, mask)
     flags = np.concatenate([flags, np.zeros((len(flags), 1), bool)], axis=1)       # column 4: inside
     child = flags[np.arange(len(flags))[:, None, None], np.where(face_of < 0, 4, face_of)]      # (nc, 8, 4)
-    c_rank = np.argsort(np.argsort(child_ids.reshape(-1, 4), axis=1, kind="stable"), axis=1).reshape(child.shape)
-    return (child.astype(np.int64) << c_rank).sum(axis=2).reshape(-1)
+    return face_mask(child_ids.reshape(-1, 4), child.reshape(-1, 4))
 
 
 def refine_level(mpi, part, edges=None):
@@ -101,9 +94,7 @@ def refine_level(mpi, part, edges=None):
     positions (nc, 6, 3)), the new vertices instead of numbered midpoints (part.nv then counts all its nodes)."""
     nc = len(part.ids)
     if edges is None:
-        ends = np.sort(np.stack([part.ids[:, [i, j]] for i, j in EDGES], axis=1), axis=2)        # (nc, 6, 2)
-        number = edge_numbers(mpi, ends.reshape(-1, 2), (part.cell_ids[:, None] * 6 + np.arange(6)).reshape(-1),
-                               part.nv, 6 * part.nc)
+        number = cell_edge_numbers(mpi, cell_edges(part.ids), part.cell_ids, part.nv, part.nc)
         nv = part.nv + mpi.allreduce(int(number.max()) + 1 if len(number) else 0, op=MPI.MAX)
         edge_ids = part.nv + number.reshape(nc, 6)
         edge_X = np.stack([0.5 * (part.X[:, i] + part.X[:, j]) for i, j in EDGES], axis=1)

@@ -15,7 +15,7 @@ from mpi4py import MPI
 from ..core.errors import UserError
 from ..core.files import is_output, require_parts
 from ..core.libpetsc import plex_from_slices
-from ..mesh.prepared import add_group, faces_of, is_prepared, open_prepared, read_groups
+from ..mesh.prepared import add_group, face_mask, faces_of, is_prepared, open_prepared, read_groups
 from ..mesh.read import flat_or_inverted, output_frame, region_names
 from ..mesh.sets import FACE_VERTICES, Mesh, face_keys
 from .exchange import Exchange, alltoallv
@@ -214,9 +214,7 @@ def boundary_masks(mpi, path, cells, corners, ids, cell_ids, nv):
     bad = np.flatnonzero((n >= 8).any(axis=1))
     _first_error(mpi, f"mesh '{path}': tetrahedron {cell_ids[bad[0]]} and its neighbour across a face lie on the "
                       "same side of it (overlapping tetrahedra)" if len(bad) else None)
-    rank = np.argsort(np.argsort(ids, axis=1, kind="stable"), axis=1)       # rank of corner k among the cell's
-    masks = ((n == 1) << rank).sum(axis=1)
-    return masks, int(mpi.allreduce(int((n == 1).sum()), op=MPI.SUM))
+    return face_mask(ids, n == 1), int(mpi.allreduce(int((n == 1).sum()), op=MPI.SUM))
 
 
 class MemorySource(PreparedSource):

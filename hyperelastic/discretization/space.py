@@ -17,10 +17,10 @@ from petsc4py import PETSc
 
 from mpi4py import MPI
 
-from ..element.reference import EDGES
+from ..element.reference import EDGES, cell_edges
 from . import partition
 from .exchange import Exchange
-from .exchange import edge_numbers
+from .exchange import cell_edge_numbers
 from .kernels import IDX, Cells, ElementCells
 from ..core.arrays import unique
 from ..core.errors import UserError
@@ -584,7 +584,7 @@ class QuadraticSpace(Space):
     def _adopt_elevated(self, mesh, dm, labels):
         """The DMPlex built from the slices of a prepared mesh, interpolated: a quadratic mesh's edge nodes where it
         has them (read in slices), else each edge's node at its midpoint, numbered after the vertices as
-        mesh.read.elevate numbers it (exchange.edge_numbers: the same numbers on any rank count); a facet set's nodes
+        mesh.read.elevate numbers it (exchange.cell_edge_numbers: the same numbers on any rank count); a facet set's nodes
         its facets' vertices and edges; returns what _distribute_quadratic returns (a migration SF only where a
         PETSc graph partitioner redistributes the slices, which are the Morton parts)."""
         nv, nc, self._boundary_faces = mesh.totals
@@ -595,9 +595,9 @@ class QuadraticSpace(Space):
         (c0, c1), (e0, e1), (v0, v1) = dm.getHeightStratum(0), dm.getDepthStratum(1), dm.getDepthStratum(0)
         ids = mesh.ids
         corner_ids = ids[mesh.tets]                                       # (the input's corner order)
-        ends = np.sort(np.stack([corner_ids[:, [i, j]] for i, j in EDGES], axis=1), axis=2).reshape(-1, 2)
+        ends = cell_edges(corner_ids)
         if given is None:
-            number = edge_numbers(self.mpi, ends, (mesh.cell_ids[:, None] * 6 + np.arange(6)).reshape(-1), nv, 6 * nc)
+            number = cell_edge_numbers(self.mpi, ends, mesh.cell_ids, nv, nc)
         key = ends[:, 0] * span + ends[:, 1]
         ukey, first = np.unique(key, return_index=True)
         dm_ends = np.sort(ids[ev - v0], axis=1)
@@ -714,7 +714,7 @@ class QuadraticSpace(Space):
 
 def edge_nodes(nodes, ends, n_points):
     """The input node of each edge given by its two end points (ne, 2), from the quadratic cells' nodes."""
-    pairs = np.sort(np.stack([nodes[:, [i, j]] for i, j in EDGES], axis=1), axis=2).reshape(-1, 2)
+    pairs = cell_edges(nodes)
     keys = pairs[:, 0] * n_points + pairs[:, 1]
     ukeys, first = np.unique(keys, return_index=True)
     e = np.sort(ends, axis=1)

@@ -25,6 +25,12 @@ from ..core.errors import UserError
 
 EDGES = ((0, 1), (1, 2), (0, 2), (0, 3), (1, 3), (2, 3))
 FACE_EDGES = ((0, 1), (1, 2), (0, 2))
+
+
+def cell_edges(corners):
+    """(nc * 6, 2) each cell's edges in EDGES order by their ends (corners (nc, >= 4): ids of its corners first),
+    the smaller first."""
+    return np.sort(np.stack([corners[:, [i, j]] for i, j in EDGES], axis=1), axis=2).reshape(-1, 2)
 # the reference nodes of a quadratic tetrahedron (the corners, then the midpoints of EDGES); a linear one's: the first 4
 REFERENCE_NODES = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1], [.5, 0, 0], [.5, .5, 0], [0, .5, 0],
                             [0, 0, .5], [.5, 0, .5], [0, .5, .5]])

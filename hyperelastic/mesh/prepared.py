@@ -154,12 +154,27 @@ def read_groups(f, lo=0, hi=None):
     return out
 
 
+def corner_ranks(ids):
+    """(nc, 4) each corner's rank among its cell's corners by id (ids (nc, 4) the corners' input ids): the bit of the
+    face without it in a cell's face bitmask."""
+    return np.argsort(np.argsort(ids, axis=1, kind="stable"), axis=1)
+
+
+def face_flags(ids, masks):
+    """(nc, 4) whether face k (without corner k) is in each cell's bitmask `masks` (bit j: the face without the corner
+    of j-th smallest id)."""
+    return (np.asarray(masks, np.int64)[:, None] >> corner_ranks(ids)) & 1 == 1
+
+
+def face_mask(ids, flags):
+    """Each cell's bitmask of the faces `flags` (nc, 4) marks (face_flags' inverse)."""
+    return (np.asarray(flags, np.int64) << corner_ranks(ids)).sum(axis=1)
+
+
 def faces_of(ids, masks):
     """The face indices 4 c + k (face k: without corner k) of each cell's faces in `masks` (bit j: the face without
     the corner of j-th smallest id; ids (nc, 4) the corners' input ids), ascending."""
-    rank = np.argsort(np.argsort(ids, axis=1, kind="stable"), axis=1)           # rank of corner k
-    has = (masks[:, None] >> rank) & 1 == 1                                      # (nc, 4): face k in the mask
-    return np.flatnonzero(has.reshape(-1))
+    return np.flatnonzero(face_flags(ids, masks).reshape(-1))
 
 
 def _check_numbering(path, node_ids, n_nodes, cell_ids, cells, nv, cell_edges, ne):

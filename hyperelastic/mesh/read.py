@@ -12,7 +12,7 @@ from ..core.data import cache_dir
 from ..core.errors import UserError
 from ..core.arrays import unique
 from ..core.files import completed_frames, is_output, require_parts
-from ..element.reference import EDGES, REFERENCE_NODES, TET_RULES, tet_shapes
+from ..element.reference import REFERENCE_NODES, TET_RULES, cell_edges, tet_shapes
 from .prepared import is_prepared, read_whole
 from .sets import FACE_VERTICES, Mesh, NamedSet, face_incidence, signed_volumes
 
@@ -176,7 +176,7 @@ def check_quadratic(points, nodes, path):
     corners = nodes[:, :4]
     used, compact = np.unique(corners, return_inverse=True)
     boundary = check(points[used], compact.reshape(corners.shape), path)
-    pairs = np.sort(np.stack([corners[:, [i, j]] for i, j in EDGES], axis=1), axis=2).reshape(-1, 2)
+    pairs = cell_edges(corners)
     edge_nodes = nodes[:, 4:].reshape(-1)
     key, first, inv = np.unique(pairs, axis=0, return_index=True, return_inverse=True)
     bad = np.flatnonzero(edge_nodes != edge_nodes[first][inv.ravel()])
@@ -204,7 +204,7 @@ def elevate(mesh):
     """The quadratic (straight-sided) mesh of a linear one: a node at the midpoint of every edge, numbered
     after the vertices in the order of the edges' first appearance."""
     tets = mesh.tets
-    pairs = np.sort(np.stack([tets[:, [i, j]] for i, j in EDGES], axis=1), axis=2).reshape(-1, 2)
+    pairs = cell_edges(tets)
     key, first, inv = np.unique(pairs, axis=0, return_index=True, return_inverse=True)
     order = np.argsort(first, kind="stable")
     rank = np.empty(len(order), np.int64)

@@ -150,12 +150,11 @@ class Contact(Effect):
         xc = x.reshape(-1, 3)[self.nodes]
         return [distances(o.kind, v, xc) for o, v in zip(self.obstacles, self.now)]
 
+    def _potential(self, terms):
+        return sum(float(self.kappa * (self.area * barrier(d, self.dhat)[0]).sum()) for d, _, _ in terms)
+
     def potential(self, x):
-        total = 0.0
-        for d, _, _ in self._terms(x):
-            b = barrier(d, self.dhat)[0]
-            total += float(self.kappa * (self.area * b).sum())
-        return total
+        return self._potential(self._terms(x))
 
     @timed("evals")
     def residual(self, x, r):
@@ -208,7 +207,7 @@ class Contact(Effect):
         terms = self._terms(x)
         active = sum(int((d < self.dhat).sum()) for d, _, _ in terms)
         dmin = min((float(d.min()) for d, _, _ in terms if len(d)), default=np.inf)
-        return {"contact_energy": self.potential(x), "contact_nodes": active, "contact_dmin": dmin}
+        return {"contact_energy": self._potential(terms), "contact_nodes": active, "contact_dmin": dmin}
 
 
 @dataclass(frozen=True)
