@@ -26,7 +26,7 @@ from ..core.arrays import unique
 from ..core.errors import UserError
 from ..core.libpetsc import cell_cones, plex_cones
 from ..mesh.order import spatial_order
-from ..mesh.prepared import faces_of
+from ..mesh.prepared import corner_ranks, faces_of
 from ..mesh.sets import FACE_VERTICES, VERTEX_VALUE, cell_label, facet_label, orient_outward
 
 
@@ -562,7 +562,7 @@ class QuadraticSpace(Space):
             # cells come first in the chart: each its input cell, and (CORNER_CODE) where the input cell has each
             # of its corners among them sorted by input index (the order `cells` keeps): input_cells restores it
             corners = nodes[corder, :4]
-            rank = np.argsort(np.argsort(corners, axis=1, kind="stable"), axis=1)
+            rank = corner_ranks(corners)
             point_input[:len(corder)] = corder * CORNER_CODE + rank @ (4 ** np.arange(4))
             point_input[v0:v1], point_input[e0:e1] = vertex_input, edge_node
             position = np.zeros((len(point_input), 3))
@@ -610,7 +610,7 @@ class QuadraticSpace(Space):
         else:
             self.nv_total, self.nc_total = mesh.n_nodes, nc
         point_input = np.full(dm.getChart()[1], -1, np.int64)
-        rank = np.argsort(np.argsort(corner_ids, axis=1, kind="stable"), axis=1)
+        rank = corner_ranks(corner_ids)
         point_input[c0:c1] = mesh.cell_ids * CORNER_CODE + rank @ (4 ** np.arange(4))
         position = np.zeros((len(point_input), 3))
         position[v0:v1] = mesh.points
