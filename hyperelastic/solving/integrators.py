@@ -12,7 +12,7 @@ from petsc4py import PETSc
 from ..core.errors import Interrupted, SolveError
 from .forces import surface_forces
 from . import rigid
-from .stats import effect_column, energy_sum, force_columns
+from .stats import effect_column, energy_sum, extremal, force_columns
 
 
 def step_count(final_time, dt):
@@ -131,7 +131,7 @@ class Integrator:
         en = self.system.energies(x1, v1)
         en.setdefault("kinetic", 0.0)
         finite = self.sp.mpi.allreduce(bool(np.isfinite(x1).all()), op=MPI.LAND) and all(
-            math.isfinite(val) for k, val in en.items() if k not in ("J_min", "J_max"))
+            math.isfinite(val) for k, val in en.items() if not extremal(k))
         if not finite:
             return False
         tot = energy_sum(en)

@@ -298,10 +298,42 @@ OPERATORS = {"shell": ExactShell, "seed_fd": lambda s: SeedFD(s, 1), "seed_fd2":
 ASSEMBLIES = {"setvalues": AssembledChunked, "coo": Assembled}
 
 
+class Coupled:
+    """An assembled operator plus the couplings between nodes that the cell pattern does not join (self-contact's
+    pairs: effects with `add_coupling`), as a MatShell: the Krylov method multiplies by both, the preconditioner is
+    still built from the assembled matrix (which holds each node's own block)."""
+
+    def __init__(self, inner, system, effects):
+        self.inner, self.effects = inner, effects
+        sp = system.space
+        self.constrained = system.cmask.reshape(-1, 3)[sp.lvid_of_owned].ravel()
+        self.mat = PETSc.Mat().createPython(inner.getSizes(), context=self, comm=sp.comm)
+        self.mat.setUp()
+
+    @classmethod
+    def around(cls, op, system):
+        """op with its `operator` wrapped where some effect couples distant nodes and op multiplies by a matrix."""
+        effects = [e for e in system.effects if hasattr(e, "add_coupling")]
+        if effects and op.operator.getType() != PETSc.Mat.Type.PYTHON:
+            op.operator = cls(op.operator, system, effects).mat
+        return op
+
+    def mult(self, mat, X, Y):
+        self.inner.mult(X, Y)
+        xa, ya = X.getArray(readonly=True), Y.getArray()
+        for e in self.effects:
+            e.add_coupling(xa, ya, self.constrained)
+
+    def getDiagonal(self, mat, D):
+        self.inner.getDiagonal(D)
+
+
 def make(system, mode, assembly="setvalues", storage="aij"):
     """The operator of Jacobian mode `mode` (scene.JACOBIANS) on the system: an object with `mat`
     (the PETSc Mat SNES preconditions with), `operator` (the one it multiplies by: `mat` itself, or
-    with storage `sbaij` its SBAIJ copy) and `update()` (called after System.linearize)."""
+    with storage `sbaij` its SBAIJ copy; with couplings between distant nodes, `Coupled` around it) and
+    `update()` (called after System.linearize)."""
     if mode == "assembled":
-        return AssembledChunked(system, storage=storage) if storage != "aij" else ASSEMBLIES[assembly](system)
+        op = AssembledChunked(system, storage=storage) if storage != "aij" else ASSEMBLIES[assembly](system)
+        return Coupled.around(op, system)
     return OPERATORS[mode](system)

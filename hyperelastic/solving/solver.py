@@ -178,6 +178,7 @@ class Solver:
             snes.setJacobian(self._jacobian, self.op.operator, self.op.mat)
         self.inversion_cuts = 0   # Newton updates shortened so that no element inverts
         self.contact_cuts = 0     # ... so that no contact node reaches an obstacle (effects with max_step)
+        self.contact_cut_at = -1  # the Newton iteration of this solve's last contact cut
         self.levels = None        # p-multigrid's levels (pmg.py), where the run uses them
         self.guard = system.elastic_kernels() if guard else None
         self.limiters = [e for e in system.effects if hasattr(e, "max_step")]
@@ -410,6 +411,8 @@ class Solver:
             Y.scale(min(t, c))
             self.inversion_cuts += t < 1.0 and t <= c
             self.contact_cuts += c < t
+            if c < t:
+                self.contact_cut_at = self.snes.getIterationNumber()
             return True
         return False
 
@@ -432,10 +435,13 @@ class Solver:
     def solve(self, X):
         """Solve for the step's state in X; SNES's converged reason, or GUARDED_SNORM (refused)."""
         self.system.set_objective_base(None)
-        cuts = self.inversion_cuts + self.contact_cuts
+        cuts = self.inversion_cuts
+        self.contact_cut_at = -1
         self.snes.solve(None, X)
         reason = self.snes.getConvergedReason()
-        guarded = self.inversion_cuts + self.contact_cuts > cuts
+        # (an inversion cut anywhere in the solve; a contact cut in its last update: a barrier's stiff start is cut
+        # in its first iterations and then converges quadratically to updates below -snes_stol)
+        guarded = self.inversion_cuts > cuts or self.contact_cut_at >= self.snes.getIterationNumber() - 1
         if reason == PETSc.SNES.ConvergedReason.CONVERGED_SNORM_RELATIVE and guarded:
             return self.GUARDED_SNORM
         return reason
@@ -445,7 +451,7 @@ class Solver:
             return (f"DIVERGED_DTOL: the residual norm stayed above {self.DIVERGING_FACTOR:g}x its smallest for "
                     f"{self.diverging} Newton iterations, -diverging_newton")
         if reason == self.GUARDED_SNORM:
-            return "CONVERGED_SNORM_RELATIVE after an update cut by the inversion guard: a small step, not convergence"
+            return "CONVERGED_SNORM_RELATIVE after an update cut by the inversion guard (or, in its last update, by contact): a small step, not convergence"
         return enum_name(PETSc.SNES.ConvergedReason, reason)
 
     def ksp_reason_name(self):

@@ -109,6 +109,13 @@ def accepted(st):
     return ~st.get("rejected", np.zeros(n, np.int64)).astype(bool)
 
 
+def extremal(column):
+    """Whether a statistics column is a smallest or largest value (J_min, contact_dmin: combined by min or max), which
+    may be infinite (no contact pair within reach), rather than an energy."""
+    e = energies().get(column)
+    return e is not None and e.combine != "sum"
+
+
 def energy_sum(values, with_work=True):
     """energy_total from {column: value (a number or an array)}: the effects' energies with their signs
     (kinetic + elastic + potentials - work of the loads); with_work=False: the body's energy alone."""

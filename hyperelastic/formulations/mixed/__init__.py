@@ -121,6 +121,9 @@ class Mixed(Formulation):
                     "-snes_mf_operator keeps the field split")
         if sc.integrator != "beuler":
             return f"{what}: quasi-static and backward Euler runs (-integrator beuler), not -integrator {sc.integrator}"
+        if getattr(sc.effects.get("contact"), "self_contact", False):
+            return (f"{what}: self-contact couples distant nodes, which the mixed operators do not take; "
+                    "-formulation displacement")
         if not any(sol.material.volumetric for _, sol in problem.solids):
             where = ", ".join(f"{w} {sol.name}" for w, sol in problem.solids)
             return (f"{what}: no isochoric/volumetric split in the cells' materials ({where}); use "

@@ -216,6 +216,7 @@ class ContactParams:
     faces: tuple              # the contact surfaces ((set, components) as facet_sets gives them)
     dhat: float               # None: DHAT_SCALE x the bounding-box diagonal
     kappa: float              # None: KAPPA_SCALE E / dhat
+    self_contact: bool = False  # -contact_self: the contact surfaces against themselves (self_contact.py)
 
 
 def split_top(text, sep):
@@ -255,9 +256,10 @@ def _obstacle(text, motion):
 
 def _read(opts, where):
     texts = [t for t in split_top(opts.string("obstacle", "") or "", ";") if t.strip()]
-    if not texts:
+    self_contact = opts.flag("contact_self", False)
+    if not texts and not self_contact:
         raise UserError(f"{where}: effect 'contact' needs -obstacle (" +
-                        "; ".join(f"{k}:{v}" for k, v in KINDS.items()) + ": self-contact is not built yet)")
+                        "; ".join(f"{k}:{v}" for k, v in KINDS.items()) + ") or -contact_self")
     motions = [None] * len(texts)
     if opts.has("obstacle_motion"):
         given = split_top(opts.string("obstacle_motion"), ";")
@@ -274,7 +276,7 @@ def _read(opts, where):
     obstacles = tuple(_obstacle(t, m) for t, m in zip(texts, motions))
     faces_ = tuple(facet_sets(opts, "contact_faces", default="boundary"))
     return ContactParams(obstacles, faces_, opts.real("contact_dhat", None, minimum=0),
-                         opts.real("contact_kappa", None, minimum=0))
+                         opts.real("contact_kappa", None, minimum=0), self_contact)
 
 
 def build_contact(p, ctx):
@@ -299,7 +301,12 @@ def build_contact(p, ctx):
     lo, hi = sp.bbox
     dhat = p.dhat if p.dhat is not None else DHAT_SCALE * float(np.linalg.norm(np.asarray(hi) - np.asarray(lo)))
     kappa = p.kappa if p.kappa is not None else KAPPA_SCALE * ctx.modulus / dhat
-    return [Contact(nodes, owned_share[owned_share > 0], X, sp.orig[nodes], p.obstacles, dhat, kappa, edge[nodes])]
+    out = [Contact(nodes, owned_share[owned_share > 0], X, sp.orig[nodes], p.obstacles, dhat, kappa, edge[nodes])
+           ] if p.obstacles else []
+    if p.self_contact:
+        from .self_contact import SelfContact
+        out.append(SelfContact(sp, tris, dhat, kappa))
+    return out
 
 
 def _uses(p):
@@ -307,17 +314,25 @@ def _uses(p):
 
 
 SPEC = Spec(
-    "contact", "rigid obstacles (planes, spheres) the boundary touches but never passes through (IPC barrier)",
-    implied_by=("obstacle", "contact_dhat", "contact_kappa", "contact_faces"), read=_read, sets=_uses,
+    "contact", "rigid obstacles (planes, spheres) and self-contact: the boundary touches but never passes through "
+    "(IPC barrier)",
+    implied_by=("obstacle", "contact_self", "contact_dhat", "contact_kappa", "contact_faces"), read=_read, sets=_uses,
     build=build_contact,
     energies=(Energy("contact_energy", 1, "the contact barrier's energy"),
               Energy("contact_nodes", 0, "contact nodes within dhat of an obstacle"),
-              Energy("contact_dmin", 0, "the smallest distance of a contact node to an obstacle", combine="min")),
+              Energy("contact_pairs", 0, "self-contact pairs (point-triangle, edge-edge, ...) within dhat"),
+              Energy("contact_dmin", 0, "the smallest distance of a contact node to an obstacle (or of two parts of the "
+                     "contact surface within dhat)", combine="min")),
     rows=(Row(("obstacle", "obstacle_motion"), "-obstacle KIND:VALUES[;…]",
               "rigid obstacles: `plane:NX,NY,NZ,D` (the half-space N·x > D is free: the normal points into the "
               "body), `sphere:CX,CY,CZ,R`; `-obstacle_motion EX,EY,EZ[;…]`: each one's translation, expressions of "
               "t. The boundary never passes through them (IPC's barrier in the energy, each Newton update stopped "
-              "short of the first impact); frictionless; no self-contact yet"),
+              "short of the first impact); frictionless"),
+          Row(("contact_self",), "-contact_self",
+              "self-contact: the contact surfaces touch themselves and each other (a body folding onto itself, "
+              "separate pieces of the mesh) but never pass through (IPC's barrier over point-triangle and edge-edge "
+              "pairs, each Newton update stopped short of the first collision: the IPC Toolkit); the surface is "
+              "gathered to every rank; not with -formulation mixed"),
           Row(("contact_faces",), "-contact_faces S1,S2,…", "the surfaces that touch the obstacles", "boundary"),
           Row(("contact_dhat", "contact_kappa"), "-contact_dhat d -contact_kappa k",
               "the barrier's reach [m] (default 1e-3 of the bounding box's diagonal: forces act at distances below "
