@@ -18,8 +18,8 @@ node within one step makes that step's start infeasible and the step is retried 
 Defaults: dhat 1e-3 of the part's bounding-box diagonal (IPC's), kappa = KAPPA_SCALE E / dhat (E the largest Young's
 modulus of the solids): the pressure at d = dhat/2 is then 0.12 E, at dhat/10 1.2 E.
 Each rank sums its owned nodes: the same answer on any rank count, no surface gathered (a node meets an analytic
-obstacle alone). Not yet: self-contact and contact between pieces of the mesh (ipctk's broad phase, point-triangle
-and edge-edge barriers), triangulated obstacles, friction, -integrator ts."""
+obstacle alone). Self-contact and contact between pieces of the mesh (-contact_self): self_contact.py, built by the
+same spec. Not yet: triangulated obstacles, friction, -integrator ts."""
 import re
 from dataclasses import dataclass
 
