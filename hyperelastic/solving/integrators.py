@@ -421,12 +421,19 @@ class BackwardEuler(Integrator):
                     guesses += [g for g in [sysm.pushed_by_obstacles(self.x)] if g is not None]
                 elif not guesses and not all(e.linear for e in sysm.effects) and self._linearized_guess():
                     guesses = [None]           # (in self.X already; a linear problem's first iterate is the same solve)
+                elif guesses and any(e.kernels is None for e in sysm.domain_effects):
+                    # (contact: where the rate's start is refused — it carries a body through a face it has just met —
+                    # the linearized answer, whose tangent at x^n holds the pairs' barrier; computed only then)
+                    guesses.append(self._linearized_guess)
         else:
             guesses = [self.x + h * self.v] if self.sp.mpi.allreduce(bool(self.v.any()), op=MPI.LOR) else []
             if sysm.moves_obstacles():
                 guesses += [g for g in [sysm.pushed_by_obstacles(guesses[0] if guesses else self.x)] if g is not None]
         for guess in guesses + [self.x]:
-            if guess is not None:
+            if callable(guess):
+                if not guess():
+                    continue
+            elif guess is not None:
                 sysm.set_guess(self.X, guess)
             if not sysm.check_domain or guess is self.x or sysm.defined_at(self.X):
                 return
