@@ -138,15 +138,7 @@ def _read_meshio(path):
         raise UserError(f"mesh '{path}': no such file")
     if os.path.isdir(path):
         raise UserError(f"mesh '{path}': is a directory")
-    import meshio  # deferred on purpose: ~0.2 s to load its format readers, needed only for foreign meshes
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            m = _quiet(meshio.read, path)
-    except (Exception, SystemExit) as e:  # meshio raises many kinds of errors (even SystemExit) for malformed files
-        msg = ("malformed file" if isinstance(e, SystemExit) else
-               str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__)
-        raise UserError(f"mesh '{path}': cannot be read ({msg[:200]})") from None
+    m = read_meshio(path, f"mesh '{path}'")
     points = np.asarray(m.points, dtype=np.float64)
     found = sorted({c.type for c in m.cells})
     if "tetra" in found and "tetra10" in found:
@@ -245,6 +237,19 @@ def corners(mesh):
     used, compact = np.unique(mesh.tets, return_inverse=True)
     return Mesh(mesh.path, mesh.points[used], compact.reshape(mesh.tets.shape), mesh.facet_cell, mesh.facet_k,
                 mesh.groups)
+
+
+def read_meshio(path, what):
+    """meshio's mesh of the file, silently; one line (UserError, starting with `what`) where it cannot be read."""
+    import meshio  # deferred on purpose: ~0.2 s to load its format readers, needed only for foreign meshes
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            return _quiet(meshio.read, path)
+    except (Exception, SystemExit) as e:  # meshio raises many kinds of errors (even SystemExit) for malformed files
+        msg = ("malformed file" if isinstance(e, SystemExit) else
+               str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__)
+        raise UserError(f"{what}: cannot be read ({msg[:200]})") from None
 
 
 def _quiet(fn, *args):

@@ -20,6 +20,7 @@ modulus of the solids): the pressure at d = dhat/2 is then 0.12 E, at dhat/10 1.
 Each rank sums its owned nodes: the same answer on any rank count, no surface gathered (a node meets an analytic
 obstacle alone). Self-contact and contact between pieces of the mesh (-contact_self): self_contact.py, built by the
 same spec. Not yet: triangulated obstacles, friction, -integrator ts."""
+import os
 import re
 from dataclasses import dataclass
 
@@ -28,6 +29,7 @@ import numpy as np
 from ...core.errors import UserError
 from ...core.expressions import TimeFunction
 from ...core.options import Row, facet_sets
+from ...mesh.read import read_meshio
 from .base import Effect, Energy, Spec, timed
 
 CCD_MARGIN = 0.1            # a Newton update stops this fraction short of the first contact along it
@@ -36,7 +38,8 @@ PUSH_LIMIT = 0.3            # a step's start pushes contact nodes ahead of a mov
 KAPPA_SCALE = 0.1           # kappa = KAPPA_SCALE E / dhat by default
 DHAT_SCALE = 1e-3           # dhat = DHAT_SCALE x the bounding-box diagonal by default
 KINDS = {"plane": "NX,NY,NZ,D: the half-space NX x + NY y + NZ z > D is free (the normal points into the body)",
-         "sphere": "CX,CY,CZ,R: a rigid ball of radius R (the body stays outside)"}
+         "sphere": "CX,CY,CZ,R: a rigid ball of radius R (the body stays outside)",
+         "mesh": "FILE: a rigid triangulated surface (.stl, .obj, .msh, ... as meshio reads it; its triangles)"}
 
 
 def barrier(d, dhat):
@@ -54,14 +57,19 @@ def barrier(d, dhat):
 
 @dataclass(frozen=True)
 class Obstacle:
-    kind: str                 # "plane" | "sphere"
-    values: tuple             # a plane's unit normal and offset; a sphere's centre and radius
+    kind: str                 # "plane" | "sphere" | "mesh"
+    values: tuple             # a plane's unit normal and offset; a sphere's centre and radius; a mesh's file
     motion: tuple = None      # three TimeFunctions of its translation, or None (fixed)
     text: str = ""
+    surface: tuple = None     # a mesh's (points (n, 3), triangles (m, 3)) as read
+
+    def shift(self, t):
+        """The obstacle's translation at time t."""
+        return np.zeros(3) if self.motion is None else np.array([m(t) for m in self.motion])
 
     def at(self, t):
         """(kind, values) at time t: a plane's offset and a sphere's centre moved by the translation."""
-        u = np.zeros(3) if self.motion is None else np.array([m(t) for m in self.motion])
+        u = self.shift(t)
         v = np.array(self.values, float)
         if self.kind == "plane":
             v[3] += float(v[:3] @ u)
@@ -238,6 +246,8 @@ def _obstacle(text, motion):
     if kind not in KINDS:
         raise UserError(f"option -obstacle: '{text}' is not an obstacle (give " +
                         "; ".join(f"{k}:{v}" for k, v in KINDS.items()) + ", several separated by ';')")
+    if kind == "mesh":
+        return Obstacle(kind, (m.group(2),), motion, text.strip(), read_surface(m.group(2), text))
     try:
         vals = [float(s) for s in m.group(2).split(",")]
     except ValueError:
@@ -252,6 +262,20 @@ def _obstacle(text, motion):
     elif vals[3] <= 0:
         raise UserError(f"option -obstacle: '{text}': the sphere's radius must be > 0")
     return Obstacle(kind, tuple(vals), motion, text.strip())
+
+
+def read_surface(path, text):
+    """(points, triangles) of a triangulated obstacle's file (meshio), or one line saying why not."""
+    if not os.path.isfile(path):
+        raise UserError(f"option -obstacle: '{text}': cannot read {path}: no such file")
+    mesh = read_meshio(path, f"option -obstacle: '{text}': {path}")
+    tris = [c.data for c in mesh.cells if c.type == "triangle"]
+    points = np.asarray(mesh.points, float)
+    if not tris or points.ndim != 2 or points.shape[1] != 3 or not np.isfinite(points).all():
+        raise UserError(f"option -obstacle: '{text}': {path} holds no triangles with finite 3-d points")
+    tris = np.concatenate(tris).astype(np.int64)
+    used = np.unique(tris)
+    return points[used], np.searchsorted(used, tris)
 
 
 def _read(opts, where):
@@ -301,11 +325,13 @@ def build_contact(p, ctx):
     lo, hi = sp.bbox
     dhat = p.dhat if p.dhat is not None else DHAT_SCALE * float(np.linalg.norm(np.asarray(hi) - np.asarray(lo)))
     kappa = p.kappa if p.kappa is not None else KAPPA_SCALE * ctx.modulus / dhat
-    out = [Contact(nodes, owned_share[owned_share > 0], X, sp.orig[nodes], p.obstacles, dhat, kappa, edge[nodes])
-           ] if p.obstacles else []
-    if p.self_contact:
+    analytic = tuple(o for o in p.obstacles if o.kind != "mesh")
+    meshes = tuple(o for o in p.obstacles if o.kind == "mesh")
+    out = [Contact(nodes, owned_share[owned_share > 0], X, sp.orig[nodes], analytic, dhat, kappa, edge[nodes])
+           ] if analytic else []
+    if p.self_contact or meshes:
         from .self_contact import SelfContact
-        out.append(SelfContact(sp, tris, dhat, kappa))
+        out.append(SelfContact(sp, tris, dhat, kappa, meshes))
     return out
 
 

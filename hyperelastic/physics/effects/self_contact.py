@@ -59,7 +59,9 @@ class SelfContact(Effect):
     symmetric = True
     domain = True
 
-    def __init__(self, space, tris, dhat, kappa):
+    def __init__(self, space, tris, dhat, kappa, obstacles=()):
+        """obstacles: triangulated rigid obstacles (contact.Obstacle of kind mesh): their triangles join the collision
+        mesh as vertices that are not unknowns, placed by their translation at each step's end."""
         super().__init__()
         ip = self.ip = _ipctk()
         sp = self.space = space
@@ -83,20 +85,29 @@ class SelfContact(Effect):
         self.order = np.concatenate(self.mpi.allgather(self.own_s))               # gathered rows -> surface ids
         self.own_dofs = (3 * self.own_s[:, None] + np.arange(3)).ravel()
         self.own_cols = (3 * self.own_pos[:, None] + np.arange(3)).ravel()       # (owned-array dofs)
-        X = self.gather(sp.X.reshape(-1, 3)[self.nodes])
+        self.obstacles = tuple(obstacles)
+        self.moving = any(o.motion is not None for o in self.obstacles)
+        self.n_surface = len(self.ids)
+        offset = self.n_surface
+        for o in self.obstacles:
+            faces = np.concatenate([faces, o.surface[1] + offset])
+            offset += len(o.surface[0])
+        self.fixed = self._obstacles_at(0.0)                     # the obstacles' vertices now (not unknowns)
+        X = self._V(sp.X)
         self.mesh = ip.CollisionMesh(X, ip.edges(faces), faces)
         self.potential_fn = ip.BarrierPotential(self.dhat, self.kappa * self.dhat / (2 * KAPPA_WEIGHT), True)
         self.blocks = np.zeros((len(self.nodes), 3, 3))
         self.coupling = None                                 # csr (3 n_own, 3 n_surface): the off-diagonal blocks
         self.coupled = False                                 # some rank has coupling entries (collective)
-        self.start = X
+        self.start = self.last = X                          # the step's start; the last state reached from it
         self._cache = (None, None)
+        what = "option -contact_self" if not self.obstacles else "options -contact_faces and -obstacle mesh:"
         if ip.has_intersections(self.mesh, X):
-            raise UserError("option -contact_self: the contact surface intersects itself at the start (a start state "
+            raise UserError(f"{what}: the contact surface intersects itself or an obstacle at the start (a start state "
                             "must be free of intersections)")
         dmin = self._collisions(X).compute_minimum_distance(self.mesh, X) if len(X) else np.inf
         if dmin <= 0:
-            raise UserError("option -contact_self: two parts of the contact surface touch at the start (distance 0): "
+            raise UserError(f"{what}: two parts of the contact surface (or it and an obstacle) touch at the start: "
                             "a start state must be free of contact")
 
     # --- the surface's positions on every rank --------------------------------------------------------------------
@@ -113,8 +124,12 @@ class SelfContact(Effect):
         out[self.order] = buf
         return out
 
-    def _V(self, x):
-        return self.gather(x.reshape(-1, 3)[self.nodes])
+    def _obstacles_at(self, t):
+        return np.concatenate([np.zeros((0, 3))] + [o.surface[0] + o.shift(t) for o in self.obstacles])
+
+    def _V(self, x, fixed=None):
+        V = self.gather(x.reshape(-1, 3)[self.nodes])
+        return V if not self.obstacles else np.concatenate([V, self.fixed if fixed is None else fixed])
 
     def _collisions(self, V):
         key, c = self._cache
@@ -137,6 +152,13 @@ class SelfContact(Effect):
         V = self._V(x)
         c = self._collisions(V)
         self.undefined = 0
+        if self.moving:
+            # (moving obstacles: the state must be reachable from the step's start without a collision — a triangle
+            # is unsigned, so a body it moved through at once feels nothing; checked along the evaluated states)
+            if not self.ip.is_step_collision_free(self.mesh, self.last, V, 0.0, None, self.ccd):
+                self.undefined = 1
+                return
+            self.last = V
         if len(c) == 0:
             return
         if c.compute_minimum_distance(self.mesh, V) <= 0:
@@ -151,7 +173,13 @@ class SelfContact(Effect):
         return 0 if ok else 1
 
     def begin_step(self, t, h, xn, vn):
-        self.start = self._V(xn)
+        self.start = self.last = self._V(xn, self._obstacles_at(t - h)) if xn is not None else self.start
+        self.fixed = self._obstacles_at(t)
+
+    def pushed(self, x):
+        """(x, False): a triangulated obstacle pushes nothing ahead of it (a step whose start it moved into is retried
+        shorter; quasi-static steps start from the last step's rate)."""
+        return x, False
 
     def linearize(self, x):
         V = self._V(x)
@@ -176,6 +204,8 @@ class SelfContact(Effect):
         if not self.coupled:
             return None
         v = self.gather(own_v).ravel()
+        if self.obstacles:
+            v = np.concatenate([v, np.zeros(3 * len(self.fixed))])      # (obstacles do not move with v)
         return self.coupling @ v if self.coupling is not None else np.zeros(3 * len(self.nodes))
 
     @timed("applies")
