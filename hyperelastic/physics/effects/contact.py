@@ -351,7 +351,8 @@ SPEC = Spec(
                      "contact surface within dhat)", combine="min")),
     rows=(Row(("obstacle", "obstacle_motion"), "-obstacle KIND:VALUES[;…]",
               "rigid obstacles: `plane:NX,NY,NZ,D` (the half-space N·x > D is free: the normal points into the "
-              "body), `sphere:CX,CY,CZ,R`; `-obstacle_motion EX,EY,EZ[;…]`: each one's translation, expressions of "
+              "body), `sphere:CX,CY,CZ,R`, `mesh:FILE` (a triangulated surface meshio reads: .stl, .obj, .msh, …); "
+              "`-obstacle_motion EX,EY,EZ[;…]`: each one's translation, expressions of "
               "t. The boundary never passes through them (IPC's barrier in the energy, each Newton update stopped "
               "short of the first impact); frictionless"),
           Row(("contact_self",), "-contact_self",
