@@ -244,3 +244,37 @@ def test_a_triangulated_plate_presses_as_the_plane_does(tmp_path):
     q = run_ok(["run", "press", "-output", tmp_path / "p.h5"])
     f_mesh, f_plane = _forces(p.stderr, "load contact"), _forces(q.stderr, "load contact")
     assert abs(f_mesh[0] - f_plane[0]) < 1e-3 * abs(f_plane[0]), (f_mesh, f_plane)
+
+
+def test_hertz_contact_radius_and_peak_pressure(tmp_path):
+    """examples/hertz.opts: a quarter of a linear-elastic half ball (R = 1, E = 1e6, nu = 0.3) pressed onto a rigid
+    plane (3,062 tets graded to 0.02 at the pole). From the output alone: each contact node's force is kappa A_i
+    |b'(d_i)| (A_i its share of the ball's reference area; b' by the IPC Toolkit), F the full ball's total; for
+    Hertz's pressure p0 sqrt(1 - r^2/a^2), <r^2> weighted by the pressure is (2/5) a^2, so a = sqrt(5/2 <r^2>_f).
+    Against a = (3 F R / (4 E*))^(1/3): within 2% (measured 0.4%; 1.1% and 1.3% at edges 0.01 and 0.005, where the
+    barrier's reach dhat = 1.7e-3 blurs the edge of the contact); the pole's pressure against p0 = 3F/(2 pi a^2)
+    within 8% (5.3%, then 2.5% and 1.8% on those meshes)."""
+    ipctk = pytest.importorskip("ipctk")
+    msh = tmp_path / "hertz.msh"
+    run_ok(["mesh", os.path.join(EXAMPLES, "hertz.geo"), "--size", 0.2, "--graded", "-o", msh])
+    run_ok(["run", os.path.join(EXAMPLES, "hertz.opts"), "-mesh", msh, "-output", tmp_path / "h.h5"])
+    got = read_h5(tmp_path / "h.h5")
+    X, x = got["points"], got["x"][-1]
+    tri = _boundary_triangles(got["tetra"])
+    c = X[tri].mean(axis=1)
+    ball = tri[(c[:, 0] > 1e-9) & (c[:, 1] > 1e-9) & (c[:, 2] < 1 - 1e-9)]
+    area = 0.5 * np.linalg.norm(np.cross(X[ball[:, 1]] - X[ball[:, 0]], X[ball[:, 2]] - X[ball[:, 0]]), axis=1)
+    A = np.zeros(len(X))
+    np.add.at(A, ball, np.repeat(area[:, None] / 3, 3, axis=1))
+    E, nu, R = 1e6, 0.3, 1.0
+    dhat = 1e-3 * np.linalg.norm(X.max(0) - X.min(0))            # (the defaults: README)
+    kappa = 0.1 * E / dhat
+    on = A > 0
+    d = x[on, 2] + 0.001                                         # (the plane z = -0.001)
+    p = np.array([-kappa * ipctk.barrier_first_derivative(di, dhat) if di < dhat else 0.0 for di in d])
+    f, r2 = A[on] * p, X[on, 0] ** 2 + X[on, 1] ** 2
+    F = 4 * f.sum()
+    a = (3 * F * R / (4 * E / (1 - nu ** 2))) ** (1 / 3)
+    assert 0.1 < a < 0.2, a
+    assert abs(np.sqrt(2.5 * (f * r2).sum() / f.sum()) / a - 1) < 0.02
+    assert abs(p[np.argmin(r2)] / (3 * F / (2 * np.pi * a * a)) - 1) < 0.08
