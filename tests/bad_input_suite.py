@@ -753,6 +753,8 @@ def contract_cases(rng):
          ("-obstacle_motion", "2 translations"), None),
         ("obstacle_file_unreadable", BEND + ["-obstacle", "mesh:plate.vtu"], ("-obstacle", "cannot be read"),
          lambda d: _write(d, "plate.vtu", b"<VTKFile garbage\n")),
+        ("obstacle_friction_negative", BEND + ["-obstacle", "plane:0,0,1,-3", "-contact_friction", "-0.2"],
+         ("-contact_friction",), None),
         ("obstacle_file_no_triangles", BEND + ["-obstacle", "mesh:plate.obj"], ("-obstacle", "no triangles"),
          lambda d: _write(d, "plate.obj", b"v 0 0 0\nv 1 0 0\n")),
         ("refine_negative", BEND + ["-refine", "-1"], ("-refine", ">= 0"), None),

@@ -69,6 +69,44 @@ def test_residual_and_tangent_are_the_energys_derivatives():
     assert np.linalg.eigvalsh(c.blocks).min() >= -1e-9 * np.abs(c.blocks).max()
 
 
+def test_friction_is_the_gradient_of_its_lagged_potential_and_its_tangent_psd():
+    """IPC's smoothed, lagged Coulomb friction on the obstacles: the mollifier equals the IPC Toolkit's f0 and f1; at
+    slips below and beyond eps_v h the residual is the potential's gradient and the tangent the residual's derivative
+    (central differences), every 3x3 block positive semi-definite."""
+    ipctk = pytest.importorskip("ipctk")
+    from hyperelastic.physics.effects.contact import mollifier
+    for y in (0.0, 1e-3, 0.1, 0.29, 0.31, 2.0):
+        f0, f1y, _ = mollifier(np.array([y]), 0.3)
+        assert np.isclose(f0[0], ipctk.smooth_friction_f0(y, 0.3)) and np.isclose(f1y[0] * y, ipctk.smooth_friction_f1(y, 0.3))
+    c0, x0 = _effect()
+    rng = np.random.default_rng(5)
+    for scale in (1e-3, 0.05):                      # slips below and beyond eps_v h = 0.01
+        c = Contact(c0.nodes, c0.area, x0, c0.nodes, c0.obstacles, c0.dhat, c0.kappa, mu=0.4, eps_v=0.1)
+        c.begin_step(1.0, 0.1, x0, None)
+        slip = rng.normal(size=x0.shape) * scale
+        slip.reshape(-1, 3)[:, 2] = 0.0
+        x = x0 + slip
+        r = np.zeros_like(x)
+        c.residual(x, r)
+        h = 1e-7
+        for i in rng.choice(len(x), 12, replace=False):
+            e = np.zeros_like(x)
+            e[i] = h
+            fd = (c.potential(x + e) - c.potential(x - e)) / (2 * h)
+            assert abs(fd - r[i]) <= 1e-5 * max(1.0, abs(r[i])), (scale, i, fd, r[i])
+        only_plane = Contact(c0.nodes, c0.area, x0, c0.nodes, c0.obstacles[:1], c0.dhat, c0.kappa, mu=0.4, eps_v=0.1)
+        only_plane.begin_step(1.0, 0.1, x0, None)
+        only_plane.linearize(x)
+        v = rng.normal(size=x.shape)
+        y = np.zeros_like(x)
+        only_plane.apply(v, y)
+        rp, rm = np.zeros_like(x), np.zeros_like(x)
+        only_plane.residual(x + 1e-7 * v, rp)
+        only_plane.residual(x - 1e-7 * v, rm)
+        assert np.allclose((rp - rm) / 2e-7, y, rtol=1e-4, atol=1e-5 * np.abs(y).max())
+        assert np.linalg.eigvalsh(only_plane.blocks).min() >= -1e-9 * np.abs(only_plane.blocks).max()
+
+
 def test_an_update_stops_short_of_the_first_impact():
     """max_step: a node moving straight through the plane or into the sphere stops CCD_MARGIN short of the exact time
     of impact; moving away, the whole update; the time of impact of a ray and a sphere is the quadratic's root."""
@@ -145,6 +183,8 @@ def test_a_dropped_bar_never_passes_through_the_floor_on_1_and_2_ranks(tmp_path)
     (["-obstacle", "plane:0,0,1,-3", "-contact_dhat", "0"], ("-contact_dhat",)),
     (["-obstacle", "plane:0,0,1,-3", "-integrator", "ts"], ("-integrator ts",)),
     (["-obstacle", "mesh:/nonexistent/plate.stl"], ("-obstacle", "no such file")),
+    (["-obstacle", "plane:0,0,1,-3", "-contact_friction", "-0.1"], ("-contact_friction",)),
+    (["-contact_self", "-contact_friction", "0.3"], ("-contact_friction", "not yet")),
 ])
 def test_bad_contact_input_is_one_line(tmp_path, extra, words):
     p = hyperelastic(["run", "bend", "-output", tmp_path / "o.h5", "-final_time", 0.01] + extra)
@@ -278,3 +318,54 @@ def test_hertz_contact_radius_and_peak_pressure(tmp_path):
     assert 0.1 < a < 0.2, a
     assert abs(np.sqrt(2.5 * (f * r2).sum() / f.sum()) / a - 1) < 0.02
     assert abs(p[np.argmin(r2)] / (3 * F / (2 * np.pi * a * a)) - 1) < 0.08
+
+
+SLIDE = ["run", "bend", "-effects", "elasticity,inertia,gravity,body_force,contact", "-gravity", "0,0,-9.81",
+         "-obstacle", "plane:0,0,1,-2.02", "-contact_friction", 0.5, "-E", 1e8, "-final_time", 0.6, "-dt", 0.01,
+         "-frames_per_second", 100, "-step_forces"]
+
+
+def _centre(got):
+    """Centre of mass (x, z) per frame: the vertices weighted by a quarter of their tets' volumes (exact for P1)."""
+    P, T = got["points"], got["tetra"]
+    vol = np.abs(np.einsum("ij,ij->i", np.cross(P[T[:, 1]] - P[T[:, 0]], P[T[:, 2]] - P[T[:, 0]]),
+                           P[T[:, 3]] - P[T[:, 0]])) / 6
+    w = np.zeros(len(P))
+    np.add.at(w, T, np.repeat(vol[:, None] / 4, 4, axis=1))
+    return got["x"][:, :, 0] @ (w / w.sum()), got["x"][:, :, 2] @ (w / w.sum())
+
+
+def test_coulomb_friction_slides_and_sticks(tmp_path):
+    """The bar (10 x 4 x 4 m, rho 1000, E 1e8) dropped 0.02 m onto a floor with friction mu = 0.5, pushed along x by a
+    body force. Pushed with 0.8 rho g it slides: every step's friction is mu times the normal force the step started
+    with (the lag; forces table, to 1e-3), and the centre of mass obeys m (dv_x + mu dv_z) = (F - mu m g) dt, corrected
+    for that lag, to 1e-3 (backward Euler's momentum: the velocities are the frames' backward differences). Pushed with
+    0.3 rho g it sticks: the friction equals the push (0.6 mu N, to 1e-3 once the landing has rung out) and the bar creeps at the smoothed friction's speed,
+    f1(v/eps_v) = 0.6, v = (1 - sqrt(0.4)) eps_v (IPC's static friction is a steep viscous law below eps_v)."""
+    g, m, h, mu = 9.81, 160000.0, 0.01, 0.5
+    for push, name in ((0.8, "slide"), (0.3, "stick")):
+        run_ok(SLIDE + ["-body_force", f"{push * 1000 * g!r},0,0", "-output", tmp_path / f"{name}.h5"])
+        got = read_h5(tmp_path / f"{name}.h5")
+        st = got["stats"]
+        ok = st["rejected"] == 0
+        fx, fz, ts = st["load_contact_Fx"][ok], st["load_contact_Fz"][ok], st["time"][ok]
+        late = ts > (0.2 if name == "slide" else 0.45)           # (sticking settles after the landing's ring)
+        ratio = -fx[1:][late[1:]] / (mu * fz[:-1][late[1:]])
+        xc, zc = _centre(got)
+        t = got["time"]
+        if name == "slide":
+            assert np.abs(ratio - 1).max() < 1e-3, ratio
+            i, j = np.argmin(abs(t - 0.2)), np.argmin(abs(t - 0.55))
+            v = lambda a, k: (a[k] - a[k - 1]) / (t[k] - t[k - 1])           # noqa: E731
+            lam = lambda k: fz[np.argmin(abs(ts - t[k]))]                     # noqa: E731
+            acc = ((v(xc, j) - v(xc, i)) + mu * (v(zc, j) - v(zc, i))) / (t[j] - t[i]) \
+                - mu * h * (lam(j) - lam(i)) / (m * (t[j] - t[i]))
+            assert abs(acc - (push - mu) * g) < 1e-3 * g, acc
+            assert st["contact_sliding"][ok][-1] > 0
+        else:
+            assert np.abs(ratio - push / mu).max() < 1e-3 * push / mu, ratio
+            creep = (xc[-1] - xc[np.argmin(abs(t - 0.3))]) / (t[-1] - 0.3)
+            assert abs(creep / ((1 - np.sqrt(0.4)) * 1e-3) - 1) < 0.15, creep
+            assert st["contact_sliding"][ok][-1] == 0
+            run_ok(SLIDE + ["-body_force", f"{push * 1000 * g!r},0,0", "-output", tmp_path / "two.h5"], nprocs=2)
+            assert np.abs(read_h5(tmp_path / "two.h5")["x"] - got["x"]).max() < 1e-8     # (the same on 2 ranks)

@@ -78,6 +78,19 @@ class Obstacle:
         return v
 
 
+def mollifier(y, eps):
+    """(f0, f1/y, (f1' y - f1)/y^2) of IPC's smoothed Coulomb friction at slip lengths y >= 0 (Li et al. 2020, eq. 14:
+    f1(y) = 2y/eps - y^2/eps^2 below eps, 1 beyond; f0' = f1, f0(eps) = eps), all finite at y = 0. The energy
+    mu lam f0(|u|) has the gradient mu lam (f1/y) u and the Hessian mu lam ((f1/y) T + (f1' y - f1)/y^2 u u^T / y)."""
+    y = np.asarray(y, float)
+    low = y < eps
+    yb = np.maximum(y, eps)                                        # (the branch beyond eps, where it is used)
+    f0 = np.where(low, -y ** 3 / (3 * eps * eps) + y * y / eps + eps / 3, y)
+    f1y = np.where(low, 2 / eps - y / (eps * eps), 1 / yb)
+    f2 = np.where(low, -1 / (eps * eps), -1 / (yb * yb))
+    return f0, f1y, f2
+
+
 def distances(kind, v, x):
     """(d, g, rho) of nodes x (n, 3) to one obstacle at values v: the distance, its gradient (unit) and, for a sphere,
     the distance to its centre (None for a plane)."""
@@ -111,8 +124,12 @@ class Contact(Effect):
     symmetric = True
     domain = True            # undefined (d <= 0) is counted as the elastic kernels count inverted cells
 
-    def __init__(self, nodes, area, X, input_ids, obstacles, dhat, kappa, edge=None):
+    def __init__(self, nodes, area, X, input_ids, obstacles, dhat, kappa, edge=None, mu=0.0, eps_v=1e-3):
+        """mu: Coulomb's friction coefficient (0: frictionless); eps_v [m/s]: the slip speed below which friction is
+        smoothed (IPC's epsilon_v; a slip length of eps_v h a step)."""
         super().__init__()
+        self.mu, self.eps_v = float(mu), float(eps_v)
+        self.friction = []        # per obstacle, lagged at the step's start: (normal force, tangent projector, x^n, move)
         self.nodes, self.area = np.asarray(nodes, np.int64), np.asarray(area, float)
         self.edge = np.full(len(self.nodes), np.inf) if edge is None else np.asarray(edge, float)
         self.obstacles, self.dhat, self.kappa = tuple(obstacles), float(dhat), float(kappa)
@@ -131,6 +148,29 @@ class Contact(Effect):
     def begin_step(self, t, h, xn, vn):
         self.before = [o.at(t - h) for o in self.obstacles]       # (where the step starts: an attempt's retry too)
         self.now = [o.at(t) for o in self.obstacles]
+        if self.mu > 0 and xn is not None:
+            # lagged friction (IPC sec. 5): each node's normal force kappa A |b'(d)| and tangent plane at the step's
+            # start, the slip u = T (x - x^n - the obstacle's move), smoothed below eps_v h
+            xc = np.asarray(xn).reshape(-1, 3)[self.nodes]
+            self.slip_eps = self.eps_v * h
+            self.friction = []
+            for o, old in zip(self.obstacles, self.before):
+                d, g, _ = distances(o.kind, old, xc)
+                lam = np.nan_to_num(-self.kappa * self.area * barrier(d, self.dhat)[1], nan=0.0)
+                T = np.eye(3) - g[:, :, None] * g[:, None, :]
+                self.friction.append((lam, T, xc.copy(), o.shift(t) - o.shift(t - h)))
+
+    def _slips(self, x):
+        """Per obstacle with friction: (lagged normal force, tangent projector, slip u (n, 3), |u|)."""
+        xc = x.reshape(-1, 3)[self.nodes]
+        out = []
+        for lam, T, x0, move in self.friction:
+            u = np.einsum("nij,nj->ni", T, xc - x0 - move)
+            out.append((lam, T, u, np.linalg.norm(u, axis=1)))
+        return out
+
+    def _friction_potential(self, x):
+        return sum(float(self.mu * (lam * mollifier(y, self.slip_eps)[0]).sum()) for lam, _, _, y in self._slips(x))
 
     def pushed(self, x):
         """(x with every contact node that the obstacles' move since the step's start brought closer moved out along
@@ -162,7 +202,7 @@ class Contact(Effect):
         return sum(float(self.kappa * (self.area * barrier(d, self.dhat)[0]).sum()) for d, _, _ in terms)
 
     def potential(self, x):
-        return self._potential(self._terms(x))
+        return self._potential(self._terms(x)) + (self._friction_potential(x) if self.friction else 0.0)
 
     @timed("evals")
     def residual(self, x, r):
@@ -172,6 +212,8 @@ class Contact(Effect):
             self.undefined += int((d <= 0).sum())
             b1 = barrier(d, self.dhat)[1]
             np.add.at(rn, self.nodes, (self.kappa * self.area * b1)[:, None] * g)
+        for lam, _, u, y in self._slips(x) if self.friction else ():
+            np.add.at(rn, self.nodes, (self.mu * lam * mollifier(y, self.slip_eps)[1])[:, None] * u)
 
     def undefined_at(self, x):
         return sum(int((d <= 0).sum()) for d, _, _ in self._terms(x))
@@ -181,6 +223,12 @@ class Contact(Effect):
         for d, g, _ in self._terms(x):
             b2 = np.nan_to_num(barrier(d, self.dhat)[2], nan=0.0)
             self.blocks += (self.kappa * self.area * b2)[:, None, None] * g[:, :, None] * g[:, None, :]
+        for lam, T, u, y in self._slips(x) if self.friction else ():
+            # mu lam (f1/y T + (f1' y - f1)/y^3 u u^T): positive semi-definite as it is (eigenvalues 2/eps - 2y/eps^2
+            # along u and f1/y across it below eps; 0 and 1/y beyond)
+            _, f1y, f2 = mollifier(y, self.slip_eps)
+            uu = u[:, :, None] * u[:, None, :] / np.maximum(y, 1e-300)[:, None, None]     # (u u^T / y: 0 at u = 0)
+            self.blocks += (self.mu * lam)[:, None, None] * (f1y[:, None, None] * T + f2[:, None, None] * uu)
 
     @timed("applies")
     def apply(self, v, y):
@@ -215,7 +263,11 @@ class Contact(Effect):
         terms = self._terms(x)
         active = sum(int((d < self.dhat).sum()) for d, _, _ in terms)
         dmin = min((float(d.min()) for d, _, _ in terms if len(d)), default=np.inf)
-        return {"contact_energy": self._potential(terms), "contact_nodes": active, "contact_dmin": dmin}
+        out = {"contact_energy": self._potential(terms), "contact_nodes": active, "contact_dmin": dmin}
+        if self.mu > 0:                        # (nodes pressed at the step's start that slid more than eps_v h)
+            out["contact_sliding"] = sum(int(((lam > 0) & (y >= self.slip_eps)).sum())
+                                         for lam, _, _, y in self._slips(x)) if self.friction else 0
+        return out
 
 
 @dataclass(frozen=True)
@@ -225,6 +277,8 @@ class ContactParams:
     dhat: float               # None: DHAT_SCALE x the bounding-box diagonal
     kappa: float              # None: KAPPA_SCALE E / dhat
     self_contact: bool = False  # -contact_self: the contact surfaces against themselves (self_contact.py)
+    mu: float = 0.0           # -contact_friction: Coulomb's coefficient (obstacles: planes and spheres)
+    eps_v: float = 1e-3       # -contact_friction_eps [m/s]
 
 
 def split_top(text, sep):
@@ -299,8 +353,13 @@ def _read(opts, where):
                 f(0.0)
     obstacles = tuple(_obstacle(t, m) for t, m in zip(texts, motions))
     faces_ = tuple(facet_sets(opts, "contact_faces", default="boundary"))
+    mu = opts.real("contact_friction", 0.0, minimum=0, exclusive=False)
+    eps_v = opts.real("contact_friction_eps", 1e-3, minimum=0)
+    if mu > 0 and (self_contact or any(o.kind == "mesh" for o in obstacles)):
+        raise UserError("option -contact_friction: friction is built for planes and spheres (-obstacle plane:, "
+                        "sphere:), not yet for -contact_self or triangulated obstacles")
     return ContactParams(obstacles, faces_, opts.real("contact_dhat", None, minimum=0),
-                         opts.real("contact_kappa", None, minimum=0), self_contact)
+                         opts.real("contact_kappa", None, minimum=0), self_contact, mu, eps_v)
 
 
 def build_contact(p, ctx):
@@ -327,8 +386,8 @@ def build_contact(p, ctx):
     kappa = p.kappa if p.kappa is not None else KAPPA_SCALE * ctx.modulus / dhat
     analytic = tuple(o for o in p.obstacles if o.kind != "mesh")
     meshes = tuple(o for o in p.obstacles if o.kind == "mesh")
-    out = [Contact(nodes, owned_share[owned_share > 0], X, sp.orig[nodes], analytic, dhat, kappa, edge[nodes])
-           ] if analytic else []
+    out = [Contact(nodes, owned_share[owned_share > 0], X, sp.orig[nodes], analytic, dhat, kappa, edge[nodes],
+                   p.mu, p.eps_v)] if analytic else []
     if p.self_contact or meshes:
         from .self_contact import SelfContact
         out.append(SelfContact(sp, tris, dhat, kappa, meshes))
@@ -342,11 +401,12 @@ def _uses(p):
 SPEC = Spec(
     "contact", "rigid obstacles (planes, spheres) and self-contact: the boundary touches but never passes through "
     "(IPC barrier)",
-    implied_by=("obstacle", "contact_self", "contact_dhat", "contact_kappa", "contact_faces"), read=_read, sets=_uses,
+    implied_by=("obstacle", "contact_self", "contact_dhat", "contact_kappa", "contact_faces", "contact_friction"), read=_read, sets=_uses,
     build=build_contact,
     energies=(Energy("contact_energy", 1, "the contact barrier's energy"),
               Energy("contact_nodes", 0, "contact nodes within dhat of an obstacle"),
               Energy("contact_pairs", 0, "self-contact pairs (point-triangle, edge-edge, ...) within dhat"),
+              Energy("contact_sliding", 0, "contact nodes sliding (slip over eps_v h) on an obstacle (friction)"),
               Energy("contact_dmin", 0, "the smallest distance of a contact node to an obstacle (or of two parts of the "
                      "contact surface within dhat)", combine="min")),
     rows=(Row(("obstacle", "obstacle_motion"), "-obstacle KIND:VALUES[;…]",
@@ -361,6 +421,10 @@ SPEC = Spec(
               "pairs, each Newton update stopped short of the first collision: the IPC Toolkit); the surface is "
               "gathered to every rank; not with -formulation mixed"),
           Row(("contact_faces",), "-contact_faces S1,S2,…", "the surfaces that touch the obstacles", "boundary"),
+          Row(("contact_friction", "contact_friction_eps"), "-contact_friction μ -contact_friction_eps v",
+              "Coulomb friction on planes and spheres (IPC's smoothed, lagged friction: each step's normal forces and "
+              "tangent planes from its start; static below the slip speed v [m/s], i.e. a slip of v h a step)",
+              "0 (frictionless), v = 1e-3"),
           Row(("contact_dhat", "contact_kappa"), "-contact_dhat d -contact_kappa k",
               "the barrier's reach [m] (default 1e-3 of the bounding box's diagonal: forces act at distances below "
               "it, so it is the contact's accuracy) and stiffness [Pa/m] (default 0.1 E / dhat: a pressure of "
