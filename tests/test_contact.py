@@ -120,6 +120,51 @@ def test_an_update_stops_short_of_the_first_impact():
     assert np.isclose(toi[0], 0.5)
 
 
+def test_a_box_is_met_at_its_faces_edges_and_corners():
+    """box:X0,...: the distance is the Euclidean distance to the box outside (to a face, an edge, a corner), negative
+    inside; its gradient is the distance's (central differences); a ray's time of impact is where it enters the box
+    (the slabs), inf where it misses or moves away; the tangent is the PSD part (blocks' eigenvalues >= 0)."""
+    from hyperelastic.physics.effects.contact import distances
+    v = np.array([0.0, 0.0, 0.0, 1.0, 2.0, 3.0])
+    x = np.array([[0.5, 1.0, 3.5], [1.3, 2.4, 1.0], [1.3, 2.4, 3.5], [0.5, 1.0, 1.0], [-2.0, 1.0, 1.0]])
+    d, g, _ = distances("box", v, x)
+    assert np.allclose(d, [0.5, 0.5, np.sqrt(0.09 + 0.16 + 0.25), -0.5, 2.0])
+    h = 1e-7
+    for i in (0, 1, 2, 4):
+        fd = [(distances("box", v, x[i:i + 1] + h * e)[0][0] - distances("box", v, x[i:i + 1] - h * e)[0][0]) / (2 * h)
+              for e in np.eye(3)]
+        assert np.allclose(fd, g[i], atol=1e-6), (i, fd, g[i])
+    toi = time_of_impact("box", v, np.array([[-1.0, 1, 1], [-1.0, 1, 1], [-1.0, 5, 1], [2.0, 1, 1]]),
+                         np.array([[2.0, 0, 0], [-2.0, 0, 0], [2.0, 0, 0], [1.0, 0, 0]]))
+    assert np.isclose(toi[0], 0.5) and np.isinf(toi[1:]).all()
+    rng = np.random.default_rng(2)
+    X = rng.uniform([-0.2, -0.2, 3.01], [1.2, 2.2, 3.1], (30, 3))
+    box = Obstacle("box", tuple(v), text="box:0,0,0,1,2,3")
+    c = Contact(np.arange(len(X)), np.ones(len(X)), X, np.arange(len(X)), (box,), 0.15, 1e3)
+    c.begin_step(1.0, 0.1, None, None)
+    r = np.zeros(X.size)
+    c.residual(X.ravel(), r)
+    for i in rng.choice(X.size, 10, replace=False):
+        e = np.zeros(X.size)
+        e[i] = h
+        fd = (c.potential(X.ravel() + e) - c.potential(X.ravel() - e)) / (2 * h)
+        assert abs(fd - r[i]) <= 1e-6 * max(1.0, abs(r[i])), (i, fd, r[i])
+    c.linearize(X.ravel())
+    assert np.linalg.eigvalsh(c.blocks).min() >= -1e-9 * np.abs(c.blocks).max()
+
+
+def test_the_bent_bar_rests_on_a_box(tmp_path):
+    """The quasi-static bend's tip (it sags ~1.3 m) comes down on a box below it: no node inside the box in any frame,
+    a contact force that carries part of the load."""
+    p = run_ok(["run", "bend", "-quasistatic", "-obstacle", "box:3,-9,-3,7,-2.6,3", "-output", tmp_path / "b.h5"])
+    got = read_h5(tmp_path / "b.h5")
+    for xf in got["x"]:
+        inside = (xf[:, 0] > 3) & (xf[:, 0] < 7) & (xf[:, 1] > -9) & (xf[:, 1] < -2.6) & (np.abs(xf[:, 2]) < 3)
+        assert not inside.any()
+    f = _forces(p.stderr, "load contact")
+    assert f[1] > 1e3 and got["stats"]["contact_nodes"][-1] > 0
+
+
 OPTS = """-quasistatic
 -effects elasticity,fixed,{end}
 -fix left:x,front:y,bottom:z
@@ -183,6 +228,8 @@ def test_a_dropped_bar_never_passes_through_the_floor_on_1_and_2_ranks(tmp_path)
     (["-obstacle", "plane:0,0,1,-3", "-contact_dhat", "0"], ("-contact_dhat",)),
     (["-obstacle", "plane:0,0,1,-3", "-integrator", "ts"], ("-integrator ts",)),
     (["-obstacle", "mesh:/nonexistent/plate.stl"], ("-obstacle", "no such file")),
+    (["-obstacle", "box:1,1,1,0,2,2"], ("-obstacle", "corner")),
+    (["-obstacle", "box:0,0,0,1,1"], ("-obstacle", "six numbers")),
     (["-obstacle", "plane:0,0,1,-3", "-contact_friction", "-0.1"], ("-contact_friction",)),
     (["-contact_self", "-contact_friction", "0.3"], ("-contact_friction", "not yet")),
 ])

@@ -6,8 +6,9 @@ contact node's distance d to each obstacle,
     b(d) = -(d - dhat)^2 ln(d / dhat) for 0 < d < dhat, 0 beyond (C2 at dhat, infinite as d -> 0),
 weighted by the node's share A_a of the contact surface's reference area: E = kappa sum_a A_a sum_k b(d_ak), so that
 -kappa b'(d) is a contact pressure, independent of the mesh. Residual kappa A_a b'(d) grad d; tangent
-kappa A_a (b'' g g^T + b' H_d) with g = grad d: a plane's H_d is 0 (exact), a sphere's (I - g g^T)/rho has the
-negative factor b' and is dropped (the positive semi-definite projection IPC makes), so each node adds one 3x3 block
+kappa A_a (b'' g g^T + b' H_d) with g = grad d: a plane's H_d is 0 (exact), and so is a box's opposite a face; a
+sphere's (I - g g^T)/rho and a box's curvature opposite an edge or corner have the negative factor b' and are dropped
+(the positive semi-definite projection IPC makes), so each node adds one 3x3 block
 on the diagonal: the cell pattern already holds it, every Jacobian mode takes it.
 Never through: the energy is +infinity at d <= 0 (the SNES objective refuses such an iterate, the residual reports a
 domain error) and `max_step` gives the largest fraction of a Newton update that keeps every node at least
@@ -39,6 +40,7 @@ KAPPA_SCALE = 0.1           # kappa = KAPPA_SCALE E / dhat by default
 DHAT_SCALE = 1e-3           # dhat = DHAT_SCALE x the bounding-box diagonal by default
 KINDS = {"plane": "NX,NY,NZ,D: the half-space NX x + NY y + NZ z > D is free (the normal points into the body)",
          "sphere": "CX,CY,CZ,R: a rigid ball of radius R (the body stays outside)",
+         "box": "X0,Y0,Z0,X1,Y1,Z1: a rigid axis-aligned box between those corners (the body stays outside)",
          "mesh": "FILE: a rigid triangulated surface (.stl, .obj, .msh, ... as meshio reads it; its triangles)"}
 
 
@@ -57,8 +59,9 @@ def barrier(d, dhat):
 
 @dataclass(frozen=True)
 class Obstacle:
-    kind: str                 # "plane" | "sphere" | "mesh"
-    values: tuple             # a plane's unit normal and offset; a sphere's centre and radius; a mesh's file
+    kind: str                 # "plane" | "sphere" | "box" | "mesh"
+    values: tuple             # a plane's unit normal and offset; a sphere's centre and radius; a box's corners;
+                              # a mesh's file
     motion: tuple = None      # three TimeFunctions of its translation, or None (fixed)
     text: str = ""
     surface: tuple = None     # a mesh's (points (n, 3), triangles (m, 3)) as read
@@ -68,11 +71,14 @@ class Obstacle:
         return np.zeros(3) if self.motion is None else np.array([m(t) for m in self.motion])
 
     def at(self, t):
-        """(kind, values) at time t: a plane's offset and a sphere's centre moved by the translation."""
+        """(kind, values) at time t: a plane's offset, a sphere's centre and a box's corners moved by the translation."""
         u = self.shift(t)
         v = np.array(self.values, float)
         if self.kind == "plane":
             v[3] += float(v[:3] @ u)
+        elif self.kind == "box":
+            v[:3] += u
+            v[3:] += u
         else:
             v[:3] += u
         return v
@@ -96,6 +102,23 @@ def distances(kind, v, x):
     the distance to its centre (None for a plane)."""
     if kind == "plane":
         return x @ v[:3] - v[3], np.broadcast_to(v[:3], x.shape), None
+    if kind == "box":
+        # outside: |q|, q the excess over the half-widths per axis (Euclidean distance to the box; gradient q/|q|,
+        # away from the nearest face, edge or corner); inside: the largest (negative) excess, the nearest face's normal
+        c, e = 0.5 * (v[:3] + v[3:]), 0.5 * (v[3:] - v[:3])
+        r = x - c
+        over = np.abs(r) - e
+        q = np.maximum(over, 0.0)
+        out = np.linalg.norm(q, axis=1)
+        inside = out <= 0
+        d = np.where(inside, over.max(axis=1), out)
+        g = np.sign(r) * q / np.maximum(out, 1e-300)[:, None]
+        if inside.any():
+            k = np.argmax(over[inside], axis=1)
+            gi = np.zeros((int(inside.sum()), 3))
+            gi[np.arange(len(k)), k] = np.sign(r[inside, k])
+            g[inside] = gi
+        return d, g, None
     r = x - v[:3]
     rho = np.linalg.norm(r, axis=1)
     return rho - v[3], r / np.maximum(rho, 1e-300)[:, None], rho
@@ -108,6 +131,17 @@ def time_of_impact(kind, v, x, dx):
         d = x @ v[:3] - v[3]
         with np.errstate(divide="ignore", invalid="ignore"):
             return np.where(rate < 0, d / -rate, np.inf)
+    if kind == "box":
+        # the slabs: per axis the interval of s in which the coordinate lies between the faces; the ray enters the
+        # box at the latest entry, if that is before the earliest exit
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t0, t1 = (v[:3] - x) / dx, (v[3:] - x) / dx
+        still = dx == 0
+        between = (x >= v[:3]) & (x <= v[3:])
+        lo = np.where(still, np.where(between, -np.inf, np.inf), np.minimum(t0, t1))
+        hi = np.where(still, np.where(between, np.inf, -np.inf), np.maximum(t0, t1))
+        enter, leave = lo.max(axis=1), hi.min(axis=1)
+        return np.where((enter <= leave) & (leave >= 0), np.maximum(enter, 0.0), np.inf)
     r = x - v[:3]
     a, b, c = (dx * dx).sum(axis=1), 2 * (r * dx).sum(axis=1), (r * r).sum(axis=1) - v[3] ** 2
     disc = b * b - 4 * a * c
@@ -306,8 +340,15 @@ def _obstacle(text, motion):
         vals = [float(s) for s in m.group(2).split(",")]
     except ValueError:
         vals = []
-    if len(vals) != 4 or not np.all(np.isfinite(vals)):
-        raise UserError(f"option -obstacle: '{text}': {kind} takes four numbers, {KINDS[kind]}")
+    count = 6 if kind == "box" else 4
+    if len(vals) != count or not np.all(np.isfinite(vals)):
+        raise UserError(f"option -obstacle: '{text}': {kind} takes {'six' if count == 6 else 'four'} numbers, "
+                        f"{KINDS[kind]}")
+    if kind == "box":
+        if not all(a < b for a, b in zip(vals[:3], vals[3:])):
+            raise UserError(f"option -obstacle: '{text}': the box's first corner must be below its second in x, y "
+                            "and z")
+        return Obstacle(kind, tuple(vals), motion, text.strip())
     if kind == "plane":
         n = np.linalg.norm(vals[:3])
         if n == 0:
@@ -411,7 +452,8 @@ SPEC = Spec(
                      "contact surface within dhat)", combine="min")),
     rows=(Row(("obstacle", "obstacle_motion"), "-obstacle KIND:VALUES[;…]",
               "rigid obstacles: `plane:NX,NY,NZ,D` (the half-space N·x > D is free: the normal points into the "
-              "body), `sphere:CX,CY,CZ,R`, `mesh:FILE` (a triangulated surface meshio reads: .stl, .obj, .msh, …); "
+              "body), `sphere:CX,CY,CZ,R`, `box:X0,Y0,Z0,X1,Y1,Z1` (axis-aligned, between those corners), `mesh:FILE` "
+              "(a triangulated surface meshio reads: .stl, .obj, .msh, …); "
               "`-obstacle_motion EX,EY,EZ[;…]`: each one's translation, expressions of "
               "t. The boundary never passes through them (IPC's barrier in the energy, each Newton update stopped "
               "short of the first impact); frictionless"),
