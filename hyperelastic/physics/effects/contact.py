@@ -311,7 +311,7 @@ class ContactParams:
     dhat: float               # None: DHAT_SCALE x the bounding-box diagonal
     kappa: float              # None: KAPPA_SCALE E / dhat
     self_contact: bool = False  # -contact_self: the contact surfaces against themselves (self_contact.py)
-    mu: float = 0.0           # -contact_friction: Coulomb's coefficient (obstacles: planes and spheres)
+    mu: float = 0.0           # -contact_friction: Coulomb's coefficient
     eps_v: float = 1e-3       # -contact_friction_eps [m/s]
 
 
@@ -396,9 +396,6 @@ def _read(opts, where):
     faces_ = tuple(facet_sets(opts, "contact_faces", default="boundary"))
     mu = opts.real("contact_friction", 0.0, minimum=0, exclusive=False)
     eps_v = opts.real("contact_friction_eps", 1e-3, minimum=0)
-    if mu > 0 and (self_contact or any(o.kind == "mesh" for o in obstacles)):
-        raise UserError("option -contact_friction: friction is built for planes and spheres (-obstacle plane:, "
-                        "sphere:), not yet for -contact_self or triangulated obstacles")
     return ContactParams(obstacles, faces_, opts.real("contact_dhat", None, minimum=0),
                          opts.real("contact_kappa", None, minimum=0), self_contact, mu, eps_v)
 
@@ -431,7 +428,7 @@ def build_contact(p, ctx):
                    p.mu, p.eps_v)] if analytic else []
     if p.self_contact or meshes:
         from .self_contact import SelfContact
-        out.append(SelfContact(sp, tris, dhat, kappa, meshes))
+        out.append(SelfContact(sp, tris, dhat, kappa, meshes, p.mu, p.eps_v))
     return out
 
 
@@ -464,8 +461,9 @@ SPEC = Spec(
               "gathered to every rank; not with -formulation mixed"),
           Row(("contact_faces",), "-contact_faces S1,S2,…", "the surfaces that touch the obstacles", "boundary"),
           Row(("contact_friction", "contact_friction_eps"), "-contact_friction μ -contact_friction_eps v",
-              "Coulomb friction on planes and spheres (IPC's smoothed, lagged friction: each step's normal forces and "
-              "tangent planes from its start; static below the slip speed v [m/s], i.e. a slip of v h a step)",
+              "Coulomb friction on obstacles and in self-contact (IPC's smoothed, lagged friction: each step's normal "
+              "forces and tangent planes from its start; static below the slip speed v [m/s], i.e. a slip of v h a "
+              "step)",
               "0 (frictionless), v = 1e-3"),
           Row(("contact_dhat", "contact_kappa"), "-contact_dhat d -contact_kappa k",
               "the barrier's reach [m] (default 1e-3 of the bounding box's diagonal: forces act at distances below "

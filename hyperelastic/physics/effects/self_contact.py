@@ -59,14 +59,19 @@ class SelfContact(Effect):
     symmetric = True
     domain = True
 
-    def __init__(self, space, tris, dhat, kappa, obstacles=()):
+    def __init__(self, space, tris, dhat, kappa, obstacles=(), mu=0.0, eps_v=1e-3):
         """obstacles: triangulated rigid obstacles (contact.Obstacle of kind mesh): their triangles join the collision
-        mesh as vertices that are not unknowns, placed by their translation at each step's end."""
+        mesh as vertices that are not unknowns, placed by their translation at each step's end. mu, eps_v: Coulomb
+        friction (IPC's smoothed, lagged: ipctk's TangentialCollisions and FrictionPotential on the step's
+        displacements, smoothed below a slip of eps_v h)."""
         super().__init__()
         ip = self.ip = _ipctk()
         sp = self.space = space
         self.mpi = sp.mpi
         self.dhat, self.kappa = float(dhat), float(kappa)
+        self.mu, self.eps_v = float(mu), float(eps_v)
+        self.tangential = None       # the step's lagged friction pairs (begin_step), and its potential
+        self.friction = None
         # additive CCD (Li et al. 2021, "Codimensional IPC"): ~1000x faster than Tight-Inclusion's on surfaces that
         # rest within dhat of each other (5 s -> 2 ms a call on 88 facets pressed together), stopping 0.9 of the way
         # to the first collision (its conservative rescaling)
@@ -145,7 +150,12 @@ class SelfContact(Effect):
     # --- energy, residual, tangent --------------------------------------------------------------------------------
     def potential(self, x):
         V = self._V(x)
-        return float(self.potential_fn(self._collisions(V), self.mesh, V)) if self.mpi.rank == 0 else 0.0
+        if self.mpi.rank != 0:
+            return 0.0
+        out = float(self.potential_fn(self._collisions(V), self.mesh, V))
+        if self._friction(V):
+            out += float(self.friction(self.tangential, self.mesh, V - self.start))
+        return out
 
     @timed("evals")
     def residual(self, x, r):
@@ -159,12 +169,16 @@ class SelfContact(Effect):
                 self.undefined = 1
                 return
             self.last = V
-        if len(c) == 0:
-            return
-        if c.compute_minimum_distance(self.mesh, V) <= 0:
-            self.undefined = 1
-        g = self.potential_fn.gradient(c, self.mesh, V)
-        r.reshape(-1, 3)[self.nodes] += g[self.own_dofs].reshape(-1, 3)
+        g = None
+        if len(c):
+            if c.compute_minimum_distance(self.mesh, V) <= 0:
+                self.undefined = 1
+            g = self.potential_fn.gradient(c, self.mesh, V)
+        if self._friction(V):
+            f = self.friction.gradient(self.tangential, self.mesh, V - self.start)
+            g = f if g is None else g + f
+        if g is not None:
+            r.reshape(-1, 3)[self.nodes] += g[self.own_dofs].reshape(-1, 3)
 
     def undefined_at(self, x):
         """1 where the straight move from the step's start to x passes the surface through itself (or touches)."""
@@ -175,6 +189,16 @@ class SelfContact(Effect):
     def begin_step(self, t, h, xn, vn):
         self.start = self.last = self._V(xn, self._obstacles_at(t - h)) if xn is not None else self.start
         self.fixed = self._obstacles_at(t)
+        if self.mu > 0 and xn is not None:
+            # (lagged: the pairs, their normal forces and tangent bases at the step's start; the slip is the step's
+            # displacement, smoothed below eps_v h)
+            self.tangential = self.ip.TangentialCollisions()
+            self.tangential.build(self.mesh, self.start, self._collisions(self.start), self.potential_fn, self.mu)
+            self.friction = self.ip.FrictionPotential(self.eps_v * h)
+
+    def _friction(self, V):
+        """Whether the step has friction pairs (and so the friction terms at the positions V apply)."""
+        return self.tangential is not None and len(self.tangential) > 0
 
     def pushed(self, x):
         """(x, False): a triangulated obstacle pushes nothing ahead of it (a step whose start it moved into is retried
@@ -186,8 +210,14 @@ class SelfContact(Effect):
         c = self._collisions(V)
         self.blocks[:] = 0.0
         self.coupling = None
+        H = None
         if len(c):
             H = self.potential_fn.hessian(c, self.mesh, V, self.ip.PSDProjectionMethod.CLAMP).tocsr()
+        if self._friction(V):
+            F = self.friction.hessian(self.tangential, self.mesh, V - self.start,
+                                      self.ip.PSDProjectionMethod.CLAMP).tocsr()
+            H = F if H is None else H + F
+        if H is not None:
             Hr = H[self.own_dofs].tocoo()
             node_r, node_c = Hr.row // 3, Hr.col // 3
             diag = node_c == self.own_s[node_r]
