@@ -443,3 +443,29 @@ def test_coulomb_friction_slides_and_sticks(tmp_path):
             assert st["contact_sliding"][ok][-1] == 0
             run_ok(SLIDE + ["-body_force", f"{push * 1000 * g!r},0,0", "-output", tmp_path / "two.h5"], nprocs=2)
             assert np.abs(read_h5(tmp_path / "two.h5")["x"] - got["x"]).max() < 1e-8     # (the same on 2 ranks)
+
+
+def test_a_slot_pressed_shut_never_passes_through_itself(tmp_path):
+    """examples/slot.opts: one body (a block with a slot) pressed until the slot's faces touch and press (self-contact
+    within one connected body, 1,873 tets). Checked from the output alone: in no frame does its surface intersect
+    itself (ipctk.has_intersections); the slot's faces met (pairs within dhat from t = 0.5 on, never at distance 0),
+    their forces are internal (sum 0); 2 ranks give 1 rank's frames."""
+    ipctk = pytest.importorskip("ipctk")
+    msh = tmp_path / "slot.msh"
+    run_ok(["mesh", os.path.join(EXAMPLES, "slot.geo"), "--size", 0.3, "-o", msh])
+    args = ["run", os.path.join(EXAMPLES, "slot.opts"), "-mesh", msh]
+    p = run_ok(args + ["-output", tmp_path / "a.h5"])
+    got = read_h5(tmp_path / "a.h5")
+    surface = _boundary_triangles(got["tetra"])
+    edges = ipctk.edges(surface)
+    for xf in got["x"]:
+        assert not ipctk.has_intersections(ipctk.CollisionMesh(got["points"], edges, surface), xf)
+    st = got["stats"]
+    late = st["time"] >= 0.5 - 1e-9
+    assert (st["contact_pairs"][late] > 0).all() and (st["contact_dmin"][late] > 0).all()
+    assert (st["contact_pairs"][st["time"] < 0.35] == 0).all()
+    assert np.abs(_forces(p.stderr, "load contact")).max() < 1e-6 * np.abs(_forces(p.stderr, "reaction top")).max()
+    run_ok(args + ["-final_time", 0.6, "-output", tmp_path / "b.h5"], nprocs=2)
+    two = read_h5(tmp_path / "b.h5")
+    n = len(two["x"])
+    assert np.abs(two["x"] - got["x"][:n]).max() < 1e-8
