@@ -1,8 +1,9 @@
-"""Contact with rigid obstacles (issue 46, first part): IPC's barrier as the IPC authors' toolkit computes it, a
-residual that is the barrier energy's gradient and a tangent that is the residual's derivative, an update stopped
-short of the first impact, a frictionless plate pressing the bar equal to prescribing its end at the same place, a
-dropped bar that never passes through the floor (checked from the output alone, at every frame), the same answer on
-1 and 2 ranks, and bad input refused in one line."""
+"""Contact (issue 46): IPC's barrier as the IPC authors' toolkit computes it, a residual that is the barrier energy's
+gradient and a tangent that is the residual's derivative, an update stopped short of the first impact, a frictionless
+plate pressing the bar equal to prescribing its end at the same place, a dropped bar that never passes through the
+floor (checked from the output alone, at every frame), boxes and triangulated obstacles, self-contact between pieces
+and within one body (checked by the toolkit's intersection test on the output), Hertz's contact radius, Coulomb
+friction sliding and sticking, the same answer on 1 and 2 ranks, and bad input refused in one line."""
 import os
 
 import numpy as np
