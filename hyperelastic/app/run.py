@@ -60,11 +60,7 @@ def run_scene(scene_arg, options_files, restart=None, restart_path=None):
     if helping:                  # PETSc printed its own options as its solvers read them
         return 0
     if not quiet and comm.getRank() == 0:
-        lines = part_lines(model, scene) + [f"set {line}" for line in model.set_lines()]
-        lines += [model.space.partition_line] if model.space.partition_line else []
-        notes = scene.notes + model.notes + ([solver.merit_note] if solver.merit_note else []) + solver.notes
-        lines += [f"note: {n}" for n in notes]
-        print("\n".join(lines), file=sys.stderr)
+        _start_lines(scene, model, solver)
     if restart is not None:      # the state read (collective) before anything is written: a bad row is one line
         restart = dict(restart, **{k: model.space.read_state(v) for k, v in restart.items()
                                    if isinstance(v, StateRows)})
@@ -88,6 +84,15 @@ def run_scene(scene_arg, options_files, restart=None, restart_path=None):
         if advice:
             print(f"note: {advice}", file=sys.stderr)
     return 0
+
+
+def _start_lines(scene, model, solver):
+    """The run's start-up lines on stderr: the part, its sets, the partition, the notes."""
+    lines = part_lines(model, scene) + [f"set {line}" for line in model.set_lines()]
+    lines += [model.space.partition_line] if model.space.partition_line else []
+    notes = scene.notes + model.notes + ([solver.merit_note] if solver.merit_note else []) + solver.notes
+    lines += [f"note: {n}" for n in notes]
+    print("\n".join(lines), file=sys.stderr)
 
 
 MM_LIKE = (20.0, 1e8)      # a part longer than this in mesh units with a modulus above this (Pa) looks like mm

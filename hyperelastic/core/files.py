@@ -281,32 +281,38 @@ def read_checkpoint(path):
                 if a.shape != (nv,) or a.dtype.kind != "f":
                     raise UserError(f"--restart '{path}': checkpoint {k} is not {nv} numbers")
                 state[k] = StateRows(path, a.name, nv, 1, keys)
-        for k in CHECKPOINT_ATTRS:
-            v = np.asarray(g.attrs[k])
-            if v.shape != () or v.dtype.kind not in "iuf" or not np.isfinite(v):
-                raise UserError(f"--restart '{path}': checkpoint attribute {k} = {v!r} is not a finite number")
-            state[k] = v.item()
-        for k in CHECKPOINT_OPTIONAL:
-            if k in g.attrs:
-                v = np.asarray(g.attrs[k])
-                if v.shape != () or v.dtype.kind not in "iuf" or not np.isfinite(v) or v < 0 or (
-                        k == "t_end" and v < state["t"]):
-                    raise UserError(f"--restart '{path}': checkpoint attribute {k} = {v!r} is out of range")
-                state[k] = v.item()
-        for k, n in CHECKPOINT_VECTORS.items():
-            if k in g.attrs:
-                v = np.asarray(g.attrs[k])
-                if v.shape != (n,) or v.dtype.kind not in "iuf" or not np.isfinite(v).all():
-                    raise UserError(f"--restart '{path}': checkpoint attribute {k} is not {n} finite numbers")
-                state[k] = v.astype(float)
-        nstats = min((f["stats"][k].shape[0] for k in f["stats"]), default=0)
-        limits = {"t": (0, None), "step": (0, None), "n": (0, None), "h_try": (0, None), "streak": (0, None),
-                  "rejections": (0, None), "nframes": (1, f["time"].shape[0]), "nstats": (0, nstats)}
-        for k, (lo, hi) in limits.items():
-            v = state[k]
-            if v < lo or (k == "h_try" and v <= 0) or (hi is not None and v > hi):
-                raise UserError(f"--restart '{path}': checkpoint attribute {k} = {v:g} is out of range "
-                                f"({'> 0' if k == 'h_try' else f'{lo}..{hi}' if hi is not None else f'>= {lo}'})")
+        _checkpoint_numbers(f, g, path, state)
         attrs = {k: (v.item() if hasattr(v, "item") and getattr(v, "shape", None) == () else v)
                  for k, v in f.attrs.items()}
     return state, attrs
+
+
+def _checkpoint_numbers(f, g, path, state):
+    """state[k] for the checkpoint group g's scalar attributes (required and optional) and vectors, each checked:
+    finite, of the right shape, within its range (UserError naming it otherwise)."""
+    for k in CHECKPOINT_ATTRS:
+        v = np.asarray(g.attrs[k])
+        if v.shape != () or v.dtype.kind not in "iuf" or not np.isfinite(v):
+            raise UserError(f"--restart '{path}': checkpoint attribute {k} = {v!r} is not a finite number")
+        state[k] = v.item()
+    for k in CHECKPOINT_OPTIONAL:
+        if k in g.attrs:
+            v = np.asarray(g.attrs[k])
+            if v.shape != () or v.dtype.kind not in "iuf" or not np.isfinite(v) or v < 0 or (
+                    k == "t_end" and v < state["t"]):
+                raise UserError(f"--restart '{path}': checkpoint attribute {k} = {v!r} is out of range")
+            state[k] = v.item()
+    for k, n in CHECKPOINT_VECTORS.items():
+        if k in g.attrs:
+            v = np.asarray(g.attrs[k])
+            if v.shape != (n,) or v.dtype.kind not in "iuf" or not np.isfinite(v).all():
+                raise UserError(f"--restart '{path}': checkpoint attribute {k} is not {n} finite numbers")
+            state[k] = v.astype(float)
+    nstats = min((f["stats"][k].shape[0] for k in f["stats"]), default=0)
+    limits = {"t": (0, None), "step": (0, None), "n": (0, None), "h_try": (0, None), "streak": (0, None),
+              "rejections": (0, None), "nframes": (1, f["time"].shape[0]), "nstats": (0, nstats)}
+    for k, (lo, hi) in limits.items():
+        v = state[k]
+        if v < lo or (k == "h_try" and v <= 0) or (hi is not None and v > hi):
+            raise UserError(f"--restart '{path}': checkpoint attribute {k} = {v:g} is out of range "
+                            f"({'> 0' if k == 'h_try' else f'{lo}..{hi}' if hi is not None else f'>= {lo}'})")
