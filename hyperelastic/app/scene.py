@@ -119,10 +119,6 @@ def read_scene(name, opts=None, from_scene=()):
     _read_time(s, opts)
     _read_solver(s, opts)
     s.effects = read_effects(s, opts, set(from_scene))
-    if "contact" in s.effects and s.integrator == "ts":
-        raise UserError("options -obstacle and -integrator ts: contact's never-through step (each Newton update "
-                        "stopped short of the first impact) is built into backward Euler and quasi-static steps; give "
-                        "-integrator beuler")
     return s
 
 

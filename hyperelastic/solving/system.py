@@ -61,6 +61,7 @@ class System:
         self.x_lin = None
         self.energy_momentum = False     # -energy_momentum: the discrete-gradient force in midpoint stages ...
         self.em_base = None              # ... from this start of step (begin_stage)
+        self.stage = None                # (x^n, alpha_f) of a generalized-alpha stage (begin_stage), else None
         self._calibrate(x0, v0, dt)
 
     def _calibrate(self, x0, v0, dt):
@@ -101,6 +102,7 @@ class System:
     # --- time dependence -----------------------------------------------------------------------
     def begin_step(self, t, h, xn, vn):
         self.r_const = None
+        self.stage = None
         for e in self.effects:
             e.begin_step(t, h, xn, vn)
         err = None
@@ -134,8 +136,9 @@ class System:
         x_a = xn + alpha_f (g(t1) - xn) (what TSALPHA2 computes from X1 when X1_c = g(t1))."""
         self.begin_step(t1, h, xn, vn)       # (drops r_const; the next residual sums it at t_stage)
         for e in self.effects:
-            if e.order == 0:
+            if e.order == 0 and not e.end_state:     # (contact stays at the step's end: _end_state)
                 e.begin_step(t_stage, h, xn, vn)
+        self.stage = (xn.copy(), alpha_f)
         c = self.cdofs
         self.g[c] = alpha_f * (self.g[c] - xn[c]) + xn[c]
         self.g_owned_c = self.space.owned_array(self.g)[self.c_owned_pos]
@@ -250,6 +253,8 @@ class System:
         for e in self.effects:
             if e.order == 0 and self.em_base is not None and e.discrete_gradient:
                 e.residual_discrete_gradient(x, self.em_base, r)
+            elif e.order == 0 and e.end_state:
+                e.residual(self._end_state(x), r)
             elif e.order == 0:
                 e.residual(x, r)
             else:
@@ -371,11 +376,26 @@ class System:
         return next(e.kernels for e in self.effects if e.kernels is not None)
 
     # --- tangent -------------------------------------------------------------------------------
+    def _end_state(self, x):
+        """The step's end x1 = x^n + (x - x^n)/alpha_f of a generalized-alpha stage state x (x itself otherwise):
+        where contact acts (`Effect.end_state`), so that the pre-check's collision-free step on the SNES unknown x1
+        keeps it off the obstacles."""
+        if self.stage is None:
+            return x
+        xn, af = self.stage
+        return xn + (x - xn) / af
+
     def linearize(self, X):
         x = self.impose(self.local(X, self.xl).copy())
         self.x_lin = x
         for e in self.effects:
-            e.linearize(x)
+            if e.end_state and self.stage is not None:
+                e.linearize(self._end_state(x))
+                if self.em_base is None or not e.discrete_gradient:
+                    e.scale_tangent(1.0 / self.stage[1])      # (d x1 / d x = 1/alpha_f; a discrete gradient from
+                                                              # x^n to x1 = 2x - x^n moves with H(x1) itself)
+            else:
+                e.linearize(x)
 
     def apply_local(self, v):
         v = v.copy()

@@ -20,6 +20,7 @@ import ctypes
 import math
 import time
 
+from mpi4py import MPI
 from petsc4py import PETSc
 
 from ..core.errors import UserError
@@ -75,6 +76,9 @@ class GeneralizedAlpha(Integrator):
         self.w_last = time.perf_counter()
         self.h_try = scene.dt
         ts.setI2Function(self._function, sp.global_vec())
+        self.contact = [e for e in system.effects if e.end_state]
+        if self.contact:
+            self.snes.setInitialGuess(self._initial_guess)
         if solver.op is not None:
             ts.setI2Jacobian(self._jacobian, solver.op.operator, solver.op.mat)
         ts.setTimeStep(scene.dt)
@@ -117,6 +121,15 @@ class GeneralizedAlpha(Integrator):
         self.system.begin_stage(t, t1, h, self.x, self.v, af)
         self.shifts = (gamma / (h * beta), am / (af * h * h * beta))   # dV/dX1, dA/dX1 over alpha_f (as TSALPHA2)
         self.system.set_rate_weights(*self.shifts)
+
+    def _initial_guess(self, snes, X):
+        """TSALPHA2's predictor for the step's end, unless it lies in or through an obstacle or the contact surface
+        (contact's undefined_at, on some rank): then the step's start (from which the pre-check's collision-free
+        steps go)."""
+        x1 = self.system.local(X, self.system.xl).copy()
+        bad = sum(e.undefined_at(x1) for e in self.contact)
+        if self.sp.mpi.allreduce(bad, op=MPI.SUM):
+            X.getArray()[:] = self.sp.owned_array(self.x)
 
     def _function(self, ts, t, U, V, A, R):
         self._stage(ts, t)

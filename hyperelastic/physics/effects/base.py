@@ -118,6 +118,7 @@ class Effect:
     discrete_gradient = False  # has residual_discrete_gradient (the energy-momentum force, -energy_momentum)
     kernels = None         # the cell kernels of its material (elasticity): the domain and inversion checks
     internal = False       # internal forces (they sum to zero over the body): not a load in the forces table
+    end_state = False      # in a generalized-alpha stage, acts at the step's end state (contact; System._end_state)
 
     def __init__(self):
         self.evals = 0       # residual evaluations

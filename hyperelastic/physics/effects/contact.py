@@ -19,8 +19,10 @@ node within one step makes that step's start infeasible and the step is retried 
 Defaults: dhat 1e-3 of the part's bounding-box diagonal (IPC's), kappa = KAPPA_SCALE E / dhat (E the largest Young's
 modulus of the solids): the pressure at d = dhat/2 is then 0.12 E, at dhat/10 1.2 E.
 Each rank sums its owned nodes: the same answer on any rank count, no surface gathered (a node meets an analytic
-obstacle alone). Self-contact and contact between pieces of the mesh (-contact_self): self_contact.py, built by the
-same spec. Not yet: triangulated obstacles, friction, -integrator ts."""
+obstacle alone). Self-contact, contact between pieces of the mesh (-contact_self) and triangulated obstacles
+(-obstacle mesh:FILE): self_contact.py, built by the same spec. Friction (-contact_friction): IPC's smoothed, lagged
+Coulomb friction (`mollifier`, `_slips`). Under -integrator ts contact acts at the step's end state (`end_state`,
+System._end_state); with -energy_momentum the barrier is a discrete gradient (`residual_discrete_gradient`)."""
 import os
 import re
 from dataclasses import dataclass
@@ -157,6 +159,8 @@ class Contact(Effect):
     conservative = True
     symmetric = True
     domain = True            # undefined (d <= 0) is counted as the elastic kernels count inverted cells
+    end_state = True         # (generalized-alpha: acts at the step's end, System._end_state)
+    discrete_gradient = True  # (-energy_momentum: residual_discrete_gradient)
 
     def __init__(self, nodes, area, X, input_ids, obstacles, dhat, kappa, edge=None, mu=0.0, eps_v=1e-3):
         """mu: Coulomb's friction coefficient (0: frictionless); eps_v [m/s]: the slip speed below which friction is
@@ -251,6 +255,33 @@ class Contact(Effect):
 
     def undefined_at(self, x):
         return sum(int((d <= 0).sum()) for d, _, _ in self._terms(x))
+
+    def scale_tangent(self, f):
+        self.blocks *= f
+
+    def residual_discrete_gradient(self, x, base, r):
+        """-energy_momentum's midpoint stage x: r += a discrete gradient of the barrier from the step's start base to
+        x1 = 2 x - base, node by node (Gonzalez's form with the ends' gradients): G = (p(x1) - p(x0)) D/|D|^2 +
+        (I - D D^T/|D|^2) (g(x0) + g(x1))/2, so that G . D = p(x1) - p(x0) exactly (the barrier's energy change is
+        the work of its force over the step) and G -> the gradient as D -> 0. Friction, which dissipates, is added
+        at x1. Only the ends are evaluated: they are where the pre-check keeps the body off the obstacles."""
+        x1 = 2 * x - base
+        self.undefined = 0
+        rn = r.reshape(-1, 3)
+        a, b = base.reshape(-1, 3)[self.nodes], x1.reshape(-1, 3)[self.nodes]
+        D = b - a
+        DD = (D * D).sum(axis=1)
+        moved = DD > 1e-300
+        for (d0, g0, _), (d1, g1, _) in zip(self._terms(base), self._terms(x1)):
+            self.undefined += int((d1 <= 0).sum())
+            b0, b1 = barrier(d0, self.dhat)[:2], barrier(d1, self.dhat)[:2]
+            p0, p1 = self.kappa * self.area * b0[0], self.kappa * self.area * b1[0]
+            G0, G1 = (self.kappa * self.area * b0[1])[:, None] * g0, (self.kappa * self.area * b1[1])[:, None] * g1
+            mean = 0.5 * (G0 + G1)
+            along = np.where(moved, (p1 - p0 - (mean * D).sum(axis=1)) / np.where(moved, DD, 1.0), 0.0)
+            np.add.at(rn, self.nodes, mean + along[:, None] * D)
+        for lam, _, u, y in self._slips(x1) if self.friction else ():
+            np.add.at(rn, self.nodes, (self.mu * lam * mollifier(y, self.slip_eps)[1])[:, None] * u)
 
     def linearize(self, x):
         self.blocks[:] = 0.0

@@ -58,6 +58,7 @@ class SelfContact(Effect):
     conservative = True
     symmetric = True
     domain = True
+    end_state = True          # (generalized-alpha: acts at the step's end, System._end_state)
 
     def __init__(self, space, tris, dhat, kappa, obstacles=(), mu=0.0, eps_v=1e-3):
         """obstacles: triangulated rigid obstacles (contact.Obstacle of kind mesh): their triangles join the collision
@@ -87,7 +88,7 @@ class SelfContact(Effect):
         self.nodes = own_lv[mine]                            # their local ids
         self.own_s = np.searchsorted(self.ids, sp.orig[self.nodes])                # and surface ids
         self.counts = np.array(self.mpi.allgather(len(self.nodes)), np.int64)
-        self.order = np.concatenate(self.mpi.allgather(self.own_s))               # gathered rows -> surface ids
+        self.rows = np.concatenate(self.mpi.allgather(self.own_s))                # gathered rows -> surface ids
         self.own_dofs = (3 * self.own_s[:, None] + np.arange(3)).ravel()
         self.own_cols = (3 * self.own_pos[:, None] + np.arange(3)).ravel()       # (owned-array dofs)
         self.obstacles = tuple(obstacles)
@@ -121,12 +122,12 @@ class SelfContact(Effect):
         own = np.ascontiguousarray(own, float)
         if self.mpi.size == 1:
             out = np.empty_like(own)
-            out[self.order] = own
+            out[self.rows] = own
             return out
         buf = np.empty((int(self.counts.sum()), 3))
         self.mpi.Allgatherv(own, [buf, 3 * self.counts])
         out = np.empty_like(buf)
-        out[self.order] = buf
+        out[self.rows] = buf
         return out
 
     def _obstacles_at(self, t):
@@ -227,6 +228,11 @@ class SelfContact(Effect):
                 from scipy.sparse import csr_matrix
                 self.coupling = csr_matrix((Hr.data[off], (Hr.row[off], Hr.col[off])), shape=Hr.shape)
         self.coupled = bool(self.mpi.allreduce(self.coupling is not None, op=MPI.LOR))
+
+    def scale_tangent(self, f):
+        self.blocks *= f
+        if self.coupling is not None:
+            self.coupling = self.coupling * f
 
     def couple(self, own_v):
         """The off-diagonal blocks' product at this rank's surface rows (n_own*3) of v given by the owned rows `own_v`
