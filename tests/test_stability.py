@@ -244,31 +244,41 @@ def test_matrix_script_writes_report(tmp_path, quick):
 
 def test_a_small_step_after_an_inversion_cut_is_not_convergence():
     """SNES's CONVERGED_SNORM_RELATIVE after the inversion guard shortened an update of the same solve is refused
-    (issue 47: such a step was accepted at J_min 0.107 in an incompressible rubber); without a cut, or with a
-    converged residual, the reason is SNES's own."""
+    (issue 47: such a step was accepted at J_min 0.107 in an incompressible rubber); after contact's never-through cut
+    it is refused where the cut shortened the solve's last update (a barrier's first iterations are cut, then Newton
+    converges to updates below -snes_stol: issue 46); without a cut, or with a converged residual, the reason is
+    SNES's own."""
     from petsc4py import PETSc
     from hyperelastic.solving.solver import Solver
     R = PETSc.SNES.ConvergedReason
+    ITS = 5                                       # the mock solve's Newton iterations (updates 0..4)
 
     class Snes:
-        def __init__(self, solver, reason, cut):
-            self.solver, self.reason, self.cut = solver, reason, cut
+        def __init__(self, solver, reason, cut_at):
+            self.solver, self.reason, self.cut_at = solver, reason, cut_at
 
         def solve(self, b, X):
-            setattr(self.solver, counter, getattr(self.solver, counter) + self.cut)
+            if self.cut_at is not None:           # (what Solver._precheck records when it cuts update k)
+                setattr(self.solver, counter, getattr(self.solver, counter) + 1)
+                if counter == "contact_cuts":
+                    self.solver.contact_cut_at = self.cut_at
 
         def getConvergedReason(self):
             return self.reason
+
+        def getIterationNumber(self):
+            return ITS
 
     class System:
         def set_objective_base(self, X):
             pass
     s = Solver.__new__(Solver)
     s.system, s.inversion_cuts, s.contact_cuts = System(), 0, 0
-    for counter in ("inversion_cuts", "contact_cuts"):        # (contact's never-through cut is refused the same way)
-        for reason, cut, want in ((R.CONVERGED_SNORM_RELATIVE, 1, Solver.GUARDED_SNORM),
-                                  (R.CONVERGED_SNORM_RELATIVE, 0, R.CONVERGED_SNORM_RELATIVE),
-                                  (R.CONVERGED_FNORM_RELATIVE, 1, R.CONVERGED_FNORM_RELATIVE)):
-            s.snes = Snes(s, reason, cut)
-            assert s.solve(None) == want, (counter, reason, cut)
+    for counter, early in (("inversion_cuts", Solver.GUARDED_SNORM), ("contact_cuts", R.CONVERGED_SNORM_RELATIVE)):
+        for reason, cut_at, want in ((R.CONVERGED_SNORM_RELATIVE, ITS - 1, Solver.GUARDED_SNORM),
+                                     (R.CONVERGED_SNORM_RELATIVE, 1, early),
+                                     (R.CONVERGED_SNORM_RELATIVE, None, R.CONVERGED_SNORM_RELATIVE),
+                                     (R.CONVERGED_FNORM_RELATIVE, ITS - 1, R.CONVERGED_FNORM_RELATIVE)):
+            s.snes = Snes(s, reason, cut_at)
+            assert s.solve(None) == want, (counter, reason, cut_at)
     assert Solver.GUARDED_SNORM < 0 and "not convergence" in s.reason_name(Solver.GUARDED_SNORM)
