@@ -441,7 +441,7 @@ class Solver:
         reason = self.snes.getConvergedReason()
         # (an inversion cut anywhere in the solve; a contact cut in its last update: a barrier's stiff start is cut
         # in its first iterations and then converges quadratically to updates below -snes_stol)
-        guarded = self.inversion_cuts > cuts or self.contact_cut_at >= self.snes.getIterationNumber() - 1
+        guarded = self.inversion_cuts > cuts or 0 <= self.contact_cut_at >= self.snes.getIterationNumber() - 1
         if reason == PETSc.SNES.ConvergedReason.CONVERGED_SNORM_RELATIVE and guarded:
             return self.GUARDED_SNORM
         return reason
