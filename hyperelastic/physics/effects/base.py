@@ -204,6 +204,36 @@ class QuadraticEffect(Effect):
         self._apply(v, y)
 
 
+class NodeBlocks(Effect):
+    """An effect whose tangent is one 3x3 block per node of `nodes` (this rank's local ids, each once) in `blocks`,
+    set by linearize: its product, diagonal and COO entries (the cell pattern already holds a node's own block).
+    Contact with obstacles and self-contact (whose pairs add couplings beside these blocks)."""
+
+    def block_product(self, v):
+        """(n, 3): each node's block times v's values there (v a local array)."""
+        return np.einsum("nij,nj->ni", self.blocks, v.reshape(-1, 3)[self.nodes])
+
+    @timed("applies")
+    def apply(self, v, y):
+        np.add.at(y.reshape(-1, 3), self.nodes, self.block_product(v))
+
+    @timed("applies")
+    def diag(self, d):
+        np.add.at(d.reshape(-1, 3), self.nodes, np.einsum("nii->ni", self.blocks))
+
+    def coo_pattern(self):
+        dofs = 3 * self.nodes[:, None] + np.arange(3)                      # (n, 3)
+        rows = np.broadcast_to(dofs[:, :, None], (len(self.nodes), 3, 3))
+        cols = np.broadcast_to(dofs[:, None, :], (len(self.nodes), 3, 3))
+        return rows.ravel().copy(), cols.ravel().copy()
+
+    def coo_values(self, out):
+        out[:] = self.blocks.ravel()
+
+    def scale_tangent(self, f):
+        self.blocks *= f
+
+
 def load_factor(scale, t):
     """A load's factor at time t: 1 without a time function; `scale` a number A: the ramp A min(t,1);
     a callable (a time function of -NAME_time): its value."""

@@ -33,7 +33,7 @@ from ...core.errors import UserError
 from ...core.expressions import TimeFunction
 from ...core.options import Row, facet_sets
 from ...mesh.read import read_meshio
-from .base import Effect, Energy, Spec, timed
+from .base import Energy, NodeBlocks, Spec, timed
 
 CCD_MARGIN = 0.1            # a Newton update stops this fraction short of the first contact along it
 PUSH_LIMIT = 0.3            # a step's start pushes contact nodes ahead of a moving obstacle by at most this fraction
@@ -152,7 +152,7 @@ def time_of_impact(kind, v, x, dx):
     return np.where((disc >= 0) & (b < 0) & (a > 0), np.maximum(s, 0.0), np.inf)
 
 
-class Contact(Effect):
+class Contact(NodeBlocks):
     """The barrier of the contact nodes (this rank's owned nodes of the contact surfaces) against the obstacles."""
     name = "contact"
     linear = False
@@ -250,14 +250,15 @@ class Contact(Effect):
             self.undefined += int((d <= 0).sum())
             b1 = barrier(d, self.dhat)[1]
             np.add.at(rn, self.nodes, (self.kappa * self.area * b1)[:, None] * g)
+        self._friction_forces(x, rn)
+
+    def _friction_forces(self, x, rn):
+        """rn += the friction potential's gradient mu lam (f1/y) u at the slips of x (none without friction)."""
         for lam, _, u, y in self._slips(x) if self.friction else ():
             np.add.at(rn, self.nodes, (self.mu * lam * mollifier(y, self.slip_eps)[1])[:, None] * u)
 
     def undefined_at(self, x):
         return sum(int((d <= 0).sum()) for d, _, _ in self._terms(x))
-
-    def scale_tangent(self, f):
-        self.blocks *= f
 
     def residual_discrete_gradient(self, x, base, r):
         """-energy_momentum's midpoint stage x: r += a discrete gradient of the barrier from the step's start base to
@@ -280,8 +281,7 @@ class Contact(Effect):
             mean = 0.5 * (G0 + G1)
             along = np.where(moved, (p1 - p0 - (mean * D).sum(axis=1)) / np.where(moved, DD, 1.0), 0.0)
             np.add.at(rn, self.nodes, mean + along[:, None] * D)
-        for lam, _, u, y in self._slips(x1) if self.friction else ():
-            np.add.at(rn, self.nodes, (self.mu * lam * mollifier(y, self.slip_eps)[1])[:, None] * u)
+        self._friction_forces(x1, rn)
 
     def linearize(self, x):
         self.blocks[:] = 0.0
@@ -294,24 +294,6 @@ class Contact(Effect):
             _, f1y, f2 = mollifier(y, self.slip_eps)
             uu = u[:, :, None] * u[:, None, :] / np.maximum(y, 1e-300)[:, None, None]     # (u u^T / y: 0 at u = 0)
             self.blocks += (self.mu * lam)[:, None, None] * (f1y[:, None, None] * T + f2[:, None, None] * uu)
-
-    @timed("applies")
-    def apply(self, v, y):
-        vn = v.reshape(-1, 3)[self.nodes]
-        np.add.at(y.reshape(-1, 3), self.nodes, np.einsum("nij,nj->ni", self.blocks, vn))
-
-    @timed("applies")
-    def diag(self, d):
-        np.add.at(d.reshape(-1, 3), self.nodes, np.einsum("nii->ni", self.blocks))
-
-    def coo_pattern(self):
-        dofs = 3 * self.nodes[:, None] + np.arange(3)                      # (n, 3)
-        rows = np.broadcast_to(dofs[:, :, None], (len(self.nodes), 3, 3))
-        cols = np.broadcast_to(dofs[:, None, :], (len(self.nodes), 3, 3))
-        return rows.ravel().copy(), cols.ravel().copy()
-
-    def coo_values(self, out):
-        out[:] = self.blocks.ravel()
 
     def max_step(self, x, dx):
         """The largest fraction (<= 1) of the update dx from x that no contact node crosses an obstacle along: each

@@ -28,7 +28,7 @@ import numpy as np
 from mpi4py import MPI
 
 from ...core.errors import UserError
-from .base import Effect, timed
+from .base import NodeBlocks, timed
 
 KAPPA_WEIGHT = 1.1           # W above: the area weights' sum per unit area of two facing faces (measured)
 
@@ -50,7 +50,7 @@ def linear_triangles(tris):
     return np.concatenate([np.c_[a, ab, ac], np.c_[ab, b, bc], np.c_[ac, bc, c], np.c_[ab, bc, ac]])
 
 
-class SelfContact(Effect):
+class SelfContact(NodeBlocks):
     """The barrier between all pairs of the contact surface's primitives within dhat (the whole surface on every
     rank, this rank's owned rows)."""
     name = "contact"
@@ -154,7 +154,7 @@ class SelfContact(Effect):
         if self.mpi.rank != 0:
             return 0.0
         out = float(self.potential_fn(self._collisions(V), self.mesh, V))
-        if self._friction(V):
+        if self._has_friction():
             out += float(self.friction(self.tangential, self.mesh, V - self.start))
         return out
 
@@ -175,7 +175,7 @@ class SelfContact(Effect):
             if c.compute_minimum_distance(self.mesh, V) <= 0:
                 self.undefined = 1
             g = self.potential_fn.gradient(c, self.mesh, V)
-        if self._friction(V):
+        if self._has_friction():
             f = self.friction.gradient(self.tangential, self.mesh, V - self.start)
             g = f if g is None else g + f
         if g is not None:
@@ -197,8 +197,8 @@ class SelfContact(Effect):
             self.tangential.build(self.mesh, self.start, self._collisions(self.start), self.potential_fn, self.mu)
             self.friction = self.ip.FrictionPotential(self.eps_v * h)
 
-    def _friction(self, V):
-        """Whether the step has friction pairs (and so the friction terms at the positions V apply)."""
+    def _has_friction(self):
+        """Whether the step has friction pairs (built at its start)."""
         return self.tangential is not None and len(self.tangential) > 0
 
     def pushed(self, x):
@@ -214,7 +214,7 @@ class SelfContact(Effect):
         H = None
         if len(c):
             H = self.potential_fn.hessian(c, self.mesh, V, self.ip.PSDProjectionMethod.CLAMP).tocsr()
-        if self._friction(V):
+        if self._has_friction():
             F = self.friction.hessian(self.tangential, self.mesh, V - self.start,
                                       self.ip.PSDProjectionMethod.CLAMP).tocsr()
             H = F if H is None else H + F
@@ -230,7 +230,7 @@ class SelfContact(Effect):
         self.coupled = bool(self.mpi.allreduce(self.coupling is not None, op=MPI.LOR))
 
     def scale_tangent(self, f):
-        self.blocks *= f
+        super().scale_tangent(f)
         if self.coupling is not None:
             self.coupling = self.coupling * f
 
@@ -246,9 +246,8 @@ class SelfContact(Effect):
 
     @timed("applies")
     def apply(self, v, y):
-        vn = v.reshape(-1, 3)[self.nodes]
-        yn = np.einsum("nij,nj->ni", self.blocks, vn)
-        c = self.couple(vn)
+        yn = self.block_product(v)
+        c = self.couple(v.reshape(-1, 3)[self.nodes])
         if c is not None:
             yn += c.reshape(-1, 3)
         y.reshape(-1, 3)[self.nodes] += yn
@@ -262,19 +261,6 @@ class SelfContact(Effect):
         if c is not None:
             c[constrained[self.own_cols]] = 0.0
             ya[self.own_cols] += c
-
-    @timed("applies")
-    def diag(self, d):
-        d.reshape(-1, 3)[self.nodes] += np.einsum("nii->ni", self.blocks)
-
-    def coo_pattern(self):
-        dofs = 3 * self.nodes[:, None] + np.arange(3)
-        n = len(self.nodes)
-        return (np.broadcast_to(dofs[:, :, None], (n, 3, 3)).ravel().copy(),
-                np.broadcast_to(dofs[:, None, :], (n, 3, 3)).ravel().copy())
-
-    def coo_values(self, out):
-        out[:] = self.blocks.ravel()
 
     def max_step(self, x, dx):
         """The largest fraction (<= 1) of the update dx from x along which the surface stays free of itself: ipctk's
