@@ -84,17 +84,16 @@ class SelfContact(NodeBlocks):
         faces = np.searchsorted(self.ids, every)
         own_lv = sp.lvid_of_owned
         mine = np.isin(sp.orig[own_lv], self.ids)
-        self.own_pos = np.flatnonzero(mine)                  # positions in the owned array of this rank's surface nodes
+        own_pos = np.flatnonzero(mine)                       # positions in the owned array of this rank's surface nodes
         self.nodes = own_lv[mine]                            # their local ids
         self.own_s = np.searchsorted(self.ids, sp.orig[self.nodes])                # and surface ids
         self.counts = np.array(self.mpi.allgather(len(self.nodes)), np.int64)
         self.rows = np.concatenate(self.mpi.allgather(self.own_s))                # gathered rows -> surface ids
         self.own_dofs = (3 * self.own_s[:, None] + np.arange(3)).ravel()
-        self.own_cols = (3 * self.own_pos[:, None] + np.arange(3)).ravel()       # (owned-array dofs)
+        self.own_cols = (3 * own_pos[:, None] + np.arange(3)).ravel()            # (owned-array dofs)
         self.obstacles = tuple(obstacles)
         self.moving = any(o.motion is not None for o in self.obstacles)
-        self.n_surface = len(self.ids)
-        offset = self.n_surface
+        offset = len(self.ids)                               # (obstacle vertices follow the surface's)
         for o in self.obstacles:
             faces = np.concatenate([faces, o.surface[1] + offset])
             offset += len(o.surface[0])
