@@ -421,7 +421,7 @@ class BackwardEuler(Integrator):
                     guesses += [g for g in [sysm.pushed_by_obstacles(self.x)] if g is not None]
                 elif not guesses and not all(e.linear for e in sysm.effects) and self._linearized_guess():
                     guesses = [None]           # (in self.X already; a linear problem's first iterate is the same solve)
-                elif guesses and any(e.kernels is None for e in sysm.domain_effects):
+                elif guesses and sysm.contact_domain:
                     # (contact: where the rate's start is refused — it carries a body through a face it has just met —
                     # the linearized answer, whose tangent at x^n holds the pairs' barrier; computed only then)
                     guesses.append(self._linearized_guess)

@@ -44,6 +44,8 @@ class System:
         self.scale = 1.0
         # materials undefined for J <= 0: every residual counts the cells where they were evaluated there
         self.domain_effects = [e for e in effects if e.domain]
+        # (domain effects beyond the material's: contact, undefined at or through an obstacle or the surface itself)
+        self.contact_domain = [e for e in self.domain_effects if e.kernels is None]
         self.check_domain = bool(self.domain_effects)
         self.g_owned_c = np.zeros(len(self.c_owned_pos))
         # effects whose residual does not depend on x (dead loads): summed once per step into r_const
@@ -361,7 +363,7 @@ class System:
         effect (contact: no node at or through an obstacle) there, on all ranks."""
         x = self.impose(self.local(X, self.xl).copy())
         bad = sum(e.kernels.energy(x)[3] for e in self.effects if e.kernels is not None)
-        bad += sum(e.undefined_at(x) for e in self.domain_effects if e.kernels is None)
+        bad += sum(e.undefined_at(x) for e in self.contact_domain)
         return self.space.mpi.allreduce(bad, op=MPI.SUM) == 0
 
     def undefined_cells(self):
