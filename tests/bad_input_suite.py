@@ -757,6 +757,8 @@ def contract_cases(rng):
          ("-contact_friction",), None),
         ("obstacle_file_no_triangles", BEND + ["-obstacle", "mesh:plate.obj"], ("-obstacle", "no triangles"),
          lambda d: _write(d, "plate.obj", b"v 0 0 0\nv 1 0 0\n")),
+        ("obstacle_mesh_through", BEND + ["-obstacle", "mesh:plate.obj"], ("-obstacle", "intersects", "crosses"),
+         lambda d: _write(d, "plate.obj", b"v 0 -5 -5\nv 0 5 -5\nv 0 5 5\nv 0 -5 5\nf 1 2 3\nf 1 3 4\n")),
         ("refine_negative", BEND + ["-refine", "-1"], ("-refine", ">= 0"), None),
         ("refine_too_deep", BEND + ["-refine", "9"], ("-refine", "at most 8"), None),
         ("refine_metis", BEND + ["-refine", "1", "-partitioner", "metis"], ("-refine", "metis"), None),

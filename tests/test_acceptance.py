@@ -11,9 +11,9 @@ from conftest import hyperelastic, read_h5
 
 def test_volume_refusal_follows_the_compressibility():
     from hyperelastic.solving.integrators import volume_refusal
-    rubber = SimpleNamespace(check_domain=True, volume_bound=(max(0.5, 1000 / 1e4), 1e4))
-    soft = SimpleNamespace(check_domain=True, volume_bound=(1000 / 2.17, 2.17))
-    stvk = SimpleNamespace(check_domain=False, volume_bound=(0.5, 1e4))
+    rubber = SimpleNamespace(material_domain=True, volume_bound=(max(0.5, 1000 / 1e4), 1e4))
+    soft = SimpleNamespace(material_domain=True, volume_bound=(1000 / 2.17, 2.17))
+    stvk = SimpleNamespace(material_domain=False, volume_bound=(0.5, 1e4))
     assert volume_refusal({"J_min": 0.99, "J_max": 1.011}, rubber) == ""          # the rod's coarse P2 mesh
     assert "false convergence" in volume_refusal({"J_min": 0.107, "J_max": 2.05}, rubber)   # the step
     assert volume_refusal({"J_min": 0.107, "J_max": 2.05}, soft) == ""           # nu = 0.3 may be squeezed so

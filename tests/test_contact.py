@@ -496,3 +496,48 @@ def test_a_slot_pressed_shut_never_passes_through_itself(tmp_path):
     two = read_h5(tmp_path / "b.h5")
     n = len(two["x"])
     assert np.abs(two["x"] - got["x"][:n]).max() < 1e-8
+
+
+# --- held nodes and contact: the old squeeze and invert scenes with -contact_self ---------------------------------
+def test_squeeze_with_self_contact_never_passes_through_itself(tmp_path):
+    """squeeze (St.VK, both ends prescribed to half the length) folds its sides near the ends: without contact its
+    surface crosses itself from t = 0.66 on (measured: every frame from there); with -contact_self no frame's surface
+    does (ipctk.has_intersections on the output alone), the folds press (pairs within dhat), and the held end faces
+    never carry the surface through itself: a step whose every start would (x^n with the held nodes at their targets)
+    is retried shorter. To t = 0.8."""
+    ipctk = pytest.importorskip("ipctk")
+    run_ok(["run", "squeeze", "-contact_self", "-final_time", 0.8, "-output", tmp_path / "s.h5", "-quiet"])
+    got = read_h5(tmp_path / "s.h5")
+    surface = _boundary_triangles(got["tetra"])
+    mesh = ipctk.CollisionMesh(got["points"], ipctk.edges(surface), surface)
+    assert not any(ipctk.has_intersections(mesh, xf) for xf in got["x"])
+    assert got["time"][-1] == pytest.approx(0.8)
+    assert np.nanmax(got["stats"]["contact_pairs"]) > 0
+
+
+@pytest.mark.parametrize("extra,words,when", [
+    # invert prescribes both end faces through each other (they meet at t = 0.5): one step to t = 0.6 is refused at
+    # once, at the time the held triangles meet (a path straight in t: no smaller step helps)
+    (["invert", "-contact_self", "-dt", 0.6, "-final_time", 0.6], ("held triangles", "no smaller step"), 0.5),
+    # a plane moving into the bar's clamped end (it reaches x = -5 at t = 2.5e-4)
+    (["bend", "-obstacle", "plane:1,0,0,-5.005", "-obstacle_motion", "20*t,0,0"],
+     ("-obstacle plane:1,0,0,-5.005", "held node"), 2.5e-4),
+])
+def test_held_nodes_driven_into_contact_stop_the_run_at_once(tmp_path, extra, words, when):
+    import re
+    p = hyperelastic(["run"] + extra + ["-output", tmp_path / "o.h5", "-quiet"])
+    assert p.returncode == 3, p.stderr
+    line = p.stderr.strip().splitlines()[-1]
+    assert all(w in line for w in words), line
+    assert float(re.search(r"into contact at about t=(\S+):", line).group(1)) == pytest.approx(when, rel=1e-4)
+    got = read_h5(tmp_path / "o.h5")                    # (the start's frame kept, no attempt solved)
+    assert len(got["x"]) == 1 and len(got["stats"].get("step", ())) == 0
+
+
+def test_an_obstacle_through_the_body_at_the_start_names_the_first_crossing(tmp_path):
+    plate = tmp_path / "plate.obj"
+    plate.write_text("v 0 -5 -5\nv 0 5 -5\nv 0 5 5\nv 0 -5 5\nf 1 2 3\nf 1 3 4\n")
+    p = hyperelastic(["run", "bend", "-obstacle", f"mesh:{plate}", "-output", tmp_path / "o.h5"])
+    lines = [ln for ln in p.stderr.splitlines() if ln.strip()]
+    assert p.returncode == 2 and len(lines) == 1, p.stderr
+    assert "intersects" in lines[0] and "the edge of nodes" in lines[0] and "crosses the triangle of obstacle" in lines[0]

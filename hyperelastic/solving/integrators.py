@@ -47,7 +47,7 @@ def volume_refusal(stats, system):
         return ""
     if lo <= 0:
         return (f"a converged solve left cells inverted (J_min = {lo:.3g}) in a material undefined there: not a "
-                "solution" if system.check_domain else "")
+                "solution" if system.material_domain else "")
     if system.volume_bound is None:
         return ""
     bound, ratio = system.volume_bound
@@ -342,7 +342,22 @@ class BackwardEuler(Integrator):
         if self.rigid is not None:
             self.rigid.predict(h)          # (its loaded components along their last rate)
         sysm.begin_step(t1, h, self.x, self.v)
-        self._initial_guess(h)
+        blocked = sysm.held_collision(self.x, self.t, t1)
+        if blocked is not None:          # (held nodes meet: no solve; certain: a prescribed path straight in t)
+            why, certain = blocked
+            if certain:
+                self._fail(f"step {self.step + 1} (t={t1:.6g}, h={h:.3g})", why + " (no smaller step helps: the "
+                           "scene passes them through each other)")
+            stats = {"step": self.step + 1, "time": t1, "dt": h, "snes_reason": 0, "newton_its": 0, "ksp_its": 0,
+                     "rejected": 1, "why": why + " along the step's straight move"}
+            stats.update(self._counter_stats(c0))
+            return self._rejected(stats, w0)
+        if not self._initial_guess(h):
+            stats = {"step": self.step + 1, "time": t1, "dt": h, "snes_reason": 0, "newton_its": 0, "ksp_its": 0,
+                     "rejected": 1, "why": "every start of the step (the held nodes moved to their targets) passes the "
+                                           "contact surface through itself or an obstacle"}
+            stats.update(self._counter_stats(c0))
+            return self._rejected(stats, w0)
         indefinite = self.solver.indefinite_solves
         reason = self.solver.solve(self.X)
         snes = self.solver.snes
@@ -407,7 +422,8 @@ class BackwardEuler(Integrator):
         from the linearized answer to the boundary's increment (_linearized_guess); other quasi-static steps from x^n.
         Where obstacles move (contact), the step's start must not lie inside one: the rate's start, else (and in
         dynamics after x^n + h v^n) the start with the nodes an obstacle reached pushed ahead of it
-        (System.pushed_by_obstacles); a start that is still infeasible is refused and the step retried shorter."""
+        (System.pushed_by_obstacles); a start that is still infeasible is refused and the step retried shorter. False
+        where no start is free of contact (x^n with the held nodes at their targets crosses the contact surface)."""
         sysm = self.system
         self.guess_ksp = 0
         # (every condition the same on every rank: defined_at is collective)
@@ -435,8 +451,10 @@ class BackwardEuler(Integrator):
                     continue
             elif guess is not None:
                 sysm.set_guess(self.X, guess)
-            if not sysm.check_domain or guess is self.x or sysm.defined_at(self.X):
-                return
+            if guess is self.x:            # (the last resort: the material may be undefined there, contact may not)
+                return not sysm.contact_domain or sysm.contact_free(self.X)
+            if not sysm.check_domain or sysm.defined_at(self.X):
+                return True
 
     # the central difference of the residual in the held targets: this fraction of the part's size, moved by the
     # largest increment

@@ -47,6 +47,13 @@ class System:
         # (domain effects beyond the material's: contact, undefined at or through an obstacle or the surface itself)
         self.contact_domain = [e for e in self.domain_effects if e.kernels is None]
         self.check_domain = bool(self.domain_effects)
+        held = mask.copy()                               # (nodes whose path the scene gives: no rigid face's)
+        for c in self.rigid:
+            held[c.dofs] = False
+        for e in self.contact_domain:
+            e.hold(held.reshape(-1, 3).all(axis=1))
+        # (a material undefined for J <= 0: a converged state with an inverted cell is not a solution)
+        self.material_domain = any(e.kernels is not None for e in self.domain_effects)
         self.g_owned_c = np.zeros(len(self.c_owned_pos))
         # effects whose residual does not depend on x (dead loads): summed once per step into r_const
         self.varying = [e for e in effects if not e.constant]
@@ -147,6 +154,44 @@ class System:
         # the energy-momentum force needs the step's start; only at the midpoint (not in TSALPHA2's starting
         # backward Euler half steps, alpha_f = 1, whose result the midpoint step does not depend on)
         self.em_base = xn.copy() if self.energy_momentum and abs(alpha_f - 0.5) <= 1e-12 else None
+
+    def held_collision(self, x, t0, t1):
+        """(why, certain) where the step begun (begin_step, from local positions x at t0 to t1) cannot be solved:
+        the nodes it holds (all three components prescribed) meet each other or an obstacle along their straight
+        move to their targets, which contact cannot stop; certain where every prescribed path is straight in t over
+        the step (checked at its midpoint): no smaller step gets past that point. None where they do not meet.
+        Collective."""
+        if not self.contact_domain:
+            return None
+        x1 = x.copy()
+        x1[self.cdofs] = self.g[self.cdofs]
+        hits = [h for h in (e.held_collision(x, x1) for e in self.contact_domain) if h is not None]
+        first = min(hits, default=(np.inf, ""), key=lambda h: h[0])
+        s, what = min(self.space.mpi.allgather(first), key=lambda h: h[0])
+        if s > 1:
+            return None
+        why = (f"the prescribed motion (-fix, -prescribe_*, -obstacle_motion) brings {what} into contact at about "
+               f"t={t0 + s * (t1 - t0):.6g}: contact cannot stop nodes whose path is given")
+        return why, self._straight(x, t0, t1)
+
+    def _straight(self, x, t0, t1):
+        """Whether every held dof's target and every obstacle's translation is linear in t over [t0, t1] (at the
+        midpoint, to 1e-9 of the move). Collective."""
+        tm = 0.5 * (t0 + t1)
+        ok = True
+        for c in self.constraints:
+            if c.name == "rigid":
+                continue
+            a, b = x[c.dofs], self.g[c.dofs]
+            tol = 1e-9 * (1 + np.abs(b - a).max(initial=0))
+            try:
+                ok = ok and np.allclose(c.values(tm), 0.5 * (a + b), rtol=0, atol=tol)
+            except UserError:
+                ok = False
+        for o in (o for e in self.contact_domain for o in e.obstacles if o.motion is not None):
+            a, b = o.shift(t0), o.shift(t1)
+            ok = ok and np.allclose(o.shift(tm), 0.5 * (a + b), rtol=0, atol=1e-9 * (1 + np.abs(b - a).max()))
+        return bool(self.space.mpi.allreduce(ok, op=MPI.LAND))
 
     def moves_prescribed(self, x):
         """Whether the step begun (begin_step) moves a prescribed dof away from its place in the local positions x,
@@ -364,6 +409,13 @@ class System:
         x = self.impose(self.local(X, self.xl).copy())
         bad = sum(e.kernels.energy(x)[3] for e in self.effects if e.kernels is not None)
         bad += sum(e.undefined_at(x) for e in self.contact_domain)
+        return self.space.mpi.allreduce(bad, op=MPI.SUM) == 0
+
+    def contact_free(self, X):
+        """Whether the state X (constrained dofs imposed) is reached from the step's start without passing through an
+        obstacle or the contact surface itself (the contact effects' undefined_at), on all ranks."""
+        x = self.impose(self.local(X, self.xl).copy())
+        bad = sum(e.undefined_at(x) for e in self.contact_domain)
         return self.space.mpi.allreduce(bad, op=MPI.SUM) == 0
 
     def undefined_cells(self):

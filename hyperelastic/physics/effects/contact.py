@@ -126,6 +126,14 @@ def distances(kind, v, x):
     return rho - v[3], r / np.maximum(rho, 1e-300)[:, None], rho
 
 
+def _plane_impact(old, new, a, b):
+    """Per node, the fraction s of the straight move a -> b at which it meets a plane moving from `old` to `new`
+    (inf if never): the signed distance (a + s (b - a)) . n - D(s) is linear in s."""
+    d0, d1 = a @ old[:3] - old[3], b @ new[:3] - new[3]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(d1 < d0, np.where(d0 <= 0, 0.0, d0 / (d0 - d1)), np.inf)
+
+
 def time_of_impact(kind, v, x, dx):
     """Per node, the fraction s > 0 of the straight move dx at which it first touches the obstacle (inf if never)."""
     if kind == "plane":
@@ -305,6 +313,28 @@ class Contact(NodeBlocks):
             if len(toi):
                 s = min(s, (1.0 - CCD_MARGIN) * float(toi.min()))
         return s
+
+    def hold(self, held):
+        """held: per local node, whether the scene prescribes all three of its components (its path is given)."""
+        self.held = np.flatnonzero(np.asarray(held, bool)[self.nodes])
+
+    def held_collision(self, x0, x1):
+        """The first fraction s of the straight move of the held contact nodes from local positions x0 (the step's
+        start, the obstacles where begin_step found them) to x1 (their targets, the obstacles at the step's end) at
+        which one meets an obstacle, with the node in words; None if none does (this rank's nodes)."""
+        first = None
+        if not len(getattr(self, "held", ())):
+            return None
+        a = x0.reshape(-1, 3)[self.nodes[self.held]]
+        b = x1.reshape(-1, 3)[self.nodes[self.held]]
+        for o, old, new in zip(self.obstacles, self.before, self.now):
+            # (relative to a sphere's or box's translation; a plane's offset moves linearly too)
+            s = _plane_impact(old, new, a, b) if o.kind == "plane" else \
+                time_of_impact(o.kind, old, a, b - a - (new[:3] - old[:3]))
+            if len(s) and s.min() <= 1 and (first is None or s.min() < first[0]):
+                i = int(np.argmin(s))
+                first = (float(s[i]), f"-obstacle {o.text} and the held node at {np.round(a[i], 6).tolist()}")
+        return first
 
     def energy(self, x, v):
         terms = self._terms(x)
