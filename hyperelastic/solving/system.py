@@ -47,6 +47,7 @@ class System:
         # (domain effects beyond the material's: contact, undefined at or through an obstacle or the surface itself)
         self.contact_domain = [e for e in self.domain_effects if e.kernels is None]
         self.check_domain = bool(self.domain_effects)
+        self.adaptive = [e for e in self.contact_domain if getattr(e, "kappa_range", None) is not None]
         held = mask.copy()                               # (nodes whose path the scene gives: no rigid face's)
         for c in self.rigid:
             held[c.dofs] = False
@@ -114,6 +115,8 @@ class System:
         self.stage = None
         for e in self.effects:
             e.begin_step(t, h, xn, vn)
+        if self.adaptive and xn is not None:
+            self._adapt_contact(t, h, xn, vn)
         err = None
         for c in self.constraints:
             try:
@@ -127,6 +130,31 @@ class System:
         elif err:
             raise UserError(err)
         self.g_owned_c = self.space.owned_array(self.g)[self.c_owned_pos]   # targets of the owned rows
+
+    def _adapt_contact(self, t, h, xn, vn):
+        """-contact_kappa adaptive: each contact effect's barrier stiffness balanced against the rest of the
+        incremental potential at the step's start x^n, as IPC chooses it (Li et al. 2020, sec. 4.3 and its supplement:
+        kappa = -(g_E . g_B)/(g_B . g_B), g_B the barrier's gradient per unit kappa, g_E the other terms' gradient,
+        both over the free dofs), clipped to [kappa_min, 100 kappa_min] (kappa_min: -contact_kappa's default,
+        0.1 E / dhat); kappa_min where no pair is within dhat. IPC balances once and then doubles kappa where the
+        distance keeps shrinking below 1e-9 of the scene's size; balanced at every step's start instead, kappa needs
+        no state (a restart continues exactly), and at an equilibrium (a converged step's end, g_E = -kappa g_B) it
+        is the kappa in use. Collective."""
+        sp = self.space
+        others = [e for e in self.effects if e not in self.adaptive]
+        free = np.ones(3 * sp.n_owned, bool)
+        free[self.c_owned_pos] = False
+        gE = sp.sum_owned(self.residual_local(xn, others).reshape(-1, 3)).ravel()[free]
+        for e in self.adaptive:
+            gb = np.zeros_like(xn)
+            e.barrier_gradient(xn, gb)
+            gB = sp.sum_owned(gb.reshape(-1, 3)).ravel()[free]
+            eb, bb = sp.mpi.allreduce(np.array([float(gE @ gB), float(gB @ gB)]), op=MPI.SUM)
+            lo, hi = e.kappa_range
+            kappa = lo if bb <= 0 or not np.isfinite(eb) else min(max(-eb / bb, lo), hi)
+            if kappa != e.kappa:
+                e.set_kappa(kappa)
+                e.begin_step(t, h, xn, vn)       # (friction's lagged normal forces with it)
 
     def set_held(self, values):
         """The targets of every held dof (local, in the order of cdofs) set to `values` (the linearized predictor)."""

@@ -40,6 +40,7 @@ PUSH_LIMIT = 0.3            # a step's start pushes contact nodes ahead of a mov
                             # of their shortest surface edge (else the step is retried shorter)
 KAPPA_SCALE = 0.1           # kappa = KAPPA_SCALE E / dhat by default
 DHAT_SCALE = 1e-3           # dhat = DHAT_SCALE x the bounding-box diagonal by default
+ADAPTIVE_RANGE = 100.0      # -contact_kappa adaptive: kappa in [kappa_min, ADAPTIVE_RANGE kappa_min] (IPC's ratio)
 KINDS = {"plane": "NX,NY,NZ,D: the half-space NX x + NY y + NZ z > D is free (the normal points into the body)",
          "sphere": "CX,CY,CZ,R: a rigid ball of radius R (the body stays outside)",
          "box": "X0,Y0,Z0,X1,Y1,Z1: a rigid axis-aligned box between those corners (the body stays outside)",
@@ -314,6 +315,15 @@ class Contact(NodeBlocks):
                 s = min(s, (1.0 - CCD_MARGIN) * float(toi.min()))
         return s
 
+    def set_kappa(self, kappa):
+        self.kappa = float(kappa)
+
+    def barrier_gradient(self, x, r):
+        """r += the barrier's gradient per unit kappa at local positions x (no friction)."""
+        rn = r.reshape(-1, 3)
+        for d, g, _ in self._terms(x):
+            np.add.at(rn, self.nodes, np.nan_to_num(self.area * barrier(d, self.dhat)[1])[:, None] * g)
+
     def hold(self, held):
         """held: per local node, whether the scene prescribes all three of its components (its path is given)."""
         self.held = np.flatnonzero(np.asarray(held, bool)[self.nodes])
@@ -340,7 +350,8 @@ class Contact(NodeBlocks):
         terms = self._terms(x)
         active = sum(int((d < self.dhat).sum()) for d, _, _ in terms)
         dmin = min((float(d.min()) for d, _, _ in terms if len(d)), default=np.inf)
-        out = {"contact_energy": self._potential(terms), "contact_nodes": active, "contact_dmin": dmin}
+        out = {"contact_energy": self._potential(terms), "contact_nodes": active, "contact_dmin": dmin,
+               "contact_kappa": self.kappa}
         if self.mu > 0:                        # (nodes pressed at the step's start that slid more than eps_v h)
             out["contact_sliding"] = sum(int(((lam > 0) & (y >= self.slip_eps)).sum())
                                          for lam, _, _, y in self._slips(x)) if self.friction else 0
@@ -356,6 +367,7 @@ class ContactParams:
     self_contact: bool = False  # -contact_self: the contact surfaces against themselves (self_contact.py)
     mu: float = 0.0           # -contact_friction: Coulomb's coefficient
     eps_v: float = 1e-3       # -contact_friction_eps [m/s]
+    adaptive: bool = False    # -contact_kappa adaptive: IPC's balance at each step's start (System._adapt_contact)
 
 
 def split_top(text, sep):
@@ -439,8 +451,13 @@ def _read(opts, where):
     faces_ = tuple(facet_sets(opts, "contact_faces", default="boundary"))
     mu = opts.real("contact_friction", 0.0, minimum=0, exclusive=False)
     eps_v = opts.real("contact_friction_eps", 1e-3, minimum=0)
-    return ContactParams(obstacles, faces_, opts.real("contact_dhat", None, minimum=0),
-                         opts.real("contact_kappa", None, minimum=0), self_contact, mu, eps_v)
+    adaptive = opts.has("contact_kappa") and opts.string("contact_kappa").strip().lower() == "adaptive"
+    try:
+        kappa = None if adaptive else opts.real("contact_kappa", None, minimum=0)
+    except UserError as e:
+        raise UserError(f"{e} (or 'adaptive')") from None
+    return ContactParams(obstacles, faces_, opts.real("contact_dhat", None, minimum=0), kappa, self_contact, mu, eps_v,
+                         adaptive)
 
 
 def build_contact(p, ctx):
@@ -472,6 +489,8 @@ def build_contact(p, ctx):
     if p.self_contact or meshes:
         from .self_contact import SelfContact
         out.append(SelfContact(sp, tris, dhat, kappa, meshes, p.mu, p.eps_v))
+    for e in out:
+        e.kappa_range = (kappa, ADAPTIVE_RANGE * kappa) if p.adaptive else None
     return out
 
 
@@ -488,6 +507,8 @@ SPEC = Spec(
               Energy("contact_nodes", 0, "contact nodes within dhat of an obstacle"),
               Energy("contact_pairs", 0, "self-contact pairs (point-triangle, edge-edge, ...) within dhat"),
               Energy("contact_sliding", 0, "contact nodes sliding (slip over eps_v h) on an obstacle (friction)"),
+              Energy("contact_kappa", 0, "the barrier's stiffness [Pa/m] (-contact_kappa adaptive: as balanced at the "
+                     "step's start)", combine="max"),
               Energy("contact_dmin", 0, "the smallest distance of a contact node to an obstacle (or of two parts of the "
                      "contact surface within dhat)", combine="min")),
     rows=(Row(("obstacle", "obstacle_motion"), "-obstacle KIND:VALUES[;…]",
@@ -508,7 +529,8 @@ SPEC = Spec(
               "forces and tangent planes from its start; static below the slip speed v [m/s], i.e. a slip of v h a "
               "step)",
               "0 (frictionless), v = 1e-3"),
-          Row(("contact_dhat", "contact_kappa"), "-contact_dhat d -contact_kappa k",
+          Row(("contact_dhat", "contact_kappa"), "-contact_dhat d -contact_kappa k|adaptive",
               "the barrier's reach [m] (default 1e-3 of the bounding box's diagonal: forces act at distances below "
               "it, so it is the contact's accuracy) and stiffness [Pa/m] (default 0.1 E / dhat: a pressure of "
-              "0.12 E at dhat/2)")))
+              "0.12 E at dhat/2); adaptive: IPC's choice, balanced against the other forces at each step's start "
+              "between that default and 100 times it (the contact_kappa statistic)")))

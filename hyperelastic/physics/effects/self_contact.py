@@ -100,7 +100,7 @@ class SelfContact(NodeBlocks):
         self.fixed = self._obstacles_at(0.0)                     # the obstacles' vertices now (not unknowns)
         X = self._V(sp.X)
         self.mesh = ip.CollisionMesh(X, ip.edges(faces), faces)
-        self.potential_fn = ip.BarrierPotential(self.dhat, self.kappa * self.dhat / (2 * KAPPA_WEIGHT), True)
+        self.set_kappa(self.kappa)
         self.blocks = np.zeros((len(self.nodes), 3, 3))
         self.coupling = None                                 # csr (3 n_own, 3 n_surface): the off-diagonal blocks
         self.coupled = False                                 # some rank has coupling entries (collective)
@@ -115,6 +115,18 @@ class SelfContact(NodeBlocks):
         if dmin <= 0:
             raise UserError(f"{what}: two parts of the contact surface (or it and an obstacle) touch at the start: "
                             "a start state must be free of contact")
+
+    def set_kappa(self, kappa):
+        self.kappa = float(kappa)
+        self.potential_fn = self.ip.BarrierPotential(self.dhat, self.kappa * self.dhat / (2 * KAPPA_WEIGHT), True)
+
+    def barrier_gradient(self, x, r):
+        """r += the barrier's gradient per unit kappa at local positions x (this rank's rows; no friction)."""
+        V = self._V(x)
+        c = self._collisions(V)
+        if len(c):
+            g = self.potential_fn.gradient(c, self.mesh, V) / self.kappa
+            r.reshape(-1, 3)[self.nodes] += g[self.own_dofs].reshape(-1, 3)
 
     def hold(self, held):
         """held: per local node, whether the scene prescribes all three of its components. The triangles whose
@@ -341,4 +353,4 @@ class SelfContact(NodeBlocks):
         d = float(np.sqrt(c.compute_minimum_distance(self.mesh, V))) if len(c) else np.inf
         first = self.mpi.rank == 0
         return {"contact_energy": float(self.potential_fn(c, self.mesh, V)) if first else 0.0,
-                "contact_pairs": len(c) if first else 0, "contact_dmin": d}
+                "contact_pairs": len(c) if first else 0, "contact_dmin": d, "contact_kappa": self.kappa}
