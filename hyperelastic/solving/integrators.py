@@ -342,22 +342,9 @@ class BackwardEuler(Integrator):
         if self.rigid is not None:
             self.rigid.predict(h)          # (its loaded components along their last rate)
         sysm.begin_step(t1, h, self.x, self.v)
-        blocked = sysm.held_collision(self.x, self.t, t1)
-        if blocked is not None:          # (held nodes meet: no solve; certain: a prescribed path straight in t)
-            why, certain = blocked
-            if certain:
-                self._fail(f"step {self.step + 1} (t={t1:.6g}, h={h:.3g})", why + " (no smaller step helps: the "
-                           "scene passes them through each other)")
-            stats = {"step": self.step + 1, "time": t1, "dt": h, "snes_reason": 0, "newton_its": 0, "ksp_its": 0,
-                     "rejected": 1, "why": why + " along the step's straight move"}
-            stats.update(self._counter_stats(c0))
-            return self._rejected(stats, w0)
-        if not self._initial_guess(h):
-            stats = {"step": self.step + 1, "time": t1, "dt": h, "snes_reason": 0, "newton_its": 0, "ksp_its": 0,
-                     "rejected": 1, "why": "every start of the step (the held nodes moved to their targets) passes the "
-                                           "contact surface through itself or an obstacle"}
-            stats.update(self._counter_stats(c0))
-            return self._rejected(stats, w0)
+        refused = self._refused(h, t1, c0, w0)          # (or Newton's start is in self.X)
+        if refused is not None:
+            return refused
         indefinite = self.solver.indefinite_solves
         reason = self.solver.solve(self.X)
         snes = self.solver.snes
@@ -373,21 +360,7 @@ class BackwardEuler(Integrator):
                 return self._rejected(stats, w0)
         stats.update(self._counter_stats(c0))
         if reason <= 0:
-            name = self.solver.reason_name(reason)
-            ksp = self.solver.ksp_reason_name() if name == "DIVERGED_LINEAR_SOLVE" else ""
-            stats["why"] = (f"SNES did not converge ({name}{': KSP ' + ksp if ksp else ''}) after "
-                            f"{stats['newton_its']} Newton iterations")
-            # a Krylov solve that ran out of iterations on a quasi-static step: a preconditioner for a static
-            # stiffness may fix it (Solver.escalate); halving the step may not (the caller)
-            stats["linear_only"] = self.scene.quasistatic and ksp in RAN_OUT
-            # most Newton directions from CG stopped at negative curvature: the tangent is indefinite (Solver.project_hessians)
-            stats["indefinite"] = self.scene.quasistatic and indefinite > 0.5 * max(stats["newton_its"], 1)
-            stats["moves_prescribed"] = sysm.moves_prescribed(self.x)
-            hints = self.solver.plan.ksp_hints or KSP_HINTS
-            stats["hint"] = hints.get(ksp, "") if ksp else SNES_HINTS.get(name, "")
-            if ksp in RAN_OUT and self.solver.snes.getKSP().getPC().getType() == "gamg":
-                stats["hint"] = "a larger -ksp_max_it"
-            return self._rejected(stats, w0)
+            return self._diverged(stats, reason, indefinite, w0)
         sysm.solved(self.X)
         x1 = sysm.impose(sysm.local(self.X, sysm.xl).copy())
         v1 = np.zeros_like(x1) if self.scene.quasistatic else (x1 - self.x) / h
@@ -410,6 +383,47 @@ class BackwardEuler(Integrator):
             stats.update(force_columns(surface_forces(self.scene, sysm, x1)))
         stats.update({"rejected": 0, "wall_s": time.perf_counter() - w0})
         return stats
+
+    def _diverged(self, stats, reason, indefinite, w0):
+        """The stats row of an attempt whose solve did not converge: why, and what the step control may try (a
+        preconditioner for a static stiffness, projected Hessians, or no halving: _nominal_step)."""
+        name = self.solver.reason_name(reason)
+        ksp = self.solver.ksp_reason_name() if name == "DIVERGED_LINEAR_SOLVE" else ""
+        stats["why"] = (f"SNES did not converge ({name}{': KSP ' + ksp if ksp else ''}) after "
+                        f"{stats['newton_its']} Newton iterations")
+        # a Krylov solve that ran out of iterations on a quasi-static step: a preconditioner for a static
+        # stiffness may fix it (Solver.escalate); halving the step may not (the caller)
+        stats["linear_only"] = self.scene.quasistatic and ksp in RAN_OUT
+        # most Newton directions from CG stopped at negative curvature: the tangent is indefinite (Solver.project_hessians)
+        stats["indefinite"] = self.scene.quasistatic and indefinite > 0.5 * max(stats["newton_its"], 1)
+        stats["moves_prescribed"] = self.system.moves_prescribed(self.x)
+        hints = self.solver.plan.ksp_hints or KSP_HINTS
+        stats["hint"] = hints.get(ksp, "") if ksp else SNES_HINTS.get(name, "")
+        if ksp in RAN_OUT and self.solver.snes.getKSP().getPC().getType() == "gamg":
+            stats["hint"] = "a larger -ksp_max_it"
+        return self._rejected(stats, w0)
+
+    def _refused(self, h, t1, c0, w0):
+        """The stats row of an attempt refused before its solve, or None with Newton's start in self.X
+        (_initial_guess): where the held nodes meet each other or an obstacle along the step (System.held_collision;
+        the run stops where every prescribed path is straight in t: no smaller step helps), or no start is free of
+        contact."""
+        blocked = self.system.held_collision(self.x, self.t, t1)
+        if blocked is not None:
+            why, certain = blocked
+            if certain:
+                self._fail(f"step {self.step + 1} (t={t1:.6g}, h={h:.3g})", why + " (no smaller step helps: the "
+                           "scene passes them through each other)")
+            why += " along the step's straight move"
+        elif not self._initial_guess(h):
+            why = ("every start of the step (the held nodes moved to their targets) passes the contact surface through "
+                   "itself or an obstacle")
+        else:
+            return None
+        stats = {"step": self.step + 1, "time": t1, "dt": h, "snes_reason": 0, "newton_its": 0, "ksp_its": 0,
+                 "rejected": 1, "why": why}
+        stats.update(self._counter_stats(c0))
+        return self._rejected(stats, w0)
 
     def _initial_guess(self, h):
         """Newton's start in self.X: the explicit predictor x^n + h v^n with the step's boundary
