@@ -40,7 +40,8 @@ def runs(tmp_path_factory):
     base = ["run", "bend2", "-order", "2", "-quasistatic", "-dt", "0.5", "-material", "neohookean", "-level", "3",
             "-quiet"]
     out = {}
-    for name, opts, n in (("gamg", GAMG, 1), ("pmg", PMG, 1), ("pmg2", PMG, 2)):
+    for name, opts, n in (("gamg", GAMG, 1), ("pmg", PMG, 1), ("pmg2", PMG, 2),
+                          ("alone", ["-pc_type", "mg", "-ksp_type", "cg"], 1)):
         path = str(d / f"{name}.h5")
         run_ok(base + opts + ["-output", path], nprocs=n)
         out[name] = read_h5(path)
@@ -52,6 +53,18 @@ def test_same_answer_as_gamg_in_fewer_iterations(runs):
     scale = np.abs(a["x"][-1] - a["points"]).max()
     for r in (b, c):
         assert np.abs(r["x"][-1] - a["x"][-1]).max() < 1e-8 * scale
-    its = {k: r["stats"]["ksp_its"].sum() / r["stats"]["newton_its"].sum() for k, r in runs.items()}
+    its = {k: r["stats"]["ksp_its"].sum() / r["stats"]["newton_its"].sum() for k, r in runs.items() if k != "alone"}
     assert its["pmg"] < 0.75 * its["gamg"], its
     assert abs(its["pmg2"] - its["pmg"]) <= 0.25 * its["pmg"], its
+
+
+def test_pc_type_mg_alone_is_options_pmg(runs):
+    """-pc_type mg without options/pmg.opts gets its smoothers and coarse solve (pmg.DEFAULTS, the same as the file:
+    PETSc's own defaults solve the P1 level directly on one rank), so the same iterates."""
+    from hyperelastic.solving import pmg
+    text = open(PMG[1]).read().split()
+    given = {a[1:]: b for a, b in zip(text, text[1:]) if a.startswith("-mg_")}
+    assert given == pmg.DEFAULTS
+    a, b = runs["pmg"], runs["alone"]
+    assert np.array_equal(a["stats"]["ksp_its"], b["stats"]["ksp_its"])
+    assert np.abs(a["x"][-1] - b["x"][-1]).max() <= 1e-12 * np.abs(a["x"][-1]).max()
