@@ -244,7 +244,8 @@ def main_crossval(args):
         st = compute(p, g[p], g["h"], out, level=args.level, nvec=nvec, seed=args.seed,
                      state_time=args.state_time)
         _, feas = write(st, out, args.tol, args.rel_tol)
-        plot_surfaces(st, out, args.tol, args.rel_tol)
+        if not getattr(args, "no_plots", False):
+            plot_surfaces(st, out, args.tol, args.rel_tol)
         for f in feas:
             if f["family"] in ("t", "r", "e"):
                 print(f"  {f['measure']:6s} {f['material']:6s} {f['family']:2s} {f['operator']:9s} "
