@@ -466,7 +466,7 @@ class BackwardEuler(Integrator):
             elif guess is not None:
                 sysm.set_guess(self.X, guess)
             if guess is self.x:            # (the last resort: the material may be undefined there, contact may not)
-                return not sysm.contact_domain or sysm.contact_free(self.X)
+                return not sysm.contact_domain or sysm.contact_free(sysm.impose(self.x.copy()))
             if not sysm.check_domain or sysm.defined_at(self.X):
                 return True
 

@@ -141,17 +141,22 @@ class System:
         no state (a restart continues exactly), and at an equilibrium (a converged step's end, g_E = -kappa g_B) it
         is the kappa in use. Collective."""
         sp = self.space
-        others = [e for e in self.effects if e not in self.adaptive]
         free = np.ones(3 * sp.n_owned, bool)
         free[self.c_owned_pos] = False
-        gE = sp.sum_owned(self.residual_local(xn, others).reshape(-1, 3)).ravel()[free]
+        gE = None                     # (the other terms' gradient: only where some pair is within dhat)
         for e in self.adaptive:
             gb = np.zeros_like(xn)
             e.barrier_gradient(xn, gb)
             gB = sp.sum_owned(gb.reshape(-1, 3)).ravel()[free]
-            eb, bb = sp.mpi.allreduce(np.array([float(gE @ gB), float(gB @ gB)]), op=MPI.SUM)
+            bb = sp.mpi.allreduce(float(gB @ gB), op=MPI.SUM)
             lo, hi = e.kappa_range
-            kappa = lo if bb <= 0 or not np.isfinite(eb) else min(max(-eb / bb, lo), hi)
+            kappa = lo
+            if bb > 0:
+                if gE is None:
+                    others = [o for o in self.effects if o not in self.adaptive]
+                    gE = sp.sum_owned(self.residual_local(xn, others).reshape(-1, 3)).ravel()[free]
+                eb = sp.mpi.allreduce(float(gE @ gB), op=MPI.SUM)
+                kappa = min(max(-eb / bb, lo), hi) if np.isfinite(eb) else lo
             if kappa != e.kappa:
                 e.set_kappa(kappa)
                 e.begin_step(t, h, xn, vn)       # (friction's lagged normal forces with it)
@@ -436,15 +441,17 @@ class System:
         effect (contact: no node at or through an obstacle) there, on all ranks."""
         x = self.impose(self.local(X, self.xl).copy())
         bad = sum(e.kernels.energy(x)[3] for e in self.effects if e.kernels is not None)
-        bad += sum(e.undefined_at(x) for e in self.contact_domain)
-        return self.space.mpi.allreduce(bad, op=MPI.SUM) == 0
+        return self.space.mpi.allreduce(bad + self._through(x), op=MPI.SUM) == 0
 
-    def contact_free(self, X):
-        """Whether the state X (constrained dofs imposed) is reached from the step's start without passing through an
-        obstacle or the contact surface itself (the contact effects' undefined_at), on all ranks."""
-        x = self.impose(self.local(X, self.xl).copy())
-        bad = sum(e.undefined_at(x) for e in self.contact_domain)
-        return self.space.mpi.allreduce(bad, op=MPI.SUM) == 0
+    def _through(self, x):
+        """This rank's count of where the local positions x lie in or through an obstacle or the contact surface, as
+        reached from the step's start (the contact effects' undefined_at)."""
+        return sum(e.undefined_at(x) for e in self.contact_domain)
+
+    def contact_free(self, x):
+        """Whether the local positions x are reached from the step's start without passing through an obstacle or the
+        contact surface itself, on all ranks."""
+        return self.space.mpi.allreduce(self._through(x), op=MPI.SUM) == 0
 
     def undefined_cells(self):
         """Cells (on all ranks) where the material was undefined at the last residual; only

@@ -20,7 +20,6 @@ import ctypes
 import math
 import time
 
-from mpi4py import MPI
 from petsc4py import PETSc
 
 from ..core.errors import UserError
@@ -76,8 +75,7 @@ class GeneralizedAlpha(Integrator):
         self.w_last = time.perf_counter()
         self.h_try = scene.dt
         ts.setI2Function(self._function, sp.global_vec())
-        self.contact = [e for e in system.effects if e.end_state]
-        if self.contact:
+        if system.contact_domain:
             self.snes.setInitialGuess(self._initial_guess)
         if solver.op is not None:
             ts.setI2Jacobian(self._jacobian, solver.op.operator, solver.op.mat)
@@ -126,9 +124,7 @@ class GeneralizedAlpha(Integrator):
         """TSALPHA2's predictor for the step's end, unless it lies in or through an obstacle or the contact surface
         (contact's undefined_at, on some rank): then the step's start (from which the pre-check's collision-free
         steps go)."""
-        x1 = self.system.local(X, self.system.xl).copy()
-        bad = sum(e.undefined_at(x1) for e in self.contact)
-        if self.sp.mpi.allreduce(bad, op=MPI.SUM):
+        if not self.system.contact_free(self.system.local(X, self.system.xl).copy()):
             X.getArray()[:] = self.sp.owned_array(self.x)
 
     def _function(self, ts, t, U, V, A, R):

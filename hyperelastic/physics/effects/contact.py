@@ -183,6 +183,7 @@ class Contact(NodeBlocks):
         self.now = self.before = [o.at(0.0) for o in self.obstacles]
         self.moving = any(o.motion is not None for o in self.obstacles)
         self.blocks = np.zeros((len(self.nodes), 3, 3))
+        self.held = np.zeros(0, np.int64)     # (the contact nodes whose path the scene gives: hold)
         x = np.asarray(X, float).reshape(-1, 3)[self.nodes]
         for o, v in zip(self.obstacles, self.now):                       # a start inside an obstacle: one line
             d = distances(o.kind, v, x)[0]
@@ -333,7 +334,7 @@ class Contact(NodeBlocks):
         start, the obstacles where begin_step found them) to x1 (their targets, the obstacles at the step's end) at
         which one meets an obstacle, with the node in words; None if none does (this rank's nodes)."""
         first = None
-        if not len(getattr(self, "held", ())):
+        if not len(self.held):
             return None
         a = x0.reshape(-1, 3)[self.nodes[self.held]]
         b = x1.reshape(-1, 3)[self.nodes[self.held]]

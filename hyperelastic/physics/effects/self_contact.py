@@ -105,7 +105,7 @@ class SelfContact(NodeBlocks):
         self.coupling = None                                 # csr (3 n_own, 3 n_surface): the off-diagonal blocks
         self.coupled = False                                 # some rank has coupling entries (collective)
         self.start = self.last = X                          # the step's start; the last state reached from it
-        self.t0 = 0.0                                        # (the step's start time)
+        self.held_mesh = None                                # (the held triangles' collision mesh: hold)
         self._cache = (None, None)
         what = "option -contact_self" if not self.obstacles else "options -contact_faces and -obstacle mesh:FILE"
         if ip.has_intersections(self.mesh, X):
@@ -151,9 +151,9 @@ class SelfContact(NodeBlocks):
         """The first fraction s of the straight move of the held triangles from local positions x0 (the step's start,
         the obstacles where the last step left them) to x1 (their targets, the obstacles at the step's end) at which
         two of them meet, with them in words; None if none do. The same on every rank (collective)."""
-        if getattr(self, "held_mesh", None) is None:
+        if self.held_mesh is None:
             return None
-        a = self._V(x0, self._obstacles_at(self.t0))[self.held_v]
+        a = self.start[self.held_v]                       # (x0 gathered at the step's start: begin_step)
         b = self._V(x1)[self.held_v]
         # (the additive CCD stops 0.9 of the way to the first impact: repeated from there, the fraction comes to the
         # time of impact to 0.1^6; a stop short of a near miss is followed by a clear rest. Tight-Inclusion CCD, exact
@@ -265,7 +265,6 @@ class SelfContact(NodeBlocks):
         return 0 if ok else 1
 
     def begin_step(self, t, h, xn, vn):
-        self.t0 = t - h
         self.start = self.last = self._V(xn, self._obstacles_at(t - h)) if xn is not None else self.start
         self.fixed = self._obstacles_at(t)
         if self.mu > 0 and xn is not None:
