@@ -5,6 +5,8 @@ import sys
 
 import pytest
 
+import warmrun
+
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 BIN = os.path.dirname(sys.executable)
 
@@ -15,7 +17,9 @@ def mpiexec():
 
 
 def hyperelastic(args, nprocs=1, timeout=600, cwd=None):
-    """Run the `hyperelastic` console script (under mpiexec when nprocs > 1)."""
+    """Run the `hyperelastic` console script (under mpiexec when nprocs > 1; one rank: started warm, warmrun.py)."""
+    if nprocs == 1:
+        return warmrun.run(args, cwd=cwd, timeout=timeout)
     exe = os.path.join(BIN, "hyperelastic")
     cmd = [exe] + [str(a) for a in args]
     if nprocs > 1:

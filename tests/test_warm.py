@@ -1,0 +1,88 @@
+"""Warm starts (hyperelastic/core/warm.py): a forked child is the exec'd command, output for output."""
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+
+from conftest import BIN, read_h5
+from hyperelastic.core.warm import Server
+
+EXE = os.path.join(BIN, "hyperelastic")
+RUN = ["run", "bend", "-final_time", "0.1", "-dt", "0.05", "-ksp_rtol", "1e-8"]
+
+
+@pytest.fixture(scope="module")
+def server():
+    s = Server.start("hyperelastic.cli.main:main", volatile=("PYTEST_CURRENT_TEST",))
+    if s is None:
+        pytest.skip("no warm starts on this system (needs fork and pidfds)")
+    yield s
+    s.close()
+
+
+def exec_run(args, cwd):
+    return subprocess.run([EXE] + args, capture_output=True, text=True, cwd=cwd, timeout=120)
+
+
+def warm_run(server, args, cwd):
+    p = server.popen(args, EXE, cwd=str(cwd), env=os.environ)
+    out, err = p.communicate(timeout=120)
+    return p.returncode, out, err
+
+
+def test_a_warm_run_is_the_exec_run(server, tmp_path):
+    """The same exit status, the same lines (but for the timings and the file name) and the same positions
+    bit for bit; a bad option is the same one line; `scenes` prints the same."""
+    a = exec_run(RUN + ["-output", "a.h5"], tmp_path)
+    rc, out, err = warm_run(server, RUN + ["-output", "b.h5"], tmp_path)
+    assert a.returncode == rc == 0, err
+
+    def lines(text):
+        return [ln.split("[")[0].replace("b.h5", "a.h5") for ln in text.splitlines()]
+    assert lines(a.stderr) == lines(err) and a.stdout == out
+    x1, x2 = read_h5(tmp_path / "a.h5"), read_h5(tmp_path / "b.h5")
+    assert np.array_equal(x1["x"], x2["x"]) and x1["attrs"]["options"].replace("a.h5", "b.h5") == x2["attrs"]["options"]
+    for args in (["run", "bend", "-E", "abc"], ["run", "bend", "-bogus", "1"], ["scenes"], ["nosuch"]):
+        e = exec_run(args, tmp_path)
+        assert (e.returncode, e.stdout, e.stderr) == warm_run(server, args, tmp_path), args
+
+
+def test_signals_and_exit_statuses_reach_the_caller(server, tmp_path):
+    """SIGTERM stops the run cleanly at a step (status 143, a checkpoint to continue from); SIGKILL is the
+    signal's negative status, as Popen's; the child has its own process id and working directory."""
+    p = server.popen(["run", "bend", "-final_time", "50", "-output", "long.h5"], EXE, cwd=str(tmp_path), env=os.environ)
+    assert p.pid != os.getpid() and p.poll() is None
+    time.sleep(2.0)
+    p.terminate()
+    _, err = p.communicate(timeout=60)
+    assert p.returncode == 128 + signal.SIGTERM and "--restart long.h5" in err, err
+    p = server.popen(["run", "bend", "-final_time", "50", "-output", "k.h5"], EXE, cwd=str(tmp_path), env=os.environ)
+    time.sleep(1.0)
+    p.kill()
+    assert p.wait(timeout=60) == -signal.SIGKILL
+    with pytest.raises(subprocess.TimeoutExpired):
+        server.popen(["run", "bend", "-final_time", "50", "-output", "t.h5"], EXE, cwd=str(tmp_path),
+                     env=os.environ).communicate(timeout=0.5)
+
+
+def test_the_server_is_clean_and_ends_with_its_client(tmp_path):
+    """Another environment is not served (libraries read theirs when loaded); a server that would hold MPI
+    initialized does not start; the server ends when the process that started it ends."""
+    code = ("import sys, time\nfrom hyperelastic.core.warm import Server\n"
+            "s = Server.start('json:dumps')\nprint(s.proc.pid, flush=True)\n"
+            "import os\nprint(s.accepts(os.environ), s.accepts(dict(os.environ, OMP_NUM_THREADS='4')), flush=True)\n")
+    p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    pid, ok = p.stdout.splitlines()
+    assert ok == "True False", p.stderr
+    for _ in range(100):
+        if not os.path.exists(f"/proc/{pid}") or "Z" in open(f"/proc/{pid}/stat").read().split()[2]:
+            break
+        time.sleep(0.1)
+    else:
+        raise AssertionError("the server outlived its client")
+    # a preload that initializes MPI is refused: the server does not come up, callers exec
+    assert Server.start("hyperelastic.cli.main:main", preload=["mpi4py.MPI"]) is None
