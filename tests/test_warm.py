@@ -40,6 +40,9 @@ def test_a_warm_run_is_the_exec_run(server, tmp_path):
     a = exec_run(RUN + ["-output", "a.h5"], tmp_path)
     rc, out, err = warm_run(server, RUN + ["-output", "b.h5"], tmp_path)
     assert a.returncode == rc == 0, err
+    # PETSc is finalized as at an interpreter's exit: -log_view writes its report
+    assert warm_run(server, RUN + ["-output", "c.h5", "-log_view", ":log.txt"], tmp_path)[0] == 0
+    assert "SNESSolve" in (tmp_path / "log.txt").read_text()
 
     def lines(text):
         return [ln.split("[")[0].replace("b.h5", "a.h5") for ln in text.splitlines()]

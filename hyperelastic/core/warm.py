@@ -223,14 +223,21 @@ def _clean():
         raise SystemExit("warm server: threads running after preloading (fork would copy their locks)")
 
 
-def _child(msg, fds, entry):
-    """In the forked child: become the command, then exit as the interpreter would (atexit functions, e.g.
-    PETSc's finalization, then C exit: the C libraries' buffers flushed)."""
-    rc = 1
+def _child(msg, fds, entry, sel):
+    """In the forked child: become the command; its exit status. The caller then leaves the server's loop with
+    SystemExit, so that the interpreter ends as after `python -m`: atexit functions, Python's exit hooks
+    (PETSc's finalization: -log_view's report, MPI_Finalize), the streams flushed."""
     try:
         for sig in (signal.SIGTERM, signal.SIGCHLD, signal.SIGHUP):
             signal.signal(sig, signal.SIG_DFL)
         signal.signal(signal.SIGINT, signal.default_int_handler)
+        for key in list(sel.get_map().values()):       # the server's sockets and the other children's pidfds
+            if isinstance(key.data, tuple):
+                key.data[1].close()
+                os.close(key.fd)
+            elif key.data is None:
+                key.fileobj.close()
+        sel.close()
         null = os.open(os.devnull, os.O_RDONLY)
         for fd, to in ((null, 0), (fds[0], 1), (fds[1], 2)):
             os.dup2(fd, to)
@@ -241,25 +248,13 @@ def _child(msg, fds, entry):
         sys.argv = [msg["argv0"]] + msg["args"]
         module, func = entry.split(":")
         try:
-            rc = getattr(sys.modules[module], func)(msg["args"])
+            return getattr(sys.modules[module], func)(msg["args"])
         except SystemExit as e:
-            rc = e.code
-        if rc is None:
-            rc = 0
-        elif not isinstance(rc, int):
-            print(rc, file=sys.stderr)
-            rc = 1
+            return e.code
     except BaseException:
         import traceback
         traceback.print_exc()
-        rc = 1
-    finally:
-        try:
-            atexit._run_exitfuncs()
-            sys.stdout.flush()
-            sys.stderr.flush()
-        finally:
-            ctypes.CDLL(None).exit(rc & 0xFF)
+        return 1
 
 
 def serve(path, entry, preload):
@@ -294,7 +289,8 @@ def serve(path, entry, preload):
                 sys.stderr.flush()
                 pid = os.fork()
                 if pid == 0:
-                    _child(msg, fds, entry)
+                    conn.close()
+                    sys.exit(_child(msg, fds, entry, sel))
                 for fd in fds:
                     os.close(fd)
                 _send(conn, {"pid": pid})
