@@ -11,5 +11,7 @@ from hyperelastic.studies.repro.simulation import main
 if __name__ == "__main__":
     main(parser(__doc__.splitlines()[1],
                 **{"--fig4_level": dict(type=int, default=None, help="mesh level of the squeeze runs (5 with --full, else 1)"),
-                   "--final_time": dict(type=float, default=None, help="squeeze duration (1.5 s with --full, else 0.3)")}
+                   "--final_time": dict(type=float, default=None, help="squeeze duration (1.5 s with --full, else 0.3)"),
+                   "--newton_steps": dict(type=float, nargs="+", default=None,
+                                          help="the Newton table's step sizes (default 1e-2 1e-3)")}
                 ).parse_args())

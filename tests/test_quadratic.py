@@ -92,9 +92,9 @@ def test_patch_quadratic_field_reproduced(cube_meshes, tmp_path):
 def test_curved_part_has_the_geometry_volume(tmp_path):
     """The plate with a hole meshed at order 2: its cells' curved volume (the degree-5 rule) is the geometry's
     to 1e-6, and its error falls as h^4 (the hole's arcs are quadratic); its corners alone (P1) miss by
-    3.5e-4, as h^2."""
+    7.3e-4, as h^2."""
     from hyperelastic.mesh.read import corners, read_mesh
-    run_ok(["mesh", f"{ROOT}/examples/plate_hole.geo", "--size", 0.004, "--order", 2, "--refine", 1,
+    run_ok(["mesh", f"{ROOT}/examples/plate_hole.geo", "--size", 0.006, "--order", 2, "--refine", 1,
             "-o", tmp_path / "p.msh"])
     V = 0.2 * 0.1 * 0.01 - math.pi * 0.02 ** 2 * 0.01
     e2, e1 = [], []

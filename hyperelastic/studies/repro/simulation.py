@@ -127,5 +127,6 @@ def main(args):
     lvl = 3 if args.full else 1
     Tn = 0.1 if args.full else 0.03
     print(f"MFFD-Newton vs the exact tangent: stretch on L{lvl} for {Tn:g} s")
-    write_csv(os.path.join(out, "newton_vs_E_h.csv"), newton_table(out, lvl, Tn))
+    steps = tuple(getattr(args, "newton_steps", None) or (1e-2, 1e-3))
+    write_csv(os.path.join(out, "newton_vs_E_h.csv"), newton_table(out, lvl, Tn, steps))
     print(f"wrote {out}")
