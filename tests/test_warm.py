@@ -89,3 +89,36 @@ def test_the_server_is_clean_and_ends_with_its_client(tmp_path):
         raise AssertionError("the server outlived its client")
     # a preload that initializes MPI is refused: the server does not come up, callers exec
     assert Server.start("hyperelastic.cli.main:main", preload=["mpi4py.MPI"]) is None
+
+
+EDIT_PROBE = """
+import os, sys, time
+from hyperelastic.core.warm import Refused, Server
+s = Server.start("hyperelastic.cli.main:main")
+c = s.popen(["scenes"], sys.argv[1])
+out, _ = c.communicate(timeout=60)
+print(c.returncode == 0 and "bend" in out)
+import hyperelastic.cli.main as m
+os.utime(m.__file__, ns=(time.time_ns(), time.time_ns() + 10**9))
+try:
+    s.popen(["scenes"], sys.argv[1])
+    print("started")
+except Refused:
+    print("refused")
+print(Server.start("hyperelastic.cli.main:main", env=dict(os.environ, PYTHONPATH=sys.argv[2])) is None)
+"""
+
+
+def test_edited_sources_and_another_package_are_refused(tmp_path):
+    """A package file edited after the server loaded it: the command is refused (the caller execs it), never run
+    as a mix of loaded and edited code. A server whose import of the entry module finds another file than the
+    client's (here: another copy first on its path) does not start."""
+    import shutil
+    import hyperelastic
+    src = os.path.dirname(os.path.abspath(hyperelastic.__file__))
+    for d in ("a", "b"):
+        shutil.copytree(src, tmp_path / d / "hyperelastic", ignore=shutil.ignore_patterns("__pycache__"))
+    env = dict(os.environ, PYTHONPATH=str(tmp_path / "a"))
+    p = subprocess.run([sys.executable, "-c", EDIT_PROBE, EXE, str(tmp_path / "b")], capture_output=True, text=True,
+                       timeout=180, cwd=str(tmp_path), env=env)
+    assert p.stdout.split() == ["True", "refused", "True"], p.stdout + p.stderr

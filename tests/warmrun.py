@@ -8,7 +8,7 @@ import subprocess
 import sys
 import threading
 
-from hyperelastic.core.warm import Server
+from hyperelastic.core.warm import Refused, Server
 
 BIN = os.path.dirname(sys.executable)
 EXE = os.path.join(BIN, "hyperelastic")
@@ -39,7 +39,10 @@ def run(args, cwd=None, timeout=600, text=True):
     s = server()
     if s is None or not s.accepts(os.environ) or not _sendable(args):
         return subprocess.run([EXE] + args, capture_output=True, text=text, timeout=timeout, cwd=cwd)
-    p = s.popen(args, EXE, cwd=None if cwd is None else str(cwd), env=os.environ, text=text)
+    try:
+        p = s.popen(args, EXE, cwd=None if cwd is None else str(cwd), env=os.environ, text=text)
+    except Refused:            # (the package's files changed since the server loaded them)
+        return subprocess.run([EXE] + args, capture_output=True, text=text, timeout=timeout, cwd=cwd)
     try:
         out, err = p.communicate(timeout=timeout)
     except subprocess.TimeoutExpired:

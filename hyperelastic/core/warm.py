@@ -17,6 +17,7 @@ import atexit
 import ctypes
 import glob
 import importlib
+import importlib.util
 import json
 import os
 import selectors
@@ -76,7 +77,10 @@ class Server:
         tmp = tempfile.mkdtemp(prefix="hyperelastic-warm-")
         path = os.path.join(tmp, "socket")
         # (its stdin is a pipe from here: the server ends when this process does, however it ends)
-        proc = subprocess.Popen([sys.executable, "-m", __name__, path, entry, *preload], env=env,
+        spec = importlib.util.find_spec(entry.split(":")[0])
+        if spec is None or not spec.origin:
+            return None
+        proc = subprocess.Popen([sys.executable, "-m", __name__, path, entry, spec.origin, *preload], env=env,
                                 stdin=subprocess.PIPE, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
         t0 = time.monotonic()
         while not os.path.exists(path + ".ready"):
@@ -102,7 +106,8 @@ class Server:
 
     def popen(self, args, argv0, cwd=None, env=None, text=True):
         """A Child running ENTRY(args) with sys.argv = [argv0] + args, its stdout and stderr piped here (str
-        where `text`, else bytes)."""
+        where `text`, else bytes). Raises Refused where the server would not start it (the package's files
+        changed since the server loaded them): exec it then."""
         return Child(self, args, argv0, cwd or os.getcwd(), dict(self.env if env is None else env), text)
 
     def close(self):
@@ -118,6 +123,10 @@ class Server:
                 os.remove(p)
         if os.path.isdir(os.path.dirname(self.path)):
             os.rmdir(os.path.dirname(self.path))
+
+
+class Refused(OSError):
+    """The server did not start the command (callers exec it instead)."""
 
 
 class Child:
@@ -140,7 +149,8 @@ class Child:
         if msg is None or "pid" not in msg:
             for fd in (out_r, err_r):
                 os.close(fd)
-            raise OSError(f"warm start failed: {msg and msg.get('error')}")
+            self._sock.close()
+            raise Refused(f"warm start refused: {msg and msg.get('error')}")
         self.pid = msg["pid"]
         self._bufs = {out_r: [], err_r: []}
         self._out, self._err = out_r, err_r
@@ -257,12 +267,70 @@ def _child(msg, fds, entry, sel):
         return 1
 
 
-def serve(path, entry, preload):
+def _sources(package):
+    """{file: modification time} of the modules loaded from `package`'s folder: a child must not run a mix of
+    the code loaded here and files edited since (it would import the rest from disk)."""
+    root = os.path.dirname(os.path.abspath(package.__file__))
+    files = [m.__file__ for m in list(sys.modules.values()) if getattr(m, "__file__", None)
+             and os.path.abspath(m.__file__).startswith(root + os.sep)]
+    return {f: os.stat(f).st_mtime_ns for f in files}
+
+
+def _current(sources):
+    try:
+        return all(os.stat(f).st_mtime_ns == t for f, t in sources.items())
+    except OSError:
+        return False
+
+
+def _request(listener, sel, entry, sources):
+    """Accept one command: fork its child (which leaves here with SystemExit) and watch it; or refuse it (a
+    message without its two streams, or the package's files changed since they were loaded: the caller execs)."""
+    conn, _ = listener.accept()
+    msg, fds = _recv(conn, maxfds=2)
+    if msg is None or len(fds) != 2 or not _current(sources):
+        for fd in fds:
+            os.close(fd)
+        if msg is not None:
+            _send(conn, {"error": "the package's files changed since the server loaded them"})
+        conn.close()
+        return
+    sys.stdout.flush()
+    sys.stderr.flush()
+    pid = os.fork()
+    if pid == 0:
+        conn.close()
+        sys.exit(_child(msg, fds, entry, sel))
+    for fd in fds:
+        os.close(fd)
+    _send(conn, {"pid": pid})
+    sel.register(os.pidfd_open(pid), selectors.EVENT_READ, (pid, conn))
+
+
+def _reap(sel, key):
+    pid, conn = key.data
+    sel.unregister(key.fd)
+    os.close(key.fd)
+    _, status = os.waitpid(pid, 0)
+    try:
+        _send(conn, {"returncode": os.waitstatus_to_exitcode(status)})
+    except OSError:
+        pass
+    conn.close()
+
+
+def serve(path, entry, expect, preload):
+    """Import, check, then fork a child per command until the client's end of stdin closes. `expect`: the file
+    the client's import of the entry module resolves to (another one here is refused: the children would run
+    other code than the caller asked for)."""
     for name in preload:
         importlib.import_module(name)
-    importlib.import_module(entry.split(":")[0])
+    module = importlib.import_module(entry.split(":")[0])
+    if os.path.abspath(module.__file__) != os.path.abspath(expect):
+        raise SystemExit(f"warm server: {module.__name__} is {module.__file__} here, {expect} for the client")
     _load_shared()
     _clean()
+    sources = _sources(sys.modules[module.__name__.split(".")[0]])
     signal.signal(signal.SIGINT, signal.SIG_IGN)      # Ctrl-C reaches the children (same process group)
     signal.signal(signal.SIGTERM, lambda *a: sys.exit(0))
     listener = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
@@ -278,35 +346,10 @@ def serve(path, entry, preload):
                 if not os.read(key.fd, 1024):
                     return                      # the client has ended
             elif key.data is None:
-                conn, _ = listener.accept()
-                msg, fds = _recv(conn, maxfds=2)
-                if msg is None or len(fds) != 2:
-                    for fd in fds:
-                        os.close(fd)
-                    conn.close()
-                    continue
-                sys.stdout.flush()
-                sys.stderr.flush()
-                pid = os.fork()
-                if pid == 0:
-                    conn.close()
-                    sys.exit(_child(msg, fds, entry, sel))
-                for fd in fds:
-                    os.close(fd)
-                _send(conn, {"pid": pid})
-                pidfd = os.pidfd_open(pid)
-                sel.register(pidfd, selectors.EVENT_READ, (pid, conn))
+                _request(listener, sel, entry, sources)
             else:
-                pid, conn = key.data
-                sel.unregister(key.fd)
-                os.close(key.fd)
-                _, status = os.waitpid(pid, 0)
-                try:
-                    _send(conn, {"returncode": os.waitstatus_to_exitcode(status)})
-                except OSError:
-                    pass
-                conn.close()
+                _reap(sel, key)
 
 
 if __name__ == "__main__":
-    serve(sys.argv[1], sys.argv[2], sys.argv[3:])
+    serve(sys.argv[1], sys.argv[2], sys.argv[3], sys.argv[4:])

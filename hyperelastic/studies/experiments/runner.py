@@ -42,10 +42,8 @@ def run_hyperelastic(args, output, nprocs=1, timeout=900):
     cmd = command(args, nprocs)
     env = dict(os.environ, OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1")
     t0 = time.perf_counter()
-    server = _server(env) if nprocs == 1 else None
-    if server is not None:
-        p = server.popen(cmd[3:], MAIN)
-    else:
+    p = _warm(cmd, env) if nprocs == 1 else None
+    if p is None:
         p = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
     try:
         _, err = p.communicate(timeout=timeout)
@@ -63,6 +61,15 @@ def run_hyperelastic(args, output, nprocs=1, timeout=900):
 MAIN = os.path.join(os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)))), "__main__.py")
 _WARM = {}
 _WARM_LOCK = threading.Lock()
+
+
+def _warm(cmd, env):
+    """The run started warm (a warm.Child), or None where it is to be exec'd."""
+    server = _server(env)
+    try:
+        return server.popen(cmd[3:], MAIN) if server is not None else None
+    except warm.Refused:
+        return None
 
 
 def _server(env):
