@@ -8,7 +8,7 @@ import subprocess
 import sys
 import threading
 
-from hyperelastic.core.warm import Refused, Server
+from hyperelastic.core.warm import Server
 
 BIN = os.path.dirname(sys.executable)
 EXE = os.path.join(BIN, "hyperelastic")
@@ -41,7 +41,7 @@ def run(args, cwd=None, timeout=600, text=True):
         return subprocess.run([EXE] + args, capture_output=True, text=text, timeout=timeout, cwd=cwd)
     try:
         p = s.popen(args, EXE, cwd=None if cwd is None else str(cwd), env=os.environ, text=text)
-    except Refused:            # (the package's files changed since the server loaded them)
+    except OSError:            # refused (Refused: the package's files changed since the server loaded them), or gone
         return subprocess.run([EXE] + args, capture_output=True, text=text, timeout=timeout, cwd=cwd)
     try:
         out, err = p.communicate(timeout=timeout)

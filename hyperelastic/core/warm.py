@@ -74,22 +74,20 @@ class Server:
         if not usable():
             return None
         env = dict(os.environ if env is None else env)
-        tmp = tempfile.mkdtemp(prefix="hyperelastic-warm-")
-        path = os.path.join(tmp, "socket")
-        # (its stdin is a pipe from here: the server ends when this process does, however it ends)
         spec = importlib.util.find_spec(entry.split(":")[0])
         if spec is None or not spec.origin:
             return None
+        path = os.path.join(tempfile.mkdtemp(prefix="hyperelastic-warm-"), "socket")
+        # (its stdin is a pipe from here: the server ends when this process does, however it ends)
         proc = subprocess.Popen([sys.executable, "-m", __name__, path, entry, spec.origin, *preload], env=env,
                                 stdin=subprocess.PIPE, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        server = cls(proc, path, env, volatile)
         t0 = time.monotonic()
         while not os.path.exists(path + ".ready"):
             if proc.poll() is not None or time.monotonic() - t0 > timeout:
-                proc.kill()
-                proc.wait()
+                server.close()          # (a refusal: another package first on its path, MPI held, no socket)
                 return None
             time.sleep(0.01)
-        server = cls(proc, path, env, volatile)
         atexit.register(server.close)
         return server
 
@@ -118,6 +116,7 @@ class Server:
             except subprocess.TimeoutExpired:
                 self.proc.kill()
                 self.proc.wait()
+        self.proc.stdin.close()
         for p in (self.path, self.path + ".ready"):
             if os.path.exists(p):
                 os.remove(p)
@@ -142,6 +141,11 @@ class Child:
             self._sock.connect(server.path)
             _send(self._sock, {"args": [str(a) for a in args], "argv0": argv0, "cwd": cwd, "env": env},
                   [out_w, err_w])
+        except OSError:
+            for fd in (out_r, err_r):
+                os.close(fd)
+            self._sock.close()
+            raise
         finally:
             os.close(out_w)
             os.close(err_w)

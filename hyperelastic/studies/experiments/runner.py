@@ -68,7 +68,7 @@ def _warm(cmd, env):
     server = _server(env)
     try:
         return server.popen(cmd[3:], MAIN) if server is not None else None
-    except warm.Refused:
+    except OSError:            # refused (warm.Refused: the package's files changed), or the server has gone
         return None
 
 
