@@ -76,10 +76,10 @@ def test_the_server_is_clean_and_ends_with_its_client(tmp_path):
     """Another environment is not served (libraries read theirs when loaded); a server that would hold MPI
     initialized does not start; the server ends when the process that started it ends."""
     code = ("import sys, time\nfrom hyperelastic.core.warm import Server\n"
-            "s = Server.start('json:dumps')\nprint(s.proc.pid, flush=True)\n"
+            "s = Server.start('json:dumps')\nprint(s.proc.pid, s.path, flush=True)\n"
             "import os\nprint(s.accepts(os.environ), s.accepts(dict(os.environ, OMP_NUM_THREADS='4')), flush=True)\n")
     p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
-    pid, ok = p.stdout.splitlines()
+    (pid, path), ok = p.stdout.splitlines()[0].split(), p.stdout.splitlines()[1]
     assert ok == "True False", p.stderr
     for _ in range(100):
         if not os.path.exists(f"/proc/{pid}") or "Z" in open(f"/proc/{pid}/stat").read().split()[2]:
@@ -87,6 +87,12 @@ def test_the_server_is_clean_and_ends_with_its_client(tmp_path):
         time.sleep(0.1)
     else:
         raise AssertionError("the server outlived its client")
+    for _ in range(50):          # and it removed its socket's folder
+        if not os.path.exists(os.path.dirname(path)):
+            break
+        time.sleep(0.1)
+    else:
+        raise AssertionError(f"{path} left behind")
     # a preload that initializes MPI is refused: the server does not come up, callers exec
     assert Server.start("hyperelastic.cli.main:main", preload=["mpi4py.MPI"]) is None
 

@@ -117,11 +117,7 @@ class Server:
                 self.proc.kill()
                 self.proc.wait()
         self.proc.stdin.close()
-        for p in (self.path, self.path + ".ready"):
-            if os.path.exists(p):
-                os.remove(p)
-        if os.path.isdir(os.path.dirname(self.path)):
-            os.rmdir(os.path.dirname(self.path))
+        _remove(self.path)
 
 
 class Refused(OSError):
@@ -344,15 +340,29 @@ def serve(path, entry, expect, preload):
     sel = selectors.DefaultSelector()
     sel.register(listener, selectors.EVENT_READ, None)
     sel.register(sys.stdin.fileno(), selectors.EVENT_READ, "client")
-    while True:
-        for key, _ in sel.select():
-            if key.data == "client":
-                if not os.read(key.fd, 1024):
-                    return                      # the client has ended
-            elif key.data is None:
-                _request(listener, sel, entry, sources)
-            else:
-                _reap(sel, key)
+    me = os.getpid()
+    try:
+        while True:
+            for key, _ in sel.select():
+                if key.data == "client":
+                    if not os.read(key.fd, 1024):
+                        return                      # the client has ended
+                elif key.data is None:
+                    _request(listener, sel, entry, sources)
+                else:
+                    _reap(sel, key)
+    finally:
+        if os.getpid() == me:          # (a child leaves through here too, with SystemExit: not its business)
+            _remove(path)
+
+
+def _remove(path):
+    """The socket, its ready mark and their folder."""
+    for p in (path, path + ".ready"):
+        if os.path.exists(p):
+            os.remove(p)
+    if os.path.isdir(os.path.dirname(path)) and not os.listdir(os.path.dirname(path)):
+        os.rmdir(os.path.dirname(path))
 
 
 if __name__ == "__main__":
