@@ -66,7 +66,11 @@ def test_signals_and_exit_statuses_reach_the_caller(server, tmp_path):
     p = server.popen(["run", "bend", "-final_time", "50", "-output", "k.h5"], EXE, cwd=str(tmp_path), env=os.environ)
     time.sleep(1.0)
     p.kill()
-    assert p.wait(timeout=60) == -signal.SIGKILL
+    for _ in range(600):                   # poll() reads without blocking and sees the end
+        if p.poll() is not None:
+            break
+        time.sleep(0.1)
+    assert p.returncode == -signal.SIGKILL and p.wait(timeout=60) == -signal.SIGKILL
     with pytest.raises(subprocess.TimeoutExpired):
         server.popen(["run", "bend", "-final_time", "50", "-output", "t.h5"], EXE, cwd=str(tmp_path),
                      env=os.environ).communicate(timeout=0.5)

@@ -163,13 +163,15 @@ class Child:
         """Read what is there until both pipes are closed and the status has come; False at the timeout."""
         end = None if timeout is None else time.monotonic() + timeout
         while self._sel.get_map():
-            left = None if end is None else end - time.monotonic()
-            if left is not None and left <= 0:
+            left = None if end is None else max(0.0, end - time.monotonic())
+            events = self._sel.select(left)
+            if not events and left is not None and end - time.monotonic() <= 0:
                 return False
-            for key, _ in self._sel.select(left):
+            for key, _ in events:
                 fd = key.fd
                 if fd == self._sock.fileno():
                     msg, _ = _recv(self._sock)
+                    # (no message: the server went before the child's status came; reported as a kill)
                     self.returncode = -signal.SIGKILL if msg is None else msg["returncode"]
                     self._sel.unregister(fd)
                     self._sock.close()
