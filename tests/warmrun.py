@@ -6,42 +6,18 @@ server's) are exec'd, and so is everything under mpiexec."""
 import os
 import subprocess
 import sys
-import threading
 
-from hyperelastic.core.warm import Server
+from hyperelastic.core.warm import launch
 
 BIN = os.path.dirname(sys.executable)
 EXE = os.path.join(BIN, "hyperelastic")
-_SERVER = []
-_LOCK = threading.Lock()
-
-
-def server():
-    """This test process's warm server (started at its first command), or None."""
-    with _LOCK:
-        if not _SERVER:
-            _SERVER.append(Server.start("hyperelastic.cli.main:main", volatile=("PYTEST_CURRENT_TEST",)))
-        return _SERVER[0]
-
-
-def _sendable(args):
-    try:
-        for a in args:
-            a.encode("utf-8")
-    except UnicodeEncodeError:
-        return False
-    return True
 
 
 def run(args, cwd=None, timeout=600, text=True):
     """subprocess.run([hyperelastic] + ARGS, capture_output=True, ...) for one rank."""
     args = [str(a) for a in args]
-    s = server()
-    if s is None or not s.accepts(os.environ) or not _sendable(args):
-        return subprocess.run([EXE] + args, capture_output=True, text=text, timeout=timeout, cwd=cwd)
-    try:
-        p = s.popen(args, EXE, cwd=None if cwd is None else str(cwd), env=os.environ, text=text)
-    except OSError:            # refused (Refused: the package's files changed since the server loaded them), or gone
+    p = launch("hyperelastic.cli.main:main", args, EXE, cwd=cwd, text=text, volatile=("PYTEST_CURRENT_TEST",))
+    if p is None:
         return subprocess.run([EXE] + args, capture_output=True, text=text, timeout=timeout, cwd=cwd)
     try:
         out, err = p.communicate(timeout=timeout)

@@ -120,6 +120,33 @@ class Server:
         _remove(self.path)
 
 
+_SHARED_SERVERS = {}
+_SHARED_LOCK = threading.Lock()
+
+
+def launch(entry, args, argv0, cwd=None, env=None, text=True, volatile=()):
+    """ENTRY(args) started warm from this process's server for ENTRY (started at its first command, again if it
+    has gone; in the environment of that first command): a Child; or None where the command is to be exec'd
+    (warm starts unavailable, another environment, arguments that are not UTF-8, refused, the server gone)."""
+    env = dict(os.environ if env is None else env)
+    args = [str(a) for a in args]
+    try:
+        for a in args:
+            a.encode("utf-8")
+    except UnicodeEncodeError:
+        return None
+    with _SHARED_LOCK:
+        server = _SHARED_SERVERS.get(entry, False)
+        if server is False or (server is not None and server.proc.poll() is not None):
+            server = _SHARED_SERVERS[entry] = Server.start(entry, env=env, volatile=volatile)
+    if server is None or not server.accepts(env):
+        return None
+    try:
+        return server.popen(args, argv0, cwd=None if cwd is None else str(cwd), env=env, text=text)
+    except OSError:            # refused (Refused: the package's files changed since the server loaded them), or gone
+        return None
+
+
 class Refused(OSError):
     """The server did not start the command (callers exec it instead)."""
 

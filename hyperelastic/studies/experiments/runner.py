@@ -7,7 +7,6 @@ import os
 import shutil
 import subprocess
 import sys
-import threading
 import time
 from concurrent.futures import ThreadPoolExecutor
 
@@ -42,7 +41,7 @@ def run_hyperelastic(args, output, nprocs=1, timeout=900):
     cmd = command(args, nprocs)
     env = dict(os.environ, OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1")
     t0 = time.perf_counter()
-    p = _warm(cmd, env) if nprocs == 1 else None
+    p = warm.launch("hyperelastic.cli.main:main", cmd[3:], MAIN, env=env) if nprocs == 1 else None
     if p is None:
         p = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
     try:
@@ -59,26 +58,6 @@ def run_hyperelastic(args, output, nprocs=1, timeout=900):
 
 
 MAIN = os.path.join(os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)))), "__main__.py")
-_WARM = {}
-_WARM_LOCK = threading.Lock()
-
-
-def _warm(cmd, env):
-    """The run started warm (a warm.Child), or None where it is to be exec'd."""
-    server = _server(env)
-    try:
-        return server.popen(cmd[3:], MAIN) if server is not None else None
-    except OSError:            # refused (warm.Refused: the package's files changed), or the server has gone
-        return None
-
-
-def _server(env):
-    """This process's warm-start server for runs in `env` (started at the first run), or None."""
-    with _WARM_LOCK:
-        s = _WARM.get("server", False)
-        if s is False or (s is not None and s.proc.poll() is not None):
-            s = _WARM["server"] = warm.Server.start("hyperelastic.cli.main:main", env=env)
-        return s if s is not None and s.accepts(env) else None
 
 
 def _end(p):

@@ -89,7 +89,10 @@ STIFFNESS = [("E=1e2", ["-E", "1e2"]), ("E=1e6", ["-E", "1e6"]), ("steel E=2.1e1
              ("E=1e15", ["-E", "1e15"])]
 
 
-def newton_table(out, level, final_time, steps=(1e-2, 1e-3), scene="stretch",
+NEWTON_STEPS = (1e-2, 1e-3)     # the Newton table's step sizes (repro_fig4.py --newton_steps)
+
+
+def newton_table(out, level, final_time, steps=NEWTON_STEPS, scene="stretch",
                  modes=("assembled", "snes_mf_operator", "snes_mf", "seed_fd")):
     """Final-state distance of each mode to the assembled run, relative to the largest displacement."""
     rows = []
@@ -127,6 +130,5 @@ def main(args):
     lvl = 3 if args.full else 1
     Tn = 0.1 if args.full else 0.03
     print(f"MFFD-Newton vs the exact tangent: stretch on L{lvl} for {Tn:g} s")
-    steps = tuple(getattr(args, "newton_steps", None) or (1e-2, 1e-3))
-    write_csv(os.path.join(out, "newton_vs_E_h.csv"), newton_table(out, lvl, Tn, steps))
+    write_csv(os.path.join(out, "newton_vs_E_h.csv"), newton_table(out, lvl, Tn, tuple(args.newton_steps)))
     print(f"wrote {out}")
