@@ -125,8 +125,8 @@ TAIL = (
         "GAMG (PCSetReusePreconditioner on that split). `never`: a set-up per Jacobian. An explicit "
         "`-snes_lag_preconditioner` wins",
         _S.reuse_preconditioner),
-    Row(("diverging_newton",), "-diverging_newton K", "with full Newton steps (the mixed formulation's default, "
-        "`-snes_linesearch_type basic`): an attempt whose residual norm stays above 10× the smallest it has had for "
+    Row(("diverging_newton",), "-diverging_newton K", "with a line search that may raise the residual norm (full "
+        "steps, `-snes_linesearch_type basic`, or the critical point's, `cp`: the mixed formulation's default): an attempt whose residual norm stays above 10× the smallest it has had for "
         "K Newton iterations in a row is stopped as diverged (step control halves it) instead of running to "
         "`-snes_max_it`; 0: never", str(_S.diverging_newton)),
     Row(("output",), "-output FILE.h5", "output file (an `.xdmf` is written beside it); it may not be an input",

@@ -194,7 +194,7 @@ class Solver:
         if self.op is not None:
             self.snes.getKSP().setPostSolve(self._after_linear_solve)
         self._setup_reuse(reuse_pc)
-        self.diverging = diverging if snes.getLineSearch().getType() == "basic" and own else 0
+        self.diverging = diverging if snes.getLineSearch().getType() in self.UNGUARDED and own else 0
         self.diverged_early = False      # the last solve was stopped by _watch_divergence
         if self.diverging:
             snes.setMonitor(self._watch_divergence)
@@ -369,6 +369,9 @@ class Solver:
             set_function_domain_error(snes)
         self.ev_res.end()
 
+    # line searches that do not ask the residual norm to fall (full steps; the critical point's, on the Lagrangian's
+    # slope: the mixed formulation's default)
+    UNGUARDED = ("basic", "cp")
     # full Newton steps (no line search) may raise the residual norm for an iteration or two and still converge (the
     # mixed formulation under rotation: 1.3 -> 170 -> 40 -> 1.0 -> 0.01 on the rubber bracket); an attempt whose norm
     # stays above DIVERGING_FACTOR x the smallest it has had for `diverging` iterations in a row has not come back in
@@ -377,8 +380,8 @@ class Solver:
     DIVERGING_FACTOR = 10.0
 
     def _watch_divergence(self, snes, its, fnorm):
-        """SNES monitor (full Newton steps only): stop the solve as DIVERGED_DTOL once the residual norm has stayed
-        above DIVERGING_FACTOR x its smallest so far for self.diverging iterations in a row."""
+        """SNES monitor (UNGUARDED line searches only): stop the solve as DIVERGED_DTOL once the residual norm has
+        stayed above DIVERGING_FACTOR x its smallest so far for self.diverging iterations in a row."""
         if its == 0:
             self._best, self._above, self.diverged_early = fnorm, 0, False
             return

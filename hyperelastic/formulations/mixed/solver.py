@@ -1,8 +1,8 @@
 """How the mixed formulation is solved (solving/solver.py's SolverPlan, for the saddle point): GMRES with a
 Schur-complement field split — GAMG on the displacement block with the rigid-body near null space, Jacobi on the
-pressure mass matrix scaled by -(1/mu + 1/kappa) as the Schur complement's preconditioner — full Newton steps, the
-displacement split's GAMG set-up kept across Newton and load steps, and a constant pressure's null space where the
-pressure is known only up to a constant."""
+pressure mass matrix scaled by -(1/mu + 1/kappa) as the Schur complement's preconditioner — a line search on the
+Lagrangian's slope along the Newton step, the displacement split's GAMG set-up kept across Newton and load steps, and a
+constant pressure's null space where the pressure is known only up to a constant."""
 from petsc4py import PETSc
 
 from ...core.errors import UserError
@@ -18,14 +18,28 @@ MIXED_DEFAULTS = (("ksp_type", "gmres"), ("pc_type", "fieldsplit"), ("pc_fieldsp
                   ("fieldsplit_p_pc_type", "jacobi"))
 
 
-# the mixed formulation's Newton: full steps (the load step halved where a solve fails), GMRES restarted every 100
-# iterations, not PETSc's 30, and stopped at 1000, not 10,000. Measured on a rubber L-bracket (docs/mixed.md, "Thin
-# parts"): a rotation's linearization changes the volume by ~theta^2, so a full step raises the residual norm ~10x
-# before Newton converges quadratically, and the residual-norm backtracking takes lambda = 0.1 for ten steps;
-# GMRES(30) stagnates there where GMRES(100) needs 60-150; a solve at a wild iterate that fails anyway fails at a
-# tenth of the cost. Where full steps are accepted (Cook's membrane) both line searches cost alike.
-MIXED_NEWTON = (("snes_linesearch_type", "basic"), ("ksp_gmres_restart", "100"), ("ksp_max_it", "1000"))
-MIXED_MERITS = {"basic": "none (full Newton steps)", "nleqerr": "Newton correction (NLEQ-ERR)"}
+# the mixed formulation's Newton: GMRES restarted every 100 iterations, not PETSc's 30, and stopped at 1000, not
+# 10,000, and a line search on the Lagrangian's slope along the step (below). Measured on a rubber L-bracket
+# (docs/mixed.md, "Thin parts"): a rotation's linearization changes the volume by ~theta^2, so a full step raises the
+# residual norm ~10x before Newton converges quadratically, and the residual-norm backtracking takes lambda = 0.1 for
+# ten steps; GMRES(30) stagnates there where GMRES(100) needs 60-150; a solve at a wild iterate that fails anyway
+# fails at a tenth of the cost.
+MIXED_NEWTON = (("snes_linesearch_type", "cp"), ("ksp_gmres_restart", "100"), ("ksp_max_it", "1000"))
+# The line search (issue 49, item 3). The residual is the gradient of the Lagrangian Pi(u, p) (the loads' work
+# included; a follower load's is not a potential, its slope is used alike), so F(x - lambda Y).Y is Pi's slope along the
+# Newton step Y, an energy whatever mixes metres and pascals in Y. PETSc's critical-point search (`cp`) looks for its
+# zero by secant steps. Here the full step is kept wherever its slope at lambda = 1 has fallen to half the start's (the
+# curvature condition of a Wolfe line search, |g(1)| <= c2 |g(0)| with c2 = 0.5: Nocedal & Wright, Numerical
+# Optimization, 2006, eq. 3.7), so a Newton step near the solution is the full step, bitwise; else up to two secant
+# steps find where Pi stops changing along it: the spurious kappa theta^2 of a large linearized rotation makes that
+# early on the step. atol 0: PETSc's absolute test compares F.Y with atol ||Y|| (pascals and metres mixed in the
+# norm) and declares the solve converged (SNES_CONVERGED_FNORM_ABS) when it passes, which stopped Lame's cylinder
+# at a residual of 6e-5 of its start under -snes_rtol 1e-10. Rubber bracket at its full load (973 tets): 61 Newton
+# iterations, 3 halvings, 14 s with full steps -> 27 Newton, none, 5.4 s; Cook, the block, the rod's torsion, Lame,
+# bend2 and squeeze bitwise as with full steps (BENCHMARKS.md, "The mixed Newton under large rotations").
+CP_TUNING = (("snes_linesearch_max_it", "2"), ("snes_linesearch_rtol", "0.5"), ("snes_linesearch_atol", "0"))
+MIXED_MERITS = {"cp": "the Lagrangian's slope along the step (critical point: the full step where it halves)",
+                "basic": "none (full Newton steps)", "nleqerr": "Newton correction (NLEQ-ERR)"}
 # PETSc's kernel for the Galerkin products P^T A P of the field split's GAMG, which it forms at every Newton step:
 # PETSc's default (`scalable`) took 1.6-2.3x as long as `rap` on one rank and 2.3-4x as long as `nonscalable` on
 # two for the same products (Cook's membrane, BENCHMARKS.md "The Galerkin products' kernel"); the sequential and
@@ -36,8 +50,10 @@ GALERKIN_KERNELS = ("rap", "nonscalable")      # (one rank, several)
 def apply_mixed_defaults(ranks=1):
     """The mixed formulation's solver defaults where the options database does not set them: the field split's
     when no -pc_type or -pc_type fieldsplit is given (a user's -pc_type lu, say, replaces all of it), with the
-    faster kernel for its GAMG's Galerkin products on this many ranks (GALERKIN_KERNELS); full Newton steps,
-    GMRES(100), at most 1000 Krylov iterations (MIXED_NEWTON). Returns the line search merit."""
+    faster kernel for its GAMG's Galerkin products on this many ranks (GALERKIN_KERNELS); the critical-point line
+    search, GMRES(100), at most 1000 Krylov iterations (MIXED_NEWTON), and the line search's tuning where it is the
+    critical-point one (CP_TUNING: a user's -snes_linesearch_type bt keeps PETSc's own). Returns the line search
+    merit."""
     opts = PETSc.Options()
     split = not opts.getBool("snes_mf", False) and opts.getString("pc_type", "fieldsplit") == "fieldsplit"
     for k, v in MIXED_DEFAULTS:
@@ -50,6 +66,10 @@ def apply_mixed_defaults(ranks=1):
         for k, v in MIXED_NEWTON:
             if not opts.hasName(k) and (gmres or not k.startswith("ksp_")):   # (preonly reads neither)
                 opts.setValue(k, v)
+        if opts.getString("snes_linesearch_type", "") == "cp":
+            for k, v in CP_TUNING:
+                if not opts.hasName(k):
+                    opts.setValue(k, v)
     return MIXED_MERITS.get(opts.getString("snes_linesearch_type", "bt"), MERITS[1])
 
 
@@ -82,8 +102,10 @@ class FieldSplitPlan(SolverPlan):
         if not had and PETSc.Options().hasName("matptap_via"):
             solver.unrecorded = ("matptap_via",)
         if objective:
-            how = ("full Newton steps, a smaller load step where a solve fails"
-                   if solver.merit == MIXED_MERITS["basic"] else f"the line search merit is the {solver.merit}")
+            how = {MIXED_MERITS["basic"]: "full Newton steps, a smaller load step where a solve fails",
+                   MIXED_MERITS["cp"]: "each Newton step as long as the Lagrangian's slope along it says (the full "
+                                       "step where it halves), a smaller load step where a solve fails"}.get(
+                solver.merit, f"the line search merit is the {solver.merit}")
             solver.merit_note = ("the mixed formulation's solution is a saddle point, not a minimum: no energy "
                                  f"merit; {how}")
 
