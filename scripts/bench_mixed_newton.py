@@ -4,8 +4,8 @@ attempts (halvings) and wall time of nearly incompressible runs, for the default
 
     bracket    examples/bracket.opts, split Neo-Hookean rubber (kappa/mu = 1000), 973 tets, the full load 2e5 Pa in
                4 load steps (the base folds); bracket2e3 / bracket2e4: the same at 2e3 / 2e4 Pa; bracket_fine: the
-               full load on 2,560 tets (--size 0.006)
-    cook       examples/cook.opts on the 4 mm mesh (1,267 tets, nu = 0.4999, 4 load steps)
+               full load on 2,560 tets (--size 0.006); bracket_fine2e3: 2e3 Pa on those
+    cook       examples/cook.opts on the 4 mm mesh (1,267 tets, nu = 0.4999, 4 load steps); cook2: on 2 mm (9,049)
     block      examples/block.opts on the 0.25 mesh (378 tets, 10 load steps)
     torsion    examples/torsion.opts on rod.geo --size 0.005 (588 curved tets, 90 degrees in 8 steps)
     lame       Lame's cylinder (scripts/bench_mixed.py's run) at 0.02, kappa/mu = 1e4, one step
@@ -35,14 +35,16 @@ EX = os.path.join(ROOT, "examples")
 RUBBER = ["-material", "neohookean_split", "-preset", "rubber"]
 MATRIX = ["-level", "1", "-material", "neohookean_split", "-E", "1e6", "-dt", "0.01", "-order", "2",
           "-formulation", "mixed"]
-MESHES = {"bracket": ("bracket.geo", "0.01"), "bracket6": ("bracket.geo", "0.006"), "cook": ("cook.geo", "4"), "block": ("block.geo", "0.25"),
+MESHES = {"bracket": ("bracket.geo", "0.01"), "bracket6": ("bracket.geo", "0.006"), "cook": ("cook.geo", "4"), "cook2": ("cook.geo", "2"), "block": ("block.geo", "0.25"),
           "rod": ("rod.geo", "0.005"), "cyl": ("cylinder.geo", "0.02")}
 CASES = {
     "bracket": ("bracket", [f"{EX}/bracket.opts"] + RUBBER),
     "bracket2e3": ("bracket", [f"{EX}/bracket.opts"] + RUBBER + ["-traction", "0,0,-2e3"]),
     "bracket2e4": ("bracket", [f"{EX}/bracket.opts"] + RUBBER + ["-traction", "0,0,-2e4"]),
     "bracket_fine": ("bracket6", [f"{EX}/bracket.opts"] + RUBBER),
+    "bracket_fine2e3": ("bracket6", [f"{EX}/bracket.opts"] + RUBBER + ["-traction", "0,0,-2e3"]),
     "cook": ("cook", [f"{EX}/cook.opts"]),
+    "cook2": ("cook2", [f"{EX}/cook.opts"]),
     "block": ("block", [f"{EX}/block.opts"]),
     "torsion": ("rod", [f"{EX}/torsion.opts"]),
     "lame": ("cyl", ["bend", "-material", "neohookean_split", "-mu", "1e6", "-kappa", "1e10", "-E", "2.9e6",

@@ -550,6 +550,31 @@ def test_galerkin_kernel_by_rank_count(cook8, tmp_path):
     assert p.returncode != 0 and len(err) == 1 and "matptap_via" in err[0], p.stderr
 
 
+def test_p_multigrid_in_the_displacement_split(cook8, tmp_path):
+    """The displacement split is preconditioned by p-multigrid by default (P2 smoothed by Chebyshev/Jacobi, the P1
+    Galerkin operator with the rigid-body modes by a GAMG V-cycle: pmg.DEFAULTS under -fieldsplit_u_), on 1 and 2
+    ranks and across a restart's new KSP, to the answer of GAMG on the P2 block (-fieldsplit_u_pc_type gamg, the
+    default before) within the solver's tolerance; under -snes_mf_operator (one AIJ, no blocks) the split keeps GAMG,
+    and asking it for p-multigrid there is one line."""
+    base = ["run", f"{ROOT}/examples/cook.opts", "-mesh", cook8, "-snes_rtol", 1e-10, "-ksp_rtol", 1e-10, "-quiet"]
+    a, b, c = (tmp_path / f"{n}.h5" for n in "abc")
+    run_ok(base + ["-output", a, "-final_time", 0.5, "-checkpoint_every", 1, "-log_view", f":{tmp_path / 'a.log'}"])
+    log = (tmp_path / "a.log").read_text()
+    assert "-fieldsplit_u_pc_type mg" in log and "-fieldsplit_u_mg_coarse_pc_type gamg" in log
+    run_ok(["run", "--restart", a, "-final_time", 1, "-quiet"], nprocs=2)
+    run_ok(base + ["-output", b, "-fieldsplit_u_pc_type", "gamg"])
+    run_ok(base + ["-output", c], nprocs=2)
+    u = [read_h5(x)["x"][-1] for x in (a, b, c)]
+    assert read_h5(a)["time"][-1] == pytest.approx(1.0)
+    for v in u[1:]:
+        assert np.abs(v - u[0]).max() <= 1e-8 * np.abs(u[0] - read_h5(a)["points"]).max()
+    run_ok(base + ["-output", tmp_path / "e.h5", "-snes_mf_operator", "-final_time", 0.25])
+    p = hyperelastic(base + ["-output", tmp_path / "f.h5", "-snes_mf_operator", "-fieldsplit_u_pc_type", "mg"])
+    err = p.stderr.strip().splitlines()
+    assert p.returncode != 0 and len(err) == 1 and "needs the tangent by blocks" in err[0], p.stderr
+    assert not (tmp_path / "f.h5").exists()
+
+
 @pytest.mark.parametrize("nprocs", [1, 2])
 def test_incompressible_with_the_whole_boundary_prescribed(tmp_path, nprocs):
     """Incompressible, every face moved as prescribed (a volume-preserving simple shear of the cube): the pressure is

@@ -33,24 +33,25 @@ def applies(space):
     return space.element.order == 2
 
 
-def before_options(space):
-    """Where the options ask for -pc_type mg: on an order-2 run two levels (P2, P1), the coarse operator formed
-    here; on an order-1 run one clear line (there is no coarser element on the same mesh)."""
-    opts = PETSc.Options()
+def before_options(space, prefix=""):
+    """Where the options ask for -pc_type mg (-PREFIXpc_type mg: the mixed formulation's displacement split gives
+    fieldsplit_u_): on an order-2 run two levels (P2, P1), the coarse operator formed here; on an order-1 run one
+    clear line (there is no coarser element on the same mesh)."""
+    opts = PETSc.Options(prefix)
     if opts.getString("pc_type", "") != "mg":
         return
     levels = opts.getInt("pc_mg_levels", 2)
     if not applies(space):
         if levels != 1:
-            raise UserError("option -pc_type mg: p-multigrid needs quadratic tetrahedra (-order 2: P2 smoothed, P1 "
-                            "solved); on linear ones use -pc_type gamg (options/gamg.opts)")
+            raise UserError(f"option -{prefix}pc_type mg: p-multigrid needs quadratic tetrahedra (-order 2: P2 "
+                            "smoothed, P1 solved); on linear ones use -pc_type gamg (options/gamg.opts)")
         return
     if levels != 2:
-        raise UserError(f"option -pc_mg_levels {levels}: p-multigrid has two levels on one mesh (P2 and P1); the "
-                        "coarser ones are GAMG's inside the P1 solve (-mg_coarse_pc_type gamg)")
+        raise UserError(f"option -{prefix}pc_mg_levels {levels}: p-multigrid has two levels on one mesh (P2 and P1); "
+                        f"the coarser ones are GAMG's inside the P1 solve (-{prefix}mg_coarse_pc_type gamg)")
     if opts.getString("pc_mg_galerkin", "none") != "none":
-        raise UserError(f"option -pc_mg_galerkin {opts.getString('pc_mg_galerkin')}: p-multigrid forms the P1 "
-                        "operator itself (P^T A P with the rigid-body modes GAMG needs): leave it out")
+        raise UserError(f"option -{prefix}pc_mg_galerkin {opts.getString('pc_mg_galerkin')}: p-multigrid forms the "
+                        "P1 operator itself (P^T A P with the rigid-body modes GAMG needs): leave it out")
     opts.setValue("pc_mg_levels", "2")
     for name, value in DEFAULTS.items():
         if not opts.hasName(name):
