@@ -55,7 +55,6 @@ def test_volumetric_law_is_the_legendre_transform():
 def test_mixed_tangent_is_the_residuals_derivative(petsc, material, extra):
     """The assembled mixed tangent (displacement, coupling and pressure blocks, Dirichlet rows) times random
     directions equals central differences of the residual, at a deformed state with a random pressure."""
-    from hyperelastic.formulations.mixed.operators import MixedAssembled
     m = make_model(petsc, "bend", [("order", "2"), ("formulation", "mixed"), ("material", material),
                                    ("nu", "0.45"), *extra])
     check_tangent(m)

@@ -126,9 +126,10 @@ TAIL = (
         "`-snes_lag_preconditioner` wins",
         _S.reuse_preconditioner),
     Row(("diverging_newton",), "-diverging_newton K", "with a line search that may raise the residual norm (full "
-        "steps, `-snes_linesearch_type basic`, or the critical point's, `cp`: the mixed formulation's default): an attempt whose residual norm stays above 10× the smallest it has had for "
-        "K Newton iterations in a row is stopped as diverged (step control halves it) instead of running to "
-        "`-snes_max_it`; 0: never", str(_S.diverging_newton)),
+        "steps, `-snes_linesearch_type basic`, or the critical point's, `cp`: the mixed formulation's default): an "
+        "attempt whose residual norm stays above 10× the smallest it has had for K Newton iterations in a row is "
+        "stopped as diverged (step control halves it) instead of running to `-snes_max_it`; 0: never",
+        str(_S.diverging_newton)),
     Row(("output",), "-output FILE.h5", "output file (an `.xdmf` is written beside it); it may not be an input",
         "output/SCENE.h5"),
     Row(("output_fields",), "-output_fields LIST", "what each frame holds besides `x`: `displacement`, "

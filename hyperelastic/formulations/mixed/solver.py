@@ -1,9 +1,9 @@
 """How the mixed formulation is solved (solving/solver.py's SolverPlan, for the saddle point): GMRES with a
-Schur-complement field split — p-multigrid on the displacement block (its P1 level by GAMG with the rigid-body near
-null space), Jacobi on the
-pressure mass matrix scaled by -(1/mu + 1/kappa) as the Schur complement's preconditioner — a line search on the
-Lagrangian's slope along the Newton step, the displacement split's GAMG set-up kept across Newton and load steps, and a
-constant pressure's null space where the pressure is known only up to a constant."""
+lower block-triangular Schur-complement field split — p-multigrid on the displacement block (its P1 level by GAMG with
+the rigid-body near null space), Jacobi on the pressure mass matrix scaled by -(1/mu + 1/kappa) as the Schur
+complement's preconditioner — a line search on the Lagrangian's slope along the Newton step, the displacement split's
+multigrid set-up kept across Newton and load steps, and a constant pressure's null space where the pressure is known
+only up to a constant."""
 from petsc4py import PETSc
 
 from ...core.errors import UserError
@@ -153,7 +153,8 @@ class FieldSplitPlan(SolverPlan):
                 and PETSc.Options().getString(SPLIT_U + "pc_type", "") == "mg"):
             if not isinstance(solver.op, MixedNest):
                 raise UserError(f"option -{SPLIT_U}pc_type mg: p-multigrid in the displacement split needs the "
-                                f"tangent by blocks (the field split without -snes_mf_operator); -{SPLIT_U}pc_type gamg")
+                                "tangent by blocks (the field split without -snes_mf_operator); "
+                                f"-{SPLIT_U}pc_type gamg")
             solver.levels = SplitLevels(solver)
 
     def field_split(self, solver):
@@ -185,7 +186,7 @@ class FieldSplitPlan(SolverPlan):
 
     def reuse(self, solver, ptype):
         """The field split is set up again at every Jacobian (cheap: its blocks are the MatNest's); its displacement
-        split's GAMG is kept (PCSetReusePreconditioner on that split, not SNES's lag: PCFIELDSPLIT sets its splits
+        split's multigrid (p-multigrid or GAMG) is kept (PCSetReusePreconditioner on that split, not SNES's lag: PCFIELDSPLIT sets its splits
         up again whenever their blocks' values change)."""
         if ptype == "fieldsplit" and PETSc.Options().getString("fieldsplit_u_pc_type", "") in solver.REUSED_PCS:
             return {"base": None, "pending": True, "setups": 0}
@@ -226,6 +227,7 @@ class SplitLevels:
         self.levels = None
 
     def update(self, P):
+        """(P: the whole preconditioning matrix, as for pmg.Levels; the coarse operator is K_uu's)"""
         sol = self.solver
         if self.levels is None:
             ksp = sol.snes.getKSP()
