@@ -39,7 +39,6 @@ from hyperelastic.physics.materials import lame  # noqa: E402
 from hyperelastic.mesh.read import read  # noqa: E402
 from hyperelastic.mesh.generate import cached_bar  # noqa: E402
 from hyperelastic.studies.experiments.runner import last_line, run_hyperelastic  # noqa: E402
-from hyperelastic.studies.measure import read_cost  # noqa: E402
 from hyperelastic.studies.plan import PCS  # noqa: E402
 
 E, NU, T = 1e6, 0.3, 5000.0
@@ -197,7 +196,7 @@ def dolfinx_python():
     return py
 
 
-def dolfinx_solve(points, tets, out, tag, ranks=1, pc="gamg", traction=T, order=1):
+def dolfinx_solve(points, tets, out, tag, ranks=1, pc="gamg", traction=T, order=1, cflags=""):
     """(displacement in input order (P1) or (coordinates, displacement) of every dof (P2), Newton steps,
     {phase: seconds per Newton step}, versions). P2: the same 4-point rule as ours (quadrature degree 2)."""
     import subprocess
@@ -206,6 +205,8 @@ def dolfinx_solve(points, tets, out, tag, ranks=1, pc="gamg", traction=T, order=
     np.savez(mesh_npz, points=points, tets=tets)
     cmd = [py, os.path.join(ROOT, "scripts", "peer_dolfinx.py"), mesh_npz, res, "--pc", pc, "--rtol", str(RTOL),
            "--traction", str(traction), "--degree", str(order)] + (["--qdegree", "2"] if order == 2 else [])
+    if cflags:
+        cmd += ["--cflags", cflags]
     if ranks > 1:
         cmd = [os.path.join(DOLFINX_VENV, "bin", "mpiexec"), "-n", str(ranks)] + cmd
     env = dict(os.environ, LD_LIBRARY_PATH=os.path.join(DOLFINX_VENV, "lib"), OMP_NUM_THREADS="1",
@@ -248,6 +249,8 @@ def main():
     ap.add_argument("--no-jacobi", action="store_true", help="skip the CG + Jacobi runs (the last two columns "
                     "then come from the GAMG runs)")
     ap.add_argument("--full", action="store_true")
+    ap.add_argument("--peer-cflags", default="", help="the C flags of DOLFINx's JIT-compiled forms (e.g. '-O3 "
+                    "-march=native'; default: DOLFINx's own)")
     a = ap.parse_args()
     os.makedirs(a.out, exist_ok=True)
     levels = [int(x) for x in ("5,8" if a.full else a.levels).split(",")]
@@ -291,7 +294,7 @@ def main():
                 # MatMult from CG + Jacobi runs (AIJ)
                 peer, jr, mine = [], [], {st: [] for st in storages}
                 for _ in range(a.repeat):
-                    peer.append(dolfinx_solve(points, tets, a.out, name, n, pc, order=a.order))
+                    peer.append(dolfinx_solve(points, tets, a.out, name, n, pc, order=a.order, cflags=a.peer_cflags))
                     if pc == "gamg" and not a.no_jacobi:
                         jr.append(ours(m, a.out, n, "jacobi", order=a.order)[2])
                     for st in storages:
