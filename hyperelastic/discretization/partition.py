@@ -58,7 +58,10 @@ def parts_of(name, tets, nparts):
     import pymetis      # deferred: only a METIS partition needs it
     xadj, adjncy = dual_graph(tets)
     opts = pymetis.Options(seed=METIS_SEED)
-    _, parts = pymetis.part_graph(nparts, xadj=xadj, adjncy=adjncy, options=opts)
+    if hasattr(pymetis, "CSRAdjacency"):        # (pymetis 2025.2: xadj=/adjncy= deprecated, to go in 2027)
+        _, parts = pymetis.part_graph(nparts, pymetis.CSRAdjacency(xadj, adjncy), options=opts)
+    else:
+        _, parts = pymetis.part_graph(nparts, xadj=xadj, adjncy=adjncy, options=opts)
     return np.asarray(parts, np.int64)
 
 
