@@ -15,7 +15,7 @@ displacement, and the largest pressure difference at the vertices over the large
 coordinates). Rows whose displacements differ by more than AGREE make the script exit 1.
 
     .venv/bin/python scripts/bench_peer_mixed.py OUT [--sizes 4,2] [--ranks 1,2] [--repeat 3]
-        [--peer-kernel ours|petsc] [--ours '-matptap_via scalable']
+        [--peer-kernel ours|petsc] [--ours '-matptap_via scalable'] [--fact full|lower]
 """
 import argparse
 import os
@@ -84,10 +84,11 @@ def ours(path, out, ranks, tag, extra=()):
     return nodes, disp, corners, pres, its, kits, per_step(ev, its)
 
 
-def peer(npz, out, ranks, tag, kernel):
+def peer(npz, out, ranks, tag, kernel, fact="full"):
     res = os.path.join(out, f"dolfinx_{tag}.npz")
     cmd = [dolfinx_python(), os.path.join(ROOT, "scripts", "peer_dolfinx_mixed.py"), npz, res, "--rtol", str(RTOL),
            "--ksp-rtol", str(RTOL)]
+    cmd += ["--fact", fact]
     if kernel == "ours":
         cmd += ["--matptap-via", GALERKIN_KERNELS[ranks > 1]]
     if ranks > 1:
@@ -107,12 +108,12 @@ def peer(npz, out, ranks, tag, kernel):
     return d["disp"], d["pressure"], its, int(d["ksp_its"]), per_step(ev, its), version
 
 
-def row(size, out, ranks, repeat, kernel, extra):
+def row(size, out, ranks, repeat, kernel, extra, fact="full"):
     path, npz, nc = mesh(size, out)
     mine, theirs, pairs = [], [], []
     for k in range(repeat):
         tag = f"{size}_n{ranks}_{k}"
-        theirs.append(peer(npz, out, ranks, tag, kernel))
+        theirs.append(peer(npz, out, ranks, tag, kernel, fact))
         mine.append(ours(path, out, ranks, tag, extra))
         pairs.append(mine[-1][6]["step"] / theirs[-1][4]["step"])
     nodes, disp, corners, pres, its, kits, _ = mine[0]
@@ -138,6 +139,8 @@ def main():
                     help="the peer's kernel for GAMG's Galerkin products: ours (solver.GALERKIN_KERNELS, like for "
                     "like) or PETSc's default")
     ap.add_argument("--ours", default="", help="more options for ours, e.g. '-matptap_via scalable' (PETSc's default)")
+    ap.add_argument("--fact", default="full", help="the Schur factorization in both (full: ours' default before "
+                    "2026-11-27; lower: now)")
     a = ap.parse_args()
     os.makedirs(a.out, exist_ok=True)
     head = " | ".join(f"{ph} ours | peer | ratio" for ph in PHASES)
@@ -149,7 +152,7 @@ def main():
     for size in a.sizes.split(","):
         for ranks in map(int, a.ranks.split(",")):
             du, version = row(float(size) if "." in size else int(size), a.out, ranks, a.repeat, a.peer_kernel,
-                              a.ours.split())
+                              a.ours.split() + ["-pc_fieldsplit_schur_fact_type", a.fact], a.fact)
             worst = max(worst, du)
     print(f"\npeer: {version}", flush=True)
     if worst > AGREE:

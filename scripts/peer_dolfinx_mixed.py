@@ -54,6 +54,7 @@ def main():
     ap.add_argument("--traction", type=float, default=6.25)
     ap.add_argument("--rtol", type=float, default=1e-10)
     ap.add_argument("--ksp-rtol", type=float, default=1e-10)
+    ap.add_argument("--fact", default="full", help="the Schur factorization (-pc_fieldsplit_schur_fact_type)")
     ap.add_argument("--matptap-via", default="", help="PETSc's kernel for GAMG's Galerkin products (-matptap_via; "
                     "ours sets rap on one rank, nonscalable on several: solver.GALERKIN_KERNELS); default PETSc's")
     a = ap.parse_args()
@@ -92,7 +93,7 @@ def main():
     opts = {"snes_type": "newtonls", "snes_linesearch_type": "basic", "snes_rtol": a.rtol, "snes_atol": 1e-14,
             "snes_stol": 0, "snes_max_it": 50, "ksp_type": "gmres", "ksp_rtol": a.ksp_rtol, "pc_type": "fieldsplit",
             "ksp_gmres_restart": 100, "ksp_max_it": 1000,    # ours' defaults (solver.MIXED_NEWTON)
-            "pc_fieldsplit_type": "schur", "pc_fieldsplit_schur_fact_type": "full",
+            "pc_fieldsplit_type": "schur", "pc_fieldsplit_schur_fact_type": a.fact,
             "fieldsplit_u_ksp_type": "preonly", "fieldsplit_u_pc_type": "gamg", "fieldsplit_p_ksp_type": "preonly",
             "fieldsplit_p_pc_type": "jacobi", "snes_error_if_not_converged": True}
     problem = dolfinx.fem.petsc.NonlinearProblem(R, [u, p], bcs=bcs, J=K, petsc_options_prefix="peer_")
