@@ -1,0 +1,132 @@
+"""What an augmented-Lagrangian (grad-div) Schur preconditioner would give the mixed formulation on thin walls
+(issue 49, item 2): one Newton linear system of a scene, at its start, solved by GMRES(100) to 1e-5 with the lower
+Schur factorization, for the displacement block A and its augmented form A + gamma B^T W^-1 B (B = K_pu, W the
+lumped pressure mass), the system transformed alike (its solution unchanged):
+
+    [A + g B^T W^-1 B,  B^T + g B^T W^-1 K_pp] [du]   [f_u + g B^T W^-1 f_p]
+    [B,                 K_pp              ] [dp] = [f_p                 ]
+
+with the Schur complement preconditioned by -(1/(mu + g) + 1/kappa) W (Jacobi), against the default -(1/mu + 1/kappa)
+M_p at g = 0. The displacement block by GAMG (with the rigid-body modes) or by LU (an exact block: the Schur
+approximation alone). Prints the GMRES iterations of each. Not a solver of the application: an experiment whose
+answer says what an augmented Lagrangian needs (a smoother that captures the grad-div kernel).
+
+    .venv/bin/python scripts/explore_augmented_lagrangian.py SCENE.opts MESH.msh [-option value ...] \
+        [-gammas 1,10,100]
+"""
+import sys
+import time
+
+import numpy as np
+import petsc4py
+
+petsc4py.init([])
+from petsc4py import PETSc  # noqa: E402
+
+sys.path.insert(0, __file__.rsplit("/scripts/", 1)[0])
+from hyperelastic.app.catalog import load_scene  # noqa: E402
+from hyperelastic.app.model import build_model  # noqa: E402
+from hyperelastic.formulations.mixed.operators import MixedNest  # noqa: E402
+
+DIFFERENT = PETSc.Mat.Structure.DIFFERENT_NONZERO_PATTERN
+
+
+def linear_system(scene_file, mesh, extra):
+    """(system, MixedNest at the first step's start, f_u, f_p): the first Newton system of the scene."""
+    o = PETSc.Options()
+    for k, v in [("mesh", mesh)] + [(extra[i].lstrip("-"), extra[i + 1]) for i in range(0, len(extra), 2)]:
+        o.setValue(k, v)
+    scene, _ = load_scene(scene_file)
+    m = build_model(scene, PETSc.COMM_WORLD)
+    s = m.system
+    s.begin_step(0.0, m.scene.dt, m.x0, m.v0)
+    X = s.global_state(m.x0)
+    X.getArray()[s.nu_owned:] = 0.0
+    R = X.duplicate()
+    s.linearize(X)
+    s.residual(X, R)
+    op = MixedNest(s, "aij")
+    op.update()
+    return s, op, R.getSubVector(s.is_u).copy(), R.getSubVector(s.is_p).copy()
+
+
+def solve(s, op, fu, fp, gamma_over_mu, upc):
+    """GMRES iterations and seconds of the (augmented) system with the displacement block by `upc`."""
+    c = s.couplings[0]
+    mu, kappa = c.shear, c.law.kappa
+    inv_kappa = 0.0 if np.isinf(kappa) else 1.0 / kappa
+    Mp = s.pressure_mass()                                  # -(1/mu + 1/kappa) M_p
+    W = Mp.getRowSum()
+    W.scale(-1.0 / (1.0 / mu + inv_kappa))                  # the lumped pressure mass
+    Winv = W.copy()
+    Winv.reciprocal()
+    g = gamma_over_mu * mu
+    A, Bt, bu, Sp = op.uu.mat, op.K_up, fu, Mp
+    if g > 0:
+        WB = op.K_pu.copy()
+        WB.diagonalScale(L=Winv)                            # W^-1 B
+        A = op.uu.mat.copy()
+        A.axpy(g, op.K_up.matMult(WB), structure=DIFFERENT)
+        WC = op.K_pp.copy()
+        WC.diagonalScale(L=Winv)
+        Bt = op.K_up.copy()
+        Bt.axpy(g, op.K_up.matMult(WC), structure=DIFFERENT)
+        t = fp.copy()
+        t.pointwiseMult(t, Winv)
+        bu = fu.copy()
+        tmp = fu.duplicate()
+        op.K_up.mult(t, tmp)
+        bu.axpy(g, tmp)
+        Sp = Mp.copy()
+        Sp.zeroEntries()
+        Sp.setDiagonal(W)
+        Sp.scale(-(1.0 / (mu + g) + inv_kappa))
+    A.setNearNullSpace(op.nullspace)
+    K = PETSc.Mat().createNest([[A, Bt], [op.K_pu, op.K_pp]], isrows=[s.is_u, s.is_p], iscols=[s.is_u, s.is_p])
+    b = K.createVecs("left")
+    for iset, part in ((s.is_u, bu), (s.is_p, fp)):
+        sub = b.getSubVector(iset)
+        part.copy(sub)
+        b.restoreSubVector(iset, sub)
+    ksp = PETSc.KSP().create()
+    ksp.setOperators(K, K)
+    ksp.setType("gmres")
+    ksp.setGMRESRestart(100)
+    ksp.setTolerances(rtol=1e-5, max_it=1000)
+    pc = ksp.getPC()
+    pc.setType("fieldsplit")
+    pc.setFieldSplitIS(("u", s.is_u), ("p", s.is_p))
+    pc.setFieldSplitType(PETSc.PC.CompositeType.SCHUR)
+    pc.setFieldSplitSchurFactType(PETSc.PC.FieldSplitSchurFactType.LOWER)
+    pc.setFieldSplitSchurPreType(PETSc.PC.FieldSplitSchurPreType.USER, Sp)
+    s.is_u.compose("nearnullspace", op.nullspace)
+    ksp.setUp()
+    ku, kp = pc.getFieldSplitSubKSP()
+    ku.setType("preonly")
+    ku.getPC().setType(upc)
+    kp.setType("preonly")
+    kp.getPC().setType("jacobi")
+    x = b.duplicate()
+    t0 = time.perf_counter()
+    ksp.solve(b, x)
+    return ksp.getIterationNumber(), ksp.getConvergedReason(), time.perf_counter() - t0
+
+
+def main():
+    args = sys.argv[1:]
+    gammas = "1,10,100"
+    if "-gammas" in args:
+        i = args.index("-gammas")
+        gammas = args[i + 1]
+        del args[i:i + 2]
+    s, op, fu, fp = linear_system(args[0], args[1], args[2:])
+    print(f"{fu.getSize()} displacement and {fp.getSize()} pressure unknowns")
+    for upc in ("gamg", "lu"):
+        for gm in [0.0] + [float(v) for v in gammas.split(",")]:
+            its, reason, t = solve(s, op, fu, fp, gm, upc)
+            print(f"gamma/mu = {gm:g}, displacement block by {upc}: {its} GMRES iterations (reason {reason}), "
+                  f"{t:.2f} s", flush=True)
+
+
+if __name__ == "__main__":
+    main()
