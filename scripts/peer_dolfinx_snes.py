@@ -20,6 +20,7 @@ import basix.ufl
 import dolfinx
 import dolfinx.fem.petsc
 import ufl
+from peer_dolfinx import rigid_body_modes
 
 E, NU, T = 1e6, 0.3, 5000.0
 
@@ -51,17 +52,7 @@ def main():
             "pc_gamg_agg_nsmooths": 1}
     problem = dolfinx.fem.petsc.NonlinearProblem(residual, u, petsc_options_prefix="peer_", bcs=[bc],
                                                  petsc_options=opts)
-    x = V.tabulate_dof_coordinates()
-    modes = []
-    for k in range(6):                 # translations, rotations about the origin
-        w = dolfinx.fem.Function(V)
-        a = w.x.array.reshape(-1, 3)
-        if k < 3:
-            a[:, k] = 1.0
-        else:
-            i, j = [(1, 2), (2, 0), (0, 1)][k - 3]
-            a[:, i], a[:, j] = -x[:, j], x[:, i]
-        modes.append(w.x.petsc_vec.copy())
+    modes = rigid_body_modes(V)        # (peer_dolfinx.py's: translations, rotations about the origin)
     problem.A.setNearNullSpace(PETSc.NullSpace().create(vectors=modes, comm=comm))
     PETSc.Log.begin()
     t0 = time.perf_counter()
