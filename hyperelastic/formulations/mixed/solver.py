@@ -12,6 +12,8 @@ from ...solving.integrators import RAN_OUT
 from ...solving.solver import MERITS, SolverPlan
 from .operators import MixedAssembled, MixedNest
 
+SPLIT_U = "fieldsplit_u_"        # the displacement split's options prefix
+
 # the mixed formulation's linear solver: GMRES on the saddle point, a lower block-triangular Schur-complement
 # factorization (one displacement solve per application, where the full one takes two: with p-multigrid fewer GMRES
 # iterations too, and 0.6-0.7x the time on every case measured; BENCHMARKS.md "The lower factorization") with
@@ -21,8 +23,8 @@ from .operators import MixedAssembled, MixedNest
 # split"): the rubber bracket's full load 5.4 -> 4.1 s on 973 tets, 20.4 -> 11.6 s on 2,560; Cook at 9k tets 14.6 ->
 # 11.9 s; never slower on the eight cases measured
 MIXED_DEFAULTS = (("ksp_type", "gmres"), ("pc_type", "fieldsplit"), ("pc_fieldsplit_type", "schur"),
-                  ("pc_fieldsplit_schur_fact_type", "lower"), ("fieldsplit_u_ksp_type", "preonly"),
-                  ("fieldsplit_u_pc_type", "mg"), ("fieldsplit_p_ksp_type", "preonly"),
+                  ("pc_fieldsplit_schur_fact_type", "lower"), (SPLIT_U + "ksp_type", "preonly"),
+                  (SPLIT_U + "pc_type", "mg"), ("fieldsplit_p_ksp_type", "preonly"),
                   ("fieldsplit_p_pc_type", "jacobi"))
 
 
@@ -68,7 +70,7 @@ def apply_mixed_defaults(ranks=1):
         if (k == "ksp_type" or split) and not opts.hasName(k):
             # (p-multigrid's levels need the tangent by blocks: under -snes_mf_operator the split keeps GAMG)
             opts.setValue(k, "gamg" if k == SPLIT_U + "pc_type" and opts.getBool("snes_mf_operator", False) else v)
-    if split and opts.getString("fieldsplit_u_pc_type", "") in ("gamg", "mg") and not opts.hasName("matptap_via"):
+    if split and opts.getString(SPLIT_U + "pc_type", "") in ("gamg", "mg") and not opts.hasName("matptap_via"):
         opts.setValue("matptap_via", GALERKIN_KERNELS[ranks > 1])
     if opts.getString("snes_type", "newtonls") == "newtonls":
         gmres = opts.getString("ksp_type", "") in ("gmres", "fgmres")
@@ -188,7 +190,7 @@ class FieldSplitPlan(SolverPlan):
         """The field split is set up again at every Jacobian (cheap: its blocks are the MatNest's); its displacement
         split's multigrid (p-multigrid or GAMG) is kept (PCSetReusePreconditioner on that split, not SNES's lag: PCFIELDSPLIT sets its splits
         up again whenever their blocks' values change)."""
-        if ptype == "fieldsplit" and PETSc.Options().getString("fieldsplit_u_pc_type", "") in solver.REUSED_PCS:
+        if ptype == "fieldsplit" and PETSc.Options().getString(SPLIT_U + "pc_type", "") in solver.REUSED_PCS:
             return {"base": None, "pending": True, "setups": 0}
         return None
 
@@ -211,8 +213,6 @@ class FieldSplitPlan(SolverPlan):
         if isinstance(solver.levels, SplitLevels):
             solver.levels.levels = None             # (the new KSP's displacement split gets its own levels)
 
-
-SPLIT_U = "fieldsplit_u_"        # the displacement split's options prefix
 
 
 class SplitLevels:
