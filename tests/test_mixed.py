@@ -292,16 +292,22 @@ def test_cooks_membrane(tmp_path):
     assert tip_uy(tmp_path / "d.h5") < 0.55 * COOK_TIP, tip_uy(tmp_path / "d.h5")
 
 
-def test_rotating_rubber_takes_full_newton_steps(tmp_path):
+@pytest.fixture(scope="module")
+def bracket10(tmp_path_factory):
+    """The L-bracket (examples/bracket.geo), quadratic, size 0.01 (973 tets)."""
+    d = tmp_path_factory.mktemp("bracket10")
+    run_ok(["mesh", f"{ROOT}/examples/bracket.geo", "--size", 0.01, "--order", 2, "-o", d / "b.msh"])
+    return str(d / "b.msh")
+
+
+def test_rotating_rubber_takes_full_newton_steps(bracket10, tmp_path):
     """A rubber L-bracket (nu = 0.4995: mixed P2-P1 by default) bent by a small tip load. The linearized rotation
     changes the volume by ~theta^2, so a full Newton step first raises the residual norm; the residual-norm
     backtracking (bt, the default before) then crawls at lambda ~ 0.1, where the default line search (the
     Lagrangian's slope along the step) keeps the full steps and converges in a few Newton iterations per load step,
     to the same answer. The run's note and the output say which merit."""
     import h5py
-    m = tmp_path / "b.msh"
-    run_ok(["mesh", f"{ROOT}/examples/bracket.geo", "--size", 0.01, "--order", 2, "-o", m])
-    common = ["run", f"{ROOT}/examples/bracket.opts", "-mesh", m, "-material", "neohookean_split", "-preset", "rubber",
+    common = ["run", f"{ROOT}/examples/bracket.opts", "-mesh", bracket10, "-material", "neohookean_split", "-preset", "rubber",
               "-traction", "0,0,-2e3", "-final_time", 0.25]
     p = run_ok(common + ["-output", tmp_path / "f.h5"])
     assert "each Newton step as long as the Lagrangian's slope along it says" in p.stderr
@@ -315,15 +321,14 @@ def test_rotating_rubber_takes_full_newton_steps(tmp_path):
         assert np.abs(u - v).max() <= 1e-6 * np.abs(u).max()
 
 
-def test_rubber_bracket_under_its_full_load(tmp_path):
+def test_rubber_bracket_under_its_full_load(bracket10, tmp_path):
     """Issue 49, item 3: the rubber L-bracket (973 P2 tets, kappa/mu = 1000) under the bracket's full load (2e5 Pa in
     4 load steps: the base folds, its tip turning ~1 rad) with default options converges in <= 35 Newton iterations
     and no halving (full Newton steps: 61 and 3 halvings; their linearized rotations' spurious volume change made the
     first step's second Krylov solve fail). The tip's settlement is the one every Newton variant reaches (full steps,
     NLEQ-ERR, the critical point with one to three secant steps agree to 1e-10: -88.84285 mm)."""
-    m, out = tmp_path / "b.msh", tmp_path / "f.h5"
-    run_ok(["mesh", f"{ROOT}/examples/bracket.geo", "--size", 0.01, "--order", 2, "-o", m])
-    run_ok(["run", f"{ROOT}/examples/bracket.opts", "-mesh", m, "-material", "neohookean_split", "-preset", "rubber",
+    out = tmp_path / "f.h5"
+    run_ok(["run", f"{ROOT}/examples/bracket.opts", "-mesh", bracket10, "-material", "neohookean_split", "-preset", "rubber",
             "-quiet", "-output", out])
     h = read_h5(out)
     st = h["stats"]
