@@ -165,4 +165,12 @@ HE_INLINE void e_scatter(const idx_t *c, int nn, double fe[HE_MAXN][3], double *
     for (int i = 0; i < 3; i++) f[3 * (int64_t)c[a] + i] += fe[a][i];
 }
 
+/* T[a][i][3k+l] = sum_j G_a,j A[3i+j][3k+l]: the moduli contracted with one node's gradient. */
+HE_INLINE void e_contract_left(double A[9][9], double G[HE_MAXN][3], int nn, double T[HE_MAXN][3][9]) {
+  for (int a = 0; a < nn; a++)
+    for (int i = 0; i < 3; i++)
+      for (int kl = 0; kl < 9; kl++)
+        T[a][i][kl] = G[a][0] * A[3 * i][kl] + G[a][1] * A[3 * i + 1][kl] + G[a][2] * A[3 * i + 2][kl];
+}
+
 #endif

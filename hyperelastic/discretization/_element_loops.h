@@ -7,20 +7,22 @@
  * reference gradients dN (nq x nn x 3) and per (cell, point) `geo` (nc x nq x 10: J^-1 row-major, then the
  * weight |det J| w_q, J = dX/dxi). At a point, grad N_a = J^-T dN_a and F = sum_a x_a (x) grad N_a; the
  * element force is sum_q w_q P(F_q) grad N_a(q), the energy sum_q w_q psi(F_q), the tangent the
- * derivative of the force (the material's dstress per column: the same header as the P1 loops). A cell
- * where the material is undefined at any point is skipped and counted. */
+ * derivative of the force: the material's moduli dP/dF at each point (9 dstress calls, the same header as
+ * the P1 loops) contracted with the gradients on both sides. A cell where the material is undefined at any
+ * point is skipped and counted. */
 #define HE_EFN(kind) HE_CAT(HE_CAT(he_e, kind), HE_CAT(_, MATERIAL))
 
 #include "_cells.h"
 
-/* dP along the tangent's column (b, k): the material's derivative along dF = e_k (x) G_b. */
-HE_INLINE void HE_EFN(column)(const double *p, const HE_MAT(cache) *d, double G[HE_MAXN][3], int b, int k,
-                              double dP[9]) {
-  double dF[9] = {0};
-  dF[3 * k] = G[b][0];
-  dF[3 * k + 1] = G[b][1];
-  dF[3 * k + 2] = G[b][2];
-  HE_MAT(dstress)(p, d, dF, dP);
+/* The material's moduli at a point, times the weight w: A[3i+j][3k+l] = w dP_ij / dF_kl, one directional
+ * derivative per unit dF = e_k (x) e_l (9 per point, where the tangent's columns e_k (x) G_b would take 3 nn). */
+HE_INLINE void HE_EFN(moduli)(const double *p, const HE_MAT(cache) *d, double w, double A[9][9]) {
+  for (int kl = 0; kl < 9; kl++) {
+    double dF[9] = {0}, dP[9];
+    dF[kl] = 1;
+    HE_MAT(dstress)(p, d, dF, dP);
+    for (int ij = 0; ij < 9; ij++) A[ij][kl] = w * dP[ij];
+  }
 }
 
 /* f += k(x). Returns the number of cells where the material is undefined (their force is skipped). */
@@ -97,9 +99,10 @@ int64_t HE_EFN(kv)(int64_t nc, int nn, int nq, const idx_t *cells, const double 
   return bad;
 }
 
-/* Cell tangents, (3 nn)^2 values per cell, row-major over dofs (3a+i, 3b+k): sum over the points of
- * w dP(e_k (x) G_b)_ij G_a,j; written, or added to vals when accumulate != 0. A cell where the material is
- * undefined gets NaN. */
+/* Cell tangents, (3 nn)^2 values per cell, row-major over dofs (3a+i, 3b+k): K_ai,bk = sum over the points of
+ * sum_jl G_a,j A_ijkl G_b,l (A = w dP/dF, HE_EFN(moduli)). A hyperelastic tangent is symmetric (A_ijkl = A_klij):
+ * the blocks b >= a are summed and mirrored. Written, or added to vals when accumulate != 0. A cell where the
+ * material is undefined gets NaN. */
 int64_t HE_EFN(tangent)(int64_t nc, int nn, int nq, const idx_t *cells, const double *dN, const double *geo,
                         const double *x, const double *restrict prm, double *vals, int accumulate) {
   HE_PARAMS(p);
@@ -112,26 +115,27 @@ int64_t HE_EFN(tangent)(int64_t nc, int nn, int nq, const idx_t *cells, const do
     for (int r = 0; r < n3 * n3; r++) Ke[r] = 0;
     e_gather(cells + (int64_t)nn * e, nn, x, xe);
     for (int q = 0; q < nq && !undefined; q++) {
-      double G[HE_MAXN][3], F[9];
+      double G[HE_MAXN][3], F[9], A[9][9], T[HE_MAXN][3][9];
       HE_MAT(cache) d;
       const double *g = e_point(geo, dN, e, q, nn, nq, xe, G, F);
       undefined = HE_MAT(prepare)(p, F, &d);
       if (undefined) break;
-      for (int b = 0; b < nn; b++)
-        for (int k = 0; k < 3; k++) {
-          double dP[9];
-          HE_EFN(column)(p, &d, G, b, k, dP);
-          for (int a = 0; a < nn; a++)
-            for (int i = 0; i < 3; i++)
+      HE_EFN(moduli)(p, &d, g[9], A);
+      e_contract_left(A, G, nn, T);
+      for (int a = 0; a < nn; a++)
+        for (int b = a; b < nn; b++)
+          for (int i = 0; i < 3; i++)
+            for (int k = 0; k < 3; k++)
               Ke[n3 * (3 * a + i) + 3 * b + k] +=
-                  g[9] * (dP[3 * i] * G[a][0] + dP[3 * i + 1] * G[a][1] + dP[3 * i + 2] * G[a][2]);
-        }
+                  T[a][i][3 * k] * G[b][0] + T[a][i][3 * k + 1] * G[b][1] + T[a][i][3 * k + 2] * G[b][2];
     }
     if (undefined) {
       for (int r = 0; r < n3 * n3; r++) K[r] = NAN;
       bad++;
       continue;
     }
+    for (int r = 0; r < n3; r++)
+      for (int c = 0; c < 3 * (r / 3); c++) Ke[n3 * r + c] = Ke[n3 * c + r];
     if (accumulate)
       for (int r = 0; r < n3 * n3; r++) K[r] += Ke[r];
     else
@@ -156,12 +160,13 @@ int64_t HE_EFN(tangent_diag)(int64_t nc, int nn, int nq, const idx_t *cells, con
       const double *g = e_point(geo, dN, e, q, nn, nq, xe, G, F);
       undefined = HE_MAT(prepare)(p, F, &d);
       if (undefined) break;
+      double A[9][9];
+      HE_EFN(moduli)(p, &d, g[9], A);
       for (int b = 0; b < nn; b++)
-        for (int k = 0; k < 3; k++) {
-          double dP[9];
-          HE_EFN(column)(p, &d, G, b, k, dP);
-          de[b][k] += g[9] * (dP[3 * k] * G[b][0] + dP[3 * k + 1] * G[b][1] + dP[3 * k + 2] * G[b][2]);
-        }
+        for (int k = 0; k < 3; k++)
+          for (int j = 0; j < 3; j++)
+            de[b][k] += G[b][j] * (A[3 * k + j][3 * k] * G[b][0] + A[3 * k + j][3 * k + 1] * G[b][1] +
+                                   A[3 * k + j][3 * k + 2] * G[b][2]);
     }
     if (undefined) { bad++; continue; }
     e_scatter(c, nn, de, diag);
