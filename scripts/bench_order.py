@@ -3,7 +3,7 @@
 on a ladder of meshes at each element order, each run's error against a converged value, and the cheapest
 run of each order within the target.
 
-    .venv/bin/python scripts/bench_order.py OUT [--case bar|bracket|all] [--target 0.01] [--quick]
+    .venv/bin/python scripts/bench_order.py OUT [--case bar|bracket|all] [--target 0.01] [--quick] [--p2-pc pmg|gamg]
 
 bar: the cantilever bar [-5,5]x[-2,2]x[-2,2] (left end clamped, 5000 Pa down on the right end, linear
 material, nu = 0.3, quasi-static in one step), watched: u_y at the tip's centre (5, 0, 0). Meshes: the bar
@@ -11,8 +11,9 @@ levels (P1 up to L12, P2 up to L8). bracket: examples/bracket.geo with examples/
 St. Venant-Kirchhoff, 4 load steps), meshed by gmsh at decreasing sizes; watched: the largest |u|.
 The converged value: q_inf of q(h) = q_inf + C h^p through the three finest P2 runs (Richardson with the
 meshes' own size ratios). Cost: the
-solve time (the steps' wall time, from the output's statistics) and the whole command's wall time; CG +
-GAMG (options/gamg.opts) at every size, one rank. Writes OUT/order.csv and OUT/order.md.
+solve time (the steps' wall time, from the output's statistics) and the whole command's wall time; one rank; CG +
+GAMG (options/gamg.opts) for P1, and for P2 CG + p-multigrid (options/pmg.opts; --p2-pc gamg: GAMG as P1's, the
+figures of 2026-11-24/25). Writes OUT/order.csv and OUT/order.md.
 """
 import argparse
 import math
@@ -32,6 +33,7 @@ from hyperelastic.studies.measure import read_cost  # noqa: E402
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 GAMG = ["-options_file", os.path.join(ROOT, "options", "gamg.opts")]
+PC = {1: GAMG, 2: GAMG}          # per element order (main: --p2-pc)
 TIGHT = ["-snes_rtol", "1e-10", "-ksp_rtol", "1e-10", "-quiet"]
 BAR = ["bend", "-effects", "elasticity,fixed,traction", "-material", "linear", "-quasistatic", "-dt", "1",
        "-final_time", "1"]
@@ -49,8 +51,8 @@ def max_u(path):
         return float(np.linalg.norm(f["x"][-1] - f["mesh/points"][:], axis=1).max())
 
 
-def run(args, path, n=1):
-    rc, err, wall = run_hyperelastic(args + ["-output", path] + GAMG + TIGHT, path, nprocs=n, timeout=3600)
+def run(args, path, order, n=1):
+    rc, err, wall = run_hyperelastic(args + ["-output", path] + PC[order] + TIGHT, path, nprocs=n, timeout=3600)
     row = {"rc": rc, "wall_s": wall, "ranks": n, "message": last_line(err, rc) if rc else ""}
     row.update(read_cost(path))
     return row
@@ -63,7 +65,7 @@ def bar(out, quick):
         for L in lv:
             path = os.path.join(out, f"bar_p{order}_L{L}.h5")
             r = {"case": "bar", "order": order, "mesh": f"L{L}", "h": level_size(L)}
-            r.update(run(["run"] + BAR + ["-level", str(L), "-order", str(order)], path))
+            r.update(run(["run"] + BAR + ["-level", str(L), "-order", str(order)], path, order))
             if r["rc"] == 0:
                 r["quantity"] = tip_uy(path)
                 with h5py.File(path, "r") as f:
@@ -86,7 +88,7 @@ def bracket(out, quick):
                 continue
             path = os.path.join(out, f"bracket_p{order}_{h:g}.h5")
             r = {"case": "bracket", "order": order, "mesh": f"h={h:g}", "h": h}
-            r.update(run(["run", scene, "-mesh", msh, "-order", str(order)], path))
+            r.update(run(["run", scene, "-mesh", msh, "-order", str(order)], path, order))
             if r["rc"] == 0:
                 r["quantity"] = max_u(path)
                 with h5py.File(path, "r") as f:
@@ -169,7 +171,9 @@ def main(argv=None):
     ap.add_argument("--case", default="all", choices=("bar", "bracket", "all"))
     ap.add_argument("--target", type=float, default=0.01)
     ap.add_argument("--quick", action="store_true")
+    ap.add_argument("--p2-pc", default="pmg", choices=("pmg", "gamg"))
     a = ap.parse_args(argv)
+    PC[2] = ["-options_file", os.path.join(ROOT, "options", f"{a.p2_pc}.opts")]
     os.makedirs(a.out, exist_ok=True)
     rows = []
     if a.case in ("bar", "all"):

@@ -4,7 +4,10 @@ options/pmg.opts), each a real `hyperelastic run` child process: the quasi-stati
 at one end, its other end pulled down), 2 load steps, PETSc's default tolerances (CG to a 1e-5 relative residual), the preconditioner's set-up kept across
 Newton steps (-reuse_preconditioner auto) in every run.
 
-    .venv/bin/python scripts/bench_pmg.py [--levels 3,5,7,9] [--ranks 1]
+    .venv/bin/python scripts/bench_pmg.py [--levels 3,5,7,9] [--ranks 1] [--cases P1:gamg,P2:gamg,P2:pmg]
+                                          [--extra "-mg_coarse_pc_gamg_threshold 0.05"] [--mesh FILE.msh]
+
+--extra: options added to every run (for p-multigrid variants); --mesh: a mesh file instead of the bar's levels.
 """
 import argparse
 import os
@@ -21,9 +24,10 @@ OPTS = {"gamg": os.path.join(ROOT, "options", "gamg.opts"), "pmg": os.path.join(
 CASES = (("P1", "1", "gamg"), ("P2", "2", "gamg"), ("P2", "2", "pmg"))
 
 
-def run(level, order, pc, ranks, out):
-    args = ["run", "bend2", "-quasistatic", "-dt", "0.5", "-material", "neohookean", "-level", str(level), "-order",
-            order, "-options_file", OPTS[pc], "-output", out, "-quiet"]
+def run(level, order, pc, ranks, out, extra=()):
+    where = ["-mesh", level] if str(level).endswith(".msh") else ["-level", str(level)]
+    args = ["run", "bend2", "-quasistatic", "-dt", "0.5", "-material", "neohookean", *where, "-order",
+            order, "-options_file", OPTS[pc], "-output", out, "-quiet", *extra]
     rc, err, wall = run_hyperelastic(args, out, ranks)
     if rc:
         raise SystemExit(f"failed: {' '.join(args)} on {ranks} ranks\n{err}")
@@ -40,14 +44,19 @@ def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--levels", default="3,5,7,9")
     ap.add_argument("--ranks", type=int, default=1)
+    ap.add_argument("--cases", default="P1:gamg,P2:gamg,P2:pmg")
+    ap.add_argument("--extra", default="")
+    ap.add_argument("--mesh", action="append", default=[])
     ns = ap.parse_args()
+    cases = [c for c in CASES if f"{c[0]}:{c[2]}" in ns.cases.split(",")]
+    levels = ns.mesh or [int(v) for v in ns.levels.split(",")]
     with tempfile.TemporaryDirectory() as d:
         print(f"{'level':>5s} {'tets':>7s} {'element':>7s} {'PC':>5s} {'dofs':>8s} {'Newton':>6s} {'KSP/Newton':>10s} "
               f"{'s/Newton':>9s} {'run s':>7s} {'peak MB':>8s}")
-        for level in (int(v) for v in ns.levels.split(",")):
-            for name, order, pc in CASES:
-                r = run(level, order, pc, ns.ranks, os.path.join(d, "out.h5"))
-                print(f"{level:5d} {r['tets']:7d} {name:>7s} {pc:>5s} {r['dofs']:8d} {r['newton']:6d} {r['ksp']:10.1f} "
+        for level in levels:
+            for name, order, pc in cases:
+                r = run(level, order, pc, ns.ranks, os.path.join(d, "out.h5"), ns.extra.split())
+                print(f"{os.path.basename(str(level)):>5s} {r['tets']:7d} {name:>7s} {pc:>5s} {r['dofs']:8d} {r['newton']:6d} {r['ksp']:10.1f} "
                       f"{r['s_newton']:9.3f} {r['wall']:7.2f} {r['peak']:8.0f}", flush=True)
 
 
