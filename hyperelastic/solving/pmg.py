@@ -135,6 +135,10 @@ class Levels:
         v.setBlockSize(3)
         v.getArray()[:] = coords.ravel()
         self.nullspace = PETSc.NullSpace().createRigidBody(v)
+        self.shell = PETSc.DMShell().create(comm=space.comm)     # the coarse level's DM, with its vectors' layout
+        self.shell.setGlobalVector(v)
+        self.coarse.setDM(self.shell)
+        self.coarse.setDMActive(PETSc.KSP.DMActive.ALL, False)
         v.destroy()
 
     def update(self, B):

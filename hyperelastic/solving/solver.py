@@ -187,7 +187,7 @@ class Solver:
         self.plan.before_options(self)
         if own:
             snes.setFromOptions()
-        self.plan.configure(self)
+            self.plan.configure(self)       # (a TS's SNES: once the TS has read the options, ts_integrator.py)
         self.reuse = None
         self.linear_solves, self.linear_its = 0, 0
         self.indefinite_solves = 0       # Krylov solves that stopped at negative curvature (DIVERGED_INDEFINITE_MAT)
@@ -423,11 +423,16 @@ class Solver:
         self.ev_jac.begin()
         self.system.linearize(X)
         self.op.update()
-        if self.levels is not None and (self.reuse is None or self.reuse["pending"]):
-            self.levels.update(P)          # p-multigrid's coarse operator, where the PC is set up again
+        self.update_levels(P)
         if J.handle != self.op.operator.handle:
             J.assemble()   # MFFD operator (-snes_mf_operator): new base point
         self.ev_jac.end()
+
+    def update_levels(self, P):
+        """p-multigrid's coarse operator from the preconditioning matrix P, at a Jacobian where the PC is set up
+        again."""
+        if self.levels is not None and (self.reuse is None or self.reuse["pending"]):
+            self.levels.update(P)
 
     # SNES's CONVERGED_SNORM_RELATIVE after the inversion guard cut an update in the solve: the update was small
     # because the guard shortened it, not because Newton converged (PETSc reports SNORM only where the residual norm

@@ -85,6 +85,9 @@ class GeneralizedAlpha(Integrator):
         ts.setStepLimits(scene.dt_min, max(scene.final_time, scene.dt))
         ts.setErrorIfStepFails(False)
         ts.setFromOptions()
+        solver.plan.configure(solver)       # the PC's structure (p-multigrid's levels) once its type is read
+        if solver.levels is not None:       # PCMG restricts the TS's state through the DMs (pmg.Levels.shell)
+            ts.getDM().setGlobalVector(sp.global_vec())
         system.energy_momentum = scene.energy_momentum     # (its parameters checked by cli.run)
         opts = PETSc.Options()
         self.adaptive = opts.getString("ts_adapt_type", "none") != "none"
@@ -138,6 +141,7 @@ class GeneralizedAlpha(Integrator):
         self.system.set_rate_weights(shift_v, shift_a)
         self.system.linearize(U)
         self.solver.op.update()
+        self.solver.update_levels(P)
         if J.handle != self.solver.op.operator.handle:
             J.assemble()   # MFFD operator (-snes_mf_operator): new base point
 
