@@ -16,7 +16,6 @@ GAMG (options/gamg.opts) for P1, and for P2 CG + p-multigrid (options/pmg.opts; 
 figures of 2026-11-24/25). Writes OUT/order.csv and OUT/order.md.
 """
 import argparse
-import math
 import os
 import sys
 

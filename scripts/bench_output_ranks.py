@@ -13,7 +13,6 @@ Ranks beyond the cores are oversubscribed: their seconds are not a machine's, th
 """
 import argparse
 import os
-import re
 import subprocess
 import sys
 import time

@@ -14,7 +14,6 @@ machine's, their memory is. --order 2: the box's cells elevated (10-node, straig
 (-final_time 0: the model, the output's first frame, no Krylov solve nor preconditioner), for memory on many
 oversubscribed ranks."""
 import argparse
-import json
 import os
 import subprocess
 import sys

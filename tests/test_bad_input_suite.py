@@ -1,6 +1,5 @@
 """The generated bad-input suite (tests/bad_input_suite.py): its quick subset, one test per case, and
 the suite's own shape. The whole suite: `.venv/bin/python tests/bad_input_suite.py` (about 3 minutes)."""
-import os
 from collections import Counter
 
 import pytest

@@ -1,6 +1,5 @@
 """The Jacobian modes apply the same operator: shell and assembled agree to 1e-12, PETSc's MFFD
 to 1e-5, and the tangent is the derivative of the residual (central differences)."""
-import os
 import re
 
 import numpy as np

@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 
-from conftest import ROOT, hyperelastic, make_model, read_h5, run_ok
+from conftest import ROOT, make_model, read_h5, run_ok
 from hyperelastic.core.expressions import Expression
 from hyperelastic.element.reference import EDGES, TET_RULES, TRI_RULES, tet_shapes, tri_shapes
 

@@ -183,7 +183,7 @@ class RankWriter(Writer):
     def _blocks(self, old, node_keys, cell_keys):
         """A restart: this rank's block of the file's node and cell order (part 0's blocks on its rank count, else
         even ones), and the exchanges that bring the rows there."""
-        mpi, sp = self.mpi, self.space
+        mpi = self.mpi
         first = old["parts"][0]
         if len(first["nodes"]) == mpi.size:
             nb, cb = np.cumsum([0] + first["nodes"]), np.cumsum([0] + first["cells"])
