@@ -4,4 +4,4 @@
 S=$PWD/.scale; R=/tmp/rt; mkdir -p $R && tar -xJf $S/site.tar.xz -C $R || exit 1
 export PYTHONPATH=$R/sp:$PWD LD_LIBRARY_PATH=$R/lib:$R/lib/mpich:$R/sp/petsc/lib PATH=$R/bin:$PATH OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1
 O=${OUT:-/tmp/out}; mkdir -p $O
-PY=$(command -v python3); echo "python $($PY -V 2>&1); nproc $(nproc); $(lscpu | grep 'Model name')" | tee $O/$1
+PY=$(command -v python3); echo "python $($PY -V 2>&1); cores $(grep -c ^processor /proc/cpuinfo); $(lscpu | grep 'Model name')" | tee $O/$1
