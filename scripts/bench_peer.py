@@ -39,7 +39,7 @@ from hyperelastic.physics.materials import lame  # noqa: E402
 from hyperelastic.mesh.read import read  # noqa: E402
 from hyperelastic.mesh.generate import cached_bar  # noqa: E402
 from hyperelastic.studies.experiments.runner import last_line, run_hyperelastic  # noqa: E402
-from hyperelastic.studies.plan import PCS  # noqa: E402
+from hyperelastic.studies.plan import PCS, pc_of  # noqa: E402
 
 E, NU, T = 1e6, 0.3, 5000.0
 T_SKFEM = 1000.0          # the scikit-fem comparison's load (earlier figures)
@@ -123,7 +123,7 @@ def ours(mesh_path, out, ranks=1, pc="gamg", traction=T, storage="aij", order=1)
     tag = f"{os.path.basename(mesh_path)[:-4]}_p{order}_{pc}_{storage}_n{ranks}"
     path, log = os.path.join(out, f"ours_{tag}.h5"), os.path.join(out, f"ours_{tag}.log")
     solver = (["-ksp_type", "preonly", "-pc_type", "lu"] if pc == "lu" else
-              ["-ksp_type", "cg", "-ksp_rtol", "1e-10"] + PCS[pc])
+              ["-ksp_type", "cg", "-ksp_rtol", "1e-10"] + (PCS[pc] if pc in PCS else pc_of(pc)))
     args = ["run", "bend", "-quasistatic", "-material", "neohookean", "-E", E, "-nu", NU, "-traction",
             f"0,{-traction},0", "-mesh", mesh_path, "-dt", 1, "-final_time", 1, "-jacobian", "assembled",
             "-snes_linesearch_type", "basic", "-objective", "0", "-inversion_guard", "0", "-snes_rtol", RTOL,
@@ -241,7 +241,8 @@ def main():
     ap.add_argument("--levels", default="5", help="bar levels (comma list); --full: 5,8 and ~250k tets")
     ap.add_argument("--tets", type=int, action="append", help="also a bar with about this many tets")
     ap.add_argument("--ranks", default="1", help="rank counts, e.g. 1,2")
-    ap.add_argument("--pcs", default="gamg,lu", help="gamg (CG + GAMG) and/or lu (1 rank only)")
+    ap.add_argument("--pcs", default="gamg,lu", help="gamg (CG + GAMG) and/or lu (1 rank only); pmg (P2: ours with "
+                    "p-multigrid, options/pmg.opts, against the peer's GAMG: an algorithmic advantage, not like for like)")
     ap.add_argument("--storage", default="aij,sbaij", help="ours: -operator_storage aij, sbaij and/or shell (a row each)")
     ap.add_argument("--repeat", type=int, default=1, help="runs of each code per row; each phase's minimum")
     ap.add_argument("--order", type=int, default=1, choices=(1, 2), help="element order: 1 (P1) or 2 (P2, both "
@@ -253,7 +254,7 @@ def main():
                     "-march=native'; default: DOLFINx's own)")
     a = ap.parse_args()
     os.makedirs(a.out, exist_ok=True)
-    levels = [int(x) for x in ("5,8" if a.full else a.levels).split(",")]
+    levels = [int(x) for x in ("5,8" if a.full else a.levels).split(",") if x]     # (--levels "": --tets only)
     if a.peer == "skfem":
         try:
             import skfem
@@ -294,7 +295,8 @@ def main():
                 # MatMult from CG + Jacobi runs (AIJ)
                 peer, jr, mine = [], [], {st: [] for st in storages}
                 for _ in range(a.repeat):
-                    peer.append(dolfinx_solve(points, tets, a.out, name, n, pc, order=a.order, cflags=a.peer_cflags))
+                    peer.append(dolfinx_solve(points, tets, a.out, name, n, "gamg" if pc == "pmg" else pc,
+                                              order=a.order, cflags=a.peer_cflags))
                     if pc == "gamg" and not a.no_jacobi:
                         jr.append(ours(m, a.out, n, "jacobi", order=a.order)[2])
                     for st in storages:
