@@ -35,8 +35,9 @@ EX = os.path.join(ROOT, "examples")
 RUBBER = ["-material", "neohookean_split", "-preset", "rubber"]
 MATRIX = ["-level", "1", "-material", "neohookean_split", "-E", "1e6", "-dt", "0.01", "-order", "2",
           "-formulation", "mixed"]
-MESHES = {"bracket": ("bracket.geo", "0.01"), "bracket6": ("bracket.geo", "0.006"), "cook": ("cook.geo", "4"), "cook2": ("cook.geo", "2"), "block": ("block.geo", "0.25"),
-          "rod": ("rod.geo", "0.005"), "cyl": ("cylinder.geo", "0.02")}
+MESHES = {"bracket": ("bracket.geo", "0.01"), "bracket6": ("bracket.geo", "0.006"), "cook": ("cook.geo", "4"),
+          "cook2": ("cook.geo", "2"), "block": ("block.geo", "0.25"), "rod": ("rod.geo", "0.005"),
+          "cyl": ("cylinder.geo", "0.02")}
 CASES = {
     "bracket": ("bracket", [f"{EX}/bracket.opts"] + RUBBER),
     "bracket2e3": ("bracket", [f"{EX}/bracket.opts"] + RUBBER + ["-traction", "0,0,-2e3"]),

@@ -242,7 +242,8 @@ def main():
     ap.add_argument("--tets", type=int, action="append", help="also a bar with about this many tets")
     ap.add_argument("--ranks", default="1", help="rank counts, e.g. 1,2")
     ap.add_argument("--pcs", default="gamg,lu", help="gamg (CG + GAMG) and/or lu (1 rank only); pmg (P2: ours with "
-                    "p-multigrid, options/pmg.opts, against the peer's GAMG: an algorithmic advantage, not like for like)")
+                    "p-multigrid, options/pmg.opts, against the peer's GAMG: an algorithmic advantage, not like "
+                    "for like)")
     ap.add_argument("--storage", default="aij,sbaij", help="ours: -operator_storage aij, sbaij and/or shell (a row each)")
     ap.add_argument("--repeat", type=int, default=1, help="runs of each code per row; each phase's minimum")
     ap.add_argument("--order", type=int, default=1, choices=(1, 2), help="element order: 1 (P1) or 2 (P2, both "

@@ -56,8 +56,8 @@ def main():
         for level in levels:
             for name, order, pc in cases:
                 r = run(level, order, pc, ns.ranks, os.path.join(d, "out.h5"), ns.extra.split())
-                print(f"{os.path.basename(str(level)):>5s} {r['tets']:7d} {name:>7s} {pc:>5s} {r['dofs']:8d} {r['newton']:6d} {r['ksp']:10.1f} "
-                      f"{r['s_newton']:9.3f} {r['wall']:7.2f} {r['peak']:8.0f}", flush=True)
+                print(f"{os.path.basename(str(level)):>5s} {r['tets']:7d} {name:>7s} {pc:>5s} {r['dofs']:8d} "
+                      f"{r['newton']:6d} {r['ksp']:10.1f} {r['s_newton']:9.3f} {r['wall']:7.2f} {r['peak']:8.0f}", flush=True)
 
 
 if __name__ == "__main__":

@@ -172,8 +172,9 @@ def test_quasi_static_linear_failure_after_a_newton_step_is_halved(tmp_path):
     is retried with a smaller load step: the tangent is then taken at an iterate that the step's size changes. A
     rubber bracket (mixed P2-P1) under a load that rotates it, with a GMRES restart of 15 and at most 120 iterations:
     the full step's fifth Newton system is where the solve fails (138 iterations; the first takes 69), the half step
-    converges. (300 until p-multigrid's coarse GAMG got its graph threshold: its hardest system then took > 300.) (GAMG set up at every
-    Newton iterate, `-reuse_preconditioner never`: the set-up kept from the step's start solves that iterate.)"""
+    converges (300 until p-multigrid's coarse GAMG got its graph threshold: its hardest system then took > 300). GAMG
+    set up at every Newton iterate, `-reuse_preconditioner never`: the set-up kept from the step's start solves that
+    iterate."""
     m = tmp_path / "b.msh"
     run_ok(["mesh", f"{ROOT}/examples/bracket.geo", "--size", 0.012, "--order", 2, "-o", m])
     out = tmp_path / "h.h5"

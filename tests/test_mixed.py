@@ -307,8 +307,8 @@ def test_rotating_rubber_takes_full_newton_steps(bracket10, tmp_path):
     Lagrangian's slope along the step) keeps the full steps and converges in a few Newton iterations per load step,
     to the same answer. The run's note and the output say which merit."""
     import h5py
-    common = ["run", f"{ROOT}/examples/bracket.opts", "-mesh", bracket10, "-material", "neohookean_split", "-preset", "rubber",
-              "-traction", "0,0,-2e3", "-final_time", 0.25]
+    common = ["run", f"{ROOT}/examples/bracket.opts", "-mesh", bracket10, "-material", "neohookean_split", "-preset",
+              "rubber", "-traction", "0,0,-2e3", "-final_time", 0.25]
     p = run_ok(common + ["-output", tmp_path / "f.h5"])
     assert "each Newton step as long as the Lagrangian's slope along it says" in p.stderr
     run_ok(common + ["-snes_linesearch_type", "bt", "-quiet", "-output", tmp_path / "b.h5"])
@@ -328,8 +328,8 @@ def test_rubber_bracket_under_its_full_load(bracket10, tmp_path):
     first step's second Krylov solve fail). The tip's settlement is the one every Newton variant reaches (full steps,
     NLEQ-ERR, the critical point with one to three secant steps agree to 1e-10: -88.84285 mm)."""
     out = tmp_path / "f.h5"
-    run_ok(["run", f"{ROOT}/examples/bracket.opts", "-mesh", bracket10, "-material", "neohookean_split", "-preset", "rubber",
-            "-quiet", "-output", out])
+    run_ok(["run", f"{ROOT}/examples/bracket.opts", "-mesh", bracket10, "-material", "neohookean_split", "-preset",
+            "rubber", "-quiet", "-output", out])
     h = read_h5(out)
     st = h["stats"]
     assert h["attrs"]["formulation"] == "mixed" and len(h["tetra"]) == 973

@@ -33,19 +33,26 @@ def test_interpolation_is_exact_for_linear_fields(petsc):
     assert P.getBlockSizes() == (3, 3) and P.getSize() == (3 * sp.nv_total, 3 * len(coords))
 
 
-@pytest.fixture(scope="module")
-def runs(tmp_path_factory):
-    """The quasi-static Neo-Hookean bend2 on quadratic tetrahedra with GAMG and with p-multigrid (1 and 2 ranks)."""
-    d = tmp_path_factory.mktemp("pmg")
-    base = ["run", "bend2", "-order", "2", "-quasistatic", "-dt", "0.5", "-material", "neohookean", "-level", "3",
-            "-quiet"]
+CASES = (("gamg", GAMG, 1), ("pmg", PMG, 1), ("pmg2", PMG, 2))      # (name, options, ranks)
+
+
+def run_cases(d, base, cases):
+    """{name: the output} of the command `base` with each case's options on its rank count, written in folder d."""
     out = {}
-    for name, opts, n in (("gamg", GAMG, 1), ("pmg", PMG, 1), ("pmg2", PMG, 2),
-                          ("alone", ["-pc_type", "mg", "-ksp_type", "cg"], 1)):
+    for name, opts, n in cases:
         path = str(d / f"{name}.h5")
         run_ok(base + opts + ["-output", path], nprocs=n)
         out[name] = read_h5(path)
     return out
+
+
+@pytest.fixture(scope="module")
+def runs(tmp_path_factory):
+    """The quasi-static Neo-Hookean bend2 on quadratic tetrahedra with GAMG and with p-multigrid (1 and 2 ranks)."""
+    base = ["run", "bend2", "-order", "2", "-quasistatic", "-dt", "0.5", "-material", "neohookean", "-level", "3",
+            "-quiet"]
+    alone = ("alone", ["-pc_type", "mg", "-ksp_type", "cg"], 1)
+    return run_cases(tmp_path_factory.mktemp("pmg"), base, CASES + (alone,))
 
 
 def test_same_answer_as_gamg_in_fewer_iterations(runs):
@@ -77,11 +84,7 @@ def test_under_generalized_alpha_as_under_backward_euler_s_solver(tmp_path):
     fewer Krylov iterations, on 1 and 2 ranks."""
     base = ["run", "bend2", "-order", "2", "-level", "2", "-integrator", "ts", "-dt", "0.01", "-final_time", "0.03",
             "-quiet", "-snes_rtol", "1e-10", "-ksp_rtol", "1e-10"]
-    out = {}
-    for name, opts, n in (("gamg", GAMG, 1), ("pmg", PMG, 1), ("pmg2", PMG, 2)):
-        path = str(tmp_path / f"{name}.h5")
-        run_ok(base + opts + ["-output", path], nprocs=n)
-        out[name] = read_h5(path)
+    out = run_cases(tmp_path, base, CASES)
     a = out["gamg"]
     scale = np.abs(a["x"][-1] - a["points"]).max()
     assert scale > 1e-4

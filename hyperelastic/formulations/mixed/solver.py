@@ -188,8 +188,8 @@ class FieldSplitPlan(SolverPlan):
 
     def reuse(self, solver, ptype):
         """The field split is set up again at every Jacobian (cheap: its blocks are the MatNest's); its displacement
-        split's multigrid (p-multigrid or GAMG) is kept (PCSetReusePreconditioner on that split, not SNES's lag: PCFIELDSPLIT sets its splits
-        up again whenever their blocks' values change)."""
+        split's multigrid (p-multigrid or GAMG) is kept (PCSetReusePreconditioner on that split, not SNES's lag:
+        PCFIELDSPLIT sets its splits up again whenever their blocks' values change)."""
         if ptype == "fieldsplit" and PETSc.Options().getString(SPLIT_U + "pc_type", "") in solver.REUSED_PCS:
             return {"base": None, "pending": True, "setups": 0}
         return None
@@ -212,7 +212,6 @@ class FieldSplitPlan(SolverPlan):
         self.field_split(solver)
         if isinstance(solver.levels, SplitLevels):
             solver.levels.levels = None             # (the new KSP's displacement split gets its own levels)
-
 
 
 class SplitLevels:
