@@ -21,13 +21,10 @@ NP=$(grep -c ^processor /proc/cpuinfo)   # (nproc obeys OMP_NUM_THREADS=1)
 one() {  # core tag mesh order pc [mpiexec ranks]
   local core=$1 tag=$2 m=$3 o=$4 pc=$5 n=${6:-1} t0 t1 rc
   t0=$(date +%s.%N)
-  if [ $n = 1 ]; then
-    taskset -c $((core % NP)) timeout ${T1:-420} $PY -m hyperelastic run bend2 -quasistatic -dt 0.5 -final_time 0.5 -material neohookean \
-      -mesh $m -order $o -options_file $OPT/$pc.opts -output $W/$tag.h5 -quiet -log_view :$W/log_$tag.txt > $W/out_$tag.txt 2>&1
-  else
-    timeout ${T2:-300} mpiexec -n $n -bind-to core $PY -m hyperelastic run bend2 -quasistatic -dt 0.5 -final_time 0.5 -material neohookean \
-      -mesh $m -order $o -options_file $OPT/$pc.opts -output $W/$tag.h5 -quiet -log_view :$W/log_$tag.txt > $W/out_$tag.txt 2>&1
-  fi
+  local how=(taskset -c $((core % NP)) timeout ${T1:-420})      # one rank, pinned; several: mpiexec binds them
+  [ $n = 1 ] || how=(timeout ${T2:-300} mpiexec -n $n -bind-to core)
+  "${how[@]}" $PY -m hyperelastic run bend2 -quasistatic -dt 0.5 -final_time 0.5 -material neohookean -mesh $m \
+    -order $o -options_file $OPT/$pc.opts -output $W/$tag.h5 -quiet -log_view :$W/log_$tag.txt > $W/out_$tag.txt 2>&1
   rc=$?; t1=$(date +%s.%N); echo "$tag rc=$rc wall=$(awk -v a=$t0 -v b=$t1 'BEGIN{printf "%.1f", b-a}')" >> $W/walls.txt
   [ $rc = 0 ] || { echo "$tag failed rc=$rc"; tail -3 $W/out_$tag.txt; } | tee -a $O/pmg.txt
 }
