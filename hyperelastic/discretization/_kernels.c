@@ -339,3 +339,54 @@ void he_pressure_terms(int64_t nc, int nn, int nq, const idx_t *cells, const dou
     }
   }
 }
+
+/* ---- the symmetric tangent straight into SBAIJ, and p-multigrid's P1 operator from the P2 cells ---- */
+
+/* dst += the upper block triangle of the cells' blocks vals (nc x 3nn x 3nn, dof order 3a+i) into SBAIJ values
+ * (blocks of 9, each column-major): the 3x3 block of nodes (a, b) goes to block pos[nn^2 e + nn a + b] where that
+ * is >= 0 (-1: a lower block, whose transpose is the cell's (b, a); or a cell another rank's rows share: its
+ * blocks go through MatSetValuesBlocked). The map is computed once (sbaij.UpperFill). */
+void he_scatter_upper(int64_t nc, int nn, const int32_t *pos, const double *vals, double *dst) {
+  const int n3 = 3 * nn;
+  for (int64_t e = 0; e < nc; e++) {
+    const int32_t *p = pos + (int64_t)nn * nn * e;
+    const double *v = vals + (int64_t)n3 * n3 * e;
+    for (int a = 0; a < nn; a++)
+      for (int b = 0; b < nn; b++) {
+        int32_t k = p[nn * a + b];
+        if (k < 0) continue;
+        double *d = dst + 9 * (int64_t)k;
+        const double *blk = v + n3 * 3 * a + 3 * b;
+        for (int i = 0; i < 3; i++)
+          for (int j = 0; j < 3; j++) d[3 * j + i] += blk[n3 * i + j];
+      }
+  }
+}
+
+/* out (nc x 12 x 12) = P_e^T K_e P_e for quadratic tetrahedra (K_e: vals, nc x 30 x 30): the P1 operator of the
+ * cell on its four vertices, P_e the P2 element's interpolation of the P1 one (a vertex node takes its vertex's
+ * value, the edge node k the mean of its ends edges[2k], edges[2k+1]). p-multigrid's coarse operator is the sum of
+ * these over the cells (pmg.GalerkinCells), exactly P^T K P. */
+void he_p1_galerkin(int64_t nc, const int32_t *edges, const double *vals, double *out) {
+  double R[12 * 30];
+  for (int64_t e = 0; e < nc; e++) {
+    const double *K = vals + 900 * e;
+    double *C = out + 144 * e;
+    for (int r = 0; r < 12; r++)                 /* rows: R = P_e^T K */
+      for (int c = 0; c < 30; c++) R[30 * r + c] = K[30 * r + c];
+    for (int k = 0; k < 6; k++)
+      for (int s = 0; s < 2; s++) {
+        int v = edges[2 * k + s];
+        for (int i = 0; i < 3; i++)
+          for (int c = 0; c < 30; c++) R[30 * (3 * v + i) + c] += 0.5 * K[30 * (12 + 3 * k + i) + c];
+      }
+    for (int r = 0; r < 12; r++) {               /* columns: C = R P_e */
+      for (int c = 0; c < 12; c++) C[12 * r + c] = R[30 * r + c];
+      for (int k = 0; k < 6; k++)
+        for (int s = 0; s < 2; s++) {
+          int w = edges[2 * k + s];
+          for (int j = 0; j < 3; j++) C[12 * r + 3 * w + j] += 0.5 * R[30 * r + 12 + 3 * k + j];
+        }
+    }
+  }
+}

@@ -34,18 +34,27 @@ def owned_index(sp):
     return own
 
 
-def exact_pattern(sp):
-    """(row pointers, global columns) of the tangent's exact pattern in this rank's owned rows: dof
-    (3v + a, 3w + b) for every pair of vertices v, w sharing a cell, columns sorted in each row. On
-    several ranks a vertex at a partition boundary also has pairs from cells another rank holds: each
-    rank sends the pairs of its cells whose row vertex another rank owns to that rank (one alltoall of
-    sorted int64 keys), so every rank's pattern is complete before the first fill."""
+# cells per piece where a whole-mesh intermediate would otherwise be made at once (the pattern's vertex pairs)
+CHUNK = 8192
+
+
+def vertex_pairs(sp, upper=False):
+    """(row, col): the distinct pairs of vertices v, w sharing a cell with v owned by this rank, sorted by row then
+    column; row by index among this rank's owned vertices, col global. upper: only the pairs with col >= the row's
+    global number (the upper block triangle). On several ranks a vertex at a partition boundary also has pairs from
+    cells another rank holds: each rank sends the pairs of its cells whose row vertex another rank owns to that rank
+    (one alltoall of sorted int64 keys), so every rank's pairs are complete. The keys are made a chunk of cells at a
+    time (no array of all the cells' pairs)."""
     mpi = sp.mpi
     g = sp.lgmap.getBlockIndices().astype(np.int64)       # global vertex of each local vertex
     N = int(sp.nv_total)
-    c = g[sp.cells.astype(np.int64)]
-    keys = unique((c[:, :, None] * N + c[:, None, :]).ravel())       # sorted by row vertex, column
-    del c
+    parts = []
+    for lo in range(0, len(sp.cells), CHUNK):
+        c = g[sp.cells[lo:lo + CHUNK].astype(np.int64)]
+        k = (c[:, :, None] * N + c[:, None, :]).ravel()
+        parts.append(unique(k[k // N <= k % N] if upper else k))
+    keys = unique(np.concatenate(parts)) if parts else np.zeros(0, np.int64)
+    del parts
     starts = np.zeros(mpi.size + 1, np.int64)
     starts[1:] = np.cumsum(mpi.allgather(sp.n_owned))
     if mpi.size > 1:
@@ -53,17 +62,41 @@ def exact_pattern(sp):
         recv = mpi.alltoall([keys[cut[r]:cut[r + 1]] for r in range(mpi.size)])
         keys = unique(np.concatenate(recv))
         del recv
-    row, col = keys // N - starts[mpi.rank], keys % N
-    del keys
+    return keys // N - starts[mpi.rank], keys % N
+
+
+def exact_pattern(sp):
+    """(row pointers, global columns) of the tangent's exact pattern in this rank's owned rows: dof
+    (3v + a, 3w + b) for every pair of vertices v, w sharing a cell (vertex_pairs), columns sorted in each row.
+    The columns are written a piece of rows at a time (int32 where PETSc's indices are: no whole-pattern int64
+    index arrays, which were the set-up's peak, 2.3 KB per P2 dof)."""
+    row, col = vertex_pairs(sp)
     n = sp.n_owned
     deg = np.bincount(row, minlength=n)                                  # neighbour vertices per vertex
-    cols_v = (3 * col[:, None] + np.arange(3)).ravel()                   # vertex v's 3 deg dof columns
-    first = np.repeat(3 * (np.cumsum(deg) - deg), 3)                     # where dof row 3v + a's are
-    lens = np.repeat(3 * deg, 3)                                         # in cols_v (the same for a = 0..2)
+    del row
     ia = np.zeros(3 * n + 1, np.int64)
-    ia[1:] = np.cumsum(lens)
-    ja = cols_v[np.repeat(first - ia[:-1], lens) + np.arange(ia[-1])]
-    return ia.astype(PETSc.IntType), ja.astype(PETSc.IntType)
+    ia[1:] = np.cumsum(np.repeat(3 * deg, 3))
+    ja = np.empty(ia[-1], PETSc.IntType)
+    vstart = np.concatenate([[0], np.cumsum(deg)])                      # vertex v's pairs: vstart[v]..vstart[v+1]
+    per = max(1, 3 * CHUNK * 100 // max(1, int(deg.mean()) if n else 1))   # vertices per piece
+    for v0 in range(0, n, per):
+        v1 = min(v0 + per, n)
+        cols_v = (3 * col[vstart[v0]:vstart[v1], None] + np.arange(3)).ravel()   # the piece's 3 deg columns per v
+        d = deg[v0:v1]
+        lens = np.repeat(3 * d, 3)                                       # each of v's 3 rows has them all
+        first = np.repeat(3 * (vstart[v0:v1] - vstart[v0]), 3)
+        lo, hi = ia[3 * v0], ia[3 * v1]
+        ja[lo:hi] = cols_v[np.repeat(first - (ia[3 * v0:3 * v1] - lo), lens) + np.arange(hi - lo)]
+    return ia.astype(PETSc.IntType), ja
+
+
+def upper_block_pattern(sp):
+    """(block row pointers, global block columns) of the tangent's upper block triangle in this rank's owned rows
+    (the SBAIJ pattern: vertex pairs v <= w, global numbers, sharing a cell)."""
+    row, col = vertex_pairs(sp, upper=True)
+    bi = np.zeros(sp.n_owned + 1, np.int64)
+    bi[1:] = np.cumsum(np.bincount(row, minlength=sp.n_owned))
+    return bi.astype(PETSc.IntType), col.astype(PETSc.IntType)
 
 
 class CellMap:

@@ -59,6 +59,10 @@ _lib.he_add_blocks.restype = None
 _lib.he_add_blocks.argtypes = [_I, _P, _P, _P, _P]
 _lib.he_gather_blocks.restype = None
 _lib.he_gather_blocks.argtypes = [_I, _P, _P, _P, _P, ctypes.c_int]
+_lib.he_scatter_upper.restype = None
+_lib.he_scatter_upper.argtypes = [_I, ctypes.c_int, _P, _P, _P]
+_lib.he_p1_galerkin.restype = None
+_lib.he_p1_galerkin.argtypes = [_I, _P, _P, _P]
 _lib.he_pressure_terms.restype = None
 _lib.he_pressure_terms.argtypes = [_I, ctypes.c_int, ctypes.c_int, _P, _P, _P, _P, _P, _P, _P, _P, _P, _P]
 
@@ -120,6 +124,26 @@ def add_blocks(p0, L, vals, dst):
     assert p0.dtype == L.dtype == np.int32 and len(L) == nb and vals.shape == (nb, 9)
     assert vals.dtype == dst.dtype == np.float64 and vals.flags.c_contiguous
     _lib.he_add_blocks(nb, p0.ctypes.data, L.ctypes.data, vals.ctypes.data, dst.ctypes.data)
+
+
+def scatter_upper(pos, vals, dst):
+    """dst (SBAIJ values, column-major 3x3 blocks) += the cells' blocks vals (nc, 3nn, 3nn) of node pairs (a, b) at
+    block pos[e, nn a + b] where that is >= 0 (pos (nc, nn^2) int32)."""
+    nc = len(vals)
+    nn = vals.shape[1] // 3
+    assert pos.shape == (nc, nn * nn) and pos.dtype == np.int32 and pos.flags.c_contiguous
+    assert vals.dtype == dst.dtype == np.float64 and vals.flags.c_contiguous and vals.shape == (nc, 3 * nn, 3 * nn)
+    _lib.he_scatter_upper(nc, nn, pos.ctypes.data, vals.ctypes.data, dst.ctypes.data)
+
+
+def p1_galerkin(edges, vals, out):
+    """out (nc, 12, 12) = P_e^T K_e P_e of quadratic tetrahedra's cell blocks vals (nc, 30, 30): their P1 operator
+    on the cell's vertices (edges: the element's 6 edges as vertex pairs)."""
+    nc = len(vals)
+    e = np.ascontiguousarray(edges, dtype=np.int32)
+    assert e.shape == (6, 2) and vals.shape == (nc, 30, 30) and out.shape == (nc, 12, 12)
+    assert vals.dtype == out.dtype == np.float64 and vals.flags.c_contiguous and out.flags.c_contiguous
+    _lib.he_p1_galerkin(nc, e.ctypes.data, vals.ctypes.data, out.ctypes.data)
 
 
 _bound = {}

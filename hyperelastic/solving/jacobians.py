@@ -16,7 +16,7 @@ PETSc's own MFFD needs nothing here: -snes_mf or -snes_mf_operator replace the o
 import numpy as np
 from petsc4py import PETSc
 
-from ..discretization import aij
+from ..discretization import aij, sbaij
 from ..core.libpetsc import SeqAIJRowIJ, SeqAIJValues
 
 
@@ -107,21 +107,13 @@ class Assembled:
     update = assemble     # after System.linearize: the tangent at the new point
 
 
-class AssembledChunked:
-    """The exact tangent as an AIJ matrix (block size 3) with its exact pattern preallocated
-    (aij.exact_pattern, on any number of ranks), filled per Newton step CHUNK cells at a time: the 12x12
-    blocks of cells whose vertices this rank owns are added straight into the diagonal block's CSR values
-    (aij.CellMap), the others (at a partition boundary) at positions found once, through one Alltoallv for
-    the rows another rank owns (aij.BoundaryExchange). No per-entry index arrays and no whole-mesh
-    (nc,12,12) value array stay alive: memory is the matrix, the maps and one chunk."""
+class _CellFill:
+    """What the direct fills share: the cell effects' blocks a chunk of cells at a time with the constrained rows and
+    columns zeroed (`_cell_blocks`), the effects' own entries (`other`: effect, count, kept, local rows, columns)
+    and the constrained dofs' diagonal (`c_local`)."""
     CHUNK = 8192
 
-    def __init__(self, system, storage="aij"):
-        """storage: `sbaij` also keeps the tangent's upper triangle as SBAIJ (`operator`, refreshed after
-        every fill, aij.SBAIJCopy): the Krylov method's and the smoothers' MatMults read half the matrix,
-        while the preconditioner is still built from the AIJ (`mat`). The tangent must be symmetric.
-        `shell`: the Krylov method multiplies by the exact tangent applied cell by cell (ExactShell, the
-        action per quadrature point), the preconditioner is built from the AIJ."""
+    def __init__(self, system):
         self.system = system
         sp = system.space
         self.cell_effects = [e for e in system.effects if e.cell_blocks]
@@ -138,6 +130,66 @@ class AssembledChunked:
         self.vmask = cm.reshape(-1, 3)                         # constrained dofs per local vertex
         self.constrained_cells = np.flatnonzero(self.vmask[sp.cells].any(axis=(1, 2)))   # (sorted)
         self.blocks = np.ascontiguousarray(sp.cells, dtype=PETSc.IntType)
+
+    def _entries(self):
+        """[(local rows, local columns, values)] of the effects' own entries and the constrained diagonal, as
+        added to the matrix (each (n, 1))."""
+        out = []
+        for e, n, keep, r, c in self.other:
+            v = np.empty(n)
+            e.coo_values(v)
+            out.append((r, c, v[keep][:, None]))
+        if len(self.c_local):
+            out.append((self.c_local, self.c_local, np.full((len(self.c_local), 1), self.system.scale)))
+        return out
+
+    def _fill(self, add, boundary):
+        """add(vals, lo, hi) for every chunk of cells lo..hi-1 (vals: their blocks, _cell_blocks); returns the blocks
+        of the cells `boundary` (sorted indices: the partition-boundary cells, which go another way)."""
+        nc, n3 = len(self.blocks), 3 * self.blocks.shape[1]
+        buf = np.empty((min(self.CHUNK, nc), n3, n3))
+        bvals = np.empty((len(boundary), n3, n3))
+        for lo in range(0, nc, self.CHUNK):
+            hi = min(lo + self.CHUNK, nc)
+            vals = self._cell_blocks(buf[:hi - lo], lo, hi)
+            add(vals, lo, hi)
+            k0, k1 = np.searchsorted(boundary, lo), np.searchsorted(boundary, hi)
+            if k1 > k0:
+                bvals[k0:k1] = vals[boundary[k0:k1] - lo]
+        return bvals
+
+    def _cell_blocks(self, vals, lo, hi):
+        """vals = the cell effects' 12x12 blocks of cells lo..hi-1, constrained rows and columns zeroed."""
+        vals.fill(0.0)
+        for e in self.cell_effects:
+            e.add_cell_blocks(vals, lo, hi)
+        cc = self.constrained_cells
+        cc = cc[np.searchsorted(cc, lo):np.searchsorted(cc, hi)] - lo
+        if len(cc):                                               # constrained rows/columns: 0
+            cm = self.vmask[self.blocks[lo + cc]].reshape(len(cc), -1)
+            sub = vals[cc]
+            sub[cm] = 0.0
+            sub.transpose(0, 2, 1)[cm] = 0.0
+            vals[cc] = sub
+        return vals
+
+
+class AssembledChunked(_CellFill):
+    """The exact tangent as an AIJ matrix (block size 3) with its exact pattern preallocated
+    (aij.exact_pattern, on any number of ranks), filled per Newton step CHUNK cells at a time: the 12x12
+    blocks of cells whose vertices this rank owns are added straight into the diagonal block's CSR values
+    (aij.CellMap), the others (at a partition boundary) at positions found once, through one Alltoallv for
+    the rows another rank owns (aij.BoundaryExchange). No per-entry index arrays and no whole-mesh
+    (nc,12,12) value array stay alive: memory is the matrix, the maps and one chunk."""
+
+    def __init__(self, system, storage="aij"):
+        """storage: `sbaij` also keeps the tangent's upper triangle as SBAIJ (`operator`, refreshed after
+        every fill, aij.SBAIJCopy): the Krylov method's and the smoothers' MatMults read half the matrix,
+        while the preconditioner is still built from the AIJ (`mat`). The tangent must be symmetric.
+        `shell`: the Krylov method multiplies by the exact tangent applied cell by cell (ExactShell, the
+        action per quadrature point), the preconditioner is built from the AIJ."""
+        super().__init__(system)
+        sp = system.space
         A = self.mat = PETSc.Mat().create(comm=sp.comm)
         A.setSizes(_sizes(sp), bsize=3)
         A.setType(PETSc.Mat.Type.AIJ)
@@ -162,46 +214,57 @@ class AssembledChunked:
     def assemble(self):
         A = self.mat
         A.zeroEntries()
-        nc, n3 = len(self.blocks), 3 * self.blocks.shape[1]
-        buf = np.empty((min(self.CHUNK, nc), n3, n3))
-        boundary = self.map.boundary
-        bvals = np.empty((len(boundary), n3, n3))              # partition-boundary cells
-        for lo in range(0, nc, self.CHUNK):
-            hi = min(lo + self.CHUNK, nc)
-            vals = self._cell_blocks(buf[:hi - lo], lo, hi)
+
+        def add(vals, lo, hi):
             with SeqAIJValues(self.Ad, self.map.nnz) as arr:
                 self.map.scatter(vals, lo, hi, arr)
-            k0, k1 = np.searchsorted(boundary, lo), np.searchsorted(boundary, hi)
-            if k1 > k0:
-                bvals[k0:k1] = vals[boundary[k0:k1] - lo]
+        bvals = self._fill(add, self.map.boundary)
         if self.exchange is not None:
             self.exchange.add(bvals, self.Ad, self.map.nnz)
-        ADD = PETSc.InsertMode.ADD_VALUES
-        for e, n, keep, r, c in self.other:
-            v = np.empty(n)
-            e.coo_values(v)
-            A.setValuesLocalRCV(r, c, v[keep][:, None], ADD)
-        if len(self.c_local):
-            A.setValuesLocalRCV(self.c_local, self.c_local,
-                                np.full((len(self.c_local), 1), self.system.scale), ADD)
+        for r, c, v in self._entries():
+            A.setValuesLocalRCV(r, c, v, PETSc.InsertMode.ADD_VALUES)
         A.assemble()
         if self.copy is not None:
             self.copy.refresh(self.map.nnz)
 
-    def _cell_blocks(self, vals, lo, hi):
-        """vals = the cell effects' 12x12 blocks of cells lo..hi-1, constrained rows and columns zeroed."""
-        vals.fill(0.0)
-        for e in self.cell_effects:
-            e.add_cell_blocks(vals, lo, hi)
-        cc = self.constrained_cells
-        cc = cc[np.searchsorted(cc, lo):np.searchsorted(cc, hi)] - lo
-        if len(cc):                                               # constrained rows/columns: 0
-            cm = self.vmask[self.blocks[lo + cc]].reshape(len(cc), -1)
-            sub = vals[cc]
-            sub[cm] = 0.0
-            sub.transpose(0, 2, 1)[cm] = 0.0
-            vals[cc] = sub
-        return vals
+    update = assemble
+
+
+class AssembledSBAIJ(_CellFill):
+    """The exact symmetric tangent straight into SBAIJ (its upper block triangle, sbaij.UpperFill), with no AIJ:
+    `mat` and `operator` are the one SBAIJ. For a preconditioner that reads SBAIJ (p-multigrid: the P2 level's
+    Chebyshev/Jacobi; its P1 operator is summed from the same chunks of cell blocks by `coarse`, pmg.GalerkinCells,
+    which pmg.Levels attaches and marks `wanted` at a Jacobian that sets the preconditioner up). At 374k P2 dofs
+    the AIJ and its exact pattern's computation were ~1 GB of a 1.07 GB run's peak (BENCHMARKS.md)."""
+    fills_coarse = True
+
+    def __init__(self, system):
+        super().__init__(system)
+        sp = system.space
+        self.fill = sbaij.UpperFill(sp, self.blocks, self.CHUNK)
+        self.mat = self.operator = self.fill.S
+        self.nullspace = rigid_body_modes(sp, self.mat)
+        self.coarse = None
+
+    def assemble(self):
+        S, fill, coarse = self.mat, self.fill, self.coarse
+        coarse = coarse if coarse is not None and coarse.wanted else None
+        S.zeroEntries()
+        if coarse is not None:
+            coarse.begin()
+
+        def add(vals, lo, hi):
+            fill.add(vals, lo, hi)
+            if coarse is not None:
+                coarse.add(vals, lo, hi)
+        bvals = self._fill(add, fill.boundary)
+        fill.add_boundary(bvals)
+        entries = self._entries()
+        for r, c, v in entries:
+            S.setValuesLocalRCV(r, c, v, PETSc.InsertMode.ADD_VALUES)
+        S.assemble()
+        if coarse is not None:
+            coarse.finish(entries)
 
     update = assemble
 
@@ -328,12 +391,15 @@ class Coupled:
         self.inner.getDiagonal(D)
 
 
-def make(system, mode, assembly="setvalues", storage="aij"):
+def make(system, mode, assembly="setvalues", storage="aij", pc_reads_sbaij=False):
     """The operator of Jacobian mode `mode` (scene.JACOBIANS) on the system: an object with `mat`
     (the PETSc Mat SNES preconditions with), `operator` (the one it multiplies by: `mat` itself, or
     with storage `sbaij` its SBAIJ copy; with couplings between distant nodes, `Coupled` around it) and
-    `update()` (called after System.linearize)."""
+    `update()` (called after System.linearize). pc_reads_sbaij: with storage `sbaij`, the preconditioner is
+    built from the SBAIJ too (p-multigrid), so no AIJ is made (AssembledSBAIJ)."""
     if mode == "assembled":
+        if storage == "sbaij" and pc_reads_sbaij:
+            return Coupled.around(AssembledSBAIJ(system), system)
         op = AssembledChunked(system, storage=storage) if storage != "aij" else ASSEMBLIES[assembly](system)
         return Coupled.around(op, system)
     return OPERATORS[mode](system)

@@ -19,6 +19,9 @@ from petsc4py import PETSc
 
 from ..core.arrays import unique
 from ..core.errors import UserError
+from ..core.libpetsc import SeqAIJRowIJ, SeqAIJValues
+from ..discretization import aij
+from ..discretization.kernels import p1_galerkin
 from ..element.reference import EDGES
 
 
@@ -35,6 +38,13 @@ DEFAULTS = {"mg_levels_ksp_type": "chebyshev", "mg_levels_ksp_max_it": "2", "mg_
 def applies(space):
     """Whether the run can use the P2 -> P1 levels: quadratic tetrahedra."""
     return space.element.order == 2
+
+
+def requested(space, prefix=""):
+    """Whether the options ask for p-multigrid (-PREFIXpc_type mg) on quadratic tetrahedra: then the preconditioner
+    reads the P2 tangent as SBAIJ (Chebyshev/Jacobi) and forms the P1 operator from the cells (GalerkinCells), and
+    the tangent needs no AIJ (jacobians.AssembledSBAIJ)."""
+    return applies(space) and PETSc.Options(prefix).getString("pc_type", "") == "mg"
 
 
 def before_options(space, prefix=""):
@@ -120,13 +130,111 @@ def prolongation(space):
     return P, coords
 
 
+class VertexSpace:
+    """The P1 space on a P2 space's vertices, as far as the assembled fill needs a space (aij.exact_pattern,
+    aij.CellMap, aij.BoundaryExchange): the local vertex nodes numbered compactly (`loc`: fine local node -> coarse
+    local vertex, -1 for an edge node), their cells, their global numbers (coarse_numbers: each rank's owned vertices
+    consecutive in rank order, the layout of P's columns) and which are owned."""
+
+    def __init__(self, space):
+        owned_v, num = coarse_numbers(space)
+        cv = np.flatnonzero(num >= 0)
+        loc = np.full(space.nlv, -1, np.int64)
+        loc[cv] = np.arange(len(cv))
+        self.loc, self.mpi, self.comm = loc, space.mpi, space.comm
+        self.cells = np.ascontiguousarray(loc[space.cells[:, :4]], dtype=PETSc.IntType)
+        self.lgmap = PETSc.LGMap().create(num[cv].astype(PETSc.IntType), bsize=3, comm=space.comm)
+        self.nlv, self.n_owned = len(cv), len(owned_v)
+        self.lvid_of_owned = loc[owned_v]
+        self.nv_total = space.mpi.allreduce(len(owned_v))
+        # each fine local node's two coarse vertices and weights (a vertex node: itself twice, weights 1 and 0)
+        cells = space.cells.astype(np.int64)
+        edge_nodes = cells[:, 4:].ravel()
+        self.to = np.stack([loc, loc], axis=1)
+        self.w = np.tile([1.0, 0.0], (space.nlv, 1))
+        for j in (0, 1):
+            self.to[edge_nodes, j] = loc[cells[:, [e[j] for e in EDGES]]].ravel()
+        self.w[edge_nodes] = 0.5
+
+
+class GalerkinCells:
+    """p-multigrid's P1 operator P^T K P summed from the P2 cells' blocks as the tangent is filled (P_e^T K_e P_e per
+    cell, kernels.p1_galerkin; the cells' P_e are the rows of P on their nodes, so the sum is P^T K P exactly), into
+    an AIJ on the vertices with its exact pattern (the P1 tangent's fill, aij.CellMap and aij.BoundaryExchange on a
+    VertexSpace); the effects' own entries and the constrained diagonal through P entry by entry. For a fine tangent
+    kept only as SBAIJ (jacobians.AssembledSBAIJ), which PETSc's PtAP does not take. `wanted`: fill it at the next
+    tangent's fill (a Jacobian that sets the preconditioner up)."""
+
+    def __init__(self, space, chunk):
+        vs = self.vs = VertexSpace(space)
+        A = self.mat = PETSc.Mat().create(comm=space.comm)
+        n = 3 * vs.n_owned
+        A.setSizes(((n, PETSc.DETERMINE), (n, PETSc.DETERMINE)), bsize=3)
+        A.setType(PETSc.Mat.Type.AIJ)
+        A.setLGMap(vs.lgmap, vs.lgmap)
+        A.setPreallocationCSR(aij.exact_pattern(vs))
+        A.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, True)
+        row0 = A.getOwnershipRange()[0] // 3
+        self.Ad = A.getDiagonalBlock() if space.mpi.size > 1 else A
+        with SeqAIJRowIJ(self.Ad) as (ia, ja):
+            self.map = aij.CellMap(vs, vs.cells, ia, ja, chunk)
+            self.exchange = (aij.BoundaryExchange(vs, A, vs.cells, self.map.boundary, row0, ia, ja)
+                             if space.mpi.size > 1 else None)
+        self.buf = np.empty((min(chunk, max(len(vs.cells), 1)), 12, 12))
+        self.wanted = False
+        self.bvals = None
+
+    def begin(self):
+        self.mat.zeroEntries()
+        self.bvals = np.empty((len(self.map.boundary), 12, 12))
+
+    def add(self, vals, lo, hi):
+        """The P1 blocks of the P2 cells lo..hi-1 (vals: their blocks, constrained rows and columns zeroed)."""
+        if len(self.buf) < hi - lo:
+            self.buf = np.empty((hi - lo, 12, 12))
+        kc = self.buf[:hi - lo]
+        p1_galerkin(EDGES, vals, kc)
+        with SeqAIJValues(self.Ad, self.map.nnz) as arr:
+            self.map.scatter(kc, lo, hi, arr)
+        b = self.map.boundary
+        k0, k1 = np.searchsorted(b, lo), np.searchsorted(b, hi)
+        if k1 > k0:
+            self.bvals[k0:k1] = kc[b[k0:k1] - lo]
+
+    def finish(self, entries):
+        """entries: [(fine local rows, columns, values)] (each (n, 1)) added to the fine tangent beside its cells';
+        each through P to up to four coarse entries."""
+        if self.exchange is not None:
+            self.exchange.add(self.bvals, self.Ad, self.map.nnz)
+        self.bvals = None
+        to, w = self.vs.to, self.vs.w
+        for r, c, v in entries:
+            r, c, v = r.ravel().astype(np.int64), c.ravel().astype(np.int64), v.ravel()
+            nr, nc_ = r // 3, c // 3
+            for s in (0, 1):
+                for t in (0, 1):
+                    wt = w[nr, s] * w[nc_, t]
+                    k = wt != 0.0
+                    if k.any():
+                        rows = (3 * to[nr[k], s] + r[k] % 3).astype(PETSc.IntType)[:, None]
+                        cols = (3 * to[nc_[k], t] + c[k] % 3).astype(PETSc.IntType)[:, None]
+                        self.mat.setValuesLocalRCV(rows, cols, (wt[k] * v[k])[:, None], PETSc.InsertMode.ADD_VALUES)
+        self.mat.assemble()
+        self.wanted = False
+
+
 class Levels:
     """The two levels of a run's PCMG: the interpolation P and the coarse operator P^T B P of the fine
     preconditioning matrix B, formed here so that it carries the coarse vertices' rigid-body modes as its near null
     space (GAMG reads them from the matrix when it is set up; PCMG's own Galerkin product would carry none, and it
-    fails on an SBAIJ operator)."""
+    fails on an SBAIJ operator). Where the fine tangent is kept only as SBAIJ (an operator that `fills_coarse`:
+    jacobians.AssembledSBAIJ), the coarse operator is summed from its cells as it is filled (GalerkinCells, asked
+    for by `prepare` before the fill)."""
 
-    def __init__(self, pc, space):
+    def __init__(self, pc, space, op=None):
+        self.galerkin = None
+        if getattr(op, "fills_coarse", False):
+            self.galerkin = op.coarse = GalerkinCells(space, op.CHUNK)
         self.P, coords = prolongation(space)
         pc.setMGInterpolation(1, self.P)
         self.coarse = pc.getMGCoarseSolve()
@@ -141,9 +249,20 @@ class Levels:
         self.coarse.setDMActive(PETSc.KSP.DMActive.ALL, False)
         v.destroy()
 
+    def prepare(self):
+        """Before a tangent's fill whose Jacobian sets the PC up: where the coarse operator is summed from the cells,
+        ask for it."""
+        if self.galerkin is not None:
+            self.galerkin.wanted = True
+
     def update(self, B):
-        """The coarse operator of the fine matrix B as it is now (at a Jacobian where the PC is set up again)."""
-        if self.Ac is None:
+        """The coarse operator of the fine matrix B as it is now (at a Jacobian where the PC is set up again; where
+        it is summed from the cells, as the fill after `prepare` left it)."""
+        if self.galerkin is not None:
+            if self.Ac is None:
+                self.Ac = self.galerkin.mat
+                self.Ac.setNearNullSpace(self.nullspace)
+        elif self.Ac is None:
             self.Ac = B.ptap(self.P)
             self.Ac.setNearNullSpace(self.nullspace)
         else:
@@ -151,9 +270,10 @@ class Levels:
         self.coarse.setOperators(self.Ac, self.Ac)
 
 
-def configure(pc, space):
+def configure(pc, space, op=None):
     """After the PC has read the options: where it is PCMG on an order-2 run, the Levels (the caller updates their
-    coarse operator at every Jacobian that sets the PC up); else None."""
+    coarse operator at every Jacobian that sets the PC up); else None. op: the Jacobian operator (one that
+    `fills_coarse` gets the Levels' GalerkinCells)."""
     if pc.getType() != "mg" or not applies(space):
         return None
-    return Levels(pc, space)
+    return Levels(pc, space, op)

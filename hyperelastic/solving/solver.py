@@ -107,7 +107,7 @@ class SolverPlan:
 
     def operator(self, system, jacobian, assembly, storage, mf):
         """The Jacobian operator SNES uses (`mat`, `operator`, `update()`), or None under -snes_mf (MFFD, no PC)."""
-        return None if mf == "mf" else jacobians.make(system, jacobian, assembly, storage)
+        return None if mf == "mf" else jacobians.make(system, jacobian, assembly, storage, pmg.requested(system.space))
 
     def before_options(self, solver):
         """Options the plan sets once the operator exists, before SNES reads the options database: -pc_type mg on
@@ -119,7 +119,7 @@ class SolverPlan:
         """After SNES has read the options: the preconditioner's structure (the field split's fields; p-multigrid's
         interpolation)."""
         if solver.op is not None:
-            solver.levels = pmg.configure(solver.snes.getKSP().getPC(), solver.system.space)
+            solver.levels = pmg.configure(solver.snes.getKSP().getPC(), solver.system.space, solver.op)
 
     def reuse(self, solver, ptype):
         """-reuse_preconditioner auto: the reuse state where this run's set-up is worth keeping (GAMG), kept by
@@ -258,7 +258,7 @@ class Solver:
         its = ksp.getIterationNumber()
         pc.setType(ptype)
         pc.setFromOptions()
-        self.levels = pmg.configure(pc, self.system.space)      # (None but for p-multigrid)
+        self.levels = pmg.configure(pc, self.system.space, self.op)      # (None but for p-multigrid)
         self._setup_reuse(self.reuse_mode)
         self.notes.append(f"switched to {name}")
         return (f"{ksp.getType().upper()} + Jacobi ran out of iterations ({its}) on a quasi-static step: retrying "
@@ -422,16 +422,19 @@ class Solver:
     def _jacobian(self, snes, X, J, P):
         self.ev_jac.begin()
         self.system.linearize(X)
-        self.op.update()
-        self.update_levels(P)
+        self.refresh_operator(P)
         if J.handle != self.op.operator.handle:
             J.assemble()   # MFFD operator (-snes_mf_operator): new base point
         self.ev_jac.end()
 
-    def update_levels(self, P):
-        """p-multigrid's coarse operator from the preconditioning matrix P, at a Jacobian where the PC is set up
-        again."""
-        if self.levels is not None and (self.reuse is None or self.reuse["pending"]):
+    def refresh_operator(self, P):
+        """After System.linearize: the operator's values, and at a Jacobian where the PC is set up again p-multigrid's
+        coarse operator (from the preconditioning matrix P, or summed from the cells as the operator is filled)."""
+        due = self.levels is not None and (self.reuse is None or self.reuse["pending"])
+        if due:
+            self.levels.prepare()
+        self.op.update()
+        if due:
             self.levels.update(P)
 
     # SNES's CONVERGED_SNORM_RELATIVE after the inversion guard cut an update in the solve: the update was small

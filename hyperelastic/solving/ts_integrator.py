@@ -140,8 +140,7 @@ class GeneralizedAlpha(Integrator):
         self._stage(ts, t)
         self.system.set_rate_weights(shift_v, shift_a)
         self.system.linearize(U)
-        self.solver.op.update()
-        self.solver.update_levels(P)
+        self.solver.refresh_operator(P)
         if J.handle != self.solver.op.operator.handle:
             J.assemble()   # MFFD operator (-snes_mf_operator): new base point
 

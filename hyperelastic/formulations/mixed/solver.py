@@ -225,6 +225,9 @@ class SplitLevels:
         self.solver = solver
         self.levels = None
 
+    def prepare(self):
+        """(K_uu is an AIJ: its coarse operator is PETSc's PtAP, nothing to ask of the fill)"""
+
     def update(self, P):
         """(P: the whole preconditioning matrix, as for pmg.Levels; the coarse operator is K_uu's)"""
         sol = self.solver

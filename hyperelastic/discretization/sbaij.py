@@ -1,0 +1,73 @@
+"""The symmetric tangent filled straight into SBAIJ, with no AIJ beside it (`UpperFill`): where the preconditioner
+reads the SBAIJ too (p-multigrid: Chebyshev/Jacobi on it; its P1 operator is formed from the cells' blocks,
+solving/pmg.py's GalerkinCells), the AIJ that `-operator_storage sbaij` otherwise keeps for the preconditioner — two
+thirds of the tangent's memory — is not made. docs/design.md ("The assembled tangent's fill") has the measurements."""
+import numpy as np
+from petsc4py import PETSc
+
+from .aij import _row_search, owned_index, upper_block_pattern
+from .kernels import scatter_upper
+from ..core.libpetsc import SeqAIJRowIJ, SeqAIJValues
+
+
+class UpperFill:
+    """The SBAIJ `S` (block size 3) of a symmetric tangent, preallocated with its exact upper block pattern
+    (aij.upper_block_pattern), and where each cell's upper blocks go: for a cell whose vertices this rank owns, the
+    block index in the diagonal part's values of its node pair (a, b) where a's global number is <= b's (`pos`,
+    int32, -1 for the others: their transposes are the cell's (b, a)), 400 bytes per P2 cell; the cells at a
+    partition boundary (`boundary`) add their upper blocks through MatSetValuesBlocked (PETSc's stash sends those
+    in rows another rank owns). Single entries (effects' own, the constrained diagonal) go through MatSetValues:
+    their lower-triangle halves are ignored (MAT_IGNORE_LOWER_TRIANGULAR; the tangent is symmetric)."""
+
+    def __init__(self, sp, blocks, chunk):
+        several = sp.mpi.size > 1
+        S = self.S = PETSc.Mat().create(comm=sp.comm)
+        n = 3 * sp.n_owned
+        S.setSizes(((n, PETSc.DETERMINE), (n, PETSc.DETERMINE)), bsize=3)
+        S.setType(PETSc.Mat.Type.SBAIJ)
+        S.setLGMap(sp.lgmap, sp.lgmap)
+        S.setPreallocationCSR(upper_block_pattern(sp))
+        S.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, True)    # the pattern must be complete
+        S.setOption(PETSc.Mat.Option.IGNORE_LOWER_TRIANGULAR, True)
+        self.Sd = S.getDiagonalBlock() if several else S
+        own = owned_index(sp)
+        nc, nn = blocks.shape
+        interior = (own[blocks] >= 0).all(axis=1)
+        pos = np.full((nc, nn * nn), -1, np.int32)
+        with SeqAIJRowIJ(self.Sd, blocks=True) as (si, sj):
+            si64 = si.astype(np.int64)
+            self.nblocks = len(sj)
+            for lo in range(0, nc, chunk):
+                hi = min(lo + chunk, nc)
+                sel = np.flatnonzero(interior[lo:hi])
+                o = own[blocks[lo:hi][sel]].astype(np.int64)                  # (m, nn) owned indices
+                r, c = np.repeat(o, nn, axis=1), np.tile(o, (1, nn))           # node pair (a, b) at nn a + b
+                up = r <= c
+                p = _row_search(si64, sj, r[up], c[up])
+                if not np.array_equal(sj[p], c[up]):
+                    raise RuntimeError("a cell block is missing from the SBAIJ pattern")
+                q = np.full(r.shape, -1, np.int32)
+                q[up] = p
+                pos[lo + sel] = q
+        self.pos = pos
+        self.boundary = np.flatnonzero(~interior)
+        g = sp.lgmap.getBlockIndices().astype(np.int64)
+        cb = g[blocks[self.boundary].astype(np.int64)]
+        r, c = np.repeat(cb, nn, axis=1).ravel(), np.tile(cb, (1, nn)).ravel()
+        self.b_keep = np.flatnonzero(r <= c)                                    # (boundary cell, a, b), upper
+        self.b_rows = r[self.b_keep].astype(PETSc.IntType)[:, None]
+        self.b_cols = c[self.b_keep].astype(PETSc.IntType)[:, None]
+        self.nn = nn
+
+    def add(self, vals, lo, hi):
+        """S's diagonal part += the upper blocks of the interior cells among lo..hi-1 (vals: their blocks)."""
+        with SeqAIJValues(self.Sd, 9 * self.nblocks, "SBAIJ") as arr:
+            scatter_upper(self.pos[lo:hi], vals, arr)
+
+    def add_boundary(self, bvals):
+        """S += the upper blocks of the partition-boundary cells (bvals (nb, 3nn, 3nn), in `boundary`'s order)."""
+        if not len(self.b_keep):
+            return
+        nn = self.nn
+        blocks = bvals.reshape(-1, nn, 3, nn, 3).transpose(0, 1, 3, 2, 4).reshape(-1, 9)[self.b_keep]
+        self.S.setValuesBlockedRCV(self.b_rows, self.b_cols, np.ascontiguousarray(blocks), PETSc.InsertMode.ADD_VALUES)
