@@ -1,8 +1,8 @@
 """Run under `mpiexec -n N` by test_pmg.py (and alone on 1 rank): the symmetric tangent filled straight into SBAIJ
 (jacobians.AssembledSBAIJ: no AIJ) equals the AIJ fill's upper triangle, and p-multigrid's P1 operator summed from
 its cells (pmg.GalerkinCells) equals PETSc's P^T A P of that AIJ, after a second fill at another state too, with
-the scene's own entries (its effects' and the constrained diagonal). usage: SCENE [CHUNK [OPTION VALUE ...]].
-Prints 'ok' on rank 0."""
+the scene's own entries (its effects' and the constrained diagonal). usage: SCENE[:OPTION=VALUE,...] ... (each a
+model of quadratic tetrahedra at level 2, filled 97 cells at a time). Prints 'ok SCENE' on rank 0 for each."""
 import os
 import sys
 
@@ -27,8 +27,10 @@ def difference(A, B):
     return A.norm(PETSc.NormType.FROBENIUS) / ref
 
 
-def main(scene, chunk, extra):
-    m = make_model(PETSc, scene, [("level", "2"), ("order", "2")] + list(zip(extra[::2], extra[1::2])))
+def main(spec, chunk=97):
+    scene, _, extra = spec.partition(":")
+    extra = [tuple(kv.split("=")) for kv in extra.split(",") if kv]
+    m = make_model(PETSc, scene, [("level", "2"), ("order", "2")] + extra)
     space, system = m.space, m.system
     X0 = space.X.ravel()
     system.begin_step(0.02, m.scene.dt, X0.copy(), np.zeros_like(X0))
@@ -55,4 +57,5 @@ def main(scene, chunk, extra):
 
 
 if __name__ == "__main__":
-    main(sys.argv[1], int(sys.argv[2]) if len(sys.argv) > 2 else 97, sys.argv[3:])
+    for spec in sys.argv[1:]:
+        main(spec)

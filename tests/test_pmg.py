@@ -33,6 +33,46 @@ def test_interpolation_is_exact_for_linear_fields(petsc):
     assert P.getBlockSizes() == (3, 3) and P.getSize() == (3 * sp.nv_total, 3 * len(coords))
 
 
+@pytest.mark.parametrize("nprocs", [1, 2])
+def test_sbaij_fill_and_cell_galerkin_equal_aij_and_ptap(nprocs):
+    """Where p-multigrid runs, the P2 tangent is filled straight into SBAIJ (no AIJ) and the P1 operator summed from
+    the cells: both equal the AIJ fill's (its upper triangle) and PETSc's P^T A P of it, on 1 and 2 ranks (a
+    partition boundary's blocks through MatSetValuesBlocked), with an effect's own entries (springs) and the
+    constrained diagonal (tests/mpi_sbaij_check.py)."""
+    from conftest import run_mpi_script
+    p = run_mpi_script("mpi_sbaij_check.py", ["bend2", "sag:spring=1e7,spring_faces=bottom"], nprocs=nprocs)
+    assert p.returncode == 0, p.stdout + p.stderr
+    assert [l.split(":")[0] for l in p.stdout.splitlines() if l.startswith("ok")] == ["ok bend2", "ok sag"], p.stdout
+    assert (" 0 boundary cells" in p.stdout) == (nprocs == 1)
+
+
+def test_p_multigrid_keeps_no_aij(petsc):
+    """-pc_type mg on quadratic tetrahedra with the default P2 smoother: SNES gets one SBAIJ as operator and
+    preconditioning matrix, and the levels sum the P1 operator from the cells; a smoother that needs an AIJ (SOR)
+    keeps the AIJ beside the SBAIJ (and PETSc's PtAP)."""
+    from petsc4py import PETSc
+    from hyperelastic.solving.solver import Solver
+    opts = PETSc.Options()
+    for smoother, types in ((None, ("seqsbaij", "seqsbaij")), ("sor", ("seqsbaij", "seqaij"))):
+        m = make_model(petsc, "bend2", [("level", "1"), ("order", "2")])
+        opts.setValue("pc_type", "mg")
+        if smoother:
+            opts.setValue("mg_levels_pc_type", smoother)
+        try:
+            s = Solver(m.system, "assembled")
+            J, P = s.snes.getKSP().getOperators()
+            assert (J.getType(), P.getType()) == types
+            assert (s.levels.galerkin is not None) == (smoother is None)
+        finally:
+            for k in ["pc_type", "pc_mg_levels", "mg_levels_pc_type"] + list(pmg_defaults()):
+                opts.delValue(k)
+
+
+def pmg_defaults():
+    from hyperelastic.solving import pmg
+    return pmg.DEFAULTS
+
+
 CASES = (("gamg", GAMG, 1), ("pmg", PMG, 1), ("pmg2", PMG, 2))      # (name, options, ranks)
 
 
@@ -52,7 +92,8 @@ def runs(tmp_path_factory):
     base = ["run", "bend2", "-order", "2", "-quasistatic", "-dt", "0.5", "-material", "neohookean", "-level", "3",
             "-quiet"]
     alone = ("alone", ["-pc_type", "mg", "-ksp_type", "cg"], 1)
-    return run_cases(tmp_path_factory.mktemp("pmg"), base, CASES + (alone,))
+    aij = ("aij", PMG + ["-operator_storage", "aij"], 1)         # the AIJ and PETSc's PtAP
+    return run_cases(tmp_path_factory.mktemp("pmg"), base, CASES + (alone, aij))
 
 
 def test_same_answer_as_gamg_in_fewer_iterations(runs):
@@ -60,9 +101,18 @@ def test_same_answer_as_gamg_in_fewer_iterations(runs):
     scale = np.abs(a["x"][-1] - a["points"]).max()
     for r in (b, c):
         assert np.abs(r["x"][-1] - a["x"][-1]).max() < 1e-8 * scale
-    its = {k: r["stats"]["ksp_its"].sum() / r["stats"]["newton_its"].sum() for k, r in runs.items() if k != "alone"}
+    its = {k: r["stats"]["ksp_its"].sum() / r["stats"]["newton_its"].sum() for k, r in runs.items()
+           if k in ("gamg", "pmg", "pmg2")}
     assert its["pmg"] < 0.75 * its["gamg"], its
     assert abs(its["pmg2"] - its["pmg"]) <= 0.25 * its["pmg"], its
+
+
+def test_without_the_aij_as_with_it(runs):
+    """p-multigrid on the SBAIJ alone (the P1 operator summed from the cells) iterates as with the AIJ and PETSc's
+    PtAP (the coarse operators differ by rounding), to the same answer."""
+    a, b = runs["pmg"], runs["aij"]
+    assert abs(int(a["stats"]["ksp_its"].sum()) - int(b["stats"]["ksp_its"].sum())) <= 2
+    assert np.abs(a["x"][-1] - b["x"][-1]).max() <= 1e-10 * np.abs(a["x"][-1] - a["points"]).max()
 
 
 def test_pc_type_mg_alone_is_options_pmg(runs):

@@ -40,11 +40,19 @@ def applies(space):
     return space.element.order == 2
 
 
+# the P2 level's preconditioners that read an SBAIJ matrix (PETSc's SOR takes no SBAIJ of block size 3, ILU none)
+SBAIJ_SMOOTHERS = ("jacobi", "none")
+
+
 def requested(space, prefix=""):
-    """Whether the options ask for p-multigrid (-PREFIXpc_type mg) on quadratic tetrahedra: then the preconditioner
-    reads the P2 tangent as SBAIJ (Chebyshev/Jacobi) and forms the P1 operator from the cells (GalerkinCells), and
-    the tangent needs no AIJ (jacobians.AssembledSBAIJ)."""
-    return applies(space) and PETSc.Options(prefix).getString("pc_type", "") == "mg"
+    """Whether the options ask for p-multigrid (-PREFIXpc_type mg) on quadratic tetrahedra with a P2-level
+    preconditioner that reads SBAIJ (Jacobi, the default, or none): then the P2 tangent needs no AIJ (the Krylov
+    method and the smoother multiply by its SBAIJ, the P1 operator is summed from the cells: GalerkinCells,
+    jacobians.AssembledSBAIJ). Another P2-level preconditioner (-mg_levels_pc_type sor, ilu) keeps the AIJ."""
+    opts = PETSc.Options(prefix)
+    if not applies(space) or opts.getString("pc_type", "") != "mg":
+        return False
+    return all(opts.getString(k, "jacobi") in SBAIJ_SMOOTHERS for k in ("mg_levels_pc_type", "mg_levels_1_pc_type"))
 
 
 def before_options(space, prefix=""):
