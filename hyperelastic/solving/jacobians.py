@@ -4,7 +4,9 @@
              from the cell adjacency, values added per Newton step in chunks of cells straight into
              the CSR values (a per-cell map of positions), ~1 KB per tet in all; with
              -operator_storage sbaij (the default where the tangent is symmetric) the Krylov method
-             multiplies by an SBAIJ copy of it (~120 B/tet more). -assembly coo: COO pattern set once
+             multiplies by an SBAIJ copy of it (~120 B/tet more), and where p-multigrid preconditions
+             it (Jacobi smoothing) it is filled straight into that SBAIJ, with no AIJ (AssembledSBAIJ).
+             -assembly coo: COO pattern set once
              (setPreallocationCOOLocal), values set per Newton step (setValuesCOO): a ~3x faster
              fill, but PETSc's COO maps and the (nc,12,12) value array cost ~5 KB per tet
   shell      exact tangent as a MatShell applying J v cell by cell, with getDiagonal for Jacobi

@@ -7,7 +7,9 @@ coordinates of an edge node are its ends' mean). P is assembled once (block size
 coarse operator is the Galerkin product P^T A P (formed here, with the coarse rigid-body modes attached: PCMG's own
 -pc_mg_galerkin cannot attach them), the P2 level is smoothed
 (Chebyshev/Jacobi by default: options/pmg.opts) and the P1 level is solved by what -mg_coarse_* says (smoothed-
-aggregation GAMG, which reads the rigid-body modes from the coarse operator). Ratel's and deal.II's
+aggregation GAMG, which reads the rigid-body modes from the coarse operator). With a P2 smoother that reads SBAIJ
+(Jacobi, the default) the tangent is kept only as SBAIJ (jacobians.AssembledSBAIJ) and the coarse operator is summed
+from the cells' blocks as they are filled (GalerkinCells): no AIJ of the P2 tangent at all. Ratel's and deal.II's
 matrix-free high-order solvers use the same hierarchy: p-coarsening to the linear element, then algebraic multigrid.
 
 Options the user gives win; this module supplies what PCMG cannot know (the interpolation, the coarse operator
