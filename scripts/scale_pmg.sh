@@ -7,7 +7,8 @@
 # goes to $OUT/table.txt after every run (what a cut-off run leaves is still read).
 #   run: command "bash scripts/scale_pmg.sh", carry [".scale"], timeout_s ~590 (phase 1 ~7 min there)
 #   PHASE=2 LEVELS=3: phase 2 only (~2 min), with P2 + GAMG's 1 and 2 ranks after it; PHASE=3 LEVELS="3 4": phase 2's
-#   p-multigrid pair, then P2 + p-multigrid at 1.1M dofs on 16, 8, 4, 2 and 1 ranks (~7 min); SMALL=1: a dry run on tiny
+#   p-multigrid pair, then P2 + p-multigrid at 1.1M dofs on 16, 8, 4, 2 and 1 ranks (~7 min; PAIR=0 without the pair,
+#   SWEEP="2 1" those rank counts only, LEVELS=4 then); SMALL=1: a dry run on tiny
 #   boxes, anywhere (here: PATH=/tmp/venv312/bin:$PATH, the 3.12 venv make_carry.sh builds).
 # Count cores with /proc/cpuinfo: `nproc` obeys OMP_NUM_THREADS=1 and says 1 (2026-11-27 that pinned all twelve
 # runs of phase 1 to core 0, and the call timed out).
@@ -64,8 +65,8 @@ wait
 echo "phase 1 done $(date +%T)" | tee -a $O/pmg.txt
 fi
 # phase 2, quiet cores: P2 + p-multigrid at L3 on 1 then 2 ranks
-one 0 Q1_P2_pmg L3.msh 2 pmg; table; one 0 Q2_P2_pmg L3.msh 2 pmg 2; table
+[ "${PAIR:-1}" = 1 ] && { one 0 Q1_P2_pmg L3.msh 2 pmg; table; one 0 Q2_P2_pmg L3.msh 2 pmg 2; table; }
 [ "${PHASE:-1}" = 2 ] && { one 0 Q1_P2_gamg L3.msh 2 gamg; table; one 0 Q2_P2_gamg L3.msh 2 gamg 2; table; }
 # phase 3: P2 + p-multigrid at L4 over rank counts, the cheapest first (a cut-off run keeps the table so far)
-[ "${PHASE:-1}" = 3 ] && for n in 16 8 4 2 1; do [ $n -le $NP ] && { one 0 R${n}_P2_pmg L4.msh 2 pmg $n; table; }; done
+[ "${PHASE:-1}" = 3 ] && for n in ${SWEEP:-16 8 4 2 1}; do [ $n -le $NP ] && { one 0 R${n}_P2_pmg L4.msh 2 pmg $n; table; }; done
 cp $W/log_L4_P2_pmg.txt $W/log_Q2_P2_pmg.txt $W/walls.txt $O/ 2>/dev/null
