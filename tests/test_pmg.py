@@ -51,6 +51,7 @@ def test_p_multigrid_keeps_no_aij(petsc):
     preconditioning matrix, and the levels sum the P1 operator from the cells; a smoother that needs an AIJ (SOR)
     keeps the AIJ beside the SBAIJ (and PETSc's PtAP)."""
     from petsc4py import PETSc
+    from hyperelastic.solving import pmg
     from hyperelastic.solving.solver import Solver
     opts = PETSc.Options()
     for smoother, types in ((None, ("seqsbaij", "seqsbaij")), ("sor", ("seqsbaij", "seqaij"))):
@@ -64,13 +65,8 @@ def test_p_multigrid_keeps_no_aij(petsc):
             assert (J.getType(), P.getType()) == types
             assert (s.levels.galerkin is not None) == (smoother is None)
         finally:
-            for k in ["pc_type", "pc_mg_levels", "mg_levels_pc_type"] + list(pmg_defaults()):
+            for k in ["pc_type", "pc_mg_levels", "mg_levels_pc_type"] + list(pmg.DEFAULTS):
                 opts.delValue(k)
-
-
-def pmg_defaults():
-    from hyperelastic.solving import pmg
-    return pmg.DEFAULTS
 
 
 CASES = (("gamg", GAMG, 1), ("pmg", PMG, 1), ("pmg2", PMG, 2))      # (name, options, ranks)
