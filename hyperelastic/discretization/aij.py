@@ -78,7 +78,7 @@ def exact_pattern(sp):
     ia[1:] = np.cumsum(np.repeat(3 * deg, 3))
     ja = np.empty(ia[-1], PETSc.IntType)
     vstart = np.concatenate([[0], np.cumsum(deg)])                      # vertex v's pairs: vstart[v]..vstart[v+1]
-    per = max(1, 3 * CHUNK * 100 // max(1, int(deg.mean()) if n else 1))   # vertices per piece
+    per = max(1, 300 * CHUNK // (9 * max(1, int(deg.mean()) if n else 1)))   # vertices per piece (~2.5M entries)
     for v0 in range(0, n, per):
         v1 = min(v0 + per, n)
         cols_v = (3 * col[vstart[v0]:vstart[v1], None] + np.arange(3)).ravel()   # the piece's 3 deg columns per v
