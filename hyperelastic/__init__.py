@@ -15,6 +15,7 @@ for _name in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
 # bar took 16-18 s on 2 cores, with polling throttled after 100 idle polls 0.8 s, and a 2-rank run on its own cores the
 # same time either way (BENCHMARKS.md, 2026-11-27). Set before MPI starts (mpi4py initializes it when imported); Hydra
 # gives each process its node's rank count; an explicit setting in the environment wins; other MPIs ignore these.
+MPICH_THROTTLE = {"MPIR_CVAR_CH4_PROGRESS_THROTTLE": "true", "MPIR_CVAR_CH4_PROGRESS_THROTTLE_NO_PROGRESS_COUNT": "100"}
 if int(os.environ.get("MPI_LOCALNRANKS", "1") or 1) > (os.cpu_count() or 1):
-    os.environ.setdefault("MPIR_CVAR_CH4_PROGRESS_THROTTLE", "true")
-    os.environ.setdefault("MPIR_CVAR_CH4_PROGRESS_THROTTLE_NO_PROGRESS_COUNT", "100")
+    for _name, _value in MPICH_THROTTLE.items():
+        os.environ.setdefault(_name, _value)

@@ -6,6 +6,7 @@ import sys
 import pytest
 
 import warmrun
+from hyperelastic import MPICH_THROTTLE
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 BIN = os.path.dirname(sys.executable)
@@ -13,8 +14,8 @@ BIN = os.path.dirname(sys.executable)
 # The suite runs two workers on two cores, each starting 2-4-rank runs: the cores are oversubscribed, and MPICH's
 # progress engine, polling without yielding, made a 3-rank run 20x slower (the package sets this only where one run's
 # own ranks outnumber the node's CPUs: hyperelastic/__init__.py). Inherited by every process the tests start.
-os.environ.setdefault("MPIR_CVAR_CH4_PROGRESS_THROTTLE", "true")
-os.environ.setdefault("MPIR_CVAR_CH4_PROGRESS_THROTTLE_NO_PROGRESS_COUNT", "100")
+for _name, _value in MPICH_THROTTLE.items():
+    os.environ.setdefault(_name, _value)
 
 
 def mpiexec():

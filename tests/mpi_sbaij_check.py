@@ -37,9 +37,10 @@ def main(spec, chunk=97):
     jacobians._CellFill.CHUNK = chunk                   # several chunks, a ragged last one
     a = jacobians.AssembledChunked(system)
     s = jacobians.AssembledSBAIJ(system)
-    levels = pmg.GalerkinCells(space, chunk)
+    numbers = pmg.coarse_numbers(space)
+    levels = pmg.GalerkinCells(space, chunk, numbers)
     s.coarse = levels
-    P, _ = pmg.prolongation(space)
+    P, _ = pmg.prolongation(space, numbers)
     for amp in (0.05, 0.08):
         x = X0 + amp * np.sin(1.3 * X0 + 0.4)            # the same state on every rank (a function of X)
         system.linearize(system.global_state(x))

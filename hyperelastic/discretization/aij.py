@@ -142,6 +142,55 @@ class CellMap:
         scatter_blocks(self.base[lo:hi], self.rowlen[lo:hi], vals, arr)
 
 
+def keep_boundary(boundary, vals, lo, hi, bvals):
+    """bvals[k] = the blocks (in vals, cells lo..hi-1) of the partition-boundary cells boundary[k] among them
+    (boundary: sorted cell indices)."""
+    k0, k1 = np.searchsorted(boundary, lo), np.searchsorted(boundary, hi)
+    if k1 > k0:
+        bvals[k0:k1] = vals[boundary[k0:k1] - lo]
+
+
+class CellFill:
+    """An AIJ (block size 3, `A`) with the exact pattern of the space's cells `blocks` (exact_pattern), filled a chunk
+    of cells at a time: `begin`, then `add` per chunk (the interior cells' blocks straight into the diagonal part's
+    values, CellMap; the partition-boundary cells' kept), then `finish` (those sent to their rows' owners in one
+    Alltoallv, BoundaryExchange). The tangent's fill (jacobians.AssembledChunked) and p-multigrid's P1 operator
+    (pmg.GalerkinCells, on the vertices' space) are both this; the caller adds single entries and assembles."""
+
+    def __init__(self, sp, blocks, chunk):
+        A = self.A = PETSc.Mat().create(comm=sp.comm)
+        n = 3 * sp.n_owned
+        A.setSizes(((n, PETSc.DETERMINE), (n, PETSc.DETERMINE)), bsize=3)
+        A.setType(PETSc.Mat.Type.AIJ)
+        A.setLGMap(sp.lgmap, sp.lgmap)
+        A.setPreallocationCSR(exact_pattern(sp))           # the exact pattern, assembled: the map can be made now
+        A.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, True)   # the pattern must be complete
+        self.row0 = A.getOwnershipRange()[0] // 3         # this rank's first vertex (block row), global
+        self.Ad = A.getDiagonalBlock() if sp.mpi.size > 1 else A
+        with SeqAIJRowIJ(self.Ad) as (ia, ja):
+            self.map = CellMap(sp, blocks, ia, ja, chunk)
+            self.exchange = (BoundaryExchange(sp, A, blocks, self.map.boundary, self.row0, ia, ja)
+                             if sp.mpi.size > 1 else None)
+        self.n3 = 3 * blocks.shape[1]
+        self.bvals = None
+
+    def begin(self):
+        self.A.zeroEntries()
+        self.bvals = np.empty((len(self.map.boundary), self.n3, self.n3))
+
+    def add(self, vals, lo, hi):
+        """The blocks vals of cells lo..hi-1: the interior cells' into the values, the boundary cells' kept."""
+        with SeqAIJValues(self.Ad, self.map.nnz) as arr:
+            self.map.scatter(vals, lo, hi, arr)
+        keep_boundary(self.map.boundary, vals, lo, hi, self.bvals)
+
+    def finish(self):
+        """The boundary cells' blocks into their rows (several ranks)."""
+        if self.exchange is not None:
+            self.exchange.add(self.bvals, self.Ad, self.map.nnz)
+        self.bvals = None
+
+
 class BoundaryExchange:
     """Several ranks: the 16 blocks of each cell with a vertex another rank owns (CellMap.boundary) are not
     added through MatSetValues and PETSc's stash but directly: blocks in this rank's rows into the diagonal

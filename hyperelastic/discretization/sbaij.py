@@ -5,13 +5,14 @@ thirds of the tangent's memory — is not made. docs/design.md ("The assembled t
 import numpy as np
 from petsc4py import PETSc
 
-from .aij import _row_search, owned_index, upper_block_pattern
+from .aij import _row_search, keep_boundary, owned_index, upper_block_pattern
 from .kernels import scatter_upper
 from ..core.libpetsc import SeqAIJRowIJ, SeqAIJValues
 
 
 class UpperFill:
-    """The SBAIJ `S` (block size 3) of a symmetric tangent, preallocated with its exact upper block pattern
+    """(aij.CellFill's counterpart: `begin`, `add` per chunk of cells, `finish`.) The SBAIJ `S` (block size 3) of a
+    symmetric tangent, preallocated with its exact upper block pattern
     (aij.upper_block_pattern), and where each cell's upper blocks go: for a cell whose vertices this rank owns, the
     block index in the diagonal part's values of its node pair (a, b) where a's global number is <= b's (`pos`,
     int32, -1 for the others: their transposes are the cell's (b, a)), 400 bytes per P2 cell; the cells at a
@@ -58,14 +59,22 @@ class UpperFill:
         self.b_rows = r[self.b_keep].astype(PETSc.IntType)[:, None]
         self.b_cols = c[self.b_keep].astype(PETSc.IntType)[:, None]
         self.nn = nn
+        self.bvals = None
+
+    def begin(self):
+        self.S.zeroEntries()
+        self.bvals = np.empty((len(self.boundary), 3 * self.nn, 3 * self.nn))
 
     def add(self, vals, lo, hi):
-        """S's diagonal part += the upper blocks of the interior cells among lo..hi-1 (vals: their blocks)."""
+        """S's diagonal part += the upper blocks of the interior cells among lo..hi-1 (vals: their blocks); the
+        partition-boundary cells' blocks kept."""
         with SeqAIJValues(self.Sd, 9 * self.nblocks, "SBAIJ") as arr:
             scatter_upper(self.pos[lo:hi], vals, arr)
+        keep_boundary(self.boundary, vals, lo, hi, self.bvals)
 
-    def add_boundary(self, bvals):
-        """S += the upper blocks of the partition-boundary cells (bvals (nb, 3nn, 3nn), in `boundary`'s order)."""
+    def finish(self):
+        """S += the upper blocks of the partition-boundary cells."""
+        bvals, self.bvals = self.bvals, None
         if not len(self.b_keep):
             return
         nn = self.nn

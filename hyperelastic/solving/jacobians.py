@@ -19,7 +19,6 @@ import numpy as np
 from petsc4py import PETSc
 
 from ..discretization import aij, sbaij
-from ..core.libpetsc import SeqAIJRowIJ, SeqAIJValues
 
 
 def _sizes(space):
@@ -145,20 +144,20 @@ class _CellFill:
             out.append((self.c_local, self.c_local, np.full((len(self.c_local), 1), self.system.scale)))
         return out
 
-    def _fill(self, add, boundary):
-        """add(vals, lo, hi) for every chunk of cells lo..hi-1 (vals: their blocks, _cell_blocks); returns the blocks
-        of the cells `boundary` (sorted indices: the partition-boundary cells, which go another way)."""
+    def _fill(self, *fills):
+        """Each of `fills` (begin, add(vals, lo, hi), finish: aij.CellFill, sbaij.UpperFill, pmg.GalerkinCells) given
+        the cell blocks a chunk of cells at a time (_cell_blocks)."""
         nc, n3 = len(self.blocks), 3 * self.blocks.shape[1]
         buf = np.empty((min(self.CHUNK, nc), n3, n3))
-        bvals = np.empty((len(boundary), n3, n3))
+        for f in fills:
+            f.begin()
         for lo in range(0, nc, self.CHUNK):
             hi = min(lo + self.CHUNK, nc)
             vals = self._cell_blocks(buf[:hi - lo], lo, hi)
-            add(vals, lo, hi)
-            k0, k1 = np.searchsorted(boundary, lo), np.searchsorted(boundary, hi)
-            if k1 > k0:
-                bvals[k0:k1] = vals[boundary[k0:k1] - lo]
-        return bvals
+            for f in fills:
+                f.add(vals, lo, hi)
+        for f in fills:
+            f.finish()
 
     def _cell_blocks(self, vals, lo, hi):
         """vals = the cell effects' 12x12 blocks of cells lo..hi-1, constrained rows and columns zeroed."""
@@ -192,37 +191,21 @@ class AssembledChunked(_CellFill):
         action per quadrature point), the preconditioner is built from the AIJ."""
         super().__init__(system)
         sp = system.space
-        A = self.mat = PETSc.Mat().create(comm=sp.comm)
-        A.setSizes(_sizes(sp), bsize=3)
-        A.setType(PETSc.Mat.Type.AIJ)
-        A.setLGMap(sp.lgmap, sp.lgmap)
-        A.setPreallocationCSR(aij.exact_pattern(sp))        # the exact pattern, assembled: the map can be made now
-        A.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, True)   # the pattern must be complete
-        self.row0 = A.getOwnershipRange()[0] // 3          # this rank's first vertex (block row), global
-        self.Ad = A.getDiagonalBlock() if sp.mpi.size > 1 else A
-        with SeqAIJRowIJ(self.Ad) as (ia, ja):
-            self.map = aij.CellMap(sp, self.blocks, ia, ja, self.CHUNK)
-            self.exchange = (aij.BoundaryExchange(sp, A, self.blocks, self.map.boundary, self.row0, ia, ja)
-                             if sp.mpi.size > 1 else None)
+        self.fill = aij.CellFill(sp, self.blocks, self.CHUNK)
+        A = self.mat = self.fill.A
+        self.Ad, self.map, self.exchange = self.fill.Ad, self.fill.map, self.fill.exchange
         # PETSc's stash is then only for effects with their own entries (face blocks): skip its communication
         # where no rank has any
         if self.exchange is not None and not sp.mpi.allreduce(len(self.other)):
             A.setOption(PETSc.Mat.Option.NO_OFF_PROC_ENTRIES, True)
         self.nullspace = rigid_body_modes(sp, A)
-        self.copy = aij.SBAIJCopy(sp, A, self.Ad, self.row0, self.CHUNK) if storage == "sbaij" else None
+        self.copy = aij.SBAIJCopy(sp, A, self.Ad, self.fill.row0, self.CHUNK) if storage == "sbaij" else None
         # the Mat the Krylov method multiplies by: the AIJ, its SBAIJ copy, or (shell) the cells' action
         self.operator = (ExactShell(system).mat if storage == "shell" else A if self.copy is None else self.copy.S)
 
     def assemble(self):
         A = self.mat
-        A.zeroEntries()
-
-        def add(vals, lo, hi):
-            with SeqAIJValues(self.Ad, self.map.nnz) as arr:
-                self.map.scatter(vals, lo, hi, arr)
-        bvals = self._fill(add, self.map.boundary)
-        if self.exchange is not None:
-            self.exchange.add(bvals, self.Ad, self.map.nnz)
+        self._fill(self.fill)
         for r, c, v in self._entries():
             A.setValuesLocalRCV(r, c, v, PETSc.InsertMode.ADD_VALUES)
         A.assemble()
@@ -249,24 +232,15 @@ class AssembledSBAIJ(_CellFill):
         self.coarse = None
 
     def assemble(self):
-        S, fill, coarse = self.mat, self.fill, self.coarse
+        S, coarse = self.mat, self.coarse
         coarse = coarse if coarse is not None and coarse.wanted else None
-        S.zeroEntries()
-        if coarse is not None:
-            coarse.begin()
-
-        def add(vals, lo, hi):
-            fill.add(vals, lo, hi)
-            if coarse is not None:
-                coarse.add(vals, lo, hi)
-        bvals = self._fill(add, fill.boundary)
-        fill.add_boundary(bvals)
+        self._fill(self.fill, *([coarse] if coarse is not None else []))
         entries = self._entries()
         for r, c, v in entries:
             S.setValuesLocalRCV(r, c, v, PETSc.InsertMode.ADD_VALUES)
         S.assemble()
         if coarse is not None:
-            coarse.finish(entries)
+            coarse.close(entries)
 
     update = assemble
 

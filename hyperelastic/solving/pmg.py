@@ -21,7 +21,6 @@ from petsc4py import PETSc
 
 from ..core.arrays import unique
 from ..core.errors import UserError
-from ..core.libpetsc import SeqAIJRowIJ, SeqAIJValues
 from ..discretization import aij
 from ..discretization.kernels import p1_galerkin
 from ..element.reference import EDGES
@@ -101,10 +100,10 @@ def coarse_numbers(space):
     return owned_v, num
 
 
-def prolongation(space):
+def prolongation(space, numbers=None):
     """(P: the (3 n_P2) x (3 n_P1) interpolation, block size 3; the owned coarse vertices' coordinates in their
-    global order) on the space's mesh."""
-    owned_v, num = coarse_numbers(space)
+    global order) on the space's mesh (numbers: its coarse_numbers, where the caller has them)."""
+    owned_v, num = numbers or coarse_numbers(space)
     n_fine, n_coarse = 3 * space.n_owned, 3 * len(owned_v)
     fine_dof = space.lgmap.getIndices().reshape(-1, 3)[:, 0] // 3          # global node of each local node
     rows_n, cols_n, vals = [], [], []
@@ -146,8 +145,8 @@ class VertexSpace:
     local vertex, -1 for an edge node), their cells, their global numbers (coarse_numbers: each rank's owned vertices
     consecutive in rank order, the layout of P's columns) and which are owned."""
 
-    def __init__(self, space):
-        owned_v, num = coarse_numbers(space)
+    def __init__(self, space, numbers):
+        owned_v, num = numbers                  # (coarse_numbers(space))
         cv = np.flatnonzero(num >= 0)
         loc = np.full(space.nlv, -1, np.int64)
         loc[cv] = np.arange(len(cv))
@@ -170,33 +169,20 @@ class VertexSpace:
 class GalerkinCells:
     """p-multigrid's P1 operator P^T K P summed from the P2 cells' blocks as the tangent is filled (P_e^T K_e P_e per
     cell, kernels.p1_galerkin; the cells' P_e are the rows of P on their nodes, so the sum is P^T K P exactly), into
-    an AIJ on the vertices with its exact pattern (the P1 tangent's fill, aij.CellMap and aij.BoundaryExchange on a
-    VertexSpace); the effects' own entries and the constrained diagonal through P entry by entry. For a fine tangent
-    kept only as SBAIJ (jacobians.AssembledSBAIJ), which PETSc's PtAP does not take. `wanted`: fill it at the next
-    tangent's fill (a Jacobian that sets the preconditioner up)."""
+    the P1 tangent's own fill on the vertices (aij.CellFill on a VertexSpace: `begin`, `add`, `finish` as the fine
+    fill calls them), then `close` with the effects' own entries and the constrained diagonal through P entry by
+    entry. For a fine tangent kept only as SBAIJ (jacobians.AssembledSBAIJ), which PETSc's PtAP does not take.
+    `wanted`: fill it at the next tangent's fill (a Jacobian that sets the preconditioner up)."""
 
-    def __init__(self, space, chunk):
-        vs = self.vs = VertexSpace(space)
-        A = self.mat = PETSc.Mat().create(comm=space.comm)
-        n = 3 * vs.n_owned
-        A.setSizes(((n, PETSc.DETERMINE), (n, PETSc.DETERMINE)), bsize=3)
-        A.setType(PETSc.Mat.Type.AIJ)
-        A.setLGMap(vs.lgmap, vs.lgmap)
-        A.setPreallocationCSR(aij.exact_pattern(vs))
-        A.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, True)
-        row0 = A.getOwnershipRange()[0] // 3
-        self.Ad = A.getDiagonalBlock() if space.mpi.size > 1 else A
-        with SeqAIJRowIJ(self.Ad) as (ia, ja):
-            self.map = aij.CellMap(vs, vs.cells, ia, ja, chunk)
-            self.exchange = (aij.BoundaryExchange(vs, A, vs.cells, self.map.boundary, row0, ia, ja)
-                             if space.mpi.size > 1 else None)
+    def __init__(self, space, chunk, numbers):
+        vs = self.vs = VertexSpace(space, numbers)
+        self.fill = aij.CellFill(vs, vs.cells, chunk)
+        self.mat = self.fill.A
         self.buf = np.empty((min(chunk, max(len(vs.cells), 1)), 12, 12))
         self.wanted = False
-        self.bvals = None
 
     def begin(self):
-        self.mat.zeroEntries()
-        self.bvals = np.empty((len(self.map.boundary), 12, 12))
+        self.fill.begin()
 
     def add(self, vals, lo, hi):
         """The P1 blocks of the P2 cells lo..hi-1 (vals: their blocks, constrained rows and columns zeroed)."""
@@ -204,31 +190,25 @@ class GalerkinCells:
             self.buf = np.empty((hi - lo, 12, 12))
         kc = self.buf[:hi - lo]
         p1_galerkin(EDGES, vals, kc)
-        with SeqAIJValues(self.Ad, self.map.nnz) as arr:
-            self.map.scatter(kc, lo, hi, arr)
-        b = self.map.boundary
-        k0, k1 = np.searchsorted(b, lo), np.searchsorted(b, hi)
-        if k1 > k0:
-            self.bvals[k0:k1] = kc[b[k0:k1] - lo]
+        self.fill.add(kc, lo, hi)
 
-    def finish(self, entries):
+    def finish(self):
+        self.fill.finish()
+
+    def close(self, entries):
         """entries: [(fine local rows, columns, values)] (each (n, 1)) added to the fine tangent beside its cells';
-        each through P to up to four coarse entries."""
-        if self.exchange is not None:
-            self.exchange.add(self.bvals, self.Ad, self.map.nnz)
-        self.bvals = None
+        each through P to up to four coarse entries (a node's two coarse vertices and weights: VertexSpace.to, .w)."""
         to, w = self.vs.to, self.vs.w
         for r, c, v in entries:
             r, c, v = r.ravel().astype(np.int64), c.ravel().astype(np.int64), v.ravel()
             nr, nc_ = r // 3, c // 3
-            for s in (0, 1):
-                for t in (0, 1):
-                    wt = w[nr, s] * w[nc_, t]
-                    k = wt != 0.0
-                    if k.any():
-                        rows = (3 * to[nr[k], s] + r[k] % 3).astype(PETSc.IntType)[:, None]
-                        cols = (3 * to[nc_[k], t] + c[k] % 3).astype(PETSc.IntType)[:, None]
-                        self.mat.setValuesLocalRCV(rows, cols, (wt[k] * v[k])[:, None], PETSc.InsertMode.ADD_VALUES)
+            for s, t in ((0, 0), (0, 1), (1, 0), (1, 1)):
+                wt = w[nr, s] * w[nc_, t]
+                k = wt != 0.0
+                if k.any():
+                    rows = (3 * to[nr[k], s] + r[k] % 3).astype(PETSc.IntType)[:, None]
+                    cols = (3 * to[nc_[k], t] + c[k] % 3).astype(PETSc.IntType)[:, None]
+                    self.mat.setValuesLocalRCV(rows, cols, (wt[k] * v[k])[:, None], PETSc.InsertMode.ADD_VALUES)
         self.mat.assemble()
         self.wanted = False
 
@@ -242,10 +222,11 @@ class Levels:
     for by `prepare` before the fill)."""
 
     def __init__(self, pc, space, op=None):
+        numbers = coarse_numbers(space)
         self.galerkin = None
         if getattr(op, "fills_coarse", False):
-            self.galerkin = op.coarse = GalerkinCells(space, op.CHUNK)
-        self.P, coords = prolongation(space)
+            self.galerkin = op.coarse = GalerkinCells(space, op.CHUNK, numbers)
+        self.P, coords = prolongation(space, numbers)
         pc.setMGInterpolation(1, self.P)
         self.coarse = pc.getMGCoarseSolve()
         self.Ac = None
