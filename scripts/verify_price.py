@@ -26,7 +26,7 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, ROOT)
 
 from hyperelastic.studies.experiments.runner import last_line, run_hyperelastic  # noqa: E402
-from hyperelastic.studies.price import INTEGRATORS, SOLVERS, TOLERANCES, Search, Setting  # noqa: E402
+from hyperelastic.studies.price import INTEGRATORS, SOLVERS, TOLERANCES, Search, Setting, solvers  # noqa: E402
 from hyperelastic.studies.price_report import price_report  # noqa: E402
 from hyperelastic.output.watch import watched  # noqa: E402
 
@@ -152,7 +152,7 @@ def grid(case, search):
             for j in range(halvings + 1):
                 for integ in search.integrators:
                     for t in range(len(TOLERANCES) if not search.dynamic else 2):
-                        for pc in SOLVERS:
+                        for pc in solvers(o):
                             yield Setting(o, lv, j, integ, t, pc)
 
 

@@ -26,7 +26,7 @@ dimension); the order with the cheapest plan moves one notch toward it, in the d
 most per second of the next run; every run updates the models. It stops when no order's plan is predicted
 cheaper than the cheapest run already meeting the target, or at --budget / --max-runs. The linear solver (the
 Jacobian mode and the preconditioner: the assembled tangent with the default preconditioner or GAMG, the
-matrix-free exact tangent with Jacobi) is a cost-only dimension: on each order's first run over PC_TRIAL seconds
+matrix-free exact tangent with Jacobi; on quadratic tetrahedra also p-multigrid) is a cost-only dimension: on each order's first run over PC_TRIAL seconds
 the other solvers run at the same setting and the fastest is kept. (PETSc's MFFD, -snes_mf_operator, is not
 tried: it costs a residual per Krylov iteration and is never faster than the exact tangent, BENCHMARKS.md.)
 """
@@ -35,6 +35,7 @@ import os
 import time
 from dataclasses import dataclass, replace
 
+from ..core.data import recipe_path
 from ..core.errors import UserError
 from .experiments.runner import last_line, run_hyperelastic
 from ..core.files import option_lines
@@ -51,9 +52,19 @@ INTEGRATORS = {   # name: (options, order of accuracy in time)
 }
 TOLERANCES = (("loose", ["-snes_rtol", "1e-4", "-ksp_rtol", "1e-3"]), ("default", []),
               ("tight", ["-snes_rtol", "1e-10", "-ksp_rtol", "1e-9"]))
-# the linear solver: the Jacobian mode and the preconditioner (cost-only: the answer is the same to the tolerances)
-SOLVERS = {"default": [], "gamg": ["-pc_type", "gamg"], "shell": ["-jacobian", "shell"]}
-SOLVER_NAMES = {"default": "assembled, default PC", "gamg": "assembled, GAMG", "shell": "matrix-free tangent, Jacobi"}
+# the linear solver: the Jacobian mode and the preconditioner (cost-only: the answer is the same to the tolerances);
+# p-multigrid (options/pmg.opts) only where it applies, on quadratic tetrahedra: there the default Jacobi took ~970 CG
+# iterations per Newton step on the bar's second refinement and p-multigrid ~20 (BENCHMARKS.md, issue 48 item 6)
+SOLVERS = {"default": [], "gamg": ["-pc_type", "gamg"], "shell": ["-jacobian", "shell"],
+           "pmg": ["-options_file", recipe_path("pmg")]}
+SOLVER_NAMES = {"default": "assembled, default PC", "gamg": "assembled, GAMG", "shell": "matrix-free tangent, Jacobi",
+                "pmg": "assembled, p-multigrid"}
+SOLVER_ORDERS = {"pmg": (2,)}     # the element orders a solver is tried on (others: every order)
+
+
+def solvers(order):
+    """The linear solvers tried on runs of element order `order`."""
+    return [k for k in SOLVERS if order in SOLVER_ORDERS.get(k, (order,))]
 PC_TRIAL = 0.5          # s: an order's first run at least this long also runs with the other solvers
 MAX_DT_HALVINGS = 6
 DEFAULT_GROWTH = {"level": 8.0, "dt": 2.0, "tol": 1.3}
@@ -331,7 +342,7 @@ class Search:
                 self.solver[s.order] = "default"       # its Schur field split (GAMG inside): nothing to try
             else:
                 trials = [row] + [self.run(replace(s, solver=k), "linear solver trial")
-                                  for k in SOLVERS if k != s.solver]
+                                  for k in solvers(s.order) if k != s.solver]
                 done = [r for r in trials if r["outcome"] == "finished"]
                 self.solver[s.order] = min(done, key=lambda r: r["solve_s"])["setting"].solver
         return row
