@@ -52,11 +52,13 @@ def test_exact_modes_agree(tmp_path, scene):
 @pytest.mark.parametrize("mode", sorted(SEED_MODES))
 def test_seed_modes_run_and_report(tmp_path, scene, mode):
     """The thesis' operators: Newton either converges (the residual is exact, so the answer is the
-    same as the exact tangent's) or the run ends with one clear line; never a wrong answer."""
+    same as the exact tangent's) or the run ends with one clear line; never a wrong answer. (At L1 and
+    E = 1e6 every scene's first step fails, at 10 Newton iterations as at 30: 10 keeps the test's cost
+    down; the accuracy study shows them failing at 100.)"""
     out = os.path.join(tmp_path, f"{scene}_{mode}.h5")
     ref = run_scene(tmp_path, scene, EXACT_MODES["assembled"], tag="ref")
     p = hyperelastic(["run", scene, "-level", 1, "-final_time", 0.1, "-quiet", "-output", out, *TIGHT,
-                      *SEED_MODES[mode], "-snes_max_it", "30", "-step_control", "0"])
+                      *SEED_MODES[mode], "-snes_max_it", "10", "-step_control", "0"])
     if p.returncode == 0:
         r = read_h5(out)
         assert np.abs(r["x"][-1] - ref["x"][-1]).max() <= 1e-5
