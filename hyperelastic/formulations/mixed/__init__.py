@@ -143,7 +143,7 @@ class Mixed(Formulation):
                            "displacement-pressure formulation (docs/mixed.md)")
         why = self.refusal(problem)
         if why:
-            return False, f"{what}, displacements alone: the mixed formulation {why.split(': ', 1)[1]}"
+            return False, f"{what}, displacements alone; not the mixed formulation: {why.split(': ', 1)[1]}"
         return True, (f"{what}: -formulation auto takes the mixed displacement-pressure formulation (-formulation "
                       "displacement: displacements alone)")
 
