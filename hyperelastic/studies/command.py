@@ -23,7 +23,7 @@ costs, without the process start-up), wall time of the whole command, Newton and
 residual evaluations, rejected attempts, peak memory. A run that fails is a row with outcome
 'failed' and its one-line message, never dropped.
 
-The discretisation error is separate: runs with the reference's solver settings at one step DISC_H
+The discretisation error is separate: runs with the reference's solver settings at one step (DISC_H; --smoke 0.05)
 on each level, against the finest level's, P1-interpolated at fixed material points
 (MATERIAL_POINTS, the thesis framework's test point first). The time error at DISC_H is nearly the
 same on every mesh, so the difference is the mesh's.

@@ -6,7 +6,7 @@ import os
 from ..output.figures import legend, pyplot
 from .stability import fmt
 from .measure import slope
-from .plan import COST_TARGET, DISC_H, FPS, POINT_NAMES, REF_FACTOR, REF_SNES_RTOL, TARGETS, E_NAMES
+from .plan import COST_TARGET, FPS, POINT_NAMES, REF_FACTOR, REF_SNES_RTOL, TARGETS, E_NAMES
 
 def pareto(points):
     """Indices of the Pareto front of (cost, error) pairs: no other point is cheaper and as accurate."""
@@ -255,7 +255,7 @@ def _disc_table(rows):
     L = []
     disc = [r for r in rows if r["role"] == "disc"]
     if disc:
-        L += ["", f"## Discretisation error (mesh) at h = {DISC_H:g}", "",
+        L += ["", f"## Discretisation error (mesh) at h = {disc[0]['h']:g}", "",
               "Displacement at the material points " + ", ".join(POINT_NAMES) + ", against the finest level, "
               "relative to the largest displacement there (reference solver settings).", "",
               "| scene, material, E | level | element | tets | mesh error (rel.) | solve (s) |", "|---|---|---|---|---|---|"]
