@@ -10,7 +10,7 @@ import pytest
 
 from conftest import ROOT, hyperelastic, run_ok
 from hyperelastic.studies.experiments.table import read_csv
-from hyperelastic.studies.price import DimModel, SolverModel, observed_order
+from hyperelastic.studies.price import DimModel, SolverModel, observed_order, solvers
 from hyperelastic.mesh.read import interpolate, locate
 
 BAR = ["--part", f"{ROOT}/meshes/bar.geo", "--scene", f"{ROOT}/options/scenes/bend2.opts", "--size", "2"]
@@ -58,6 +58,10 @@ def test_price_answers_first_and_its_answer_meets_the_target(price, tmp_path):
     assert {(r["order"], r["level"]) for r in rows} >= {(1, 0), (1, 1), (2, 0), (2, 1)}
     assert {r["tolerances"] for r in rows} >= {"loose", "default"}
     assert best["order"] == 2
+    # the linear solvers priced on P2 include p-multigrid (Jacobi took ~970 CG iterations per Newton step at r2), and
+    # none is on P1 (p-multigrid needs quadratic tetrahedra)
+    assert {r["pc"] for r in rows if r["order"] == 2} == set(solvers(2)) and "pmg" in solvers(2)
+    assert "pmg" not in {r["pc"] for r in rows if r["order"] == 1} and "pmg" not in solvers(1)
     q_ref = reference(tmp_path)
     true = abs(best["quantity"] - q_ref) / abs(q_ref)
     assert true <= 0.03, (best, q_ref, true)
@@ -148,6 +152,31 @@ def test_price_stops_its_probes_at_the_budget(tmp_path):
     text = open(os.path.join(out, "price.md")).read()
     # (its one run is given at least 1 s: on a loaded machine it is stopped there too, and the report says so)
     assert "The search stopped early: --budget 0.01 s spent" in text, text.split("\n\n")[1]
+
+
+def test_the_search_steps_toward_its_plan_one_notch_at_a_time():
+    """Search.step (the move toward an order's plan; which run a real search makes depends on the measured times, so
+    the rule is checked on stated errors and costs): one notch finer in a dimension where the plan is finer, straight
+    back to the plan's value where it is coarser, the integrator with its step, and among several moves the one whose
+    error falls most per predicted second; the plan itself where nothing differs."""
+    from dataclasses import replace
+    from hyperelastic.studies.price import Search, Setting
+    search = Search.__new__(Search)
+    cost = {}
+    search.total = lambda s, m: 0.5 ** s.level + 0.1 * 0.5 ** s.dt + 0.01 * 0.5 ** s.tol     # (error by notches)
+    search.predict_cost = lambda s, m: cost.get((s.level, s.dt, s.tol), 1.0)
+    c = Setting(1, 1, 0, "beuler", 0)
+    assert search.step(c, replace(c, level=4), None) == replace(c, level=2)
+    assert search.step(replace(c, level=3), replace(c, level=1), None) == replace(c, level=1)
+    p = replace(c, level=3, dt=2, tol=2)
+    assert search.step(c, p, None) == replace(c, level=2)             # the level buys most error per second ...
+    cost[(2, 0, 0)] = 100.0
+    assert search.step(c, p, None) == replace(c, dt=1)                # ... unless it is predicted 100x dearer
+    cost[(1, 1, 0)] = 100.0
+    assert search.step(c, p, None) == replace(c, tol=1)
+    q = Setting(1, 1, 2, "alpha2", 0)
+    assert search.step(c, q, None) == replace(c, integrator="alpha2", dt=2)
+    assert search.step(c, c, None) == c
 
 
 def test_price_leaves_linear_tetrahedra_that_lock(tmp_path):

@@ -26,8 +26,8 @@ dimension); the order with the cheapest plan moves one notch toward it, in the d
 most per second of the next run; every run updates the models. It stops when no order's plan is predicted
 cheaper than the cheapest run already meeting the target, or at --budget / --max-runs. The linear solver (the
 Jacobian mode and the preconditioner: the assembled tangent with the default preconditioner or GAMG, the
-matrix-free exact tangent with Jacobi; on quadratic tetrahedra also p-multigrid) is a cost-only dimension: on each order's first run over PC_TRIAL seconds
-the other solvers run at the same setting and the fastest is kept. (PETSc's MFFD, -snes_mf_operator, is not
+matrix-free exact tangent with Jacobi; on quadratic tetrahedra also p-multigrid) is a cost-only dimension: on each
+order's first run over PC_TRIAL seconds the other solvers run at the same setting and the fastest is kept. (PETSc's MFFD, -snes_mf_operator, is not
 tried: it costs a residual per Krylov iteration and is never faster than the exact tangent, BENCHMARKS.md.)
 """
 import math
@@ -60,14 +60,14 @@ SOLVERS = {"default": [], "gamg": ["-pc_type", "gamg"], "shell": ["-jacobian", "
 SOLVER_NAMES = {"default": "assembled, default PC", "gamg": "assembled, GAMG", "shell": "matrix-free tangent, Jacobi",
                 "pmg": "assembled, p-multigrid"}
 SOLVER_ORDERS = {"pmg": (2,)}     # the element orders a solver is tried on (others: every order)
+PC_TRIAL = 0.5          # s: an order's first run at least this long also runs with the other solvers
+MAX_DT_HALVINGS = 6
+DEFAULT_GROWTH = {"level": 8.0, "dt": 2.0, "tol": 1.3}
 
 
 def solvers(order):
     """The linear solvers tried on runs of element order `order`."""
     return [k for k in SOLVERS if order in SOLVER_ORDERS.get(k, (order,))]
-PC_TRIAL = 0.5          # s: an order's first run at least this long also runs with the other solvers
-MAX_DT_HALVINGS = 6
-DEFAULT_GROWTH = {"level": 8.0, "dt": 2.0, "tol": 1.3}
 
 
 @dataclass(frozen=True)
