@@ -179,6 +179,26 @@ def test_the_search_steps_toward_its_plan_one_notch_at_a_time():
     assert search.step(c, c, None) == c
 
 
+def test_the_defaults_comparison_run_is_stopped_at_its_limit(tmp_path, monkeypatch):
+    """The defaults' setting is run for the comparison where its predicted cost is small, but a prediction from coarser
+    runs can be far off (P1 r4 on the bar predicted 27 s took ~250 s): the run is stopped at DEFAULTS_STOP (here
+    0.05 s, so that it is), its row says so, the search is not taken for out of budget, and the report's first
+    paragraph gives the defaults' cost as more than the limit."""
+    from hyperelastic.studies import price
+    from hyperelastic.studies.price_report import price_report
+    monkeypatch.setattr(price, "DEFAULTS_STOP", 0.05)
+    s = price.Search(f"{ROOT}/meshes/bar.geo", f"{ROOT}/options/scenes/bend2.opts", "u_y:5,0,0", 0.15, 2.0,
+                     str(tmp_path), orders=(1,), run_args=STATIC.split(), max_runs=4, max_level=3)
+    s.search()
+    last = s.rows[-1]
+    assert last["why"] == "the defaults, for comparison" and last["outcome"] == "failed", last
+    assert last["stopped_at"] == 0.05 and "stopped at 0.05 s, the limit of this run" in last["message"]
+    assert "budget" not in (s.stopped or "") and all(r["outcome"] == "finished" for r in s.rows[:-1])
+    price_report(s, str(tmp_path), "test")
+    first = open(tmp_path / "price.md").read().split("\n\n")[1]
+    assert f"({last['setting'].label()}) cost more than 0.05 s: their run, predicted under 30 s, was stopped" in first
+
+
 def test_price_leaves_linear_tetrahedra_that_lock(tmp_path):
     """A nearly incompressible material (split Neo-Hookean, kappa/mu = 1000): the first P1 run's start-up note says
     linear tetrahedra lock (the output records its notes), so the search runs P2 only from then on and its report

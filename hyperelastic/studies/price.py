@@ -61,6 +61,10 @@ SOLVER_NAMES = {"default": "assembled, default PC", "gamg": "assembled, GAMG", "
                 "pmg": "assembled, p-multigrid"}
 SOLVER_ORDERS = {"pmg": (2,)}     # the element orders a solver is tried on (others: every order)
 PC_TRIAL = 0.5          # s: an order's first run at least this long also runs with the other solvers
+# s: the defaults' setting is run for the comparison where predicted to take at most DEFAULTS_CAP, and stopped at
+# DEFAULTS_STOP of wall time (a prediction from coarser runs can be far off: on the bar at 10%, P1 r4 with default
+# tolerances was predicted 27 s and took ~250 s, Jacobi's iterations growing with the mesh)
+DEFAULTS_CAP, DEFAULTS_STOP = 30.0, 60.0
 MAX_DT_HALVINGS = 6
 DEFAULT_GROWTH = {"level": 8.0, "dt": 2.0, "tol": 1.3}
 
@@ -152,23 +156,28 @@ class Search:
             a += INTEGRATORS[s.integrator][0]
         return a + TOLERANCES[s.tol][1] + SOLVERS[s.solver]
 
-    def run(self, s, why):
-        """Run setting s (once), record its row; returns the row."""
+    def run(self, s, why, limit=None):
+        """Run setting s (once), record its row; returns the row. The run is stopped where the budget ends, or at
+        `limit` seconds where that comes first (the row then records `stopped_at`; the search goes on)."""
         if s in self.by_key.get(s.key(), {}):
             return self.by_key[s.key()][s]
         path = os.path.join(self.out, "runs", f"p{s.order}_r{s.level}_dt{s.dt}_{s.integrator}_t{s.tol}_{s.solver}.h5")
         args = self.args(s, path)
         self.written += [path, os.path.splitext(path)[0] + ".xdmf"]
-        remaining = max(1.0, self.budget - self.elapsed())         # a run is stopped where the budget ends
-        rc, err, wall = run_hyperelastic(args, path, nprocs=1, timeout=min(3600, remaining))
-        if rc == -1 and err.startswith("timed out"):
+        remaining = max(1.0, self.budget - self.elapsed())
+        capped = limit is not None and limit < remaining
+        rc, err, wall = run_hyperelastic(args, path, nprocs=1, timeout=min(3600, limit if capped else remaining))
+        stopped_at = None
+        if rc == -1 and err.startswith("timed out") and capped:
+            stopped_at, err = limit, f"stopped at {limit:.3g} s, the limit of this run ({why})"
+        elif rc == -1 and err.startswith("timed out"):
             self.stopped = f"--budget {self.budget:g} s spent (run {len(self.rows) + 1} was stopped at it)"
             err = f"stopped at the end of --budget ({remaining:.3g} s into the run)"
         row = {"run": len(self.rows) + 1, "why": why, "order": s.order, "level": s.level, "dt_halvings": s.dt,
                "integrator": s.integrator, "tolerances": TOLERANCES[s.tol][0], "pc": s.solver,
                "tets": self.tets.get((s.order, s.level)), "rc": rc, "wall_s": wall,
                "outcome": "finished" if rc == 0 else "failed", "message": last_line(err, rc) if rc else "",
-               "setting": s, "path": path}
+               "setting": s, "path": path, "stopped_at": stopped_at}
         row.update(read_cost(path))
         if rc == 2 and not self.rows:   # the first run refused its input (an option, a value): so would every run
             raise UserError("study price: the first run refused its input (--scene, --run-args): "
@@ -460,12 +469,13 @@ class Search:
         return None
 
     def compare_defaults(self):
-        """Run the defaults' setting when it is cheap enough (30 s, and within the budget left); else its cost
-        stays predicted."""
+        """Run the defaults' setting when it is cheap enough (DEFAULTS_CAP, and within the budget left), stopped at
+        DEFAULTS_STOP; else its cost stays predicted."""
         m = self.models()
         s = self.defaults(m)
-        if s is not None and self.ok(s) is None and self.predict_cost(s, m) <= min(30.0, self.budget - self.elapsed()):
-            self.run(s, "the defaults, for comparison")
+        if s is not None and self.ok(s) is None and self.predict_cost(s, m) <= min(DEFAULTS_CAP,
+                                                                                   self.budget - self.elapsed()):
+            self.run(s, "the defaults, for comparison", limit=DEFAULTS_STOP)
 
 
 def _next_notch(points):

@@ -8,7 +8,7 @@ import os
 from .experiments.table import write_csv
 from ..output.figures import legend, pyplot
 from .stability import fmt
-from .price import Setting
+from .price import DEFAULTS_CAP, Setting
 
 COLUMNS = ("run", "why", "order", "level", "tets", "integrator", "dt_halvings", "dt", "tolerances", "pc", "outcome",
            "message", "quantity", "est_space", "est_time", "est_solver", "est_total", "meets_target", "solve_s",
@@ -42,7 +42,9 @@ def summarize(search):
     d = search.defaults(m)
     if d is not None:
         r = search.ok(d)
-        out["defaults"] = ("measured", d, r["solve_s"]) if r else ("predicted", d, search.predict_cost(d, m))
+        cut = [x["stopped_at"] for x in search.by_key.get(d.key(), {}).values() if x.get("stopped_at")]
+        out["defaults"] = (("measured", d, r["solve_s"]) if r else ("stopped", d, cut[0]) if cut
+                           else ("predicted", d, search.predict_cost(d, m)))
     # what the defaults' order cost without meeting it: a floor under their price
     o = 1 if 1 in search.orders else search.orders[0]
     short = [r for r in search.rows if r["order"] == o and "quantity" in r and not r["meets_target"]]
@@ -79,6 +81,11 @@ def _first_paragraph(search, s):
         _, d, c = s["defaults"]
         words.append(f"The defaults refined until they meet it ({d.label()}) cost {c:.3g} s (measured): "
                      f"{c / b['solve_s']:.3g}x as much.")
+    elif s["defaults"] and s["defaults"][0] == "stopped":
+        _, d, c = s["defaults"]
+        more = f"; more than {c / b['solve_s']:.3g}x as much" if c > b["solve_s"] else ""
+        words.append(f"The defaults refined until they meet it ({d.label()}) cost more than {c:.3g} s: their run, "
+                     f"predicted under {DEFAULTS_CAP:g} s, was stopped there{more}.")
     elif floor is not None and floor["solve_s"] > b["solve_s"]:
         pred = f"; predicted to need {s['defaults'][1].label()}, {s['defaults'][2]:.3g} s" if s["defaults"] else ""
         words.append(f"The defaults (P{floor['order']} refined) cost more than {floor['solve_s']:.3g} s: the "
