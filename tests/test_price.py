@@ -181,7 +181,7 @@ def test_the_search_steps_toward_its_plan_one_notch_at_a_time():
 
 def test_the_defaults_comparison_run_is_stopped_at_its_limit(tmp_path, monkeypatch):
     """The defaults' setting is run for the comparison where its predicted cost is small, but a prediction from coarser
-    runs can be far off (P1 r4 on the bar predicted 27 s took ~250 s): the run is stopped at DEFAULTS_STOP (here
+    runs can be far off (P1 r4 on the bar, predicted under 30 s, took ~260 s): the run is stopped at DEFAULTS_STOP (here
     0.05 s, so that it is), its row says so, the search is not taken for out of budget, and the report's first
     paragraph gives the defaults' cost as more than the limit."""
     from hyperelastic.studies import price

@@ -63,7 +63,7 @@ SOLVER_ORDERS = {"pmg": (2,)}     # the element orders a solver is tried on (oth
 PC_TRIAL = 0.5          # s: an order's first run at least this long also runs with the other solvers
 # s: the defaults' setting is run for the comparison where predicted to take at most DEFAULTS_CAP, and stopped at
 # DEFAULTS_STOP of wall time (a prediction from coarser runs can be far off: on the bar at 10%, P1 r4 with default
-# tolerances was predicted 27 s and took ~250 s, Jacobi's iterations growing with the mesh)
+# tolerances was predicted under 30 s and took ~260 s, Jacobi's iterations growing with the mesh)
 DEFAULTS_CAP, DEFAULTS_STOP = 30.0, 60.0
 MAX_DT_HALVINGS = 6
 DEFAULT_GROWTH = {"level": 8.0, "dt": 2.0, "tol": 1.3}
