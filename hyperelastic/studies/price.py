@@ -27,8 +27,9 @@ most per second of the next run; every run updates the models. It stops when no 
 cheaper than the cheapest run already meeting the target, or at --budget / --max-runs. The linear solver (the
 Jacobian mode and the preconditioner: the assembled tangent with the default preconditioner or GAMG, the
 matrix-free exact tangent with Jacobi; on quadratic tetrahedra also p-multigrid) is a cost-only dimension: on each
-order's first run over PC_TRIAL seconds the other solvers run at the same setting and the fastest is kept. (PETSc's MFFD, -snes_mf_operator, is not
-tried: it costs a residual per Krylov iteration and is never faster than the exact tangent, BENCHMARKS.md.)
+order's first run over PC_TRIAL seconds the other solvers run at the same setting and the fastest is kept. (PETSc's
+MFFD, -snes_mf_operator, is not tried: it costs a residual per Krylov iteration and is never faster than the exact
+tangent, BENCHMARKS.md.)
 """
 import math
 import os
