@@ -33,7 +33,7 @@ demo: setup
 # one of the suite's ~1,000 child runs would compile the package again, ~0.17 s each)
 test: setup
 	$(PY) -m compileall -q hyperelastic
-	PATH="$(abspath $(VENV))/bin:$$PATH" $(PY) -m pytest -q -n 2 --dist loadfile --durations=25 tests
+	PATH="$(abspath $(VENV))/bin:$$PATH" $(PY) -m pytest -q -n 2 --dist loadfile --durations=30 tests
 
 clean:
 	rm -rf output build hyperelastic/discretization/_kernels*.so
