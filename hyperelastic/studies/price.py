@@ -36,7 +36,7 @@ import os
 import time
 from dataclasses import dataclass, replace
 
-from ..core.data import recipe_path
+from ..core.data import OPTIONS_DIR
 from ..core.errors import UserError
 from .experiments.runner import last_line, run_hyperelastic
 from ..core.files import option_lines
@@ -57,7 +57,7 @@ TOLERANCES = (("loose", ["-snes_rtol", "1e-4", "-ksp_rtol", "1e-3"]), ("default"
 # p-multigrid (options/pmg.opts) only where it applies, on quadratic tetrahedra: there the default Jacobi took ~970 CG
 # iterations per Newton step on the bar's second refinement and p-multigrid ~20 (BENCHMARKS.md, issue 48 item 6)
 SOLVERS = {"default": [], "gamg": ["-pc_type", "gamg"], "shell": ["-jacobian", "shell"],
-           "pmg": ["-options_file", recipe_path("pmg")]}
+           "pmg": ["-options_file", os.path.join(OPTIONS_DIR, "pmg.opts")]}
 SOLVER_NAMES = {"default": "assembled, default PC", "gamg": "assembled, GAMG", "shell": "matrix-free tangent, Jacobi",
                 "pmg": "assembled, p-multigrid"}
 SOLVER_ORDERS = {"pmg": (2,)}     # the element orders a solver is tried on (others: every order)
