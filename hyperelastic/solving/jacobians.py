@@ -132,9 +132,9 @@ class _CellFill:
         self.constrained_cells = np.flatnonzero(self.vmask[sp.cells].any(axis=(1, 2)))   # (sorted)
         self.blocks = np.ascontiguousarray(sp.cells, dtype=PETSc.IntType)
 
-    def _entries(self):
-        """[(local rows, local columns, values)] of the effects' own entries and the constrained diagonal, as
-        added to the matrix (each (n, 1))."""
+    def _add_entries(self, M):
+        """M += the effects' own entries and the constrained diagonal, then M assembled; returns them as
+        [(local rows, local columns, values)] (each (n, 1))."""
         out = []
         for e, n, keep, r, c in self.other:
             v = np.empty(n)
@@ -142,6 +142,9 @@ class _CellFill:
             out.append((r, c, v[keep][:, None]))
         if len(self.c_local):
             out.append((self.c_local, self.c_local, np.full((len(self.c_local), 1), self.system.scale)))
+        for r, c, v in out:
+            M.setValuesLocalRCV(r, c, v, PETSc.InsertMode.ADD_VALUES)
+        M.assemble()
         return out
 
     def _fill(self, *fills):
@@ -204,11 +207,8 @@ class AssembledChunked(_CellFill):
         self.operator = (ExactShell(system).mat if storage == "shell" else A if self.copy is None else self.copy.S)
 
     def assemble(self):
-        A = self.mat
         self._fill(self.fill)
-        for r, c, v in self._entries():
-            A.setValuesLocalRCV(r, c, v, PETSc.InsertMode.ADD_VALUES)
-        A.assemble()
+        self._add_entries(self.mat)
         if self.copy is not None:
             self.copy.refresh(self.map.nnz)
 
@@ -235,10 +235,7 @@ class AssembledSBAIJ(_CellFill):
         S, coarse = self.mat, self.coarse
         coarse = coarse if coarse is not None and coarse.wanted else None
         self._fill(self.fill, *([coarse] if coarse is not None else []))
-        entries = self._entries()
-        for r, c, v in entries:
-            S.setValuesLocalRCV(r, c, v, PETSc.InsertMode.ADD_VALUES)
-        S.assemble()
+        entries = self._add_entries(S)
         if coarse is not None:
             coarse.close(entries)
 
