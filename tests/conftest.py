@@ -24,14 +24,13 @@ def mpiexec():
 
 
 def hyperelastic(args, nprocs=1, timeout=600, cwd=None):
-    """Run the `hyperelastic` console script (under mpiexec when nprocs > 1; one rank: started warm, warmrun.py)."""
+    """Run the `hyperelastic` console script, started warm (warmrun.py); under mpiexec when nprocs > 1."""
     if nprocs == 1:
         return warmrun.run(args, cwd=cwd, timeout=timeout)
-    exe = os.path.join(BIN, "hyperelastic")
-    cmd = [exe] + [str(a) for a in args]
-    if nprocs > 1:
-        cmd = [mpiexec(), "-n", str(nprocs)] + cmd
-    return subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, cwd=cwd)
+    cmd = [mpiexec(), "-n", str(nprocs)] + warmrun.rank_command() + [str(a) for a in args]
+    # (os.environ given, not inherited: gmsh.initialize() in this process appends to PATH and sets PYTHONPATH in the
+    # C environment, which children inherit and os.environ does not show; the warm ranks' server would refuse them)
+    return subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, cwd=cwd, env=dict(os.environ))
 
 
 def run_mpi_script(name, args, nprocs=2, timeout=300):

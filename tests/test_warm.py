@@ -71,9 +71,11 @@ def test_signals_and_exit_statuses_reach_the_caller(server, tmp_path):
             break
         time.sleep(0.1)
     assert p.returncode == -signal.SIGKILL and p.wait(timeout=60) == -signal.SIGKILL
+    p = server.popen(["run", "bend", "-final_time", "50", "-output", "t.h5"], EXE, cwd=str(tmp_path), env=os.environ)
     with pytest.raises(subprocess.TimeoutExpired):
-        server.popen(["run", "bend", "-final_time", "50", "-output", "t.h5"], EXE, cwd=str(tmp_path),
-                     env=os.environ).communicate(timeout=0.5)
+        p.communicate(timeout=0.5)
+    p.kill()                               # (not left running through the rest of the suite)
+    assert p.wait(timeout=60) == -signal.SIGKILL
 
 
 def test_the_server_is_clean_and_ends_with_its_client(tmp_path):
@@ -132,3 +134,94 @@ def test_edited_sources_and_another_package_are_refused(tmp_path):
     p = subprocess.run([sys.executable, "-c", EDIT_PROBE, EXE, str(tmp_path / "b")], capture_output=True, text=True,
                        timeout=180, cwd=str(tmp_path), env=env)
     assert p.stdout.split() == ["True", "refused", "True"], p.stdout + p.stderr
+
+
+def ranks(server, n, args, cwd, env=None):
+    """`mpiexec -n N` of ARGS, each rank started warm from `server` (MPICH_THROTTLE: conftest's environment)."""
+    from conftest import mpiexec
+    return subprocess.Popen([mpiexec(), "-n", str(n)] + server.rank_command(EXE) + args, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, cwd=str(cwd), env=dict(os.environ if env is None else env))
+
+
+def children(server):
+    return subprocess.run(["pgrep", "-P", str(server.proc.pid)], capture_output=True, text=True).stdout.split()
+
+
+def until(ready, p, timeout=60):
+    """Wait for ready() while the mpiexec `p` runs."""
+    t0 = time.time()
+    while not ready():
+        assert p.poll() is None and time.time() - t0 < timeout, p.communicate(timeout=60)
+        time.sleep(0.05)
+
+
+def test_mpi_ranks_start_warm_and_are_the_exec_ranks(server, tmp_path):
+    """Two ranks started warm under mpiexec: the exec'd ranks' status, lines and positions bit for bit, from children
+    of the server; a rank the server refuses (here: another environment) execs itself and gives the same answer."""
+    from conftest import mpiexec
+    a = subprocess.run([mpiexec(), "-n", "2", EXE] + RUN + ["-output", "a.h5"], capture_output=True, text=True,
+                       cwd=str(tmp_path), timeout=120)
+    before = set(children(server))
+    p = ranks(server, 2, RUN + ["-output", "b.h5", "-log_view", ":log.txt"], tmp_path)
+    seen = set()
+    while p.poll() is None:                  # (the ranks are the server's children while they run)
+        seen.update(children(server))
+        time.sleep(0.02)
+    out, err = p.communicate(timeout=120)
+    assert a.returncode == p.returncode == 0 and len(seen - before) == 2, (seen, before, err)
+    assert "with 2 processes" in (tmp_path / "log.txt").read_text()
+
+    def lines(text):
+        return [ln.split("[")[0].replace("b.h5", "a.h5").replace("c.h5", "a.h5") for ln in text.splitlines()]
+    assert lines(a.stderr) == lines(err) and a.stdout == out
+    assert np.array_equal(read_h5(tmp_path / "a.h5")["x"], read_h5(tmp_path / "b.h5")["x"])
+    q = ranks(server, 2, RUN + ["-output", "c.h5"], tmp_path, env=dict(os.environ, HYPERELASTIC_PROBE="1"))
+    out, err = q.communicate(timeout=120)
+    assert q.returncode == 0 and lines(err) == lines(a.stderr), err
+    assert np.array_equal(read_h5(tmp_path / "a.h5")["x"], read_h5(tmp_path / "c.h5")["x"])
+
+
+def test_mpi_ranks_started_warm_take_signals_and_die_with_their_clients(server, tmp_path):
+    """SIGTERM to mpiexec reaches both warm ranks through their clients: the run stops cleanly at a step (143, one
+    line naming the restart); a client killed with SIGKILL (as the launcher kills ranks) takes its child with it."""
+    p = ranks(server, 2, ["run", "bend", "-final_time", "50", "-quiet", "-output", "long.h5"], tmp_path)
+    until(lambda: (tmp_path / "long.h5").exists(), p)
+    time.sleep(1.0)
+    p.send_signal(signal.SIGTERM)
+    _, err = p.communicate(timeout=60)
+    assert p.returncode == 128 + signal.SIGTERM and "--restart long.h5" in err and len(err.splitlines()) == 1, err
+    before = set(children(server))
+    p = ranks(server, 2, ["run", "bend", "-final_time", "50", "-output", "k.h5"], tmp_path)
+    until(lambda: len(set(children(server)) - before) >= 2, p)
+    kids = set(children(server)) - before
+    clients = subprocess.run(["pgrep", "-P", str(p.pid)], capture_output=True, text=True).stdout.split()
+    proxies = [c for c in clients if "proxy" in open(f"/proc/{c}/cmdline").read()] or clients
+    rank_clients = subprocess.run(["pgrep", "-P", proxies[0]], capture_output=True, text=True).stdout.split()
+    os.kill(int(rank_clients[0]), signal.SIGKILL)
+    p.communicate(timeout=60)
+    assert p.returncode != 0
+    for _ in range(100):
+        if not any(os.path.exists(f"/proc/{k}") and "Z" not in open(f"/proc/{k}/stat").read().split()[2]
+                   for k in kids):
+            break
+        time.sleep(0.1)
+    else:
+        raise AssertionError(f"a warm rank outlived its client: {kids}")
+
+
+def test_a_warm_child_sets_the_packages_environment_as_an_exec_would(monkeypatch):
+    """The package's environment settings (hyperelastic.process_environment) are made again in each warm child (its
+    environment is its caller's): MPICH's throttle where the launcher counts more ranks on the node than CPUs; an
+    explicit setting wins."""
+    import hyperelastic
+    from hyperelastic import MPICH_THROTTLE
+    for name in MPICH_THROTTLE:
+        monkeypatch.delenv(name, raising=False)
+    monkeypatch.setenv("MPI_LOCALNRANKS", str(os.cpu_count()))
+    hyperelastic.process_environment()
+    assert not any(name in os.environ for name in MPICH_THROTTLE)
+    monkeypatch.setenv("MPI_LOCALNRANKS", str(os.cpu_count() + 1))
+    monkeypatch.setenv("MPIR_CVAR_CH4_PROGRESS_THROTTLE_NO_PROGRESS_COUNT", "7")
+    hyperelastic.process_environment()
+    assert os.environ["MPIR_CVAR_CH4_PROGRESS_THROTTLE"] == "true"
+    assert os.environ["MPIR_CVAR_CH4_PROGRESS_THROTTLE_NO_PROGRESS_COUNT"] == "7"

@@ -2,21 +2,29 @@
 (hyperelastic/core/warm.py, the studies' way of starting runs), ~0.4 s less each. Each is still its own
 process (its own PETSc, options, file descriptors, exit status, signals). Commands whose arguments or
 environment a warm start cannot carry as an exec'd one would (not UTF-8; another environment than the
-server's) are exec'd, and so is everything under mpiexec."""
+server's) are exec'd. Under mpiexec each rank starts warm from the same server (rank_command)."""
 import os
 import subprocess
 import sys
 
-from hyperelastic.core.warm import launch
+from hyperelastic.core.warm import launch, shared
 
 BIN = os.path.dirname(sys.executable)
 EXE = os.path.join(BIN, "hyperelastic")
+ENTRY, VOLATILE = "hyperelastic.cli.main:main", ("PYTEST_CURRENT_TEST",)
+
+
+def rank_command():
+    """The command each rank under mpiexec runs to start `hyperelastic` warm (its arguments follow), or [EXE] where
+    warm starts are unavailable."""
+    server = shared(ENTRY, volatile=VOLATILE)
+    return [EXE] if server is None or not server.accepts(os.environ) else server.rank_command(EXE)
 
 
 def run(args, cwd=None, timeout=600, text=True):
     """subprocess.run([hyperelastic] + ARGS, capture_output=True, ...) for one rank."""
     args = [str(a) for a in args]
-    p = launch("hyperelastic.cli.main:main", args, EXE, cwd=cwd, text=text, volatile=("PYTEST_CURRENT_TEST",))
+    p = launch(ENTRY, args, EXE, cwd=cwd, text=text, volatile=VOLATILE)
     if p is None:
         return subprocess.run([EXE] + args, capture_output=True, text=text, timeout=timeout, cwd=cwd)
     try:

@@ -35,6 +35,11 @@ from ..output.plot import render
 
 EXIT_USER, EXIT_SOLVE, EXIT_INTERNAL = 2, 3, 1
 
+# what a warm-started command would import after the fork (core/warm.py) that initializes nothing: the libraries the
+# runs import below the package's own modules (numpy.unique imports numpy.ma; petsc4py's set-up configparser, ...)
+WARM_PRELOAD = ("numpy.ma", "numpy.ctypeslib", "configparser", "difflib", "glob", "hashlib", "heapq", "resource",
+                "zipfile")
+
 
 def _petsc(argv):
     """(petsc4py.PETSc initialized with argv, the options files argv reads)."""
