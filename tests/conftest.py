@@ -27,7 +27,7 @@ def hyperelastic(args, nprocs=1, timeout=600, cwd=None):
     """Run the `hyperelastic` console script, started warm (warmrun.py); under mpiexec when nprocs > 1."""
     if nprocs == 1:
         return warmrun.run(args, cwd=cwd, timeout=timeout)
-    cmd = [mpiexec(), "-n", str(nprocs)] + warmrun.rank_command() + [str(a) for a in args]
+    cmd = [mpiexec(), "-n", str(nprocs)] + warmrun.rank_command(args) + [str(a) for a in args]
     # (os.environ given, not inherited: gmsh.initialize() in this process appends to PATH and sets PYTHONPATH in the
     # C environment, which children inherit and os.environ does not show; the warm ranks' server would refuse them)
     return subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, cwd=cwd, env=dict(os.environ))

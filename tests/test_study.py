@@ -144,7 +144,7 @@ def test_refinement_of_a_users_part(tmp_path):
     root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
     out = tmp_path / "study"
     run_ok(["study", "refinement", "--part", f"{root}/examples/bimaterial.geo", "--scene",
-            f"{root}/examples/bimaterial.opts", "--size", 0.25, "--refine", 2, "--watch", "point:2,0.125,0.125",
+            f"{root}/examples/bimaterial.opts", "--size", 0.35, "--refine", 2, "--watch", "point:2,0.125,0.125",
             "--run-args", "-soft_material linear -stiff_material linear -traction 0,2e3,0", "--order", "1,2",
             "-output_dir", out])
     rows = read_csv(out / "refinement.csv")

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from conftest import BIN, read_h5
-from hyperelastic.core.warm import Server
+from hyperelastic.core.warm import RUN_ENTRY, Server, entry_for
 
 EXE = os.path.join(BIN, "hyperelastic")
 RUN = ["run", "bend", "-final_time", "0.1", "-dt", "0.05", "-ksp_rtol", "1e-8"]
@@ -24,6 +24,16 @@ def server():
     s.close()
 
 
+@pytest.fixture(scope="module")
+def run_server(server):
+    """The runs' server (cli/warm_run.py): petsc4py's and mpi4py's modules imported, neither initialized, the modules
+    a run uses loaded; it comes up wherever cli.main's does."""
+    s = Server.start(RUN_ENTRY, volatile=("PYTEST_CURRENT_TEST",))
+    assert s is not None
+    yield s
+    s.close()
+
+
 def exec_run(args, cwd):
     return subprocess.run([EXE] + args, capture_output=True, text=True, cwd=cwd, timeout=120)
 
@@ -34,12 +44,21 @@ def warm_run(server, args, cwd):
     return p.returncode, out, err
 
 
-def test_a_warm_run_is_the_exec_run(server, tmp_path):
+def test_a_warm_run_is_the_exec_run(server, run_server, tmp_path):
     """The same exit status, the same lines (but for the timings and the file name) and the same positions
-    bit for bit; a bad option is the same one line; `scenes` prints the same."""
+    bit for bit, from either server; a bad option is the same one line; `scenes` prints the same. Runs go to the runs'
+    server, everything else (`run --help` too) to cli.main's."""
     a = exec_run(RUN + ["-output", "a.h5"], tmp_path)
     rc, out, err = warm_run(server, RUN + ["-output", "b.h5"], tmp_path)
     assert a.returncode == rc == 0, err
+    rc2, out2, err2 = warm_run(run_server, RUN + ["-output", "d.h5"], tmp_path)
+    assert rc2 == 0 and out2 == out and err2.replace("d.h5", "b.h5").split("[")[0] == err.split("[")[0], err2
+    assert np.array_equal(read_h5(tmp_path / "a.h5")["x"], read_h5(tmp_path / "d.h5")["x"])
+    for args in (["run", "bend", "-E", "abc"], ["run", "bend", "-bogus", "1"], ["run", "--restart", "nosuch.h5"]):
+        e = exec_run(args, tmp_path)
+        assert (e.returncode, e.stdout, e.stderr) == warm_run(run_server, args, tmp_path), args
+    assert entry_for(RUN) == RUN_ENTRY and entry_for(["run", "--help"]) != RUN_ENTRY
+    assert entry_for(["scenes"]) != RUN_ENTRY and entry_for(["run"]) != RUN_ENTRY
     # PETSc is finalized as at an interpreter's exit: -log_view writes its report
     assert warm_run(server, RUN + ["-output", "c.h5", "-log_view", ":log.txt"], tmp_path)[0] == 0
     assert "SNESSolve" in (tmp_path / "log.txt").read_text()
@@ -155,17 +174,17 @@ def until(ready, p, timeout=60):
         time.sleep(0.05)
 
 
-def test_mpi_ranks_start_warm_and_are_the_exec_ranks(server, tmp_path):
+def test_mpi_ranks_start_warm_and_are_the_exec_ranks(run_server, tmp_path):
     """Two ranks started warm under mpiexec: the exec'd ranks' status, lines and positions bit for bit, from children
     of the server; a rank the server refuses (here: another environment) execs itself and gives the same answer."""
     from conftest import mpiexec
     a = subprocess.run([mpiexec(), "-n", "2", EXE] + RUN + ["-output", "a.h5"], capture_output=True, text=True,
                        cwd=str(tmp_path), timeout=120)
-    before = set(children(server))
-    p = ranks(server, 2, RUN + ["-output", "b.h5", "-log_view", ":log.txt"], tmp_path)
+    before = set(children(run_server))
+    p = ranks(run_server, 2, RUN + ["-output", "b.h5", "-log_view", ":log.txt"], tmp_path)
     seen = set()
     while p.poll() is None:                  # (the ranks are the server's children while they run)
-        seen.update(children(server))
+        seen.update(children(run_server))
         time.sleep(0.02)
     out, err = p.communicate(timeout=120)
     assert a.returncode == p.returncode == 0 and len(seen - before) == 2, (seen, before, err)
@@ -175,25 +194,25 @@ def test_mpi_ranks_start_warm_and_are_the_exec_ranks(server, tmp_path):
         return [ln.split("[")[0].replace("b.h5", "a.h5").replace("c.h5", "a.h5") for ln in text.splitlines()]
     assert lines(a.stderr) == lines(err) and a.stdout == out
     assert np.array_equal(read_h5(tmp_path / "a.h5")["x"], read_h5(tmp_path / "b.h5")["x"])
-    q = ranks(server, 2, RUN + ["-output", "c.h5"], tmp_path, env=dict(os.environ, HYPERELASTIC_PROBE="1"))
+    q = ranks(run_server, 2, RUN + ["-output", "c.h5"], tmp_path, env=dict(os.environ, HYPERELASTIC_PROBE="1"))
     out, err = q.communicate(timeout=120)
     assert q.returncode == 0 and lines(err) == lines(a.stderr), err
     assert np.array_equal(read_h5(tmp_path / "a.h5")["x"], read_h5(tmp_path / "c.h5")["x"])
 
 
-def test_mpi_ranks_started_warm_take_signals_and_die_with_their_clients(server, tmp_path):
+def test_mpi_ranks_started_warm_take_signals_and_die_with_their_clients(run_server, tmp_path):
     """SIGTERM to mpiexec reaches both warm ranks through their clients: the run stops cleanly at a step (143, one
     line naming the restart); a client killed with SIGKILL (as the launcher kills ranks) takes its child with it."""
-    p = ranks(server, 2, ["run", "bend", "-final_time", "50", "-quiet", "-output", "long.h5"], tmp_path)
+    p = ranks(run_server, 2, ["run", "bend", "-final_time", "50", "-quiet", "-output", "long.h5"], tmp_path)
     until(lambda: (tmp_path / "long.h5").exists(), p)
     time.sleep(1.0)
     p.send_signal(signal.SIGTERM)
     _, err = p.communicate(timeout=60)
     assert p.returncode == 128 + signal.SIGTERM and "--restart long.h5" in err and len(err.splitlines()) == 1, err
-    before = set(children(server))
-    p = ranks(server, 2, ["run", "bend", "-final_time", "50", "-output", "k.h5"], tmp_path)
-    until(lambda: len(set(children(server)) - before) >= 2, p)
-    kids = set(children(server)) - before
+    before = set(children(run_server))
+    p = ranks(run_server, 2, ["run", "bend", "-final_time", "50", "-output", "k.h5"], tmp_path)
+    until(lambda: len(set(children(run_server)) - before) >= 2, p)
+    kids = set(children(run_server)) - before
     clients = subprocess.run(["pgrep", "-P", str(p.pid)], capture_output=True, text=True).stdout.split()
     proxies = [c for c in clients if "proxy" in open(f"/proc/{c}/cmdline").read()] or clients
     rank_clients = subprocess.run(["pgrep", "-P", proxies[0]], capture_output=True, text=True).stdout.split()

@@ -7,24 +7,24 @@ import os
 import subprocess
 import sys
 
-from hyperelastic.core.warm import launch, shared
+from hyperelastic.core.warm import entry_for, launch, shared
 
 BIN = os.path.dirname(sys.executable)
 EXE = os.path.join(BIN, "hyperelastic")
-ENTRY, VOLATILE = "hyperelastic.cli.main:main", ("PYTEST_CURRENT_TEST",)
+VOLATILE = ("PYTEST_CURRENT_TEST",)
 
 
-def rank_command():
-    """The command each rank under mpiexec runs to start `hyperelastic` warm (its arguments follow), or [EXE] where
+def rank_command(args):
+    """The command each rank under mpiexec runs to start `hyperelastic ARGS` warm (ARGS follow it), or [EXE] where
     warm starts are unavailable."""
-    server = shared(ENTRY, volatile=VOLATILE)
+    server = shared(entry_for([str(a) for a in args]), volatile=VOLATILE)
     return [EXE] if server is None or not server.accepts(os.environ) else server.rank_command(EXE)
 
 
 def run(args, cwd=None, timeout=600, text=True):
     """subprocess.run([hyperelastic] + ARGS, capture_output=True, ...) for one rank."""
     args = [str(a) for a in args]
-    p = launch(ENTRY, args, EXE, cwd=cwd, text=text, volatile=VOLATILE)
+    p = launch(entry_for(args), args, EXE, cwd=cwd, text=text, volatile=VOLATILE)
     if p is None:
         return subprocess.run([EXE] + args, capture_output=True, text=text, timeout=timeout, cwd=cwd)
     try:

@@ -147,6 +147,16 @@ class Server:
         _remove(self.path)
 
 
+# the package's commands: a run starts from a server with its modules loaded (cli/warm_run.py), anything else from
+# cli.main's (`run --help` among them: it initializes PETSc as an import does, with no arguments)
+ENTRY, RUN_ENTRY = "hyperelastic.cli.main:main", "hyperelastic.cli.warm_run:main"
+
+
+def entry_for(args):
+    """The warm server's entry for `hyperelastic ARGS`."""
+    return RUN_ENTRY if len(args) > 1 and args[0] == "run" and args[1] not in ("--help", "-help", "-h") else ENTRY
+
+
 _SHARED_SERVERS = {}
 _SHARED_LOCK = threading.Lock()
 
@@ -287,11 +297,30 @@ def _load_shared():
         ctypes.CDLL(path, mode=ctypes.RTLD_GLOBAL)
 
 
-def _clean():
-    """Nothing a child must initialize itself is initialized here."""
-    held = [m for m in ("petsc4py.PETSc", "mpi4py.MPI") if m in sys.modules]
-    if held:
-        raise SystemExit(f"warm server: {', '.join(held)} imported while preloading (it initializes MPI)")
+def _uninitialized_imports():
+    """For an entry that initializes MPI and PETSc itself at the start of every command (WARM_UNINITIALIZED: the
+    child's start_child() does it, as the exec'd command's first imports would): petsc4py's extension module imported
+    without initializing PETSc (petsc4py.init but for its last step), and mpi4py's MPI module set to be imported
+    without initializing MPI and to finalize it at exit (whoever initializes it); so that the modules the commands
+    use, which import both, can be loaded here."""
+    import mpi4py
+    mpi4py.rc.initialize, mpi4py.rc.finalize = False, True
+    import petsc4py.lib
+    petsc4py.lib.ImportPETSc(None)
+
+
+def _clean(uninitialized=False):
+    """Nothing a child must initialize itself is initialized here: not MPI, not PETSc (their modules imported only
+    where the entry says it initializes both, and then uninitialized)."""
+    if uninitialized:
+        if "mpi4py.MPI" in sys.modules and sys.modules["mpi4py.MPI"].Is_initialized():
+            raise SystemExit("warm server: MPI initialized while preloading")
+        if sys.modules["petsc4py.PETSc"].Sys.isInitialized():
+            raise SystemExit("warm server: PETSc initialized while preloading")
+    else:
+        held = [m for m in ("petsc4py.PETSc", "mpi4py.MPI") if m in sys.modules]
+        if held:
+            raise SystemExit(f"warm server: {', '.join(held)} imported while preloading (it initializes MPI)")
     if threading.active_count() != 1:
         raise SystemExit("warm server: threads running after preloading (fork would copy their locks)")
 
@@ -444,10 +473,14 @@ def serve(path, entry, expect, volatile, preload):
     module = importlib.import_module(entry.split(":")[0])
     if os.path.abspath(module.__file__) != os.path.abspath(expect):
         raise SystemExit(f"warm server: {module.__name__} is {module.__file__} here, {expect} for the client")
+    uninitialized = getattr(module, "WARM_UNINITIALIZED", False)
+    if uninitialized:
+        _uninitialized_imports()
+    else:
+        _load_shared()
     for name in (*preload, *getattr(module, "WARM_PRELOAD", ())):
         importlib.import_module(name)
-    _load_shared()
-    _clean()
+    _clean(uninitialized)
     # what is loaded here is never collected in a child: without this each child's first collections walk the
     # server's objects and copy the pages they lie on (a one-step run on the bar: 0.22 -> 0.175 s of cpu)
     gc.freeze()

@@ -41,7 +41,7 @@ def run_hyperelastic(args, output, nprocs=1, timeout=900):
     cmd = command(args, nprocs)
     env = dict(os.environ, OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1")
     t0 = time.perf_counter()
-    p = warm.launch("hyperelastic.cli.main:main", cmd[3:], MAIN, env=env) if nprocs == 1 else None
+    p = warm.launch(warm.entry_for(cmd[3:]), cmd[3:], MAIN, env=env) if nprocs == 1 else None
     if p is None:
         p = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
     try:
