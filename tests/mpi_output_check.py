@@ -7,7 +7,9 @@ import time
 import petsc4py
 
 ARGS = ["-level", "1", "-dt", "0.01", "-final_time", "0.03", "-checkpoint_every", "1", "-quiet"]
-petsc4py.init([sys.argv[0]] + ARGS)    # as cli.main would: output imports petsc4py, which reads its options once
+# as cli.main would: output imports petsc4py, which reads its options once (so -output is given here too: without it
+# the run wrote the default output/bend.h5 in the suite's working directory, where other tests' runs write theirs)
+petsc4py.init([sys.argv[0]] + ARGS + ["-output", sys.argv[1]])
 
 from hyperelastic.cli import main as cli
 from hyperelastic.output import writer as output  # noqa: E402

@@ -159,7 +159,8 @@ def ranks(server, n, args, cwd, env=None):
     """`mpiexec -n N` of ARGS, each rank started warm from `server` (MPICH_THROTTLE: conftest's environment)."""
     from conftest import mpiexec
     return subprocess.Popen([mpiexec(), "-n", str(n)] + server.rank_command(EXE) + args, stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True, cwd=str(cwd), env=dict(os.environ if env is None else env))
+                            stderr=subprocess.PIPE, text=True, cwd=str(cwd),
+                            env=dict(os.environ if env is None else env))
 
 
 def children(server):
@@ -244,3 +245,23 @@ def test_a_warm_child_sets_the_packages_environment_as_an_exec_would(monkeypatch
     hyperelastic.process_environment()
     assert os.environ["MPIR_CVAR_CH4_PROGRESS_THROTTLE"] == "true"
     assert os.environ["MPIR_CVAR_CH4_PROGRESS_THROTTLE_NO_PROGRESS_COUNT"] == "7"
+
+
+ABORT_PROBE = """
+from hyperelastic.core import warm
+warm._uninitialized_imports()
+import hyperelastic.cli.warm_run as w
+from mpi4py import MPI
+MPI.Init_thread(MPI.THREAD_MULTIPLE)
+from hyperelastic.cli import main as m
+m._abort_if_parallel(1)          # (an internal error before PETSc is initialized: one rank, nothing to abort)
+print(m._comm() is None)
+"""
+
+
+def test_an_error_before_petsc_starts_in_a_warm_run_is_still_one_line():
+    """In a child of the runs' server PETSc's module is imported before PETSc is initialized: an internal error raised
+    before the run initializes it takes MPI's own world to decide whether to abort (as an exec'd run, which has not
+    imported PETSc then), not PETSc's null one."""
+    p = subprocess.run([sys.executable, "-c", ABORT_PROBE], capture_output=True, text=True, timeout=60)
+    assert p.returncode == 0 and p.stdout.split() == ["True"], p.stdout + p.stderr

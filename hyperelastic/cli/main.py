@@ -354,9 +354,11 @@ def main(argv=None):
 
 
 def _comm():
+    """PETSc's world where PETSc is initialized (a warm-started run's server holds its module imported before)."""
     if "petsc4py.PETSc" in sys.modules:
         from petsc4py import PETSc
-        return PETSc.COMM_WORLD
+        if PETSc.Sys.isInitialized():
+            return PETSc.COMM_WORLD
     return None
 
 
