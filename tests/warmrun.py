@@ -18,7 +18,13 @@ def rank_command(args):
     """The command each rank under mpiexec runs to start `hyperelastic ARGS` warm (ARGS follow it), or [EXE] where
     warm starts are unavailable."""
     server = shared(entry_for([str(a) for a in args]), volatile=VOLATILE)
-    return [EXE] if server is None or not server.accepts(os.environ) else server.rank_command(EXE)
+    if server is None or not server.accepts(os.environ):
+        return [EXE]
+    cmd = server.rank_command(EXE)
+    # under coverage (its subprocess patch sets COVERAGE_PROCESS_START or _CONFIG) the client keeps `site`, through which coverage
+    # enters a Python process: `-S` would leave the client's lines unmeasured
+    measured = os.environ.get("COVERAGE_PROCESS_START") or os.environ.get("COVERAGE_PROCESS_CONFIG")
+    return [a for a in cmd if a != "-S"] if measured else cmd
 
 
 def run(args, cwd=None, timeout=600, text=True):

@@ -566,8 +566,7 @@ def rank(path, exe, args):
     if code < 0:                           # killed by a signal: so is this process, for the launcher's report
         signal.signal(-code, signal.SIG_DFL)
         os.kill(os.getpid(), -code)
-    sys.stdout.flush()
-    os._exit(code if code >= 0 else 128 - code)
+    sys.exit(code if code >= 0 else 128 - code)
 
 
 def _is_open(fd):
