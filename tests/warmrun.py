@@ -2,7 +2,7 @@
 (hyperelastic/core/warm.py, the studies' way of starting runs), ~0.4 s less each. Each is still its own
 process (its own PETSc, options, file descriptors, exit status, signals). Commands whose arguments or
 environment a warm start cannot carry as an exec'd one would (not UTF-8; another environment than the
-server's) are exec'd. Under mpiexec each rank starts warm from the same server (rank_command)."""
+server's) are exec'd. Under mpiexec each rank starts warm from the server for its command (rank_command)."""
 import os
 import subprocess
 import sys
@@ -21,8 +21,8 @@ def rank_command(args):
     if server is None or not server.accepts(os.environ):
         return [EXE]
     cmd = server.rank_command(EXE)
-    # under coverage (its subprocess patch sets COVERAGE_PROCESS_START or _CONFIG) the client keeps `site`, through which coverage
-    # enters a Python process: `-S` would leave the client's lines unmeasured
+    # under coverage (its subprocess patch sets COVERAGE_PROCESS_START or _CONFIG) the client keeps `site`, through
+    # which coverage enters a Python process: `-S` would leave the client's lines unmeasured
     measured = os.environ.get("COVERAGE_PROCESS_START") or os.environ.get("COVERAGE_PROCESS_CONFIG")
     return [a for a in cmd if a != "-S"] if measured else cmd
 
