@@ -15,7 +15,7 @@ POSIX systems with pidfds (Linux >= 5.3): elsewhere `Server.start` returns None 
 Where a child would differ from an exec'd process, callers exec instead: an environment other than the server's (the
 libraries read theirs when loaded), `HYPERELASTIC_WARM=0`.
 
-An MPI rank starts warm too, under MPICH's mpiexec (Hydra): `mpiexec -n N` runs `rank_command(server, EXE) + ARGS`,
+An MPI rank starts warm too, under MPICH's mpiexec (Hydra): `mpiexec -n N` runs `server.rank_command(EXE) + ARGS`,
 a small client (`python -S -I warm.py --rank`, no site, no package: ~0.03 s) that hands the server its standard
 streams, its PMI socket (the descriptor named by PMI_FD, at the same number) and its environment; the child then
 initializes MPI from them as the exec'd rank would. The client forwards the signals the launcher sends, ends with
@@ -298,8 +298,8 @@ def _load_shared():
 
 
 def _uninitialized_imports():
-    """For an entry that initializes MPI and PETSc itself at the start of every command (WARM_UNINITIALIZED: the
-    child's start_child() does it, as the exec'd command's first imports would): petsc4py's extension module imported
+    """For an entry that initializes MPI and PETSc itself at the start of every command (WARM_UNINITIALIZED:
+    cli/warm_run.main does it, as the exec'd command's first imports would): petsc4py's extension module imported
     without initializing PETSc (petsc4py.init but for its last step), and mpi4py's MPI module set to be imported
     without initializing MPI and to finalize it at exit (whoever initializes it); so that the modules the commands
     use, which import both, can be loaded here."""
