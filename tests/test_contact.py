@@ -339,6 +339,35 @@ def test_blocks_pressed_together_carry_one_blocks_homogeneous_compression(tmp_pa
     assert np.abs(shell - got["x"][:len(shell)]).max() < 1e-6 * np.abs(got["x"][-1] - X).max()
 
 
+def test_the_assembled_operator_couples_pairs_as_the_matrix_free_one_does(petsc, stack):
+    """The pairs' blocks between surface nodes, applied beside the assembled tangent (jacobians.Coupled: an AIJ of the
+    couplings alone, in global numbering), multiply as the matrix-free tangent's apply does, at a state where the
+    blocks are 1e-3 apart (thousands of coupling entries) and surface nodes on the symmetry planes are held in one
+    direction (their rows and columns left out; each of the two omissions alone changes the product by ~1e-3)."""
+    pytest.importorskip("ipctk")
+    from conftest import make_model
+    from hyperelastic.solving import jacobians
+    system = make_model(petsc, os.path.join(EXAMPLES, "stack.opts"), [("mesh", str(stack))]).system
+    X0 = system.space.X
+    x = X0.copy()
+    x[X0[:, 2] > 1.02, 2] -= 0.049                                      # (the upper block down to a gap of 1e-3)
+    x += 1e-4 * np.random.default_rng(1).standard_normal(x.shape)
+    system.begin_step(0.1, 0.1, x.ravel().copy(), np.zeros(x.size))
+    X = system.global_state(x.ravel())
+    system.linearize(X)
+    effect = next(e for e in system.effects if hasattr(e, "coupling_entries"))
+    assert effect.coupling is not None and effect.coupling.nnz > 1000
+    assert system.cmask.reshape(-1, 3)[effect.nodes].any()            # (held dofs among the surface's)
+    a = jacobians.make(system, "assembled")
+    a.update()
+    V = X.duplicate()
+    V.setRandom()
+    ya, ys = V.duplicate(), V.duplicate()
+    a.operator.mult(V, ya)
+    jacobians.make(system, "shell").mat.mult(V, ys)
+    assert np.abs(ya.getArray() - ys.getArray()).max() <= 1e-12 * np.abs(ys.getArray()).max()
+
+
 def test_self_contact_in_dynamics_on_two_ranks_and_with_generalized_alpha(tmp_path, stack):
     """The stack with inertia (the lid's motion now drives the upper block dynamically): backward Euler gives the same
     frames on 1 and 2 ranks (the gathered surface and its pairs' couplings); -integrator ts (contact at the step's end

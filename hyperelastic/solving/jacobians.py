@@ -336,8 +336,11 @@ ASSEMBLIES = {"setvalues": AssembledChunked, "coo": Assembled}
 
 class Coupled:
     """An assembled operator plus the couplings between nodes that the cell pattern does not join (self-contact's
-    pairs: effects with `add_coupling`), as a MatShell: the Krylov method multiplies by both, the preconditioner is
-    still built from the assembled matrix (which holds each node's own block)."""
+    pairs: effects with `coupling_entries`), as a MatShell: the Krylov method multiplies by both, the preconditioner is
+    still built from the assembled matrix (which holds each node's own block). The couplings are a matrix of their
+    own (AIJ, made again when an effect's `coupling_version` changes): a product is two of PETSc's, and on N ranks
+    only the columns a rank's rows need travel (the couplings multiplied in Python, with the whole surface gathered
+    to every rank, took a third of a self-contact run's time: BENCHMARKS.md)."""
 
     def __init__(self, inner, system, effects):
         self.inner, self.effects = inner, effects
@@ -345,20 +348,38 @@ class Coupled:
         self.constrained = system.cmask.reshape(-1, 3)[sp.lvid_of_owned].ravel()
         self.mat = PETSc.Mat().createPython(inner.getSizes(), context=self, comm=sp.comm)
         self.mat.setUp()
+        self.coupling, self._versions = None, None
 
     @classmethod
     def around(cls, op, system):
         """op with its `operator` wrapped where some effect couples distant nodes and op multiplies by a matrix."""
-        effects = [e for e in system.effects if hasattr(e, "add_coupling")]
+        effects = [e for e in system.effects if hasattr(e, "coupling_entries")]
         if effects and op.operator.getType() != PETSc.Mat.Type.PYTHON:
             op.operator = cls(op.operator, system, effects).mat
         return op
 
+    def _coupling(self):
+        """The couplings' matrix as the effects hold them now (None where no rank has any). Collective."""
+        versions = tuple(e.coupling_version for e in self.effects)
+        if versions != self._versions:
+            self._versions = versions
+            if self.coupling is not None:
+                self.coupling.destroy()
+            self.coupling = None
+            if any(e.coupled for e in self.effects):
+                rows, cols, vals = (np.concatenate(a) for a in
+                                    zip(*(e.coupling_entries(self.constrained) for e in self.effects)))
+                C = PETSc.Mat().createAIJ(self.inner.getSizes(), comm=self.mat.getComm())
+                C.setPreallocationCOO(rows.astype(PETSc.IntType), cols.astype(PETSc.IntType))
+                C.setValuesCOO(vals)
+                self.coupling = C
+        return self.coupling
+
     def mult(self, mat, X, Y):
         self.inner.mult(X, Y)
-        xa, ya = X.getArray(readonly=True), Y.getArray()
-        for e in self.effects:
-            e.add_coupling(xa, ya, self.constrained)
+        C = self._coupling()
+        if C is not None:
+            C.multAdd(X, Y, Y)
 
     def getDiagonal(self, mat, D):
         self.inner.getDiagonal(D)

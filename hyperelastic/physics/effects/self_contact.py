@@ -91,6 +91,12 @@ class SelfContact(NodeBlocks):
         self.rows = np.concatenate(self.mpi.allgather(self.own_s))                # gathered rows -> surface ids
         self.own_dofs = (3 * self.own_s[:, None] + np.arange(3)).ravel()
         self.own_cols = (3 * own_pos[:, None] + np.arange(3)).ravel()            # (owned-array dofs)
+        # the global dofs of this rank's surface rows (the coupling's rows, in own_dofs' order) and of every surface
+        # node (its columns): the coupling as a matrix of the global vectors (coupling_entries)
+        own_global = sp.node_global()[self.nodes]
+        self.surface_global = np.empty(len(self.ids), np.int64)
+        self.surface_global[self.rows] = np.concatenate(self.mpi.allgather(own_global))
+        self.global_rows = (3 * own_global[:, None] + np.arange(3)).ravel()
         self.obstacles = tuple(obstacles)
         self.moving = any(o.motion is not None for o in self.obstacles)
         offset = len(self.ids)                               # (obstacle vertices follow the surface's)
@@ -104,6 +110,7 @@ class SelfContact(NodeBlocks):
         self.blocks = np.zeros((len(self.nodes), 3, 3))
         self.coupling = None                                 # csr (3 n_own, 3 n_surface): the off-diagonal blocks
         self.coupled = False                                 # some rank has coupling entries (collective)
+        self.coupling_version = 0                            # (counts the coupling's changes: jacobians.Coupled)
         self.start = self.last = X                          # the step's start; the last state reached from it
         self.held_mesh = None                                # (the held triangles' collision mesh: hold)
         self._cache = (None, None)
@@ -305,11 +312,13 @@ class SelfContact(NodeBlocks):
                 from scipy.sparse import csr_matrix
                 self.coupling = csr_matrix((Hr.data[off], (Hr.row[off], Hr.col[off])), shape=Hr.shape)
         self.coupled = bool(self.mpi.allreduce(self.coupling is not None, op=MPI.LOR))
+        self.coupling_version += 1
 
     def scale_tangent(self, f):
         super().scale_tangent(f)
         if self.coupling is not None:
             self.coupling = self.coupling * f
+        self.coupling_version += 1
 
     def couple(self, own_v):
         """The off-diagonal blocks' product at this rank's surface rows (n_own*3) of v given by the owned rows `own_v`
@@ -329,15 +338,19 @@ class SelfContact(NodeBlocks):
             yn += c.reshape(-1, 3)
         y.reshape(-1, 3)[self.nodes] += yn
 
-    def add_coupling(self, xa, ya, constrained):
-        """ya += the off-diagonal blocks times xa (owned global arrays; `constrained`: a mask of the owned dofs held,
-        whose rows and columns are 0). Collective."""
-        v = xa[self.own_cols].copy()
-        v[constrained[self.own_cols]] = 0.0
-        c = self.couple(v.reshape(-1, 3))
-        if c is not None:
-            c[constrained[self.own_cols]] = 0.0
-            ya[self.own_cols] += c
+    def coupling_entries(self, constrained):
+        """The off-diagonal blocks as (rows, columns, values) of a matrix of the global vectors (this rank's rows; an
+        obstacle's columns, which do not move, left out; `constrained`: a mask of the owned dofs held, whose rows and
+        columns are left out). Collective."""
+        held = self.gather(constrained[self.own_cols].reshape(-1, 3).astype(float)).ravel() > 0.5
+        if self.coupling is None:
+            return np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0)
+        C = self.coupling.tocoo()
+        keep = C.col < len(held)
+        keep[keep] &= ~held[C.col[keep]]
+        keep &= ~constrained[self.own_cols][C.row]
+        col = C.col[keep]
+        return (self.global_rows[C.row[keep]], 3 * self.surface_global[col // 3] + col % 3, C.data[keep])
 
     def max_step(self, x, dx):
         """The largest fraction (<= 1) of the update dx from x along which the surface stays free of itself: ipctk's
