@@ -16,6 +16,11 @@ BIN = os.path.dirname(sys.executable)
 # own ranks outnumber the node's CPUs: hyperelastic/__init__.py). Inherited by every process the tests start.
 for _name, _value in MPICH_THROTTLE.items():
     os.environ.setdefault(_name, _value)
+# Every rank the suite starts is on this one node, where MPICH's ranks talk through its shared memory whatever the
+# network module; the mpich wheel has two (ch4:ucx,ofi) and picks UCX by default, whose set-up probes the node's
+# devices: MPI_Init took 16-20 ms of cpu, with libfabric's 7 ms, in each of the suite's ~1,450 processes that
+# initialize MPI (~20 cpu-s; BENCHMARKS.md). The product leaves the choice to MPICH (a cluster's network is UCX's).
+os.environ.setdefault("MPIR_CVAR_CH4_NETMOD", "ofi")
 
 
 def mpiexec():
