@@ -158,7 +158,7 @@ U_MMS = (f"{A}*sin(pi*X/2)*(1 + Y*Z)", f"{A}*sin(pi*Y/2)*(1 + X*Z)", f"{A}*sin(p
 
 def mms_u(P):
     X, Y, Z = P[..., 0], P[..., 1], P[..., 2]
-    s, c = np.sin(np.pi * P / 2), np.cos(np.pi * P / 2)
+    s = np.sin(np.pi * P / 2)
     return A * np.stack([s[..., 0] * (1 + Y * Z), s[..., 1] * (1 + X * Z), s[..., 2] * (1 + X * Y)], axis=-1)
 
 
@@ -224,7 +224,7 @@ def mms_errors(petsc, mesh, order, material="neohookean"):
             ("prescribe_uy", ramp[1]), ("prescribe_uz", ramp[2]), ("snes_rtol", "1e-11"), ("snes_atol", "1e-13"),
             ("ksp_rtol", "1e-10"), ("pc_type", "gamg"), ("initial_rotation", "0,0,0")]
     m = make_model(petsc, "rotated", opts)
-    sp, k = m.space, m.kernels
+    sp = m.space
     el = Element(order, 5)                                              # the degree-5 rule for loads and errors
     pts, w = el.rule()
     N, dN = el.tabulate()
@@ -340,7 +340,7 @@ def test_p2_same_on_two_ranks_restart_and_readers(tmp_path):
         frames = [r.read_data(k) for k in range(r.num_steps)]
     with h5py.File(tmp_path / "c.h5", "r") as f:
         assert np.allclose(frames[-1][1]["displacement"], f["x"][-1] - f["mesh/points"][:], atol=1e-14)
-    p = run_ok(["run", "sag", "-mesh", tmp_path / "c.h5", "-final_time", 0.02, "-output", tmp_path / "d.h5"])
+    run_ok(["run", "sag", "-mesh", tmp_path / "c.h5", "-final_time", 0.02, "-output", tmp_path / "d.h5"])
     d = read_h5(tmp_path / "d.h5")
     assert d["tetra"].shape[1] == 10 and np.array_equal(d["points"], read_h5(tmp_path / "c.h5")["x"][-1])
 
