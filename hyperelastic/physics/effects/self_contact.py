@@ -225,7 +225,7 @@ class SelfContact(NodeBlocks):
     # the collision sets of the last states: a Newton iteration evaluates the residual and the tangent at its iterate,
     # then the line search's objective the energy at the trial state and at the iterate, then the residual at the
     # trial state (the next iterate): with one set kept, 3.6 builds per Newton iteration (a third of a self-contact
-    # run's time: BENCHMARKS.md), with two, one
+    # run's time: BENCHMARKS.md), with two 1.9 (a third saves none: the other states are each seen once)
     CACHED_SETS = 2
 
     def _collisions(self, V):
