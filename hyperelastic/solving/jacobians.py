@@ -336,53 +336,47 @@ ASSEMBLIES = {"setvalues": AssembledChunked, "coo": Assembled}
 
 class Coupled:
     """An assembled operator plus the couplings between nodes that the cell pattern does not join (self-contact's
-    pairs: effects with `coupling_entries`), as a MatShell: the Krylov method multiplies by both, the preconditioner is
-    still built from the assembled matrix (which holds each node's own block). The couplings are a matrix of their
-    own (AIJ, made again when an effect's `coupling_version` changes): a product is two of PETSc's, and on N ranks
-    only the columns a rank's rows need travel (the couplings multiplied in Python, with the whole surface gathered
-    to every rank, took a third of a self-contact run's time: BENCHMARKS.md)."""
+    pairs: effects with `coupling_entries`): the Krylov method multiplies by both (a MATCOMPOSITE, their sum: PETSc's
+    `MatMult` of the assembled tangent, then `MatMultAdd` of the couplings), the preconditioner is still built from the
+    assembled matrix (which holds each node's own block). The couplings are an AIJ of their own in global numbering,
+    its pattern set again from the effects' entries whenever the operator is updated after a linearization: on N ranks
+    only the columns a rank's rows need travel. (Multiplied in Python at every Krylov iteration, with the whole surface
+    gathered to every rank, they took a third of a self-contact run's time: BENCHMARKS.md.)"""
 
     def __init__(self, inner, system, effects):
         self.inner, self.effects = inner, effects
         sp = system.space
         self.constrained = system.cmask.reshape(-1, 3)[sp.lvid_of_owned].ravel()
-        self.mat = PETSc.Mat().createPython(inner.getSizes(), context=self, comm=sp.comm)
-        self.mat.setUp()
-        self.coupling, self._versions = None, None
+        self.coupling = PETSc.Mat().createAIJ(inner.getSizes(), comm=sp.comm)
+        self._set(*(np.zeros(0, np.int64),) * 2, np.zeros(0))
+        self.mat = PETSc.Mat().createComposite([inner, self.coupling], comm=sp.comm)
 
     @classmethod
     def around(cls, op, system):
-        """op with its `operator` wrapped where some effect couples distant nodes and op multiplies by a matrix."""
+        """op with its `operator` wrapped where some effect couples distant nodes and op multiplies by a matrix (and
+        its `update` refreshing the couplings too)."""
         effects = [e for e in system.effects if hasattr(e, "coupling_entries")]
         if effects and op.operator.getType() != PETSc.Mat.Type.PYTHON:
-            op.operator = cls(op.operator, system, effects).mat
+            coupled = cls(op.operator, system, effects)
+            op.operator, update = coupled.mat, op.update
+
+            def update_both():
+                update()
+                coupled.refresh()
+            op.update = update_both
         return op
 
-    def _coupling(self):
-        """The couplings' matrix as the effects hold them now (None where no rank has any). Collective."""
-        versions = tuple(e.coupling_version for e in self.effects)
-        if versions != self._versions:
-            self._versions = versions
-            if self.coupling is not None:
-                self.coupling.destroy()
-            self.coupling = None
-            if any(e.coupled for e in self.effects):
-                rows, cols, vals = (np.concatenate(a) for a in
-                                    zip(*(e.coupling_entries(self.constrained) for e in self.effects)))
-                C = PETSc.Mat().createAIJ(self.inner.getSizes(), comm=self.mat.getComm())
-                C.setPreallocationCOO(rows.astype(PETSc.IntType), cols.astype(PETSc.IntType))
-                C.setValuesCOO(vals)
-                self.coupling = C
-        return self.coupling
+    def _set(self, rows, cols, vals):
+        self.coupling.setPreallocationCOO(rows.astype(PETSc.IntType), cols.astype(PETSc.IntType))
+        self.coupling.setValuesCOO(vals)
+        self.entries = self.coupling.getComm().tompi4py().allreduce(len(vals))
 
-    def mult(self, mat, X, Y):
-        self.inner.mult(X, Y)
-        C = self._coupling()
-        if C is not None:
-            C.multAdd(X, Y, Y)
-
-    def getDiagonal(self, mat, D):
-        self.inner.getDiagonal(D)
+    def refresh(self):
+        """The couplings as the effects hold them now (after System.linearize). Collective."""
+        if any(e.coupled for e in self.effects):
+            self._set(*(np.concatenate(a) for a in zip(*(e.coupling_entries(self.constrained) for e in self.effects))))
+        elif self.entries:
+            self._set(*(np.zeros(0, np.int64),) * 2, np.zeros(0))
 
 
 def make(system, mode, assembly="setvalues", storage="aij", pc_reads_sbaij=False):

@@ -111,7 +111,6 @@ class SelfContact(NodeBlocks):
         self.blocks = np.zeros((len(self.nodes), 3, 3))
         self.coupling = None                                 # csr (3 n_own, 3 n_surface): the off-diagonal blocks
         self.coupled = False                                 # some rank has coupling entries (collective)
-        self.coupling_version = 0                            # (counts the coupling's changes: jacobians.Coupled)
         self.start = self.last = X                          # the step's start; the last state reached from it
         self.held_mesh = None                                # (the held triangles' collision mesh: hold)
         self._cache = []                                     # [(V, its collision set)], the latest first
@@ -320,13 +319,11 @@ class SelfContact(NodeBlocks):
                 from scipy.sparse import csr_matrix
                 self.coupling = csr_matrix((Hr.data[off], (Hr.row[off], Hr.col[off])), shape=Hr.shape)
         self.coupled = bool(self.mpi.allreduce(self.coupling is not None, op=MPI.LOR))
-        self.coupling_version += 1
 
     def scale_tangent(self, f):
         super().scale_tangent(f)
         if self.coupling is not None:
             self.coupling = self.coupling * f
-        self.coupling_version += 1
 
     def couple(self, own_v):
         """The off-diagonal blocks' product at this rank's surface rows (n_own*3) of v given by the owned rows `own_v`
