@@ -337,10 +337,10 @@ ASSEMBLIES = {"setvalues": AssembledChunked, "coo": Assembled}
 class Coupled:
     """An assembled operator plus the couplings between nodes that the cell pattern does not join (self-contact's
     pairs: effects with `coupling_entries`): the Krylov method multiplies by both (a MATCOMPOSITE, their sum: PETSc's
-    `MatMult` of the assembled tangent, then `MatMultAdd` of the couplings), the preconditioner is still built from the
-    assembled matrix (which holds each node's own block). The couplings are an AIJ of their own in global numbering,
-    its pattern set again from the effects' entries whenever the operator is updated after a linearization: on N ranks
-    only the columns a rank's rows need travel. (Multiplied in Python at every Krylov iteration, with the whole surface
+    own products, no Python per iteration), the preconditioner is still built from the assembled matrix (which holds
+    each node's own block). The couplings are an AIJ of their own in global numbering, its pattern set again from the
+    effects' entries whenever the operator is updated after a linearization: on N ranks only the columns a rank's rows
+    need travel. (Multiplied in Python at every Krylov iteration, with the whole surface
     gathered to every rank, they took a third of a self-contact run's time: BENCHMARKS.md.)"""
 
     def __init__(self, inner, system, effects):

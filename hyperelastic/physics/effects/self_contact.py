@@ -17,8 +17,8 @@ energy is counted on rank 0. The Hessian's blocks on the diagonal go into the as
 holds them: the preconditioner sees them); the blocks between two surface nodes, which the cell pattern does not
 join, are applied beside the assembled operator (jacobians.Coupled) or in the matrix-free tangent's apply.
 What a distributed version would need: each rank's surface with a halo of the owned surface within dhat + the largest
-Newton move (a spatial exchange); the pairs' blocks between nodes are already a matrix in global numbering, made again
-when the pairs change (coupling_entries), so only its rows' columns travel in a product.
+Newton move (a spatial exchange); the pairs' blocks between nodes are already a matrix in global numbering, set again
+after each linearization (coupling_entries), so only its rows' columns travel in a product.
 
 Never through: each Newton update is stopped at ipctk's collision-free step size (additive CCD, which stops 0.9 of the
 way to the first collision; the same pre-check as the obstacles' and the inversion guard's); a step's start (the integrator's guess) is taken only if the straight
