@@ -346,6 +346,7 @@ def test_the_assembled_operator_couples_pairs_as_the_matrix_free_one_does(petsc,
     direction (their rows and columns left out; each of the two omissions alone changes the product by ~1e-3)."""
     pytest.importorskip("ipctk")
     from conftest import make_model
+    from test_operators import apply
     from hyperelastic.solving import jacobians
     system = make_model(petsc, os.path.join(EXAMPLES, "stack.opts"), [("mesh", str(stack))]).system
     X0 = system.space.X
@@ -362,10 +363,8 @@ def test_the_assembled_operator_couples_pairs_as_the_matrix_free_one_does(petsc,
     a.update()
     V = X.duplicate()
     V.setRandom()
-    ya, ys = V.duplicate(), V.duplicate()
-    a.operator.mult(V, ya)
-    jacobians.make(system, "shell").mat.mult(V, ys)
-    assert np.abs(ya.getArray() - ys.getArray()).max() <= 1e-12 * np.abs(ys.getArray()).max()
+    ya, ys = apply(a.operator, V), apply(jacobians.make(system, "shell").mat, V)
+    assert np.abs(ya - ys).max() <= 1e-12 * np.abs(ys).max()
 
 
 def test_self_contact_in_dynamics_on_two_ranks_and_with_generalized_alpha(tmp_path, stack):

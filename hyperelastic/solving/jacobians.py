@@ -348,7 +348,8 @@ class Coupled:
         sp = system.space
         self.constrained = system.cmask.reshape(-1, 3)[sp.lvid_of_owned].ravel()
         self.coupling = PETSc.Mat().createAIJ(inner.getSizes(), comm=sp.comm)
-        self._set(*(np.zeros(0, np.int64),) * 2, np.zeros(0))
+        self.entries = None                          # (the couplings' count over the ranks; None: no pattern set yet)
+        self.refresh()
         self.mat = PETSc.Mat().createComposite([inner, self.coupling], comm=sp.comm)
 
     @classmethod
@@ -366,17 +367,20 @@ class Coupled:
             op.update = update_both
         return op
 
-    def _set(self, rows, cols, vals):
+    def refresh(self):
+        """The couplings as the effects hold them now (after System.linearize; none where no effect has any, the
+        pattern then left as it is if already empty). Collective."""
+        if any(e.coupled for e in self.effects):
+            rows, cols, vals = (np.concatenate(a) for a in
+                                zip(*(e.coupling_entries(self.constrained) for e in self.effects)))
+        elif self.entries == 0:
+            return
+        else:
+            rows = cols = np.zeros(0, np.int64)
+            vals = np.zeros(0)
         self.coupling.setPreallocationCOO(rows.astype(PETSc.IntType), cols.astype(PETSc.IntType))
         self.coupling.setValuesCOO(vals)
         self.entries = self.coupling.getComm().tompi4py().allreduce(len(vals))
-
-    def refresh(self):
-        """The couplings as the effects hold them now (after System.linearize). Collective."""
-        if any(e.coupled for e in self.effects):
-            self._set(*(np.concatenate(a) for a in zip(*(e.coupling_entries(self.constrained) for e in self.effects))))
-        elif self.entries:
-            self._set(*(np.zeros(0, np.int64),) * 2, np.zeros(0))
 
 
 def make(system, mode, assembly="setvalues", storage="aij", pc_reads_sbaij=False):
