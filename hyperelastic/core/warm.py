@@ -341,7 +341,7 @@ def _child(msg, fds, entry, sel):
             elif key.data is None:
                 key.fileobj.close()
         sel.close()
-        _place(fds, msg.get("fds", [1, 2]))
+        _place(fds, _targets(msg))
         os.chdir(msg["cwd"])
         os.environ.clear()
         os.environ.update(msg["env"])
@@ -358,6 +358,11 @@ def _child(msg, fds, entry, sel):
         import traceback
         traceback.print_exc()
         return 1
+
+
+def _targets(msg):
+    """The descriptor numbers a request's descriptors go to in the child: a rank's own list, else stdout and stderr."""
+    return msg.get("fds", [1, 2])
 
 
 def _place(fds, targets):
@@ -404,7 +409,7 @@ def _current(sources):
 
 def _refusal(msg, fds, sources, env, volatile):
     """Why the command is not started here (None: it is)."""
-    if msg is None or len(fds) != len(msg.get("fds", [1, 2])):
+    if msg is None or len(fds) != len(_targets(msg)):
         return "its streams did not come"
     if not _current(sources):
         return "the package's files changed since the server loaded them"
