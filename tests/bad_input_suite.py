@@ -728,6 +728,11 @@ def contract_cases(rng):
     C = [
         ("mixed_snes_mf", BEND + ["-formulation", "mixed", "-order", "2", "-material", "neohookean_split", "-snes_mf"],
          ("-snes_mf",), None),
+        ("mixed_augment_value", BEND + ["-formulation", "mixed", "-order", "2", "-material", "neohookean_split",
+                                        "-mixed_augment", "much"], ("-mixed_augment much", ">= 0"), None),
+        ("mixed_augment_gamg", BEND + ["-formulation", "mixed", "-order", "2", "-material", "neohookean_split",
+                                       "-mixed_augment", "3", "-fieldsplit_u_pc_type", "gamg"],
+         ("-mixed_augment 3", "p-multigrid"), None),
         ("p2_one_point", BEND + ["-order", "2", "-quadrature_degree", "1"], ("zero-energy",), None),
         ("p1_mesh_rule", BEND + ["-quadrature_degree", "5"], ("linear tetrahedra",), None),
         ("p1_rule", BEND + ["-order", "1", "-quadrature_degree", "2"], ("linear tetrahedra",), None),

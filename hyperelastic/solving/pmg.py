@@ -229,7 +229,7 @@ class Levels:
         self.P, coords = prolongation(space, numbers)
         pc.setMGInterpolation(1, self.P)
         self.coarse = pc.getMGCoarseSolve()
-        self.Ac = None
+        self.Ac = self.Aa = None
         v = self.P.createVecs("right")
         v.setBlockSize(3)
         v.getArray()[:] = coords.ravel()
@@ -246,9 +246,10 @@ class Levels:
         if self.galerkin is not None:
             self.galerkin.wanted = True
 
-    def update(self, B):
+    def update(self, B, add=None):
         """The coarse operator of the fine matrix B as it is now (at a Jacobian where the PC is set up again; where
-        it is summed from the cells, as the fill after `prepare` left it)."""
+        it is summed from the cells, as the fill after `prepare` left it); add(P): a matrix added to it (the mixed
+        formulation's augmented Lagrangian: formulations/mixed/operators.Augmented.coarse_term)."""
         if self.galerkin is not None:
             if self.Ac is None:
                 self.Ac = self.galerkin.mat
@@ -258,7 +259,19 @@ class Levels:
             self.Ac.setNearNullSpace(self.nullspace)
         else:
             B.ptap(self.P, result=self.Ac)
-        self.coarse.setOperators(self.Ac, self.Ac)
+        A = self.Ac
+        if add is not None:
+            term = add(self.P)
+            if self.Aa is None:              # (the sum's pattern: both patterns, made once)
+                self.Aa = self.Ac.copy()
+                self.Aa.axpy(1.0, term, structure=PETSc.Mat.Structure.DIFFERENT_NONZERO_PATTERN)
+                self.Aa.setNearNullSpace(self.nullspace)
+            else:
+                self.Aa.zeroEntries()
+                self.Aa.axpy(1.0, self.Ac, structure=PETSc.Mat.Structure.SUBSET_NONZERO_PATTERN)
+                self.Aa.axpy(1.0, term, structure=PETSc.Mat.Structure.SUBSET_NONZERO_PATTERN)
+            A = self.Aa
+        self.coarse.setOperators(A, A)
 
 
 def configure(pc, space, op=None):

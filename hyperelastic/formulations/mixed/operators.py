@@ -78,7 +78,7 @@ class MixedNest:
     takes the blocks without copies (-pc_fieldsplit_diag_use_amat: the displacement split's GAMG smooths with the
     SBAIJ copy)."""
 
-    def __init__(self, system, storage="sbaij"):
+    def __init__(self, system, storage="sbaij", augment=0.0):
         self.system = s = system
         sp, ps = s.space, s.pspace
         self.uu = jacobians.AssembledChunked(s, storage=storage)
@@ -106,6 +106,10 @@ class MixedNest:
                                                    isrows=fields, iscols=fields, comm=sp.comm)
         self.nullspace = self.uu.nullspace
         s.is_u.compose("nearnullspace", self.nullspace)
+        # (gamma/mu > 0: the preconditioner is built from the augmented Lagrangian's matrix, Augmented below)
+        self.augmented = Augmented(self, augment) if augment > 0 else None
+        if self.augmented is not None:
+            self.mat = self.augmented.mat
 
     def _fill_coupling(self):
         s, o, q = self.system, 0, 0
@@ -127,6 +131,74 @@ class MixedNest:
     def update(self):
         self.uu.assemble()
         self._fill_coupling()
+        if self.augmented is not None:
+            self.augmented.update()
         self.mat.assemble()          # (a new state: the field split sets its blocks up again)
         if self.operator is not self.mat:
             self.operator.assemble()
+
+
+class Augmented:
+    """The augmented-Lagrangian preconditioning matrix of a MixedNest (issue 49 item 2: thin walls). The saddle point
+    J = [[A, B^T], [B, C]] (A = K_uu, B = K_pu, C = K_pp) is, after T = [[I, B^T Gamma], [0, I]] (Gamma: the lumped
+    pressure mass's inverse times gamma, MixedSystem.augmentation), T J = [[A + B^T Gamma B, B^T + B^T Gamma C], [B,
+    C]], with the same solution; for gamma of a few mu its Schur complement is close to -(1/(mu + gamma) + 1/kappa) W
+    (W the lumped pressure mass) whatever the part's shape, where -(1/mu + 1/kappa) M_p is not on thin walls (the
+    inf-sup constant of a thin domain is small): Benzi & Olshanskii, SIAM J. Sci. Comput. 28 (2006); Farrell, Mitchell
+    & Wechsung, SIAM J. Sci. Comput. 41 (2019). The upper block-triangular preconditioner P of T J, applied to T r,
+    is P^-1 T = (T^-1 P)^-1 with T^-1 P = [[A + B^T Gamma B, B^T + B^T Gamma (C - S)], [0, S]]: PCFIELDSPLIT's upper
+    Schur factorization of J with that preconditioning matrix, `mat` here (the Krylov method still multiplies by J).
+    Nothing wider than the tangent's pattern is assembled: A + B^T Gamma B is a MATCOMPOSITE of K_uu and the MATNORMAL
+    of Gamma^(1/2) B (its diagonal for the smoother's Jacobi), the coupling a MATCOMPOSITE of products; only
+    p-multigrid's P1 operator gets the term assembled (coarse_term, added to P^T K_uu P). The displacement split's
+    p-multigrid holds under it: the rubber bracket's first system 50 -> 11 GMRES iterations at gamma = 10 mu
+    (BENCHMARKS.md, where GAMG on the assembled augmented block did not: 64 -> 68)."""
+
+    def __init__(self, nest, factor):
+        s = nest.system
+        self.nest, self.factor = nest, factor
+        gamma, S = s.augmentation(factor)
+        self.gamma, self.root = gamma, gamma.copy()
+        self.root.sqrtabs()
+        self.minus_S = S.copy()
+        self.minus_S.scale(-1.0)
+        comm = s.space.comm
+        self.G = nest.K_pu.duplicate(copy=True)              # Gamma^(1/2) B
+        self.E = nest.K_pp.duplicate(copy=True)              # Gamma (C - S)
+        self._refresh()
+        self.normal = PETSc.Mat().createNormal(self.G)       # B^T Gamma B
+        self.uu = PETSc.Mat().createComposite([nest.uu.operator, self.normal], comm=comm)
+        product = PETSc.Mat().createComposite([self.E, nest.K_up], comm=comm)    # (applied in order: K_up (E x))
+        product.setCompositeType(PETSc.Mat.CompositeType.MULTIPLICATIVE)
+        product.assemble()
+        self.up = PETSc.Mat().createComposite([nest.K_up, product], comm=comm)
+        self.schur = PETSc.Mat().createAIJ(((S.getLocalSize(), PETSc.DETERMINE),) * 2, nnz=(1, 0), comm=comm)
+        self.schur.setDiagonal(S)
+        self.schur.assemble()
+        S.destroy()
+        fields = [s.is_u, s.is_p]
+        self.mat = PETSc.Mat().createNest([[self.uu, self.up], [nest.K_pu, nest.K_pp]], isrows=fields,
+                                          iscols=fields, comm=comm)
+        self.uu.setNearNullSpace(nest.nullspace)
+        self.GP = self.coarse = None
+
+    def _refresh(self):
+        SAME = PETSc.Mat.Structure.SAME_NONZERO_PATTERN
+        self.nest.K_pu.copy(self.G, structure=SAME)
+        self.G.diagonalScale(L=self.root)
+        self.nest.K_pp.copy(self.E, structure=SAME)
+        self.E.setDiagonal(self.minus_S, addv=PETSc.InsertMode.ADD_VALUES)
+        self.E.diagonalScale(L=self.gamma)
+
+    def update(self):
+        """After the nest's blocks took a new state's values."""
+        self._refresh()
+        for A in (self.uu, self.up, self.mat):
+            A.assemble()
+
+    def coarse_term(self, P):
+        """(Gamma^(1/2) B P)^T (Gamma^(1/2) B P): the augmentation of p-multigrid's P1 operator P^T K_uu P (the
+        values of this state; the same pattern each time)."""
+        self.GP = self.G.matMult(P, result=self.GP)
+        self.coarse = self.GP.transposeMatMult(self.GP, result=self.coarse)
+        return self.coarse

@@ -4,6 +4,8 @@ the rigid-body near null space), Jacobi on the pressure mass matrix scaled by -(
 complement's preconditioner — a line search on the Lagrangian's slope along the Newton step, the displacement split's
 multigrid set-up kept across Newton and load steps, and a constant pressure's null space where the pressure is known
 only up to a constant."""
+import math
+
 from petsc4py import PETSc
 
 from ...core.errors import UserError
@@ -13,6 +15,16 @@ from ...solving.solver import MERITS, SolverPlan
 from .operators import MixedAssembled, MixedNest
 
 SPLIT_U = "fieldsplit_u_"        # the displacement split's options prefix
+AUGMENT = 0.0                    # gamma/mu of the augmented Lagrangian by default (augment_factor); 0: off
+# under the augmented Lagrangian (operators.Augmented): GMRES preconditioned on the right, so that it measures the
+# residual itself (on the left the preconditioned residual, T's gamma W^-1 scaling of the pressure rows in it, stayed
+# flat for 100 iterations at the first solve of the rubber bracket's second load step under its full load, and
+# GMRES broke down there), and p-multigrid's P1 operator (the augmented one: with the term left out the thin bracket
+# kept 43 GMRES iterations per Newton step) solved by three Chebyshev iterations of its GAMG, not one V-cycle: GAMG
+# smooths the grad-div term poorly (one V-cycle: 40 per Newton step on the bracket at gamma = 3 mu, three: 24, an
+# exact LU: 23; BENCHMARKS.md)
+AUGMENTED_DEFAULTS = (("ksp_pc_side", "right"), (SPLIT_U + "mg_coarse_ksp_type", "chebyshev"),
+                      (SPLIT_U + "mg_coarse_ksp_max_it", "3"), (SPLIT_U + "mg_coarse_ksp_norm_type", "none"))
 
 # the mixed formulation's linear solver: GMRES on the saddle point, a lower block-triangular Schur-complement
 # factorization (one displacement solve per application, where the full one takes two: with p-multigrid fewer GMRES
@@ -57,10 +69,11 @@ MIXED_MERITS = {"cp": "the Lagrangian's slope along the step (critical point: th
 GALERKIN_KERNELS = ("rap", "nonscalable")      # (one rank, several)
 
 
-def apply_mixed_defaults(ranks=1):
+def apply_mixed_defaults(ranks=1, augment=0.0):
     """The mixed formulation's solver defaults where the options database does not set them: the field split's
     when no -pc_type or -pc_type fieldsplit is given (a user's -pc_type lu, say, replaces all of it), with the
-    faster kernel for its GAMG's Galerkin products on this many ranks (GALERKIN_KERNELS); the critical-point line
+    faster kernel for its GAMG's Galerkin products on this many ranks (GALERKIN_KERNELS) and, where the augmented
+    Lagrangian applies (augment > 0: augment_factor), the upper Schur factorization it needs; the critical-point line
     search, GMRES(100), at most 1000 Krylov iterations (MIXED_NEWTON), and the line search's tuning where it is the
     critical-point one (CP_TUNING: a user's -snes_linesearch_type bt keeps PETSc's own). Returns the line search
     merit."""
@@ -69,7 +82,13 @@ def apply_mixed_defaults(ranks=1):
     for k, v in MIXED_DEFAULTS:
         if (k == "ksp_type" or split) and not opts.hasName(k):
             # (p-multigrid's levels need the tangent by blocks: under -snes_mf_operator the split keeps GAMG)
+            if k == "pc_fieldsplit_schur_fact_type" and augment > 0:
+                v = "upper"
             opts.setValue(k, "gamg" if k == SPLIT_U + "pc_type" and opts.getBool("snes_mf_operator", False) else v)
+    if augment > 0:
+        for k, v in AUGMENTED_DEFAULTS:
+            if not opts.hasName(k):
+                opts.setValue(k, v)
     if split and opts.getString(SPLIT_U + "pc_type", "") in ("gamg", "mg") and not opts.hasName("matptap_via"):
         opts.setValue("matptap_via", GALERKIN_KERNELS[ranks > 1])
     if opts.getString("snes_type", "newtonls") == "newtonls":
@@ -82,6 +101,41 @@ def apply_mixed_defaults(ranks=1):
                 if not opts.hasName(k):
                     opts.setValue(k, v)
     return MIXED_MERITS.get(opts.getString("snes_linesearch_type", "bt"), MERITS[1])
+
+
+def augment_factor(space):
+    """gamma/mu of the augmented Lagrangian preconditioner (operators.Augmented; -mixed_augment, AUGMENT by
+    default), or 0 where it does not apply: it needs the field split (no -snes_mf or -snes_mf_operator) with
+    p-multigrid in its displacement split (quadratic tetrahedra; -fieldsplit_u_pc_type gamg smooths badly on the
+    augmented block: BENCHMARKS.md) and the upper Schur factorization with its own Schur preconditioner. Where the
+    options choose otherwise (-pc_fieldsplit_schur_fact_type lower, say) it is off; asked for by -mixed_augment
+    there, one line."""
+    opts = PETSc.Options()
+    given = opts.hasName("mixed_augment")
+    try:
+        g = float(opts.getString("mixed_augment")) if given else AUGMENT
+    except ValueError:
+        g = math.nan
+    if not (math.isfinite(g) and g >= 0):
+        raise UserError(f"option -mixed_augment {opts.getString('mixed_augment')}: gamma/mu of the augmented "
+                        "Lagrangian, a number >= 0 (0: off)")
+    why = None
+    if opts.getBool("snes_mf", False) or opts.getBool("snes_mf_operator", False):
+        why = "a tangent by blocks (no -snes_mf or -snes_mf_operator)"
+    elif opts.getString("pc_type", "fieldsplit") != "fieldsplit":
+        why = "the field split (-pc_type fieldsplit)"
+    elif opts.getString(SPLIT_U + "pc_type", "mg") != "mg" or not pmg.applies(space):
+        why = f"p-multigrid in the displacement split (-{SPLIT_U}pc_type mg, quadratic tetrahedra)"
+    elif opts.getString("pc_fieldsplit_schur_fact_type", "upper") != "upper":
+        why = "the upper Schur factorization (-pc_fieldsplit_schur_fact_type upper)"
+    elif opts.hasName("pc_fieldsplit_schur_precondition"):
+        why = "its own Schur preconditioner (no -pc_fieldsplit_schur_precondition)"
+    if g > 0 and why is not None:
+        if given:
+            raise UserError(f"option -mixed_augment {g:g}: the augmented Lagrangian needs {why}; -mixed_augment 0 "
+                            "turns it off")
+        return 0.0
+    return g
 
 
 def mixed_blocks(mf):
@@ -106,10 +160,12 @@ class FieldSplitPlan(SolverPlan):
 
     def __init__(self):
         self.schur_pre = None      # the Schur complement's preconditioning matrix (assembled once, kept for a new KSP)
+        self.augment = 0.0         # gamma/mu of the augmented Lagrangian (augment_factor), 0: off
 
     def defaults(self, solver, objective):
         had = PETSc.Options().hasName("matptap_via")
-        solver.merit = apply_mixed_defaults(solver.system.space.comm.getSize())
+        self.augment = augment_factor(solver.system.space)
+        solver.merit = apply_mixed_defaults(solver.system.space.comm.getSize(), self.augment)
         if not had and PETSc.Options().hasName("matptap_via"):
             solver.unrecorded = ("matptap_via",)
         if objective:
@@ -139,10 +195,11 @@ class FieldSplitPlan(SolverPlan):
     def operator(self, system, jacobian, assembly, storage, mf):
         if mf == "mf":
             return None
-        return MixedNest(system, storage) if mixed_blocks(mf) else MixedAssembled(system)
+        return MixedNest(system, storage, self.augment) if mixed_blocks(mf) else MixedAssembled(system)
 
     def before_options(self, solver):
-        if solver.storage == "sbaij" and not PETSc.Options().hasName("pc_fieldsplit_diag_use_amat"):
+        if (solver.storage == "sbaij" and not self.augment
+                and not PETSc.Options().hasName("pc_fieldsplit_diag_use_amat")):
             PETSc.Options().setValue("pc_fieldsplit_diag_use_amat", "1")     # GAMG smooths with the SBAIJ block
         if solver.op is not None and PETSc.Options().getString("pc_type", "") == "fieldsplit":
             pmg.before_options(solver.system.space, SPLIT_U)
@@ -169,7 +226,8 @@ class FieldSplitPlan(SolverPlan):
         pc.setFieldSplitIS(("u", sysm.is_u), ("p", sysm.is_p))
         if not PETSc.Options().hasName("pc_fieldsplit_schur_precondition"):
             if self.schur_pre is None:               # (constant: assembled once, kept for a new KSP)
-                self.schur_pre = sysm.pressure_mass()
+                aug = getattr(solver.op, "augmented", None)
+                self.schur_pre = aug.schur if aug is not None else sysm.pressure_mass()
             pc.setFieldSplitSchurPreType(PETSc.PC.FieldSplitSchurPreType.USER, self.schur_pre)
 
     def constant_pressure(self, solver):
@@ -237,4 +295,5 @@ class SplitLevels:
             pc = ksp.getPC()
             pc.setUp()
             self.levels = pmg.Levels(pc.getFieldSplitSubKSP()[0].getPC(), sol.system.space)
-        self.levels.update(sol.op.uu.mat)
+        aug = getattr(sol.op, "augmented", None)
+        self.levels.update(sol.op.uu.mat, add=None if aug is None else aug.coarse_term)

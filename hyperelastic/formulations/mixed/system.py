@@ -203,6 +203,34 @@ class MixedSystem(System):
         A.assemble()
         return A
 
+    def augmentation(self, factor):
+        """(Gamma, S), Vecs over the owned pressures, of the augmented Lagrangian with gamma = factor * mu of each
+        material (formulations/mixed/operators.Augmented): from the lumped pressure mass W_i = sum_c m_ci (m_ci =
+        int_c N_i dV), Gamma_i = gamma_i / W_i with gamma_i = sum_c gamma_c m_ci / W_i (the augmentation's weight:
+        gamma B^T W^-1 B for one material), and the Schur complement's preconditioner S_i = -sum_c (1 / (mu_c +
+        gamma_c) + 1 / kappa_c) m_ci. The dead pressures: Gamma 0 (not augmented) and S their rows' c."""
+        ps = self.pspace
+        sums = []
+        for weight in ("mass", "gamma", "schur"):
+            lp = np.zeros(ps.nlp)
+            for c in self.couplings:
+                gamma = factor * c.shear
+                inv_kappa = 0.0 if math.isinf(c.law.kappa) else 1.0 / c.law.kappa
+                scale = {"mass": 1.0, "gamma": gamma, "schur": -(1.0 / (c.shear + gamma) + inv_kappa)}[weight]
+                lp += np.bincount(c.corners.ravel(), (scale * np.einsum("cq,qb->cb", c.w, c.M)).ravel(),
+                                  minlength=ps.nlp)
+            G = ps.global_vec()
+            ps.add_to_global(lp, G)
+            sums.append(G)
+        W, Gamma, S = sums
+        w = W.getArray()
+        w[self.dead_owned] = 1.0
+        Gamma.getArray()[:] /= w * w
+        Gamma.getArray()[self.dead_owned] = 0.0
+        S.getArray()[self.dead_owned] = self.dead_scale
+        W.destroy()
+        return Gamma, S
+
     def combined_lgmap(self):
         """The LGMap of the local numbering (displacement dofs 0..3 nlv-1, then the local pressures) into the
         unknown's global numbering."""
