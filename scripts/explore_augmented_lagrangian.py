@@ -7,13 +7,19 @@ lumped pressure mass), the system transformed alike (its solution unchanged):
     [B,                 K_pp              ] [dp] = [f_p                 ]
 
 with the Schur complement preconditioned by -(1/(mu + g) + 1/kappa) W (Jacobi), against the default -(1/mu + 1/kappa)
-M_p at g = 0. The displacement block by GAMG (with the rigid-body modes) or by LU (an exact block: the Schur
-approximation alone). Prints the GMRES iterations of each. Not a solver of the application: an experiment whose
-answer says what an augmented Lagrangian needs (a smoother that captures the grad-div kernel).
+M_p at g = 0. The displacement block (-upcs, a comma list) by GAMG (with the rigid-body modes), by LU (an exact
+block: the Schur approximation alone), by vertex-star ASM then GAMG (`star`), or by p-multigrid (`pmg`: the
+application's solving/pmg.py levels, P2 smoothed, the P1 operator P^T A P by GAMG; `pmg_star`: vertex stars on the
+P2 level). -fact lower|upper: the Schur factorization; -coarse augmented|plain: p-multigrid's P1 operator from the
+augmented block or from A alone; -keep drop: p-multigrid with PCMG's own level defaults (Chebyshev/SOR, an LU of
+the P1 operator) instead of the application's (Chebyshev/Jacobi, GAMG); VIEW=1 in the environment prints the
+displacement split's KSP. Prints the GMRES iterations of each. Not a solver of the application: the experiment
+behind `-mixed_augment` (formulations/mixed/operators.Augmented; BENCHMARKS.md, 2026-11-27 tenth session).
 
     .venv/bin/python scripts/explore_augmented_lagrangian.py SCENE.opts MESH.msh [-option value ...] \
-        [-gammas 1,10,100]
+        [-gammas 1,10,100] [-upcs gamg,lu,star,pmg,pmg_star] [-fact upper] [-coarse plain] [-keep drop]
 """
+import os
 import sys
 import time
 
@@ -89,6 +95,41 @@ def star_and_gamg(pc, s, A, op):
         k.getPC().setType("lu")
 
 
+VIEW = os.environ.get("VIEW")
+FACT, COARSE, KEEP = "lower", "augmented", "keep"
+
+
+def p_multigrid(ku, s, A, A0, star=False):
+    """The displacement block by p-multigrid (solving/pmg.py: P2 smoothed by Chebyshev/Jacobi, or with star=True by
+    vertex-star ASM with exact patch solves, Richardson, one step; the P1 Galerkin operator by GAMG)."""
+    from hyperelastic.solving import pmg
+    prefix = ku.getOptionsPrefix()
+    o = PETSc.Options()
+    o.setValue(prefix + "pc_type", "mg")
+    pmg.before_options(s.space, prefix)
+    if star:
+        o.setValue(prefix + "mg_levels_ksp_type", "richardson")
+        o.setValue(prefix + "mg_levels_ksp_max_it", "1")
+        o.setValue(prefix + "mg_levels_pc_type", "asm")
+    pc = ku.getPC()
+    pc.setType("mg")
+    pc.setFromOptions()
+    levels = pmg.Levels(pc, s.space)
+    levels.update(A if COARSE == "augmented" else A0)
+    if star:
+        smooth = pc.getMGSmoother(1).getPC()
+        smooth.setType("asm")
+        stars = vertex_stars(s)
+        smooth.setASMLocalSubdomains(len(stars), stars)
+        smooth.setASMOverlap(0)
+        smooth.setASMType(PETSc.PC.ASMType.BASIC)
+        smooth.setFromOptions()
+    if KEEP != "keep":
+        for name in list(o.getAll()):
+            if name.startswith(prefix):
+                o.delValue(name)
+
+
 def solve(s, op, fu, fp, gamma_over_mu, upc):
     """GMRES iterations and seconds of the (augmented) system with the displacement block by `upc`."""
     c = s.couplings[0]
@@ -136,7 +177,7 @@ def solve(s, op, fu, fp, gamma_over_mu, upc):
     pc.setType("fieldsplit")
     pc.setFieldSplitIS(("u", s.is_u), ("p", s.is_p))
     pc.setFieldSplitType(PETSc.PC.CompositeType.SCHUR)
-    pc.setFieldSplitSchurFactType(PETSc.PC.FieldSplitSchurFactType.LOWER)
+    pc.setFieldSplitSchurFactType(getattr(PETSc.PC.FieldSplitSchurFactType, FACT.upper()))
     pc.setFieldSplitSchurPreType(PETSc.PC.FieldSplitSchurPreType.USER, Sp)
     s.is_u.compose("nearnullspace", op.nullspace)
     ksp.setUp()
@@ -144,14 +185,23 @@ def solve(s, op, fu, fp, gamma_over_mu, upc):
     ku.setType("preonly")
     if upc == "star":
         star_and_gamg(ku.getPC(), s, A, op)
+    elif upc in ("pmg", "pmg_star"):
+        p_multigrid(ku, s, A, op.uu.mat, star=upc == "pmg_star")
     else:
         ku.getPC().setType(upc)
     kp.setType("preonly")
     kp.getPC().setType("jacobi")
     x = b.duplicate()
     t0 = time.perf_counter()
+    ksp.setUp()
+    ksp.getPC().setUpOnBlocks()
+    t1 = time.perf_counter()
     ksp.solve(b, x)
-    return ksp.getIterationNumber(), ksp.getConvergedReason(), time.perf_counter() - t0
+    t2 = time.perf_counter()
+    if VIEW:
+        ku.view()
+    print(f"  (A's nonzeros {A.getInfo()['nz_used']:.0f}; set-up {t1 - t0:.3f} s, solve {t2 - t1:.3f} s)")
+    return ksp.getIterationNumber(), ksp.getConvergedReason(), t2 - t0
 
 
 def main():
@@ -161,9 +211,19 @@ def main():
         i = args.index("-gammas")
         gammas = args[i + 1]
         del args[i:i + 2]
+    upcs = ("gamg", "lu", "star")
+    if "-upcs" in args:
+        i = args.index("-upcs")
+        upcs = args[i + 1].split(",")
+        del args[i:i + 2]
+    for name in ("fact", "coarse", "keep"):
+        if "-" + name in args:
+            i = args.index("-" + name)
+            globals()[name.upper()] = args[i + 1]
+            del args[i:i + 2]
     s, op, fu, fp = linear_system(args[0], args[1], args[2:])
     print(f"{fu.getSize()} displacement and {fp.getSize()} pressure unknowns")
-    for upc in ("gamg", "lu", "star"):
+    for upc in upcs:
         for gm in [0.0] + [float(v) for v in gammas.split(",")]:
             its, reason, t = solve(s, op, fu, fp, gm, upc)
             print(f"gamma/mu = {gm:g}, displacement block by {upc}: {its} GMRES iterations (reason {reason}), "
