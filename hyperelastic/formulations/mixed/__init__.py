@@ -99,8 +99,8 @@ class Mixed(Formulation):
                 "material: the preconditioner is built from the system with γ BᵀW⁻¹B added to its displacement "
                 "block (W the lumped pressure mass; the solution unchanged), the Schur complement preconditioned by "
                 "−(1/(μ + γ) + 1/κ) W, the upper factorization, GMRES preconditioned on the right: Krylov iterations "
-                "that do not grow on thin walls (the rubber bracket at G = 3: 48 → 21 per Newton step, 0.7× the "
-                "time; on compact parts fewer iterations but more time, Cook's membrane at 9k tets 1.4×). Needs "
+                "that do not grow on thin walls (the rubber bracket at G = 3: 48 → 21 per Newton step, 0.85–0.91× "
+                "the time; on compact parts fewer iterations but more time, Cook's membrane at 9k tets 1.4×). Needs "
                 "p-multigrid in the displacement split (the default); 0: off", "0"),)
     auto_rank = 10
     point_fields = ("pressure",)

@@ -151,12 +151,13 @@ class Augmented:
     Nothing wider than the tangent's pattern is assembled: A + B^T Gamma B is a MATCOMPOSITE of K_uu and the MATNORMAL
     of Gamma^(1/2) B (its diagonal for the smoother's Jacobi), the coupling a MATCOMPOSITE of products; only
     p-multigrid's P1 operator gets the term assembled (coarse_term, added to P^T K_uu P). The displacement split's
-    p-multigrid holds under it: the rubber bracket's first system 50 -> 11 GMRES iterations at gamma = 10 mu
-    (BENCHMARKS.md, where GAMG on the assembled augmented block did not: 64 -> 68)."""
+    p-multigrid holds under it where its P1 operator is solved well (three Chebyshev iterations of its GAMG: solver.py
+    AUGMENTED_DEFAULTS): the rubber bracket 48 -> 21 GMRES iterations per Newton step at gamma = 3 mu (BENCHMARKS.md;
+    GAMG on the assembled augmented block did not hold: 64 -> 68)."""
 
     def __init__(self, nest, factor):
         s = nest.system
-        self.nest, self.factor = nest, factor
+        self.nest = nest
         gamma, S = s.augmentation(factor)
         self.gamma, self.root = gamma, gamma.copy()
         self.root.sqrtabs()

@@ -210,15 +210,15 @@ class MixedSystem(System):
         gamma B^T W^-1 B for one material), and the Schur complement's preconditioner S_i = -sum_c (1 / (mu_c +
         gamma_c) + 1 / kappa_c) m_ci. The dead pressures: Gamma 0 (not augmented) and S their rows' c."""
         ps = self.pspace
+        lumped = [np.einsum("cq,qb->cb", c.w, c.M).ravel() for c in self.couplings]      # m_ci, per cell corner
         sums = []
         for weight in ("mass", "gamma", "schur"):
             lp = np.zeros(ps.nlp)
-            for c in self.couplings:
+            for c, m in zip(self.couplings, lumped):
                 gamma = factor * c.shear
                 inv_kappa = 0.0 if math.isinf(c.law.kappa) else 1.0 / c.law.kappa
                 scale = {"mass": 1.0, "gamma": gamma, "schur": -(1.0 / (c.shear + gamma) + inv_kappa)}[weight]
-                lp += np.bincount(c.corners.ravel(), (scale * np.einsum("cq,qb->cb", c.w, c.M)).ravel(),
-                                  minlength=ps.nlp)
+                lp += np.bincount(c.corners.ravel(), scale * m, minlength=ps.nlp)
             G = ps.global_vec()
             ps.add_to_global(lp, G)
             sums.append(G)
