@@ -4,7 +4,8 @@ by COO)."""
 import numpy as np
 from petsc4py import PETSc
 
-from ...solving import jacobians
+from ...element.reference import EDGES
+from ...solving import jacobians, pmg
 from ...solving.jacobians import effect_patterns, rigid_body_nullspace
 from .system import coo_aij, coupling_patterns
 
@@ -149,15 +150,15 @@ class Augmented:
     is P^-1 T = (T^-1 P)^-1 with T^-1 P = [[A + B^T Gamma B, B^T + B^T Gamma (C - S)], [0, S]]: PCFIELDSPLIT's upper
     Schur factorization of J with that preconditioning matrix, `mat` here (the Krylov method still multiplies by J).
     Nothing wider than the tangent's pattern is assembled: A + B^T Gamma B is a MATCOMPOSITE of K_uu and the MATNORMAL
-    of Gamma^(1/2) B (its diagonal for the smoother's Jacobi), the coupling a MATCOMPOSITE of products; only
-    p-multigrid's P1 operator gets the term assembled (coarse_term, added to P^T K_uu P). The displacement split's
-    p-multigrid holds under it where its P1 operator is solved well (three Chebyshev iterations of its GAMG: solver.py
-    AUGMENTED_DEFAULTS): the rubber bracket 48 -> 21 GMRES iterations per Newton step at gamma = 3 mu (BENCHMARKS.md;
+    of Gamma^(1/2) B (its diagonal for the smoother's Jacobi), the coupling a MATCOMPOSITE of products; p-multigrid's
+    P1 operator gets the term cell by cell (coarse_term, added to P^T K_uu P). The displacement split's p-multigrid
+    holds under it where its P1 operator is solved well (four Chebyshev iterations of its GAMG: solver.py
+    AUGMENTED_DEFAULTS): the rubber bracket 48 -> 22 GMRES iterations per Newton step at gamma = 3 mu (BENCHMARKS.md;
     GAMG on the assembled augmented block did not hold: 64 -> 68)."""
 
     def __init__(self, nest, factor):
         s = nest.system
-        self.nest = nest
+        self.nest, self.factor = nest, factor
         gamma, S = s.augmentation(factor)
         self.gamma, self.root = gamma, gamma.copy()
         self.root.sqrtabs()
@@ -181,7 +182,7 @@ class Augmented:
         self.mat = PETSc.Mat().createNest([[self.uu, self.up], [nest.K_pu, nest.K_pp]], isrows=fields,
                                           iscols=fields, comm=comm)
         self.uu.setNearNullSpace(nest.nullspace)
-        self.GP = self.coarse = None
+        self.p0 = None             # (the P1 term, its P_c, the cells' held dofs: coarse_term)
 
     def _refresh(self):
         SAME = PETSc.Mat.Structure.SAME_NONZERO_PATTERN
@@ -198,8 +199,46 @@ class Augmented:
             A.assemble()
 
     def coarse_term(self, P):
-        """(Gamma^(1/2) B P)^T (Gamma^(1/2) B P): the augmentation of p-multigrid's P1 operator P^T K_uu P (the
-        values of this state; the same pattern each time)."""
-        self.GP = self.G.matMult(P, result=self.GP)
-        self.coarse = self.GP.transposeMatMult(self.GP, result=self.coarse)
-        return self.coarse
+        """The augmentation of p-multigrid's P1 operator P^T K_uu P, cell by cell: sum_c gamma_c / |c| (P_c^T b_c)
+        (P_c^T b_c)^T, b_c = sum_i K_up[c][:, i] (the cell's rate of volume change: its grad-div with the divergence
+        projected on constants; P_c the cell's rows of P), the held dofs' entries zero. Its pattern is P1's own (the
+        Galerkin product (Gamma^(1/2) B P)^T (Gamma^(1/2) B P) couples each vertex to its 2-ring: denser than the P2
+        operator at 9k tets, and Cook's membrane 1.38x slower with it), and the coarse correction holds as well (the
+        bracket 20.9 GMRES per Newton step with the Galerkin product, 22.0 with this; BENCHMARKS.md). The pattern is
+        made at the first call (P's layout), the values at each."""
+        s = self.nest.system
+        sp = s.space
+        if self.p0 is None:
+            Pc = np.zeros((30, 12))
+            for v in range(4):
+                Pc[3 * v:3 * v + 3, 3 * v:3 * v + 3] = np.eye(3)
+            for e, (a, b) in enumerate(EDGES):
+                for end in (a, b):
+                    Pc[3 * (4 + e):3 * (4 + e) + 3, 3 * end:3 * end + 3] = 0.5 * np.eye(3)
+            _, num = pmg.coarse_numbers(sp)
+            cells = sp.cells.astype(np.int64)
+            idx = []
+            for c in s.couplings:
+                v = num[cells[c.idx][:, :4]]
+                idx.append((3 * v[:, :, None] + np.arange(3)).reshape(-1, 12))
+            idx = np.concatenate(idx)
+            rows = np.repeat(idx, 12, axis=1).ravel()
+            cols = np.tile(idx, (1, 12)).ravel()
+            n = P.getLocalSize()[1]
+            A = PETSc.Mat().create(comm=sp.comm)
+            A.setSizes(((n, PETSc.DETERMINE), (n, PETSc.DETERMINE)), bsize=3)
+            A.setType(PETSc.Mat.Type.AIJ)
+            A.setPreallocationCOO(rows.astype(PETSc.IntType), cols.astype(PETSc.IntType))
+            cd = (3 * cells[:, :, None] + np.arange(3)).reshape(-1, 30)
+            self.p0 = (A, Pc, [s.cmask[cd[c.idx]] for c in s.couplings])
+        A, Pc, held = self.p0
+        vals = []
+        for c, h in zip(s.couplings, held):
+            b = c.up.sum(axis=2)
+            b[h] = 0.0
+            b1 = b @ Pc
+            g = self.factor * c.shear / c.w.sum(axis=1)
+            vals.append((g[:, None, None] * b1[:, :, None] * b1[:, None, :]).ravel())
+        A.setValuesCOO(np.concatenate(vals), addv=PETSc.InsertMode.INSERT_VALUES)
+        A.assemble()
+        return A

@@ -1,7 +1,9 @@
-"""How the mixed formulation is solved (solving/solver.py's SolverPlan, for the saddle point): GMRES with a
-lower block-triangular Schur-complement field split — p-multigrid on the displacement block (its P1 level by GAMG with
-the rigid-body near null space), Jacobi on the pressure mass matrix scaled by -(1/mu + 1/kappa) as the Schur
-complement's preconditioner — a line search on the Lagrangian's slope along the Newton step, the displacement split's
+"""How the mixed formulation is solved (solving/solver.py's SolverPlan, for the saddle point): GMRES, preconditioned on
+the right, with the augmented Lagrangian's upper block-triangular Schur-complement field split (operators.Augmented,
+gamma = 3 mu) — p-multigrid on the augmented displacement block (its P1 level, the term added cell by cell, by four
+Chebyshev iterations of GAMG with the rigid-body near null space), the lumped pressure mass scaled by -(1/(mu + gamma)
++ 1/kappa) as the Schur complement's preconditioner; with -mixed_augment 0 (or GAMG in the displacement split) the
+lower factorization with the consistent pressure mass scaled by -(1/mu + 1/kappa) — a line search on the Lagrangian's slope along the Newton step, the displacement split's
 multigrid set-up kept across Newton and load steps, and a constant pressure's null space where the pressure is known
 only up to a constant."""
 import math
@@ -15,16 +17,20 @@ from ...solving.solver import MERITS, SolverPlan
 from .operators import MixedAssembled, MixedNest
 
 SPLIT_U = "fieldsplit_u_"        # the displacement split's options prefix
-AUGMENT = 0.0                    # gamma/mu of the augmented Lagrangian by default (augment_factor); 0: off
-# under the augmented Lagrangian (operators.Augmented): GMRES preconditioned on the right, so that it measures the
-# residual itself (on the left the preconditioned residual, T's gamma W^-1 scaling of the pressure rows in it, stayed
-# flat for 100 iterations at the first solve of the rubber bracket's second load step under its full load, and
-# GMRES broke down there), and p-multigrid's P1 operator (the augmented one: with the term left out the thin bracket
-# kept 43 GMRES iterations per Newton step) solved by three Chebyshev iterations of its GAMG, not one V-cycle: GAMG
-# smooths the grad-div term poorly (one V-cycle: 40 per Newton step on the bracket at gamma = 3 mu, three: 24, an
-# exact LU: 23; BENCHMARKS.md)
+# gamma/mu of the augmented Lagrangian by default (augment_factor; operators.Augmented), 0: off. The rubber bracket (thin
+# walls) 48 -> 22 GMRES iterations per Newton step at 2e3 Pa and 68 -> 34 under its full load, Cook's membrane 27 -> 18,
+# Lame's cylinder 19-21 -> 11-12 at every kappa/mu, the rod's torsion 31 -> 17, the block 20 -> 13; the time 0.76-0.95x
+# (1.1-1.25x on Lame's 876 tets, where a solve takes 0.12 s). gamma = 2 mu: the full load 35, Cook 19.5; 5 mu: 41, 18.5
+# (BENCHMARKS.md, 2026-11-27 tenth session)
+AUGMENT = 3.0
+# under the augmented Lagrangian: GMRES preconditioned on the right, so that it measures the residual itself (on the
+# left the preconditioned residual, T's gamma W^-1 scaling of the pressure rows in it, stayed flat for 100 iterations
+# at the first solve of the rubber bracket's second load step under its full load, and GMRES broke down there), and
+# p-multigrid's P1 operator (with the term: without it the thin bracket kept 43 GMRES iterations per Newton step)
+# solved by four Chebyshev iterations of its GAMG, not one V-cycle: GAMG smooths the grad-div term poorly (the bracket
+# under its full load: one V-cycle 66 per Newton step, two Chebyshev iterations 46, three 37, four 34)
 AUGMENTED_DEFAULTS = (("ksp_pc_side", "right"), (SPLIT_U + "mg_coarse_ksp_type", "chebyshev"),
-                      (SPLIT_U + "mg_coarse_ksp_max_it", "3"), (SPLIT_U + "mg_coarse_ksp_norm_type", "none"))
+                      (SPLIT_U + "mg_coarse_ksp_max_it", "4"), (SPLIT_U + "mg_coarse_ksp_norm_type", "none"))
 
 # the mixed formulation's linear solver: GMRES on the saddle point, a lower block-triangular Schur-complement
 # factorization (one displacement solve per application, where the full one takes two: with p-multigrid fewer GMRES
