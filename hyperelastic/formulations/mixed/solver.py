@@ -113,7 +113,8 @@ def augment_factor(space):
     """gamma/mu of the augmented Lagrangian preconditioner (operators.Augmented; -mixed_augment, AUGMENT by
     default), or 0 where it does not apply: it needs the field split (no -snes_mf or -snes_mf_operator) with
     p-multigrid in its displacement split (quadratic tetrahedra; -fieldsplit_u_pc_type gamg smooths badly on the
-    augmented block: BENCHMARKS.md) and the upper Schur factorization with its own Schur preconditioner. Where the
+    augmented block: BENCHMARKS.md) smoothed by Jacobi, and the upper Schur factorization with its own Schur
+    preconditioner. Where the
     options choose otherwise (-pc_fieldsplit_schur_fact_type lower, say) it is off; asked for by -mixed_augment
     there, one line."""
     opts = PETSc.Options()
@@ -132,6 +133,10 @@ def augment_factor(space):
         why = "the field split (-pc_type fieldsplit)"
     elif opts.getString(SPLIT_U + "pc_type", "mg") != "mg" or not pmg.applies(space):
         why = f"p-multigrid in the displacement split (-{SPLIT_U}pc_type mg, quadratic tetrahedra)"
+    elif any(opts.getString(SPLIT_U + k, "jacobi") not in pmg.SBAIJ_SMOOTHERS
+             for k in ("mg_levels_pc_type", "mg_levels_1_pc_type")):
+        # (its P2 block is a sum of matrices PETSc multiplies and takes the diagonal of, no SOR or ILU)
+        why = f"a P2-level smoother that only multiplies (-{SPLIT_U}mg_levels_pc_type jacobi or none)"
     elif opts.getString("pc_fieldsplit_schur_fact_type", "upper") != "upper":
         why = "the upper Schur factorization (-pc_fieldsplit_schur_fact_type upper)"
     elif opts.hasName("pc_fieldsplit_schur_precondition"):
