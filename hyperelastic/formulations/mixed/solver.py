@@ -141,6 +141,8 @@ def augment_factor(space):
         why = "the upper Schur factorization (-pc_fieldsplit_schur_fact_type upper)"
     elif opts.hasName("pc_fieldsplit_schur_precondition"):
         why = "its own Schur preconditioner (no -pc_fieldsplit_schur_precondition)"
+    elif opts.getBool("pc_fieldsplit_diag_use_amat", False):
+        why = "the split smoothed with the augmented block (no -pc_fieldsplit_diag_use_amat)"
     if g > 0 and why is not None:
         if given:
             raise UserError(f"option -mixed_augment {g:g}: the augmented Lagrangian needs {why}; -mixed_augment 0 "
