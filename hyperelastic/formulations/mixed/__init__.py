@@ -100,9 +100,9 @@ class Mixed(Formulation):
                 "block (W the lumped pressure mass; the solution unchanged; on p-multigrid's P1 level the cells' "
                 "grad-div), the Schur complement preconditioned by −(1/(μ + γ) + 1/κ) W, the upper factorization, "
                 "GMRES preconditioned on the right: Krylov iterations that do not grow on thin walls (the rubber "
-                "bracket 48 → 22 per Newton step, Cook's membrane 27 → 18, 0.76–0.95× the time). Needs p-multigrid "
-                "in the displacement split (the default; with `-fieldsplit_u_pc_type gamg` or another Schur "
-                "factorization it is off). 0: the scaled pressure mass matrix and the lower factorization", "3"),)
+                "bracket 48 → 22 per Newton step in 0.76–0.88× the time, Cook's membrane 27 → 18 in 0.95–1.03×). "
+                "Needs p-multigrid in the displacement split (the default; with `-fieldsplit_u_pc_type gamg` or "
+                "another Schur factorization it is off). 0: the scaled pressure mass matrix and the lower factorization", "3"),)
     auto_rank = 10
     point_fields = ("pressure",)
 

@@ -19,8 +19,8 @@ from .operators import MixedAssembled, MixedNest
 SPLIT_U = "fieldsplit_u_"        # the displacement split's options prefix
 # gamma/mu of the augmented Lagrangian by default (augment_factor; operators.Augmented), 0: off. The rubber bracket (thin
 # walls) 48 -> 22 GMRES iterations per Newton step at 2e3 Pa and 68 -> 34 under its full load, Cook's membrane 27 -> 18,
-# Lame's cylinder 19-21 -> 11-12 at every kappa/mu, the rod's torsion 31 -> 17, the block 20 -> 13; the time 0.76-0.95x
-# (1.1-1.25x on Lame's 876 tets, where a solve takes 0.12 s). gamma = 2 mu: the full load 35, Cook 19.5; 5 mu: 41, 18.5
+# Lame's cylinder 19-21 -> 11-12 at every kappa/mu, the rod's torsion 31 -> 17, the block 20 -> 13; the time 0.76-0.88x
+# on the bracket, 0.95-1.03x on Cook (9k-25k tets, 1 and 2 ranks), 1.1-1.25x on Lame's 876 tets (a 0.12 s solve). gamma = 2 mu: the full load 35, Cook 19.5; 5 mu: 41, 18.5
 # (BENCHMARKS.md, 2026-11-27 tenth session)
 AUGMENT = 3.0
 # under the augmented Lagrangian: GMRES preconditioned on the right, so that it measures the residual itself (on the
