@@ -102,7 +102,8 @@ class Mixed(Formulation):
                 "GMRES preconditioned on the right: Krylov iterations that do not grow on thin walls (the rubber "
                 "bracket 48 → 22 per Newton step in 0.76–0.88× the time, Cook's membrane 27 → 18 in 0.95–1.03×). "
                 "Needs p-multigrid in the displacement split (the default; with `-fieldsplit_u_pc_type gamg` or "
-                "another Schur factorization it is off). 0: the scaled pressure mass matrix and the lower factorization", "3"),)
+                "another Schur factorization it is off). 0: the scaled pressure mass matrix and the lower "
+                "factorization", "3"),)
     auto_rank = 10
     point_fields = ("pressure",)
 

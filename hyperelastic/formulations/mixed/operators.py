@@ -4,6 +4,7 @@ by COO)."""
 import numpy as np
 from petsc4py import PETSc
 
+from ...discretization import aij
 from ...element.reference import EDGES
 from ...solving import jacobians, pmg
 from ...solving.jacobians import effect_patterns, rigid_body_nullspace
@@ -204,41 +205,37 @@ class Augmented:
         projected on constants; P_c the cell's rows of P), the held dofs' entries zero. Its pattern is P1's own (the
         Galerkin product (Gamma^(1/2) B P)^T (Gamma^(1/2) B P) couples each vertex to its 2-ring: denser than the P2
         operator at 9k tets, and Cook's membrane 1.38x slower with it), and the coarse correction holds as well (the
-        bracket 20.9 GMRES per Newton step with the Galerkin product, 22.0 with this; BENCHMARKS.md). The pattern is
-        made at the first call (P's layout), the values at each."""
+        bracket 20.9 GMRES per Newton step with the Galerkin product, 22.0 with this; BENCHMARKS.md). Filled as
+        p-multigrid's own P1 operator is (pmg.VertexSpace, aij.CellFill: the layout of P's columns), set up at the
+        first call; P is the interpolation on the same vertices."""
         s = self.nest.system
         sp = s.space
         if self.p0 is None:
-            Pc = np.zeros((30, 12))
+            Pc = np.zeros((30, 12))                       # (a cell's rows of P: a vertex itself, an edge node halves)
             for v in range(4):
                 Pc[3 * v:3 * v + 3, 3 * v:3 * v + 3] = np.eye(3)
             for e, (a, b) in enumerate(EDGES):
                 for end in (a, b):
                     Pc[3 * (4 + e):3 * (4 + e) + 3, 3 * end:3 * end + 3] = 0.5 * np.eye(3)
-            _, num = pmg.coarse_numbers(sp)
-            cells = sp.cells.astype(np.int64)
-            idx = []
-            for c in s.couplings:
-                v = num[cells[c.idx][:, :4]]
-                idx.append((3 * v[:, :, None] + np.arange(3)).reshape(-1, 12))
-            idx = np.concatenate(idx)
-            rows = np.repeat(idx, 12, axis=1).ravel()
-            cols = np.tile(idx, (1, 12)).ravel()
-            n = P.getLocalSize()[1]
-            A = PETSc.Mat().create(comm=sp.comm)
-            A.setSizes(((n, PETSc.DETERMINE), (n, PETSc.DETERMINE)), bsize=3)
-            A.setType(PETSc.Mat.Type.AIJ)
-            A.setPreallocationCOO(rows.astype(PETSc.IntType), cols.astype(PETSc.IntType))
-            cd = (3 * cells[:, :, None] + np.arange(3)).reshape(-1, 30)
-            self.p0 = (A, Pc, [s.cmask[cd[c.idx]] for c in s.couplings])
-        A, Pc, held = self.p0
-        vals = []
+            vs = pmg.VertexSpace(sp, pmg.coarse_numbers(sp))
+            idx = np.concatenate([c.idx for c in s.couplings])
+            chunk = self.nest.uu.CHUNK
+            fill = aij.CellFill(vs, np.ascontiguousarray(vs.cells[idx]), chunk)
+            cd = (3 * sp.cells[:, :, None].astype(np.int64) + np.arange(3)).reshape(-1, 30)
+            self.p0 = (fill, Pc, [s.cmask[cd[c.idx]] for c in s.couplings], chunk)
+        fill, Pc, held, chunk = self.p0
+        blocks = []
         for c, h in zip(s.couplings, held):
             b = c.up.sum(axis=2)
             b[h] = 0.0
             b1 = b @ Pc
             g = self.factor * c.shear / c.w.sum(axis=1)
-            vals.append((g[:, None, None] * b1[:, :, None] * b1[:, None, :]).ravel())
-        A.setValuesCOO(np.concatenate(vals), addv=PETSc.InsertMode.INSERT_VALUES)
-        A.assemble()
-        return A
+            blocks.append(g[:, None, None] * b1[:, :, None] * b1[:, None, :])
+        blocks = np.concatenate(blocks)
+        fill.begin()
+        for lo in range(0, len(blocks), chunk):
+            hi = min(lo + chunk, len(blocks))
+            fill.add(np.ascontiguousarray(blocks[lo:hi]), lo, hi)
+        fill.finish()
+        fill.A.assemble()
+        return fill.A

@@ -3,9 +3,9 @@ the right, with the augmented Lagrangian's upper block-triangular Schur-compleme
 gamma = 3 mu) — p-multigrid on the augmented displacement block (its P1 level, the term added cell by cell, by four
 Chebyshev iterations of GAMG with the rigid-body near null space), the lumped pressure mass scaled by -(1/(mu + gamma)
 + 1/kappa) as the Schur complement's preconditioner; with -mixed_augment 0 (or GAMG in the displacement split) the
-lower factorization with the consistent pressure mass scaled by -(1/mu + 1/kappa) — a line search on the Lagrangian's slope along the Newton step, the displacement split's
-multigrid set-up kept across Newton and load steps, and a constant pressure's null space where the pressure is known
-only up to a constant."""
+lower factorization with the consistent pressure mass scaled by -(1/mu + 1/kappa) — a line search on the Lagrangian's
+slope along the Newton step, the displacement split's multigrid set-up kept across Newton and load steps, and a
+constant pressure's null space where the pressure is known only up to a constant."""
 import math
 
 from petsc4py import PETSc
@@ -17,11 +17,11 @@ from ...solving.solver import MERITS, SolverPlan
 from .operators import MixedAssembled, MixedNest
 
 SPLIT_U = "fieldsplit_u_"        # the displacement split's options prefix
-# gamma/mu of the augmented Lagrangian by default (augment_factor; operators.Augmented), 0: off. The rubber bracket (thin
-# walls) 48 -> 22 GMRES iterations per Newton step at 2e3 Pa and 68 -> 34 under its full load, Cook's membrane 27 -> 18,
-# Lame's cylinder 19-21 -> 11-12 at every kappa/mu, the rod's torsion 31 -> 17, the block 20 -> 13; the time 0.76-0.88x
-# on the bracket, 0.95-1.03x on Cook (9k-25k tets, 1 and 2 ranks), 1.1-1.25x on Lame's 876 tets (a 0.12 s solve). gamma = 2 mu: the full load 35, Cook 19.5; 5 mu: 41, 18.5
-# (BENCHMARKS.md, 2026-11-27 tenth session)
+# gamma/mu of the augmented Lagrangian by default (augment_factor; operators.Augmented), 0: off. The rubber bracket
+# (thin walls) 48 -> 22 GMRES iterations per Newton step at 2e3 Pa and 68 -> 34 under its full load, Cook's membrane
+# 27 -> 18, Lame's cylinder 19-21 -> 11-12 at every kappa/mu, the rod's torsion 31 -> 17, the block 20 -> 13; the time
+# 0.76-0.88x on the bracket, 0.95-1.03x on Cook (9k-25k tets, 1 and 2 ranks), 1.1-1.25x on Lame's 876 tets (a 0.12 s
+# solve). gamma = 2 mu: the full load 35, Cook 19.5; 5 mu: 41, 18.5 (BENCHMARKS.md, 2026-11-27 tenth session)
 AUGMENT = 3.0
 # under the augmented Lagrangian: GMRES preconditioned on the right, so that it measures the residual itself (on the
 # left the preconditioned residual, T's gamma W^-1 scaling of the pressure rows in it, stayed flat for 100 iterations
@@ -114,9 +114,8 @@ def augment_factor(space):
     default), or 0 where it does not apply: it needs the field split (no -snes_mf or -snes_mf_operator) with
     p-multigrid in its displacement split (quadratic tetrahedra; -fieldsplit_u_pc_type gamg smooths badly on the
     augmented block: BENCHMARKS.md) smoothed by Jacobi, and the upper Schur factorization with its own Schur
-    preconditioner. Where the
-    options choose otherwise (-pc_fieldsplit_schur_fact_type lower, say) it is off; asked for by -mixed_augment
-    there, one line."""
+    preconditioner. Where the options choose otherwise (-pc_fieldsplit_schur_fact_type lower, say) it is off; asked
+    for by -mixed_augment there, one line."""
     opts = PETSc.Options()
     given = opts.hasName("mixed_augment")
     try:
