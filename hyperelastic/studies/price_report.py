@@ -55,52 +55,13 @@ def summarize(search):
 def _first_paragraph(search, s):
     b, w, tgt = s["best"], search.w.spec, search.target
     if b is None:
-        why = f" The search stopped early: {search.stopped}." if search.stopped else ""
-        why += "".join(f" Order {o} was left: {w}." for o, w in search.skipped.items())
-        done = sum(r["outcome"] == "finished" for r in search.rows)
-        prov = [r for r in search.rows if "quantity" in r and r.get("est_total") is not None and r["est_total"] <= tgt]
-        if prov:         # an answer on the element's expected order, where a third mesh level was out of reach
-            p = min(prov, key=lambda r: r["solve_s"])
-            return (f"**No setting was confirmed to meet {tgt:.3g} (relative) in {w} within the search's limits "
-                    f"(--budget {search.budget:g} s, --max-runs {search.max_runs}, --max-level {search.max_level}): "
-                    "an estimate is confirmed by three mesh levels of its order. On the order the element is expected "
-                    f"to converge at, the cheapest run whose estimate meets it is {p['setting'].label()} "
-                    f"({p['tets']:,} tets): {p['solve_s']:.3g} s of solve time, {w} = {p['quantity']:.6g}, "
-                    f"estimated error {p['est_total']:.2g} (unconfirmed).**" + why)
-        return (f"**No setting of the search met {tgt:.3g} (relative) in {w} within its limits (--budget "
-                f"{search.budget:g} s, --max-runs {search.max_runs}, --max-level {search.max_level}); the runs "
-                f"below ({done} of {len(search.rows)} finished) and their estimated errors show how far each got.**"
-                + why)
+        return _no_answer(search, w, tgt)
     st: Setting = b["setting"]
     words = [f"**For {w} within {tgt:.3g} (relative), the cheapest setting found is {st.label()} "
              f"({b['tets']:,} tets): {b['solve_s']:.3g} s of solve time, {w} = {b['quantity']:.6g}, estimated error "
              f"{b['est_total']:.2g} (space {fmt(b['est_space'], '.2g')}, time {fmt(b['est_time'], '.2g')}, solver "
              f"{fmt(b['est_solver'], '.2g')})."]
-    floor = s["short"]
-    if s["defaults"] and s["defaults"][0] == "measured":
-        _, d, c = s["defaults"]
-        words.append(f"The defaults refined until they meet it ({d.label()}) cost {c:.3g} s (measured): "
-                     f"{c / b['solve_s']:.3g}x as much.")
-    elif s["defaults"] and s["defaults"][0] == "stopped":
-        _, d, c = s["defaults"]
-        more = f"; more than {c / b['solve_s']:.3g}x as much" if c > b["solve_s"] else ""
-        words.append(f"The defaults refined until they meet it ({d.label()}) cost more than {c:.3g} s: their run, "
-                     f"predicted under {DEFAULTS_CAP:g} s, was stopped there{more}.")
-    elif floor is not None and floor["solve_s"] > b["solve_s"]:
-        pred = f"; predicted to need {s['defaults'][1].label()}, {s['defaults'][2]:.3g} s" if s["defaults"] else ""
-        words.append(f"The defaults (P{floor['order']} refined) cost more than {floor['solve_s']:.3g} s: the "
-                     f"search's costliest P{floor['order']} run, {floor['setting'].label()}, still has an estimated "
-                     f"error of {floor['est_total']:.2g}{pred}; more than "
-                     f"{floor['solve_s'] / b['solve_s']:.3g}x as much.")
-    elif s["defaults"]:
-        _, d, c = s["defaults"]
-        words.append(f"The defaults refined until they meet it ({d.label()}) would cost {c:.3g} s (predicted): "
-                     f"{c / b['solve_s']:.3g}x as much.")
-    else:
-        d = Setting(1 if 1 in search.orders else search.orders[0], 0, 0, search.integrator0, 1)
-        parts = search.estimate(d, s["models"])
-        tm = f" (time alone {parts[1] / s['scale']:.2g})" if search.dynamic and parts[1] is not None else ""
-        words.append(f"The defaults ({d.label()} refined) meet it on no mesh within the limits{tm}.")
+    words.append(_defaults_sentence(search, s, b))
     for o, (how, x) in s["others"].items():
         if o in search.skipped:
             words.append(f"P{o} was left after its first run: {search.skipped[o]}.")
@@ -115,6 +76,53 @@ def _first_paragraph(search, s):
             words.append(f"P{o} meets it on no mesh within the limits (--max-level {search.max_level}, "
                          f"{search.max_tets:.3g} tets), as far as its runs show.")
     return " ".join(words) + "**"
+
+
+def _no_answer(search, w, tgt):
+    """The first paragraph where no setting was confirmed to meet the target."""
+    why = f" The search stopped early: {search.stopped}." if search.stopped else ""
+    why += "".join(f" Order {o} was left: {w}." for o, w in search.skipped.items())
+    done = sum(r["outcome"] == "finished" for r in search.rows)
+    prov = [r for r in search.rows if "quantity" in r and r.get("est_total") is not None and r["est_total"] <= tgt]
+    if prov:         # an answer on the element's expected order, where a third mesh level was out of reach
+        p = min(prov, key=lambda r: r["solve_s"])
+        return (f"**No setting was confirmed to meet {tgt:.3g} (relative) in {w} within the search's limits "
+                f"(--budget {search.budget:g} s, --max-runs {search.max_runs}, --max-level {search.max_level}): "
+                "an estimate is confirmed by three mesh levels of its order. On the order the element is expected "
+                f"to converge at, the cheapest run whose estimate meets it is {p['setting'].label()} "
+                f"({p['tets']:,} tets): {p['solve_s']:.3g} s of solve time, {w} = {p['quantity']:.6g}, "
+                f"estimated error {p['est_total']:.2g} (unconfirmed).**" + why)
+    return (f"**No setting of the search met {tgt:.3g} (relative) in {w} within its limits (--budget "
+            f"{search.budget:g} s, --max-runs {search.max_runs}, --max-level {search.max_level}); the runs "
+            f"below ({done} of {len(search.rows)} finished) and their estimated errors show how far each got.**"
+            + why)
+
+
+def _defaults_sentence(search, s, b):
+    """What the defaults (the lowest order refined, PETSc's tolerances) cost against the answer b."""
+    floor = s["short"]
+    if s["defaults"] and s["defaults"][0] == "measured":
+        _, d, c = s["defaults"]
+        return (f"The defaults refined until they meet it ({d.label()}) cost {c:.3g} s (measured): "
+                f"{c / b['solve_s']:.3g}x as much.")
+    if s["defaults"] and s["defaults"][0] == "stopped":
+        _, d, c = s["defaults"]
+        more = f"; more than {c / b['solve_s']:.3g}x as much" if c > b["solve_s"] else ""
+        return (f"The defaults refined until they meet it ({d.label()}) cost more than {c:.3g} s: their run, "
+                f"predicted under {DEFAULTS_CAP:g} s, was stopped there{more}.")
+    if floor is not None and floor["solve_s"] > b["solve_s"]:
+        pred = f"; predicted to need {s['defaults'][1].label()}, {s['defaults'][2]:.3g} s" if s["defaults"] else ""
+        return (f"The defaults (P{floor['order']} refined) cost more than {floor['solve_s']:.3g} s: the "
+                f"search's costliest P{floor['order']} run, {floor['setting'].label()}, still has an estimated "
+                f"error of {floor['est_total']:.2g}{pred}; more than {floor['solve_s'] / b['solve_s']:.3g}x as much.")
+    if s["defaults"]:
+        _, d, c = s["defaults"]
+        return (f"The defaults refined until they meet it ({d.label()}) would cost {c:.3g} s (predicted): "
+                f"{c / b['solve_s']:.3g}x as much.")
+    d = Setting(1 if 1 in search.orders else search.orders[0], 0, 0, search.integrator0, 1)
+    parts = search.estimate(d, s["models"])
+    tm = f" (time alone {parts[1] / s['scale']:.2g})" if search.dynamic and parts[1] is not None else ""
+    return f"The defaults ({d.label()} refined) meet it on no mesh within the limits{tm}."
 
 
 def _models_lines(search, s):

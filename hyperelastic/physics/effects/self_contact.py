@@ -78,6 +78,30 @@ class SelfContact(NodeBlocks):
         # rest within dhat of each other (5 s -> 2 ms a call on 88 facets pressed together), stopping 0.9 of the way
         # to the first collision (its conservative rescaling)
         self.ccd = ip.AdditiveCCD()
+        faces = self._number_surface(tris)
+        self.obstacles = tuple(obstacles)
+        self.moving = any(o.motion is not None for o in self.obstacles)
+        offset = len(self.ids)                               # (obstacle vertices follow the surface's)
+        for o in self.obstacles:
+            faces = np.concatenate([faces, o.surface[1] + offset])
+            offset += len(o.surface[0])
+        self.fixed = self._obstacles_at(0.0)                     # the obstacles' vertices now (not unknowns)
+        X = self._V(sp.X)
+        self.mesh = ip.CollisionMesh(X, ip.edges(faces), faces)
+        self.set_kappa(self.kappa)
+        self.blocks = np.zeros((len(self.nodes), 3, 3))
+        self.coupling = None                                 # csr (3 n_own, 3 n_surface): the off-diagonal blocks
+        self.coupled = False                                 # some rank has coupling entries (collective)
+        self.start = self.last = X                          # the step's start; the last state reached from it
+        self.held_mesh = None                                # (the held triangles' collision mesh: hold)
+        self._cache = []                                     # [(V, its collision set)], the latest first
+        self._check_start(X)
+
+    def _number_surface(self, tris):
+        """The contact surface's numbering, the same on every rank: its vertices by input id (`ids`), this rank's
+        surface nodes (`nodes`, their surface ids `own_s`, owned-array dofs `own_cols`), the gathered rows and the
+        global dofs of the coupling's rows and columns; returns the surface's triangles in surface ids."""
+        sp = self.space
         ids = sp.orig[linear_triangles(tris)]                                      # input ids: rank-independent
         every = np.concatenate(self.mpi.allgather(ids)).reshape(-1, 3)
         every = every[np.lexsort(every.T[::-1])]
@@ -98,22 +122,11 @@ class SelfContact(NodeBlocks):
         self.surface_global = np.empty(len(self.ids), np.int64)
         self.surface_global[self.rows] = np.concatenate(self.mpi.allgather(own_global))
         self.global_rows = (3 * own_global[:, None] + np.arange(3)).ravel()
-        self.obstacles = tuple(obstacles)
-        self.moving = any(o.motion is not None for o in self.obstacles)
-        offset = len(self.ids)                               # (obstacle vertices follow the surface's)
-        for o in self.obstacles:
-            faces = np.concatenate([faces, o.surface[1] + offset])
-            offset += len(o.surface[0])
-        self.fixed = self._obstacles_at(0.0)                     # the obstacles' vertices now (not unknowns)
-        X = self._V(sp.X)
-        self.mesh = ip.CollisionMesh(X, ip.edges(faces), faces)
-        self.set_kappa(self.kappa)
-        self.blocks = np.zeros((len(self.nodes), 3, 3))
-        self.coupling = None                                 # csr (3 n_own, 3 n_surface): the off-diagonal blocks
-        self.coupled = False                                 # some rank has coupling entries (collective)
-        self.start = self.last = X                          # the step's start; the last state reached from it
-        self.held_mesh = None                                # (the held triangles' collision mesh: hold)
-        self._cache = []                                     # [(V, its collision set)], the latest first
+        return faces
+
+    def _check_start(self, X):
+        """One line where the start state is not free of intersections or of contact."""
+        ip = self.ip
         what = "option -contact_self" if not self.obstacles else "options -contact_faces and -obstacle mesh:FILE"
         if ip.has_intersections(self.mesh, X):
             raise UserError(f"{what}: the contact surface intersects itself or an obstacle at the start ("
