@@ -237,3 +237,16 @@ def test_c_headers_include_what_they_use_and_no_circle():
         for name in set(re.findall(r"\b[A-Za-z_]\w*\b", text)) & set(defined):
             if not defined[name] & visible and "MATERIAL" not in name:
                 raise AssertionError(f"{f} uses {name}, defined in {sorted(defined[name])}, which it does not include")
+
+
+def test_no_function_over_60_lines():
+    """Issue 48 item 7: every function and method of the package fits on a screen (60 lines with its docstring)."""
+    long = []
+    for d, _, files in os.walk(PKG):
+        for f in files:
+            if f.endswith(".py"):
+                path = os.path.join(d, f)
+                for n in ast.walk(ast.parse(open(path, encoding="utf-8").read())):
+                    if isinstance(n, (ast.FunctionDef, ast.AsyncFunctionDef)) and n.end_lineno - n.lineno >= 60:
+                        long.append(f"{os.path.relpath(path, PKG)}:{n.lineno} {n.name} ({n.end_lineno - n.lineno + 1})")
+    assert long == [], long
