@@ -99,6 +99,42 @@ def test_energy_decreases_along_newton_iterates(petsc):
     assert abs(drops[-1]) < 1e-12 * abs(energies[0] - energies[-1])   # resolved below E's rounding error
 
 
+def test_the_accepted_trial_energy_is_not_computed_again(petsc, monkeypatch):
+    """The line search's accepted trial is the next Newton iterate: its energy, computed for the search, is kept as
+    the next iteration's base energy instead of computed again. A quasi-static Neo-Hookean bend at full load in one
+    step (line search cuts, several Newton iterations): one energy evaluation per trial point plus the first
+    iterate's, and the iterates bit for bit those of a solve that recomputes every base energy."""
+    from hyperelastic.solving.solver import Solver
+    from hyperelastic.solving.system import System
+
+    def solve(keep):
+        if not keep:
+            monkeypatch.setattr(System, "_keep_trial", lambda self, X, E, mag: None)
+        m = make_model(petsc, "bend", [("material", "neohookean"), ("quasistatic", ""), ("dt", "1"),
+                                       ("final_time", "1"), ("snes_rtol", "1e-12")])
+        solver = Solver(m.system, "assembled", objective=True)
+        system = m.system
+        system.begin_step(1.0, 1.0, m.x0, m.v0)
+        calls, iterates = [], []
+        energy = system.energy
+        system.energy = lambda X: calls.append(1) or energy(X)
+        objective = system.objective
+        trials = []
+        system.objective = lambda X: trials.append(not system._at_base(X)) or objective(X)
+        solver.snes.setObjective(lambda snes, X: system.objective(X))
+        solver.snes.setMonitor(lambda snes, its, fnorm: iterates.append(snes.getSolution().getArray(readonly=True).copy()))
+        X = system.global_state(m.x0)
+        assert solver.solve(X) > 0
+        monkeypatch.undo()
+        return len(calls), sum(trials), solver.snes.getIterationNumber(), iterates
+
+    kept, trials, its, iterates = solve(True)
+    again, trials_again, its_again, iterates_again = solve(False)
+    assert its == its_again >= 4 and trials == trials_again
+    assert kept == trials + 1 and again == 2 * trials, (kept, again, trials)
+    assert all(np.array_equal(a, b) for a, b in zip(iterates, iterates_again)) and len(iterates) == len(iterates_again)
+
+
 def test_objective_difference_resolves_below_rounding(petsc):
     """At a converged state Z (R ~ 0), a small step d changes E by 1/2 d.J d, far below E's rounding
     error; the objective measured from Z still gives it to 1e-6 (Neo-Hookean: not a polynomial)."""
