@@ -200,14 +200,28 @@ void he_emass_apply(int64_t nc, int nn, int nq, const idx_t *cells, const double
 }
 
 /* vals (nc, 3nn, 3nn) += coef * M_ab I3 of each cell (the consistent mass blocks), in place. */
+#define HE_MAXQM 32 /* points of a mass rule whose products w_q N_a are tabulated per cell (degree 5: 14) */
 void he_emass_blocks(int64_t nc, int nn, int nq, const double *N, const double *w, double coef, double *vals) {
   const int n3 = 3 * nn;
   for (int64_t e = 0; e < nc; e++) {
     double *K = vals + (int64_t)n3 * n3 * e;
+    const double *we = w + (int64_t)nq * e;
+    if (nq <= HE_MAXQM) { /* the products w_q N_a once per cell, not once per (a, b): the same values, bit for bit */
+      double wN[HE_MAXQM][HE_MAXN];
+      for (int q = 0; q < nq; q++)
+        for (int a = 0; a < nn; a++) wN[q][a] = we[q] * N[nn * q + a];
+      for (int a = 0; a < nn; a++)
+        for (int b = 0; b < nn; b++) {
+          double m = 0;
+          for (int q = 0; q < nq; q++) m += wN[q][a] * N[nn * q + b];
+          for (int i = 0; i < 3; i++) K[n3 * (3 * a + i) + 3 * b + i] += coef * m;
+        }
+      continue;
+    }
     for (int a = 0; a < nn; a++)
       for (int b = 0; b < nn; b++) {
         double m = 0;
-        for (int q = 0; q < nq; q++) m += w[(int64_t)nq * e + q] * N[nn * q + a] * N[nn * q + b];
+        for (int q = 0; q < nq; q++) m += we[q] * N[nn * q + a] * N[nn * q + b];
         for (int i = 0; i < 3; i++) K[n3 * (3 * a + i) + 3 * b + i] += coef * m;
       }
   }

@@ -205,8 +205,10 @@ def _element_fields(k, x, lo, hi, names):
     """The fields of cells lo..hi-1 of ElementKernels k: at every quadrature point, then their weighted mean."""
     geo = k.geometry.geo[lo:hi]                                         # (n, nq, 10)
     nq = geo.shape[1]
-    G = np.einsum("cqmj,qam->cqaj", geo[:, :, :9].reshape(-1, nq, 3, 3), k.geometry.dN)
-    F = np.einsum("cai,cqaj->cqij", x.reshape(-1, 3)[k.cells[lo:hi]], G).reshape(-1, 3, 3)
+    # G_cqaj = sum_m dN_qam Jinv_cqmj and F_cqij = sum_a x_cai G_cqaj as batched matrix products (numpy's einsum
+    # loops: ~7x slower, 54 ms a frame at 10.5k P2 cells)
+    G = np.matmul(k.geometry.dN[None], geo[:, :, :9].reshape(-1, nq, 3, 3))
+    F = np.matmul(np.swapaxes(x.reshape(-1, 3)[k.cells[lo:hi]], 1, 2)[:, None], G).reshape(-1, 3, 3)
     w = geo[:, :, 9]
     point = _point_fields(F, k, tuple(n for n in names if n != AT_NODES) + (("stress",) if AT_NODES in names else ()))
     out = {}

@@ -19,6 +19,7 @@ import numpy as np
 from petsc4py import PETSc
 
 from ..discretization import aij, sbaij
+from ..physics.effects.base import cell_blocks
 
 
 def _sizes(space):
@@ -96,9 +97,7 @@ class Assembled:
         vals = self.vals
         n3 = self.n3
         cell = vals[:self.ncell * n3 * n3].reshape(-1, n3, n3)
-        cell.fill(0.0)
-        for e in self.cell_effects:
-            e.add_cell_blocks(cell)
+        cell_blocks(self.cell_effects, cell)
         for e, sl in self.other:
             e.coo_values(vals[sl])
         vals[self.diag_slice] = self.system.scale
@@ -164,9 +163,7 @@ class _CellFill:
 
     def _cell_blocks(self, vals, lo, hi):
         """vals = the cell effects' 12x12 blocks of cells lo..hi-1, constrained rows and columns zeroed."""
-        vals.fill(0.0)
-        for e in self.cell_effects:
-            e.add_cell_blocks(vals, lo, hi)
+        cell_blocks(self.cell_effects, vals, lo, hi)
         cc = self.constrained_cells
         cc = cc[np.searchsorted(cc, lo):np.searchsorted(cc, hi)] - lo
         if len(cc):                                               # constrained rows/columns: 0

@@ -6,6 +6,7 @@ from petsc4py import PETSc
 
 from ...discretization import aij
 from ...element.reference import EDGES
+from ...physics.effects.base import cell_blocks
 from ...solving import jacobians, pmg
 from ...solving.jacobians import effect_patterns, rigid_body_nullspace
 from .system import coo_aij, coupling_patterns
@@ -51,9 +52,7 @@ class MixedAssembled:
         s, n = self.system, self.nc
         v = self.vals
         uu = v[:n * 900].reshape(n, 30, 30)
-        uu[:] = 0.0
-        for e in self.cell_effects:
-            e.add_cell_blocks(uu)
+        cell_blocks(self.cell_effects, uu)
         o = n * 900
         for c in s.couplings:
             k = len(c.idx) * 120

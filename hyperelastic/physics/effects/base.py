@@ -89,6 +89,17 @@ class Spec:
         return [] if self.sets is None else list(self.sets(params))
 
 
+def cell_blocks(effects, vals, lo=0, hi=None):
+    """vals = the sum of the effects' blocks of cells lo..hi-1, in their order: the first writes (set_cell_blocks),
+    the others add; zero where there are none. The same values as adding them all to zeros."""
+    if not effects:
+        vals.fill(0.0)
+        return
+    effects[0].set_cell_blocks(vals, lo, hi)
+    for e in effects[1:]:
+        e.add_cell_blocks(vals, lo, hi)
+
+
 def timed(kind):
     """Decorator counting calls and wall time of an effect method (kind: 'evals' or 'applies')."""
     def deco(fn):
@@ -156,6 +167,12 @@ class Effect:
     def add_cell_blocks(self, vals, lo=0, hi=None):
         """vals (hi-lo, 3nn, 3nn) += this effect's blocks of cells lo..hi-1 (nn nodes per cell: 12x12 for P1,
         30x30 for P2), default all (only if cell_blocks)."""
+
+    def set_cell_blocks(self, vals, lo=0, hi=None):
+        """vals = this effect's blocks of cells lo..hi-1 (overwritten); an effect whose kernels can write its blocks
+        (elasticity) spares the zeroing."""
+        vals.fill(0.0)
+        self.add_cell_blocks(vals, lo, hi)
 
     def coo_pattern(self):
         """Extra COO entries (rows, cols) in local dof numbering, beyond the cell pattern."""

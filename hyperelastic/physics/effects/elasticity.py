@@ -87,6 +87,15 @@ class Elasticity(Effect):
         else:
             (self.k if whole else self.k.part(lo, hi)).tangent(self.x, vals, accumulate=True)
 
+    @timed("applies")
+    def set_cell_blocks(self, vals, lo=0, hi=None):
+        """vals (hi-lo, 3nn, 3nn) = the tangent blocks of cells lo..hi-1 (default: all), written by the kernels."""
+        whole = lo == 0 and hi in (None, self.k.nc)
+        if self.projection:
+            vals[...] = self.blocks if whole else self.blocks[lo:hi]
+        else:
+            (self.k if whole else self.k.part(lo, hi)).tangent(self.x, vals, accumulate=False)
+
     def energy(self, x, v):
         W, jmin, jmax, bad = self.k.energy(x)
         return {"elastic": W, "J_min": jmin, "J_max": jmax}
