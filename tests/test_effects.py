@@ -231,3 +231,31 @@ def test_new_materials_per_region(bimaterial, tmp_path):
                       "-output", tmp_path / "o.h5"])
     assert p.returncode == 2 and p.stderr.strip().splitlines() == [
         "hyperelastic: error: option -soft_C01: a constant of mooney_rivlin, not of region 'soft''s neohookean"]
+
+
+@pytest.mark.parametrize("case", ["damped", "projected", "quadratic", "regions"])
+def test_cell_blocks_written_by_the_first_effect_equal_the_sum(petsc, bimaterial, case):
+    """The Jacobian's cell blocks (effects.base.cell_blocks): the first effect writes its blocks over whatever the
+    buffer held, the others add theirs; every entry equals the sum added to zeros, for the whole range and for a
+    ragged chunk: P1 with inertia and Rayleigh damping, the projected tangent, P2, a material per region."""
+    from hyperelastic.physics.effects.base import cell_blocks
+    scene, options = {"damped": ("bend", [("rayleigh_alpha", "0.5"), ("rayleigh_beta", "1e-3")]),
+                      "projected": ("bend", [("material", "snh"), ("hessian_projection", "")]),
+                      "quadratic": ("bend", [("order", "2")]),
+                      "regions": (f"{ROOT}/examples/bimaterial.opts", [("mesh", bimaterial), ("quasistatic", "0")])}[case]
+    m = make_model(petsc, scene, options)
+    system = m.system
+    rng = np.random.default_rng(3)
+    system.begin_step(0.1, m.scene.dt, m.x0, m.v0)
+    system.linearize(system.global_state(m.x0 + 0.02 * rng.standard_normal(m.x0.shape)))
+    effects = [e for e in system.effects if e.cell_blocks]
+    assert len(effects) >= 2 and effects[0].name == "elasticity"
+    nc = system.space.cells.shape[0]
+    n3 = 3 * system.space.cells.shape[1]
+    for lo, hi in ((0, nc), (7, nc // 2 + 3)):
+        want = np.zeros((hi - lo, n3, n3))
+        for e in effects:
+            e.add_cell_blocks(want, lo, hi)
+        got = np.full((hi - lo, n3, n3), np.nan)
+        cell_blocks(effects, got, lo, hi)
+        assert np.array_equal(got, want), case
