@@ -1,11 +1,22 @@
 """Derivatives of every material against finite differences, and the compiled kernels against
 the numpy reference path."""
+import zlib
+
 import numpy as np
 import pytest
 
 from hyperelastic.physics.materials import MATERIALS, default_solid, get, lame
 
 rng = np.random.default_rng(1234)
+
+
+@pytest.fixture(autouse=True)
+def _own_draws(request):
+    """Each test draws from its own generator, seeded by its name: the same states whatever ran before it in this
+    process (under `pytest -n 2 --dist load` the tests of this file were split between workers in varying orders, and
+    some orders drew near-degenerate cells that failed the 1e-12 comparisons)."""
+    global rng
+    rng = np.random.default_rng(zlib.crc32(request.node.name.encode()))
 MU, LAM = lame(1e6, 0.3)[1], lame(1e6, 0.3)[0]
 # each material's constants at E = 1e6, nu = 0.3 (Mooney-Rivlin with both invariants' moduli in use)
 C = {n: default_solid(n).constants for n in MATERIALS}
