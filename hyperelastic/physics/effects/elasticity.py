@@ -81,20 +81,23 @@ class Elasticity(Effect):
     @timed("applies")
     def add_cell_blocks(self, vals, lo=0, hi=None):
         """vals (hi-lo, 3nn, 3nn) += the tangent blocks of cells lo..hi-1 (default: all)."""
-        whole = lo == 0 and hi in (None, self.k.nc)
-        if self.projection:
-            vals += self.blocks if whole else self.blocks[lo:hi]
-        else:
-            (self.k if whole else self.k.part(lo, hi)).tangent(self.x, vals, accumulate=True)
+        self._cell_blocks(vals, lo, hi, True)
 
     @timed("applies")
     def set_cell_blocks(self, vals, lo=0, hi=None):
         """vals (hi-lo, 3nn, 3nn) = the tangent blocks of cells lo..hi-1 (default: all), written by the kernels."""
+        self._cell_blocks(vals, lo, hi, False)
+
+    def _cell_blocks(self, vals, lo, hi, accumulate):
         whole = lo == 0 and hi in (None, self.k.nc)
         if self.projection:
-            vals[...] = self.blocks if whole else self.blocks[lo:hi]
+            blocks = self.blocks if whole else self.blocks[lo:hi]
+            if accumulate:
+                vals += blocks
+            else:
+                vals[...] = blocks
         else:
-            (self.k if whole else self.k.part(lo, hi)).tangent(self.x, vals, accumulate=False)
+            (self.k if whole else self.k.part(lo, hi)).tangent(self.x, vals, accumulate=accumulate)
 
     def energy(self, x, v):
         W, jmin, jmax, bad = self.k.energy(x)

@@ -94,9 +94,7 @@ static int polar_rotation(const double *F, double *R) {
   memcpy(X, F, sizeof X);
   for (int it = 0; it < 30; it++) {
     double c[9]; /* the cofactors: X^-T = c / det X */
-    c[0] = X[4] * X[8] - X[5] * X[7]; c[1] = X[5] * X[6] - X[3] * X[8]; c[2] = X[3] * X[7] - X[4] * X[6];
-    c[3] = X[2] * X[7] - X[1] * X[8]; c[4] = X[0] * X[8] - X[2] * X[6]; c[5] = X[1] * X[6] - X[0] * X[7];
-    c[6] = X[1] * X[5] - X[2] * X[4]; c[7] = X[2] * X[3] - X[0] * X[5]; c[8] = X[0] * X[4] - X[1] * X[3];
+    cof_mixed(X, X, c);
     double d = X[0] * c[0] + X[1] * c[1] + X[2] * c[2];
     if (!(d > 0)) return 1;
     double g = 1.0 / cbrt(d), h = 1.0 / (g * d), diff = 0, nrm = 0;
