@@ -31,11 +31,13 @@ def price(tmp_path_factory):
 
 
 def reference(tmp_path):
-    """u_y at the tip of P2 on the part's second refinement with tight tolerances (kept out of the search)."""
+    """u_y at the tip of P2 on the part's second refinement with tight tolerances (kept out of the search), the load
+    reached in one step: a hyperelastic equilibrium does not depend on the load path, and the search's four steps
+    gave the same u_y to 9 digits in three times the time (12.5 against 4.4 s)."""
     run_ok(["mesh", f"{ROOT}/meshes/bar.geo", "--size", "2", "--refine", "2", "--order", "2", "-o", tmp_path / "r.msh"])
     out = tmp_path / "ref.h5"
-    run_ok(["run", f"{ROOT}/options/scenes/bend2.opts", *STATIC.split(), "-mesh", tmp_path / "r_r2.msh", "-order", "2",
-            "-snes_rtol", "1e-10", "-ksp_rtol", "1e-10", *PMG, "-quiet", "-output", out], timeout=600)
+    run_ok(["run", f"{ROOT}/options/scenes/bend2.opts", *STATIC.split(), "-dt", "0.25", "-mesh", tmp_path / "r_r2.msh",
+            "-order", "2", "-snes_rtol", "1e-10", "-ksp_rtol", "1e-10", *PMG, "-quiet", "-output", out], timeout=600)
     with h5py.File(out, "r") as f:
         X, tets, x = f["mesh/points"][:], f["mesh/tetra"][:], f["x"][-1]
     cells, w = locate(X, tets, np.array(TIP))
