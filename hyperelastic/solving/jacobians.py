@@ -62,6 +62,7 @@ class Assembled:
     def __init__(self, system):
         self.system = system
         sp = system.space
+        self._buf = None                                       # the chunk's cell blocks (_fill)
         self.cell_effects = [e for e in system.effects if e.cell_blocks]
         n3 = 3 * sp.cells.shape[1]
         cd = (3 * sp.cells[:, :, None].astype(np.int64) + np.arange(3)).reshape(-1, n3)   # (nc, 3nn)
@@ -116,6 +117,7 @@ class _CellFill:
     def __init__(self, system):
         self.system = system
         sp = system.space
+        self._buf = None                                       # the chunk's cell blocks (_fill)
         self.cell_effects = [e for e in system.effects if e.cell_blocks]
         cm = system.cmask
         self.other = []
@@ -150,7 +152,12 @@ class _CellFill:
         """Each of `fills` (begin, add(vals, lo, hi), finish: aij.CellFill, sbaij.UpperFill, pmg.GalerkinCells) given
         the cell blocks a chunk of cells at a time (_cell_blocks)."""
         nc, n3 = len(self.blocks), 3 * self.blocks.shape[1]
-        buf = np.empty((min(self.CHUNK, nc), n3, n3))
+        shape = (min(self.CHUNK, nc), n3, n3)
+        if self._buf is None or self._buf.shape != shape:
+            # kept from one Jacobian to the next: a P2 chunk is 59 MB, above glibc's largest mmap threshold (32 MB),
+            # so a new one each time was a fresh mapping, faulted in again (0.5 s of system time in a 10 s P2 run)
+            self._buf = np.empty(shape)
+        buf = self._buf
         for f in fills:
             f.begin()
         for lo in range(0, nc, self.CHUNK):
