@@ -10,7 +10,7 @@ import pytest
 
 from conftest import ROOT, make_model, read_h5, run_ok
 from hyperelastic.core.expressions import Expression
-from hyperelastic.element.reference import EDGES, TET_RULES, TRI_RULES, tet_shapes, tri_shapes
+from hyperelastic.element.reference import EDGES, TET_RULES, TRI_RULES, p1_at_nodes, tet_shapes, tri_shapes
 
 REF_NODES = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]] + [[0.0] * 3] * 6, float)
 REF_NODES[4:] = [0.5 * (REF_NODES[i] + REF_NODES[j]) for i, j in EDGES]
@@ -47,6 +47,19 @@ def test_shape_functions():
     assert np.abs(fd - dN).max() < 1e-9
     Nf, _ = tri_shapes(2, np.array([[0, 0], [1, 0], [0, 1], [.5, 0], [.5, .5], [0, .5]]))
     assert np.abs(Nf - np.eye(6)).max() < 1e-15
+
+
+def test_p1_at_nodes_is_the_linear_interpolation():
+    """The P2 -> P1 cell rows (p-multigrid's prolongation, the augmented Schur term's coarse part): a linear field's
+    P2 nodal values, exactly 1 and 1/2; the P2 interpolant through them is the linear field everywhere."""
+    T = p1_at_nodes()
+    assert set(np.unique(T)) == {0.0, 0.5, 1.0} and np.array_equal(T[:4], np.eye(4))
+    assert all(T[4 + e, a] == T[4 + e, b] == 0.5 and T[4 + e].sum() == 1.0 for e, (a, b) in enumerate(EDGES))
+    u = np.random.default_rng(5).standard_normal(4)              # a linear field's values at the corners
+    x = np.random.default_rng(6).random((9, 3)) / 3
+    N, _ = tet_shapes(2, x)
+    lin = (1 - x.sum(axis=1)) * u[0] + x @ u[1:]
+    assert np.abs(N @ (T @ u) - lin).max() < 1e-14
 
 
 @pytest.fixture(scope="module")

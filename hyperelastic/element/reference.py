@@ -9,7 +9,7 @@ Finite Element Method, 7th ed., 2013, sec. 6.6): vertex N_i = L_i (2 L_i - 1), e
 A face (triangle) has its three vertices and, for P2, the midpoints of (0,1), (1,2), (0,2).
 
 Quadrature rules (weights summing to the reference measure; all weights positive), each with the
-polynomial degree it integrates exactly (tests/test_element.py checks every monomial up to that degree):
+polynomial degree it integrates exactly (tests/test_quadratic.py checks every monomial up to that degree):
   tetrahedron  degree 1: the centroid; degree 2: 4 points (Keast 1986, rule 2; a = (5 + 3 sqrt 5)/20);
                degree 5: 14 points (Walkington, "Quadrature on simplices of arbitrary dimension", 2000;
                the rule of Keast 1986 without negative weights)
@@ -35,6 +35,14 @@ def cell_edges(corners):
 REFERENCE_NODES = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1], [.5, 0, 0], [.5, .5, 0], [0, .5, 0],
                             [0, 0, .5], [.5, 0, .5], [0, .5, .5]])
 ORDERS = (1, 2)
+
+
+def p1_at_nodes():
+    """(10, 4): the linear shape functions (the barycentric coordinates L0..L3) at the quadratic tetrahedron's
+    reference nodes: 1 at a corner itself, 1/2 at both ends of an edge's midpoint, exactly. A cell's rows of the
+    P2 -> P1 interpolation that p-multigrid's prolongation (solving/pmg.py) and the C p1_galerkin are made of."""
+    X = REFERENCE_NODES
+    return np.column_stack([1.0 - X.sum(axis=1), X])
 
 
 def _perms(bary):

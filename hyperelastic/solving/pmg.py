@@ -122,7 +122,7 @@ def prolongation(space, numbers=None):
     for j in (0, 1):
         rows_n.append(fine_dof[nodes])
         cols_n.append(num[ends[:, j]])
-        vals.append(np.full(len(nodes), 0.5))
+        vals.append(np.full(len(nodes), 0.5))       # 1/2 of each end (element.reference.p1_at_nodes, per cell)
     rn, cn, w = (np.concatenate(a) for a in (rows_n, cols_n, vals))
     if (cn < 0).any():
         raise RuntimeError("p-multigrid: a node's coarse vertex has no number")

@@ -5,7 +5,7 @@ import numpy as np
 from petsc4py import PETSc
 
 from ...discretization import aij
-from ...element.reference import EDGES
+from ...element.reference import p1_at_nodes
 from ...physics.effects.base import cell_blocks
 from ...solving import jacobians, pmg
 from ...solving.jacobians import effect_patterns, rigid_body_nullspace
@@ -210,12 +210,7 @@ class Augmented:
         s = self.nest.system
         sp = s.space
         if self.p0 is None:
-            Pc = np.zeros((30, 12))                       # (a cell's rows of P: a vertex itself, an edge node halves)
-            for v in range(4):
-                Pc[3 * v:3 * v + 3, 3 * v:3 * v + 3] = np.eye(3)
-            for e, (a, b) in enumerate(EDGES):
-                for end in (a, b):
-                    Pc[3 * (4 + e):3 * (4 + e) + 3, 3 * end:3 * end + 3] = 0.5 * np.eye(3)
+            Pc = np.kron(p1_at_nodes(), np.eye(3))        # (30, 12): a cell's rows of P, per component
             vs = pmg.VertexSpace(sp, pmg.coarse_numbers(sp))
             idx = np.concatenate([c.idx for c in s.couplings])
             chunk = self.nest.uu.CHUNK
