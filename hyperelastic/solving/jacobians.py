@@ -62,7 +62,6 @@ class Assembled:
     def __init__(self, system):
         self.system = system
         sp = system.space
-        self._buf = None                                       # the chunk's cell blocks (_fill)
         self.cell_effects = [e for e in system.effects if e.cell_blocks]
         n3 = 3 * sp.cells.shape[1]
         cd = (3 * sp.cells[:, :, None].astype(np.int64) + np.arange(3)).reshape(-1, n3)   # (nc, 3nn)
