@@ -1,5 +1,6 @@
 import glob
 import os
+import re
 
 from setuptools import Extension, find_packages, setup
 
@@ -47,7 +48,10 @@ kernels = Extension("hyperelastic.discretization._kernels", sources=[os.path.joi
                     depends=glob.glob(os.path.join(MATERIALS, "*.h")) + glob.glob(os.path.join(DISCRETIZATION, "*.h")),
                     extra_compile_args=CFLAGS + ["-fno-math-errno", "-std=c99"])
 
-setup(name="hyperelastic", version="0.1.0",
+VERSION = re.search(r'^__version__ = "([^"]+)"', open(os.path.join(HERE, "hyperelastic", "__init__.py")).read(),
+                    re.M).group(1)
+
+setup(name="hyperelastic", version=VERSION, license="BSD-2-Clause",
       description="Implicit FEM for stiff hyperelastic solids on PETSc/SNES",
       packages=find_packages(include=["hyperelastic", "hyperelastic.*"]),
       # the built-in scenes, solver recipes and geometries (hyperelastic/data): read from any directory

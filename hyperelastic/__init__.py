@@ -1,6 +1,6 @@
 import os
 
-__version__ = "0.1.0"
+__version__ = "0.2.0"        # (setup.py reads it here; CHANGELOG.md says what each version changed)
 
 # One BLAS/OpenMP thread per process: the parallelism here is MPI ranks. numpy's own OpenBLAS would start
 # a thread per core in every rank, and its threads keep spinning after each vector product, on the

@@ -11,7 +11,8 @@ import pytest
 
 from conftest import hyperelastic, read_h5, run_ok
 
-from hyperelastic.physics.effects.contact import Contact, Obstacle, barrier, time_of_impact
+from hyperelastic.physics.effects.contact import Contact, barrier
+from hyperelastic.physics.effects.obstacles import KINDS, Obstacle
 
 
 def test_the_barrier_is_the_ipc_toolkits():
@@ -114,7 +115,7 @@ def test_an_update_stops_short_of_the_first_impact():
     s = c.max_step(x, down.ravel())
     z = x.reshape(-1, 3)[:, 2]
     assert np.isclose(s, 0.9 * z.min()) and c.max_step(x, -down.ravel()) <= 1.0
-    toi = time_of_impact("sphere", np.array([0, 0, 0, 1.0]), np.array([[3.0, 0, 0]]), np.array([[-4.0, 0, 0]]))
+    toi = KINDS["sphere"].time_of_impact(np.array([0, 0, 0, 1.0]), np.array([[3.0, 0, 0]]), np.array([[-4.0, 0, 0]]))
     assert np.isclose(toi[0], 0.5)
 
 
@@ -122,17 +123,17 @@ def test_a_box_is_met_at_its_faces_edges_and_corners():
     """box:X0,...: the distance is the Euclidean distance to the box outside (to a face, an edge, a corner), negative
     inside; its gradient is the distance's (central differences); a ray's time of impact is where it enters the box
     (the slabs), inf where it misses or moves away; the tangent is the PSD part (blocks' eigenvalues >= 0)."""
-    from hyperelastic.physics.effects.contact import distances
+    distances = KINDS["box"].distances
     v = np.array([0.0, 0.0, 0.0, 1.0, 2.0, 3.0])
     x = np.array([[0.5, 1.0, 3.5], [1.3, 2.4, 1.0], [1.3, 2.4, 3.5], [0.5, 1.0, 1.0], [-2.0, 1.0, 1.0]])
-    d, g, _ = distances("box", v, x)
+    d, g = distances(v, x)
     assert np.allclose(d, [0.5, 0.5, np.sqrt(0.09 + 0.16 + 0.25), -0.5, 2.0])
     h = 1e-7
     for i in (0, 1, 2, 4):
-        fd = [(distances("box", v, x[i:i + 1] + h * e)[0][0] - distances("box", v, x[i:i + 1] - h * e)[0][0]) / (2 * h)
+        fd = [(distances(v, x[i:i + 1] + h * e)[0][0] - distances(v, x[i:i + 1] - h * e)[0][0]) / (2 * h)
               for e in np.eye(3)]
         assert np.allclose(fd, g[i], atol=1e-6), (i, fd, g[i])
-    toi = time_of_impact("box", v, np.array([[-1.0, 1, 1], [-1.0, 1, 1], [-1.0, 5, 1], [2.0, 1, 1]]),
+    toi = KINDS["box"].time_of_impact(v, np.array([[-1.0, 1, 1], [-1.0, 1, 1], [-1.0, 5, 1], [2.0, 1, 1]]),
                          np.array([[2.0, 0, 0], [-2.0, 0, 0], [2.0, 0, 0], [1.0, 0, 0]]))
     assert np.isclose(toi[0], 0.5) and np.isinf(toi[1:]).all()
     rng = np.random.default_rng(2)
@@ -143,6 +144,98 @@ def test_a_box_is_met_at_its_faces_edges_and_corners():
     _is_the_potentials_gradient(c, X.ravel(), rng, n=10)
     c.linearize(X.ravel())
     assert np.linalg.eigvalsh(c.blocks).min() >= -1e-9 * np.abs(c.blocks).max()
+
+
+def test_every_kind_draws_the_surface_it_measures():
+    """Each kind's drawing (for the pictures) lies on the obstacle: its vertices at distance 0 (a sphere's within its
+    tessellation, exactly at the vertices); a sphere's and a box's triangles close a surface (every edge in two
+    triangles) facing outward (the distance's gradient at a triangle's centroid along its normal); a plane's covers
+    the body's box seen along the normal."""
+    lo, hi = np.array([0.0, 0, 0]), np.array([2.0, 1, 1])
+    for text in ("plane:0,0,1,-0.5", "plane:1,1,0,0.3", "sphere:0.5,0.5,2,0.7", "box:0,0,1.5,1,2,3"):
+        kind, body = text.split(":")
+        ob = Obstacle(kind, KINDS[kind].parse(body, text)[0], text=text)
+        v = ob.at(0.0)
+        P, T = ob.drawing(0.0, lo, hi)
+        d, _ = ob.form.distances(v, P)
+        assert np.abs(d).max() < 1e-12, (text, d)
+        n = np.cross(P[T[:, 1]] - P[T[:, 0]], P[T[:, 2]] - P[T[:, 0]])
+        g = ob.form.distances(v, P[T].mean(axis=1))[1]
+        assert ((n * g).sum(axis=1) > 0).all(), text                         # outward: into the free side
+        if kind != "plane":
+            e = np.sort(np.concatenate([T[:, [0, 1]], T[:, [1, 2]], T[:, [2, 0]]]), axis=1)
+            assert (np.unique(e, axis=0, return_counts=True)[1] == 2).all(), text
+            continue
+        c, a, b = P.mean(axis=0), (P[1] - P[0]) / 2, (P[3] - P[0]) / 2        # (the square's centre and half sides)
+        corners = lo + np.array([[i & 1, (i >> 1) & 1, (i >> 2) & 1] for i in range(8)]) * (hi - lo)
+        q = corners - np.outer(corners @ v[:3] - v[3], v[:3]) - c               # (projected onto the plane)
+        assert (np.abs(q @ a) <= a @ a).all() and (np.abs(q @ b) <= b @ b).all(), text
+
+
+GROUND = '''
+
+class Wall(ObstacleKind):
+    name = "wall"
+    values = "X: the half-space x < X is free (a wall facing -x)"
+    count = 1
+
+    @staticmethod
+    def moved(v, u):
+        return v + u[0]
+
+    @staticmethod
+    def distances(v, x):
+        return v[0] - x[:, 0], np.broadcast_to([-1.0, 0.0, 0.0], x.shape)
+
+    @staticmethod
+    def time_of_impact(v, x, dx):
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return np.where(dx[:, 0] > 0, (v[0] - x[:, 0]) / dx[:, 0], np.inf)
+
+    @classmethod
+    def impact_moving(cls, old, new, a, b):
+        return cls.time_of_impact(old, a, b - a - np.array([new[0] - old[0], 0.0, 0.0]))
+
+    @staticmethod
+    def drawing(v, lo, hi):
+        return np.array([[v[0], lo[1], lo[2]], [v[0], hi[1], lo[2]], [v[0], hi[1], hi[2]]]), np.array([[0, 2, 1]])
+'''
+
+
+def test_an_obstacle_kind_added_by_its_recipe_presses_as_the_plane_does(tmp_path):
+    """Issue 69 item 2: a throw-away kind (`wall:X`, the half-space x < X free) added to a copy of the package by one
+    class and its registry line reaches the option, -help and the contact effect: `press` with `-obstacle wall:5.005`
+    gives the trajectory and the contact force of `-obstacle plane:-1,0,0,-5.005`."""
+    import difflib
+    import shutil
+    import subprocess
+    import sys
+    from conftest import ROOT
+    copy = tmp_path / "copy"
+    shutil.copytree(os.path.join(ROOT, "hyperelastic"), copy / "hyperelastic",
+                    ignore=shutil.ignore_patterns("__pycache__"))
+    path = copy / "hyperelastic" / "physics" / "effects" / "obstacles.py"
+    before = path.read_text()
+    line = "KINDS = {k.name: k for k in (Plane, Sphere, Box, TriangleMesh)}"
+    after = before.replace(line, GROUND.strip("\n") + "\n\n\n" + line.replace("TriangleMesh)", "TriangleMesh, Wall)"))
+    path.write_text(after)
+    changed = [ln for ln in difflib.unified_diff(before.splitlines(), after.splitlines(), n=0)
+               if ln[:1] in "+-" and not ln.startswith(("+++", "---")) and ln[1:].strip()]
+    assert sum(ln.startswith("-") for ln in changed) == 1, changed          # the registry line; the rest is the class
+    env = dict(os.environ, PYTHONPATH=str(copy))
+    common = ["run", "press", "-final_time", "0.3"]
+    p = subprocess.run([sys.executable, "-m", "hyperelastic"] + common + ["-obstacle", "wall:5.005", "-output",
+                       str(tmp_path / "w.h5")], cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300)
+    assert p.returncode == 0, p.stderr[-2000:]
+    h = subprocess.run([sys.executable, "-m", "hyperelastic", "run", "-help"], cwd=tmp_path, env=env,
+                       capture_output=True, text=True, timeout=300)
+    assert "wall:X" in h.stdout + h.stderr
+    q = run_ok(common + ["-output", tmp_path / "p.h5"])
+    w, pl = read_h5(tmp_path / "w.h5"), read_h5(tmp_path / "p.h5")
+    assert len(w["x"]) == len(pl["x"]) > 1
+    assert np.abs(w["x"] - pl["x"]).max() <= 1e-12 * np.abs(pl["x"]).max()
+    fw, fp = _forces(p.stderr, "load contact"), _forces(q.stderr, "load contact")
+    assert abs(fw[0] - fp[0]) <= 1e-9 * abs(fp[0]) and fp[0] != 0
 
 
 def test_the_bent_bar_rests_on_a_box(tmp_path):

@@ -250,3 +250,40 @@ def test_no_function_over_60_lines():
                     if isinstance(n, (ast.FunctionDef, ast.AsyncFunctionDef)) and n.end_lineno - n.lineno >= 60:
                         long.append(f"{os.path.relpath(path, PKG)}:{n.lineno} {n.name} ({n.end_lineno - n.lineno + 1})")
     assert long == [], long
+
+
+def probes(source):
+    """Where a module's code probes an object instead of asking a declared seam (issue 69 item 1): `hasattr`, `getattr`
+    with a default, or a comparison of some `.name` with a string. [(line, what)]"""
+    out = []
+    for n in ast.walk(ast.parse(source)):
+        if isinstance(n, ast.Call) and isinstance(n.func, ast.Name):
+            if n.func.id == "hasattr" or (n.func.id == "getattr" and len(n.args) + len(n.keywords) >= 3):
+                out.append((n.lineno, n.func.id))
+        elif isinstance(n, ast.Compare):
+            sides = [n.left] + list(n.comparators)
+            named = any(isinstance(s, ast.Attribute) and s.attr == "name" for s in sides)
+            strings = any(isinstance(s, ast.Constant) and isinstance(s.value, str) or
+                          isinstance(s, (ast.Tuple, ast.List, ast.Set)) and
+                          any(isinstance(e, ast.Constant) and isinstance(e.value, str) for e in s.elts) for s in sides)
+            if named and strings:
+                out.append((n.lineno, "name comparison"))
+    return out
+
+
+def test_the_solver_reaches_effects_and_constraints_through_declared_seams():
+    """Issue 69 item 1: solving/ and formulations/ ask effects and constraints only what they declare (base.Effect, the
+    seams of physics/effects/seams.py, dirichlet.HeldBody): no hasattr, no getattr with a default, no comparison of a
+    name with a string. The checker itself finds each of the three forms."""
+    bad = "hasattr(e, 'max_step')\ngetattr(e, 'kappa_range', None)\nc.name == 'rigid'\ne.name in ('a', 'b')\n"
+    assert [w for _, w in probes(bad)] == ["hasattr", "getattr", "name comparison", "name comparison"]
+    assert probes("getattr(e, name)\nx.name == y\nx.kind == 'plane'\n") == []
+    found = []
+    for layer in ("solving", "formulations"):
+        for d, _, files in os.walk(os.path.join(PKG, layer)):
+            for f in sorted(files):
+                if f.endswith(".py"):
+                    path = os.path.join(d, f)
+                    found += [f"{os.path.relpath(path, PKG)}:{line} {what}"
+                              for line, what in probes(open(path, encoding="utf-8").read())]
+    assert found == [], found

@@ -249,7 +249,8 @@ def test_a_small_step_after_an_inversion_cut_is_not_convergence():
     converges to updates below -snes_stol: issue 46); without a cut, or with a converged residual, the reason is
     SNES's own."""
     from petsc4py import PETSc
-    from hyperelastic.solving.solver import Solver
+    from hyperelastic.physics.effects.seams import StepLimiter
+    from hyperelastic.solving.solver import CUT_COUNTERS, InversionGuard, Solver
     R = PETSc.SNES.ConvergedReason
     ITS = 5                                       # the mock solve's Newton iterations (updates 0..4)
 
@@ -259,9 +260,7 @@ def test_a_small_step_after_an_inversion_cut_is_not_convergence():
 
         def solve(self, b, X):
             if self.cut_at is not None:           # (what Solver._precheck records when it cuts update k)
-                setattr(self.solver, counter, getattr(self.solver, counter) + 1)
-                if counter == "contact_cuts":
-                    self.solver.contact_cut_at = self.cut_at
+                self.solver._count_cut(limiter, self.cut_at)
 
         def getConvergedReason(self):
             return self.reason
@@ -273,12 +272,12 @@ def test_a_small_step_after_an_inversion_cut_is_not_convergence():
         def set_objective_base(self, X):
             pass
     s = Solver.__new__(Solver)
-    s.system, s.inversion_cuts, s.contact_cuts = System(), 0, 0
-    for counter, early in (("inversion_cuts", Solver.GUARDED_SNORM), ("contact_cuts", R.CONVERGED_SNORM_RELATIVE)):
+    s.system, s.cuts, s.sticky_cuts = System(), dict.fromkeys(CUT_COUNTERS, 0), 0
+    for limiter, early in ((InversionGuard(None), Solver.GUARDED_SNORM), (StepLimiter(), R.CONVERGED_SNORM_RELATIVE)):
         for reason, cut_at, want in ((R.CONVERGED_SNORM_RELATIVE, ITS - 1, Solver.GUARDED_SNORM),
                                      (R.CONVERGED_SNORM_RELATIVE, 1, early),
                                      (R.CONVERGED_SNORM_RELATIVE, None, R.CONVERGED_SNORM_RELATIVE),
                                      (R.CONVERGED_FNORM_RELATIVE, ITS - 1, R.CONVERGED_FNORM_RELATIVE)):
             s.snes = Snes(s, reason, cut_at)
-            assert s.solve(None) == want, (counter, reason, cut_at)
+            assert s.solve(None) == want, (limiter.counter, reason, cut_at)
     assert Solver.GUARDED_SNORM < 0 and "not convergence" in s.reason_name(Solver.GUARDED_SNORM)

@@ -11,6 +11,7 @@
   hyperelastic report FILE.h5 [--at X,Y,Z] [--frame N] [--watch Q]
                                                  the run, its forces, values at material points, again
   hyperelastic scenes                            list the built-in scenes
+  hyperelastic --version                         this version and the libraries it runs on
   hyperelastic study accuracy|refinement [-output_dir DIR] [--full] [--jobs N]
                                                  what accuracy costs in time: CSV, PNGs, markdown
   hyperelastic study price --part P --scene S --size H --watch Q --target ERR
@@ -302,6 +303,20 @@ def study_cmd(argv):
     return study_main(argv)
 
 
+def version_lines():
+    """`hyperelastic --version`: this package's version, then the installed versions of what it runs on (read from
+    the installed packages' metadata: nothing is imported or initialized)."""
+    from importlib.metadata import PackageNotFoundError, version
+    from .. import __version__
+    lines = [f"hyperelastic {__version__}"]
+    for name in ("petsc", "petsc4py", "mpi4py", "mpich", "numpy", "h5py", "gmsh", "ipctk"):
+        try:
+            lines.append(f"  {name} {version(name)}")
+        except PackageNotFoundError:
+            lines.append(f"  {name} (no installed package of that name: a system build, or absent)")
+    return "\n".join(lines)
+
+
 COMMANDS = {"run": run_cmd, "mesh": mesh_cmd, "plot": plot_cmd, "report": report_cmd, "scenes": scenes_cmd,
             "study": study_cmd}
 
@@ -313,6 +328,9 @@ def main(argv=None):
         argv.remove("-debug")
     if not argv or argv[0] in ("-h", "--help", "help"):
         print(__doc__)
+        return 0
+    if argv[0] in ("--version", "-version", "version"):
+        print(version_lines())
         return 0
     for a in argv:
         try:

@@ -28,6 +28,7 @@ from .fields import (AT_NODES, DEFAULT_FIELDS, cell_fields, cell_quantities, fin
                      needs_volumes, recover, reference_volumes)
 from ..core.files import CHECKPOINT_ATTRS, CHECKPOINT_OPTIONAL, CHECKPOINT_VECTORS, PARTIAL, RANK_FILE, RANKS
 from ..core.options import all_options
+from ..physics.effects import built as effects_built
 from ..solving.stats import column_type
 
 
@@ -168,7 +169,7 @@ def run_attributes(model, scene_file, solver):
     """The output file's root attributes: the full options database, the scene and what was built
     for it (effects_built: JSON {effect: instances}), versions, the rank count and the partition."""
     sc, space = model.scene, model.space
-    built = model.system.built()
+    built = effects_built(model.system.effects, model.system.constraints)
     # the options of the run, less the scene file's that a command-line -effects overrode: a restart replays
     # these on its command line, where they would switch their effects on (scene.EFFECTS_RULE); and less the
     # defaults chosen by the rank count (solver.GALERKIN_KERNELS), which a restart on other ranks chooses anew

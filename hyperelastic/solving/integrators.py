@@ -12,7 +12,7 @@ from petsc4py import PETSc
 from ..core.errors import Interrupted, SolveError
 from .forces import surface_forces
 from . import rigid
-from .stats import effect_column, energy_sum, extremal, force_columns
+from .stats import effect_column, effect_counters, effect_energies, energy_sum, extremal, force_columns
 
 
 def step_count(final_time, dt):
@@ -88,10 +88,12 @@ class Integrator:
         self.regrow_wait = scene.dt_grow_after
         self.regrown = False
         self.n0 = 0            # nominal steps already done (a restart starts later)
+        self.t_end0 = None     # a restart inside a nominal step: that step's end (resume)
+        self.run_notes = []    # the notes the output's attribute `notes` holds (run.py: the start-up's first)
         self.rigid = system.rigid[0] if system.rigid else None     # a rigid face (one per run), or None
         self.stages = {k: PETSc.Log.Stage(k) for k in ("Step", "Output")}
         system.begin_step(0.0, scene.dt, x0, v0)
-        self.energy0 = energy_sum(system.energies(x0, v0))   # for energy_dissipated
+        self.energy0 = energy_sum(effect_energies(system.effects, self.sp.mpi, x0, v0))   # for energy_dissipated
 
     def request_stop(self, signum):
         """Stop after the attempt under way, with a checkpoint of the last accepted state (honoured on every rank
@@ -125,7 +127,7 @@ class Integrator:
     def _note(self, text):
         """A note the run must leave: on stderr (rank 0; not with -quiet) and in the output's attribute `notes`."""
         self._say(f"note: {text}")
-        self.run_notes = getattr(self, "run_notes", []) + [text]
+        self.run_notes = self.run_notes + [text]
         if self.writer:
             self.writer.set_attr("notes", "\n".join(self.run_notes))
 
@@ -137,7 +139,7 @@ class Integrator:
 
     def _energy_stats(self, x1, v1, stats):
         """The energies of the state (x1, v1) into the stats row; False if they or x1 are not finite."""
-        en = self.system.energies(x1, v1)
+        en = effect_energies(self.system.effects, self.sp.mpi, x1, v1)
         en.setdefault("kinetic", 0.0)
         finite = self.sp.mpi.allreduce(bool(np.isfinite(x1).all()), op=MPI.LAND) and all(
             math.isfinite(val) for k, val in en.items() if not extremal(k))
@@ -177,7 +179,7 @@ class Integrator:
 
     def _counters(self):
         s = self.system
-        return (s.effect_counters(), s.residual_evals, s.residual_seconds, s.objective_evals, s.objective_seconds,
+        return (effect_counters(s.effects), s.residual_evals, s.residual_seconds, s.objective_evals, s.objective_seconds,
                 self.solver.inversion_cuts, self.solver.contact_cuts)
 
     def _counter_stats(self, c0):
@@ -269,7 +271,7 @@ class BackwardEuler(Integrator):
         self.h_try = H if self.h_try is None else self.h_try
         for n in range(self.n0, nsteps):
             t_end = self.t + (min(H, sc.final_time - self.t) if n == nsteps - 1 else H)
-            if n == self.n0 and getattr(self, "t_end0", None) is not None:
+            if n == self.n0 and self.t_end0 is not None:
                 t_end = self.t_end0                  # (a restart inside a nominal step keeps its end)
             stats = self._nominal_step(t_end, H, n)
             self._output(n + 1, (n + 1) % every == 0 or n == nsteps - 1, n == nsteps - 1)
@@ -414,10 +416,10 @@ class BackwardEuler(Integrator):
 
     def _refused(self, h, t1, c0, w0):
         """The stats row of an attempt refused before its solve, or None with Newton's start in self.X
-        (_initial_guess): where the held nodes meet each other or an obstacle along the step (System.held_collision;
+        (_initial_guess): where the held nodes meet each other or an obstacle along the step (Starts.held_collision;
         the run stops where every prescribed path is straight in t: no smaller step helps), or no start is free of
         contact."""
-        blocked = self.system.held_collision(self.x, self.t, t1)
+        blocked = self.system.starts.held_collision(self.x, self.t, t1)
         if blocked is not None:
             why, certain = blocked
             if certain:
@@ -445,29 +447,29 @@ class BackwardEuler(Integrator):
         from the linearized answer to the boundary's increment (_linearized_guess); other quasi-static steps from x^n.
         Where obstacles move (contact), the step's start must not lie inside one: the rate's start, else (and in
         dynamics after x^n + h v^n) the start with the nodes an obstacle reached pushed ahead of it
-        (System.pushed_by_obstacles); a start that is still infeasible is refused and the step retried shorter. False
+        (Starts.pushed); a start that is still infeasible is refused and the step retried shorter. False
         where no start is free of contact (x^n with the held nodes at their targets crosses the contact surface)."""
         sysm = self.system
         self.guess_ksp = 0
         # (every condition the same on every rank: defined_at is collective)
         if self.scene.quasistatic:
             guesses = []
-            moving = sysm.moves_obstacles()         # (moving obstacles: the body carried along as the last step did)
+            moving = sysm.starts.moving             # (moving obstacles: the body carried along as the last step did)
             if moving or sysm.moves_prescribed(self.x):
                 if self.sp.mpi.allreduce(bool(self.rate.any()), op=MPI.LOR):
                     guesses = [self.x + h * self.rate]
                 if moving:
-                    guesses += [g for g in [sysm.pushed_by_obstacles(self.x)] if g is not None]
+                    guesses += [g for g in [sysm.starts.pushed(self.x)] if g is not None]
                 elif not guesses and not all(e.linear for e in sysm.effects) and self._linearized_guess():
                     guesses = [None]           # (in self.X already; a linear problem's first iterate is the same solve)
-                elif guesses and sysm.contact_domain:
+                elif guesses and sysm.starts.checks:
                     # (contact: where the rate's start is refused — it carries a body through a face it has just met —
                     # the linearized answer, whose tangent at x^n holds the pairs' barrier; computed only then)
                     guesses.append(self._linearized_guess)
         else:
             guesses = [self.x + h * self.v] if self.sp.mpi.allreduce(bool(self.v.any()), op=MPI.LOR) else []
-            if sysm.moves_obstacles():
-                guesses += [g for g in [sysm.pushed_by_obstacles(guesses[0] if guesses else self.x)] if g is not None]
+            if sysm.starts.moving:
+                guesses += [g for g in [sysm.starts.pushed(guesses[0] if guesses else self.x)] if g is not None]
         for guess in guesses + [self.x]:
             if callable(guess):
                 if not guess():
@@ -475,7 +477,7 @@ class BackwardEuler(Integrator):
             elif guess is not None:
                 sysm.set_guess(self.X, guess)
             if guess is self.x:            # (the last resort: the material may be undefined there, contact may not)
-                return not sysm.contact_domain or sysm.contact_free(sysm.impose(self.x.copy()))
+                return not sysm.starts.checks or sysm.starts.free(sysm.impose(self.x.copy()))
             if not sysm.check_domain or sysm.defined_at(self.X):
                 return True
 

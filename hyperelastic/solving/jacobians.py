@@ -20,6 +20,7 @@ from petsc4py import PETSc
 
 from ..discretization import aij, sbaij
 from ..physics.effects.base import cell_blocks
+from ..physics.effects.seams import Couplings, declaring
 
 
 def _sizes(space):
@@ -59,6 +60,8 @@ def effect_patterns(effects, rows, cols):
 
 
 class Assembled:
+    fills_coarse = False     # (AssembledSBAIJ: sums p-multigrid's coarse operator as it fills)
+
     def __init__(self, system):
         self.system = system
         sp = system.space
@@ -112,6 +115,7 @@ class _CellFill:
     columns zeroed (`_cell_blocks`), the effects' own entries (`other`: effect, count, kept, local rows, columns)
     and the constrained dofs' diagonal (`c_local`)."""
     CHUNK = 8192
+    fills_coarse = False
 
     def __init__(self, system):
         self.system = system
@@ -247,6 +251,7 @@ class AssembledSBAIJ(_CellFill):
 
 class _ShellContext:
     """A MatShell (PETSc's Python matrix) whose mult is this object's; `mat` is the PETSc Mat."""
+    fills_coarse = False
 
     def __init__(self, system):
         self.system = system
@@ -274,8 +279,8 @@ class SeedFD(_ShellContext):
 
     def __init__(self, system, order):
         self.order = order
-        self.elastic = [e for e in system.effects if e.name == "elasticity"]
-        self.exact = [e for e in system.effects if e.name != "elasticity"]
+        self.elastic = [e for e in system.effects if e.kernels is not None]      # (the material's forces)
+        self.exact = [e for e in system.effects if e.kernels is None]
         self.k0 = None
         super().__init__(system)
 
@@ -339,7 +344,7 @@ ASSEMBLIES = {"setvalues": AssembledChunked, "coo": Assembled}
 
 class Coupled:
     """An assembled operator plus the couplings between nodes that the cell pattern does not join (self-contact's
-    pairs: effects with `coupling_entries`): the Krylov method multiplies by both (a MATCOMPOSITE, their sum: PETSc's
+    pairs: effects that declare seams.Couplings): the Krylov method multiplies by both (a MATCOMPOSITE, their sum: PETSc's
     own products, no Python per iteration), the preconditioner is still built from the assembled matrix (which holds
     each node's own block). The couplings are an AIJ of their own in global numbering, its pattern set again from the
     effects' entries whenever the operator is updated after a linearization: on N ranks only the columns a rank's rows
@@ -359,7 +364,7 @@ class Coupled:
     def around(cls, op, system):
         """op with its `operator` wrapped where some effect couples distant nodes and op multiplies by a matrix (and
         its `update` refreshing the couplings too)."""
-        effects = [e for e in system.effects if hasattr(e, "coupling_entries")]
+        effects = declaring(system.effects, Couplings)
         if effects and op.operator.getType() != PETSc.Mat.Type.PYTHON:
             coupled = cls(op.operator, system, effects)
             op.operator, update = coupled.mat, op.update

@@ -224,7 +224,7 @@ class Levels:
     def __init__(self, pc, space, op=None):
         numbers = coarse_numbers(space)
         self.galerkin = None
-        if getattr(op, "fills_coarse", False):
+        if op is not None and op.fills_coarse:
             self.galerkin = op.coarse = GalerkinCells(space, op.CHUNK, numbers)
         self.P, coords = prolongation(space, numbers)
         pc.setMGInterpolation(1, self.P)

@@ -4,6 +4,7 @@ effect has one, else on the residual norm; CG (GMRES when an effect's tangent is
 loads) + Jacobi (no PC under -snes_mf)."""
 import os
 
+import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
@@ -12,6 +13,7 @@ from ..core.data import OPTIONS_DIR
 from ..core.errors import UserError
 from ..core.options import parse_options_file
 from ..core.libpetsc import lag_preconditioner, lag_preconditioner_persists, set_function_domain_error
+from ..physics.effects.seams import StepLimiter, declaring
 
 MERITS = ("energy", "residual norm")
 
@@ -88,6 +90,24 @@ def matrix_free():
     return ""
 
 
+# the statistics columns of the limiters' cuts that every run writes (stats.COLUMNS)
+CUT_COUNTERS = ("inversion_cuts", "contact_cuts")
+
+
+class InversionGuard(StepLimiter):
+    """-inversion_guard as a Newton-step limiter: the largest t <= 1 that keeps every (not already inverted) cell's
+    det F > 0 along x + [0, t] dx, 0.9 of it where a cell would invert (the elastic kernels' bound: the cubic det F at
+    every quadrature point). A cut anywhere in a solve makes its step-norm stop not convergence (issue 47)."""
+    counter = "inversion_cuts"
+    sticky = True
+
+    def __init__(self, kernels):
+        self.kernels = kernels
+
+    def max_step(self, x, dx):
+        return self.kernels.max_step(x, dx)
+
+
 class SolverPlan:
     """How a formulation's system is solved, as far as the Solver asks (formulations/base.py: each formulation names
     its plan). This base is the displacement formulation's: this application's defaults (apply_defaults), the
@@ -99,7 +119,19 @@ class SolverPlan:
 
     def defaults(self, solver, objective):
         """Set this formulation's defaults in the options database (before apply_defaults), and the solver's
-        `merit`, `merit_note` and `unrecorded` where they differ from the displacement formulation's."""
+        `merit`, `merit_note` and `unrecorded` where they differ from the displacement formulation's. Here: a static
+        run (no inertia, no damping) on quadratic tetrahedra with an assembled tangent and no -pc_type gets CG +
+        p-multigrid (options/pmg.opts' preconditioner), chosen by measurement (docs/defaults.md: 807 CG + Jacobi
+        iterations per Newton step against 13 on `bend -level 4 -order 2 -quasistatic`); every other run keeps
+        Jacobi (apply_defaults)."""
+        opts = PETSc.Options()
+        if (pmg.applies(solver.system.space) and not any(e.order for e in solver.system.effects)
+                and solver.jacobian == "assembled" and not matrix_free() and not opts.hasName("pc_type")):
+            ptype, pc_options = recipe_pc("pmg")
+            for k, v in pc_options:
+                if not opts.hasName(k):
+                    opts.setValue(k, v)
+            opts.setValue("pc_type", ptype)
 
     def storage(self, storage, system, jacobian, assembly, mf):
         """The -operator_storage this run uses (resolve_storage)."""
@@ -157,6 +189,7 @@ class Solver:
         where it applies, else aij (`self.storage`: the one chosen). plan: the formulation's SolverPlan
         (default: the displacement formulation's)."""
         self.system = system
+        self.jacobian = jacobian
         self.plan = plan or SolverPlan()
         self.notes = []              # what the run should say at its start (run.py), one line each
         self._merit(objective, snes is not None)
@@ -176,13 +209,14 @@ class Solver:
         self.op = self.plan.operator(system, jacobian, assembly, self.storage, self.mf)
         if self.op is not None and own:
             snes.setJacobian(self._jacobian, self.op.operator, self.op.mat)
-        self.inversion_cuts = 0   # Newton updates shortened so that no element inverts
-        self.contact_cuts = 0     # ... so that no contact node reaches an obstacle (effects with max_step)
-        self.contact_cut_at = -1  # the Newton iteration of this solve's last contact cut
         self.levels = None        # p-multigrid's levels (pmg.py), where the run uses them
-        self.guard = system.elastic_kernels() if guard else None
-        self.limiters = [e for e in system.effects if hasattr(e, "max_step")]
-        if self.guard is not None or self.limiters:
+        # the Newton-step limiters (seams.StepLimiter): the inversion guard first (a tie is its cut), then the effects'
+        self.limiters = ([InversionGuard(system.elastic_kernels())] if guard else []) + \
+            declaring(system.effects, StepLimiter)
+        self.cuts = dict.fromkeys(CUT_COUNTERS + tuple(lim.counter for lim in self.limiters), 0)
+        self.sticky_cuts = 0      # cuts by a sticky limiter (the inversion guard) over the run ...
+        self.last_cut_at = -1     # ... and the Newton iteration of this solve's last cut by any limiter
+        if self.limiters:
             snes.setLineSearchPreCheck(self._precheck)
         self.plan.before_options(self)
         if own:
@@ -230,26 +264,26 @@ class Solver:
         pc = self.snes.getKSP().getPC()
         self.reuse = self.plan.reuse(self, pc.getType() or opts.getString("pc_type", ""))
 
-    # what a quasi-static step whose CG + Jacobi solve ran out of iterations is retried with, by element order: the
-    # preconditioner of a recipe (its PC options; the run keeps its Jacobian and Krylov method): GAMG on linear
-    # tetrahedra, p-multigrid on quadratic ones (half GAMG's time per Newton step on P2, BENCHMARKS.md)
-    ESCALATION = {1: ("gamg", "GAMG"), 2: ("pmg", "p-multigrid")}
+    # what a quasi-static step whose CG + Jacobi solve ran out of iterations is retried with: the preconditioner of a
+    # recipe (its PC options; the run keeps its Jacobian and Krylov method), GAMG. (Quadratic tetrahedra start static
+    # runs with p-multigrid: SolverPlan.defaults.)
+    ESCALATION = ("gamg", "GAMG")
 
     def escalate(self):
         """CG + Jacobi ran out of iterations on a quasi-static step: switch the preconditioner of the assembled
-        tangent to GAMG with the rigid-body near null space (p-multigrid on quadratic tetrahedra: pmg.py; the
-        set-up kept across steps) and say so; the caller retries the step. Only for the default Jacobi (no -pc_type given), where the plan allows it
-        (not the mixed formulation's field split), and once. Returns the note, or "" when it does not apply.
-        Jacobi stays the default: it is faster on dynamic and small runs and keeps its Krylov directions
-        descent directions on indefinite tangents, where GAMG's Chebyshev smoothing became an indefinite preconditioner (a soft cantilever at
-        full load: docs/design.md, "Solver defaults")."""
+        tangent to GAMG with the rigid-body near null space (its set-up kept across steps) and say so; the caller
+        retries the step. Only for the default Jacobi (no -pc_type given), where the plan allows it (not the mixed
+        formulation's field split), and once. Returns the note, or "" when it does not apply. Jacobi stays the
+        default of linear tetrahedra: it is faster on dynamic and small runs and keeps its Krylov directions descent
+        directions on indefinite tangents, where GAMG's Chebyshev smoothing became an indefinite preconditioner (a soft
+        cantilever at full load: docs/defaults.md)."""
         ksp = self.snes.getKSP()
         pc = ksp.getPC()
         if (self.pc_chosen or not self.plan.escalates or self.op is None or self.mf or pc.getType() != "jacobi"
                 or self.op.mat.getType() not in ("seqaij", "mpiaij")):
             return ""
         opts = PETSc.Options()
-        recipe, name = self.ESCALATION[self.system.space.element.order]
+        recipe, name = self.ESCALATION
         ptype, pc_options = recipe_pc(recipe)
         for k, v in pc_options:
             if not opts.hasName(k):
@@ -274,7 +308,7 @@ class Solver:
         Returns the note, or ""."""
         if self.merit != MERITS[0] or PETSc.Options().hasName("hessian_projection"):
             return ""
-        turned = [e for e in self.system.effects if getattr(e, "projection", True) is False]
+        turned = [e for e in self.system.effects if e.projection is False]
         if not turned:
             return ""
         for e in turned:
@@ -399,25 +433,37 @@ class Solver:
         self.system.set_objective_base(snes.getSolution())
 
     def _precheck(self, X, Y):
-        """Shorten the Newton update (X_new = X - lambda Y) so that no element inverts: the material
-        is undefined there (-inversion_guard; on by default for Neo-Hookean), and no contact node reaches an
-        obstacle (the contact effect's max_step: continuous collision detection along the update). The factor is
-        the same on every rank."""
+        """Shorten the Newton update (X_new = X - lambda Y) to the smallest step the limiters allow (seams.StepLimiter):
+        the inversion guard (no element inverts where the material is undefined there; -inversion_guard, on by
+        default for Neo-Hookean), contact's continuous collision detection (no contact node reaches an obstacle, the
+        surface does not pass through itself). The factor is the same on every rank (one reduction); the cut is
+        counted in the column of the limiter that set it (the first of them on a tie)."""
         sysm = self.system
         x = sysm.impose(sysm.local(X, sysm.xl).copy())
         d = -sysm.local(Y, sysm.vl).copy()
         d[sysm.cdofs] = 0.0
-        mpi = sysm.space.mpi
-        t = mpi.allreduce(self.guard.max_step(x, d), op=MPI.MIN) if self.guard is not None else 1.0
-        c = mpi.allreduce(min(e.max_step(x, d) for e in self.limiters), op=MPI.MIN) if self.limiters else 1.0
-        if min(t, c) < 1.0:
-            Y.scale(min(t, c))
-            self.inversion_cuts += t < 1.0 and t <= c
-            self.contact_cuts += c < t
-            if c < t:
-                self.contact_cut_at = self.snes.getIterationNumber()
+        steps = np.array([lim.max_step(x, d) for lim in self.limiters], float)
+        sysm.space.mpi.Allreduce(MPI.IN_PLACE, steps, op=MPI.MIN)
+        k = int(np.argmin(steps))
+        if steps[k] < 1.0:
+            Y.scale(float(steps[k]))
+            self._count_cut(self.limiters[k], self.snes.getIterationNumber())
             return True
         return False
+
+    def _count_cut(self, limiter, iteration):
+        """The limiter shortened the update of Newton iteration `iteration`."""
+        self.cuts[limiter.counter] += 1
+        self.sticky_cuts += limiter.sticky
+        self.last_cut_at = iteration
+
+    @property
+    def inversion_cuts(self):
+        return self.cuts["inversion_cuts"]
+
+    @property
+    def contact_cuts(self):
+        return self.cuts["contact_cuts"]
 
     def _jacobian(self, snes, X, J, P):
         self.ev_jac.begin()
@@ -446,13 +492,13 @@ class Solver:
     def solve(self, X):
         """Solve for the step's state in X; SNES's converged reason, or GUARDED_SNORM (refused)."""
         self.system.set_objective_base(None)
-        cuts = self.inversion_cuts
-        self.contact_cut_at = -1
+        sticky = self.sticky_cuts
+        self.last_cut_at = -1
         self.snes.solve(None, X)
         reason = self.snes.getConvergedReason()
-        # (an inversion cut anywhere in the solve; a contact cut in its last update: a barrier's stiff start is cut
+        # (a sticky limiter's cut anywhere in the solve; any cut in its last update: a barrier's stiff start is cut
         # in its first iterations and then converges quadratically to updates below -snes_stol)
-        guarded = self.inversion_cuts > cuts or 0 <= self.contact_cut_at >= self.snes.getIterationNumber() - 1
+        guarded = self.sticky_cuts > sticky or 0 <= self.last_cut_at >= self.snes.getIterationNumber() - 1
         if reason == PETSc.SNES.ConvergedReason.CONVERGED_SNORM_RELATIVE and guarded:
             return self.GUARDED_SNORM
         return reason

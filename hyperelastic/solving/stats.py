@@ -5,6 +5,7 @@ energies are the effects' own (effects.energies(): each effect declares the colu
 part in energy_total).
 """
 import numpy as np
+from mpi4py import MPI
 
 from ..physics.effects import energies
 from .rigid import COLUMNS as RIGID_COLUMNS
@@ -130,3 +131,34 @@ def total_energy(st, with_work=True):
     """energy_total of the accepted attempts of a run's statistics (read())."""
     acc = accepted(st)
     return energy_sum({k: st[k][acc] for k, _, _ in ENERGY_TERMS if k in st}, with_work)
+
+
+COMBINE = {"sum": sum, "min": min, "max": max}
+REDUCE = {"min": MPI.MIN, "max": MPI.MAX}
+
+
+def effect_energies(effects, mpi, x, v):
+    """{column: value} of the effects' energies at local positions x and velocities v, over the ranks (energies():
+    how instances and ranks combine). Collective."""
+    how = energies()
+    out = {}
+    for e in effects:
+        for k, val in e.energy(x, v).items():     # several instances (e.g. loads): combined
+            out[k] = val if k not in out else COMBINE[how[k].combine]((out[k], val))
+    res = {k: mpi.allreduce(out.pop(k), op=REDUCE[how[k].combine]) for k in list(out)
+           if how[k].combine != "sum"}
+    keys = sorted(out)                       # everything else is additive over ranks: one reduction
+    sums = np.array([out[k] for k in keys], dtype=float)
+    tot = np.empty_like(sums)
+    mpi.Allreduce(sums, tot, op=MPI.SUM)
+    res.update(zip(keys, tot.tolist()))
+    return res
+
+
+def effect_counters(effects):
+    """{effect name: (residual evaluations, applications, seconds)}, several instances of an effect summed."""
+    out = {}
+    for e in effects:
+        prev = out.get(e.name, (0, 0, 0.0))
+        out[e.name] = (prev[0] + e.evals, prev[1] + e.applies, prev[2] + e.seconds)
+    return out

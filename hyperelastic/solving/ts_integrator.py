@@ -75,7 +75,7 @@ class GeneralizedAlpha(Integrator):
         self.w_last = time.perf_counter()
         self.h_try = scene.dt
         ts.setI2Function(self._function, sp.global_vec())
-        if system.contact_domain:
+        if system.starts.checks:
             self.snes.setInitialGuess(self._initial_guess)
         if solver.op is not None:
             ts.setI2Jacobian(self._jacobian, solver.op.operator, solver.op.mat)
@@ -127,7 +127,7 @@ class GeneralizedAlpha(Integrator):
         """TSALPHA2's predictor for the step's end, unless it lies in or through an obstacle or the contact surface
         (contact's undefined_at, on some rank): then the step's start (from which the pre-check's collision-free
         steps go)."""
-        if not self.system.contact_free(self.system.local(X, self.system.xl).copy()):
+        if not self.system.starts.free(self.system.local(X, self.system.xl).copy()):
             X.getArray()[:] = self.sp.owned_array(self.x)
 
     def _function(self, ts, t, U, V, A, R):

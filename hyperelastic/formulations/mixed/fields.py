@@ -127,6 +127,7 @@ class PressureCoupling(Effect):
         self.p = np.zeros(nlp)
         self.rp = np.zeros(nlp)
         self.blocks = None
+        self.up = self.pp = None      # (K_up's and K_pp's cell blocks, once linearized)
         self.buffers = {}         # the C loops' output arrays, kept
 
     def set_pressure(self, p):

@@ -18,6 +18,8 @@ class MixedAssembled:
     their columns, as in jacobians.Assembled), the dead pressures' c. The displacement block gets the rigid-body
     near null space through is_u (PCFIELDSPLIT hands it to the split's matrix). Any preconditioner (LU of the
     whole, the field split); the default under the field split is MixedNest."""
+    augmented = None          # (MixedNest: the augmented Lagrangian's preconditioning matrix, where used)
+    fills_coarse = False
 
     def __init__(self, system):
         self.system = s = system
@@ -78,6 +80,8 @@ class MixedNest:
     and K_pp (with the dead pressures' c) are filled by COO, zero in the constrained displacement rows. PCFIELDSPLIT
     takes the blocks without copies (-pc_fieldsplit_diag_use_amat: the displacement split's GAMG smooths with the
     SBAIJ copy)."""
+    augmented = None          # (set in the constructor where -mixed_augment > 0)
+    fills_coarse = False
 
     def __init__(self, system, storage="sbaij", augment=0.0):
         self.system = s = system
@@ -116,7 +120,7 @@ class MixedNest:
         s, o, q = self.system, 0, 0
         for c in s.couplings:
             k, m = len(c.idx) * 120, len(c.idx) * 16
-            if getattr(c, "up", None) is not None:             # (linearized)
+            if c.up is not None:             # (linearized)
                 self.up_vals[o:o + k] = c.up.ravel()
                 self.pp_vals[q:q + m] = c.pp.ravel()
             o, q = o + k, q + m

@@ -238,7 +238,7 @@ class FieldSplitPlan(SolverPlan):
         pc.setFieldSplitIS(("u", sysm.is_u), ("p", sysm.is_p))
         if not PETSc.Options().hasName("pc_fieldsplit_schur_precondition"):
             if self.schur_pre is None:               # (constant: assembled once, kept for a new KSP)
-                aug = getattr(solver.op, "augmented", None)
+                aug = solver.op.augmented
                 self.schur_pre = aug.schur if aug is not None else sysm.pressure_mass()
             pc.setFieldSplitSchurPreType(PETSc.PC.FieldSplitSchurPreType.USER, self.schur_pre)
 
@@ -307,5 +307,5 @@ class SplitLevels:
             pc = ksp.getPC()
             pc.setUp()
             self.levels = pmg.Levels(pc.getFieldSplitSubKSP()[0].getPC(), sol.system.space)
-        aug = getattr(sol.op, "augmented", None)
+        aug = sol.op.augmented
         self.levels.update(sol.op.uu.mat, add=None if aug is None else aug.coarse_term)

@@ -65,7 +65,9 @@ class Spec:
       build      (parameters, effects.Context) -> [Effect or dirichlet.Constraint]
       dynamic    left out of -quasistatic runs (inertia, damping)
       energies   the Energy columns its instances report
-      load       LoadKind: it is also a kind of named load (-loads), or None"""
+      load       LoadKind: it is also a kind of named load (-loads), or None
+      couples    parameters -> whether its tangent couples nodes that the cell pattern does not join (self-contact:
+                 seams.Couplings), which a formulation whose operators take only the cell pattern refuses"""
     name: str
     summary: str
     build: Callable
@@ -78,12 +80,16 @@ class Spec:
     dynamic: bool = False
     energies: tuple = ()
     load: LoadKind = None
+    couples: Callable = None
 
     def parameters(self, opts, where):
         return None if self.read is None else self.read(opts, where)
 
     def is_active(self, params):
         return True if self.active is None else bool(self.active(params))
+
+    def couples_nodes(self, params):
+        return False if self.couples is None else bool(self.couples(params))
 
     def set_uses(self, params):
         return [] if self.sets is None else list(self.sets(params))
@@ -130,6 +136,8 @@ class Effect:
     kernels = None         # the cell kernels of its material (elasticity): the domain and inversion checks
     internal = False       # internal forces (they sum to zero over the body): not a load in the forces table
     end_state = False      # in a generalized-alpha stage, acts at the step's end state (contact; System._end_state)
+    projection = None      # a tangent that can be projected to positive semi-definite per cell (elasticity): whether it
+                           # is (-hessian_projection; the solver may switch it on: Solver.project_hessians)
 
     def __init__(self):
         self.evals = 0       # residual evaluations
@@ -180,10 +188,6 @@ class Effect:
 
     def coo_values(self, out):
         """Fill the values of the extra COO entries."""
-
-    def undefined_at(self, x):
-        """Where a `domain` effect without cell kernels is undefined at local positions x (a count, this rank's)."""
-        return 0
 
     def potential(self, x):
         """This effect's part of the incremental potential at local positions x, whose gradient is its

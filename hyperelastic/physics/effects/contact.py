@@ -1,5 +1,7 @@
-"""Contact with rigid obstacles (issue 46, its first part): planes and spheres, each moving by a translation of t,
-that the body's boundary may touch and press on but never pass through.
+"""Contact with rigid obstacles (issue 46, its first part): the kinds of obstacles.py (planes, spheres, boxes), each
+moving by a translation of t, that the body's boundary may touch and press on but never pass through. What it needs of
+the solver beyond a residual and a tangent it declares (seams.py): a step limiter (continuous collision detection), a
+domain check, a say in each step's start (held paths, pushes by moving obstacles) and an adaptive stiffness.
 
 Energy: IPC's barrier (Li et al., "Incremental Potential Contact", ACM Trans. Graph. 39(4), 2020, eq. 6) of each
 contact node's distance d to each obstacle,
@@ -23,8 +25,6 @@ obstacle alone). Self-contact, contact between pieces of the mesh (-contact_self
 (-obstacle mesh:FILE): self_contact.py, built by the same spec. Friction (-contact_friction): IPC's smoothed, lagged
 Coulomb friction (`mollifier`, `_slips`). Under -integrator ts contact acts at the step's end state (`end_state`,
 System._end_state); with -energy_momentum the barrier is a discrete gradient (`residual_discrete_gradient`)."""
-import os
-import re
 from dataclasses import dataclass
 
 import numpy as np
@@ -32,8 +32,9 @@ import numpy as np
 from ...core.errors import UserError
 from ...core.expressions import TimeFunction
 from ...core.options import Row, facet_sets
-from ...mesh.read import read_meshio
 from .base import Energy, NodeBlocks, Spec, timed
+from .obstacles import KINDS, kinds_help, linear_motion, parse
+from .seams import AdaptiveStiffness, DomainCheck, StepLimiter, StepStart
 
 CCD_MARGIN = 0.1            # a Newton update stops this fraction short of the first contact along it
 PUSH_LIMIT = 0.3            # a step's start pushes contact nodes ahead of a moving obstacle by at most this fraction
@@ -41,10 +42,7 @@ PUSH_LIMIT = 0.3            # a step's start pushes contact nodes ahead of a mov
 KAPPA_SCALE = 0.1           # kappa = KAPPA_SCALE E / dhat by default
 DHAT_SCALE = 1e-3           # dhat = DHAT_SCALE x the bounding-box diagonal by default
 ADAPTIVE_RANGE = 100.0      # -contact_kappa adaptive: kappa in [kappa_min, ADAPTIVE_RANGE kappa_min] (IPC's ratio)
-KINDS = {"plane": "NX,NY,NZ,D: the half-space NX x + NY y + NZ z > D is free (the normal points into the body)",
-         "sphere": "CX,CY,CZ,R: a rigid ball of radius R (the body stays outside)",
-         "box": "X0,Y0,Z0,X1,Y1,Z1: a rigid axis-aligned box between those corners (the body stays outside)",
-         "mesh": "FILE: a rigid triangulated surface (.stl, .obj, .msh, ... as meshio reads it; its triangles)"}
+
 
 
 def barrier(d, dhat):
@@ -60,33 +58,6 @@ def barrier(d, dhat):
     return np.where(bad, np.inf, b), np.where(bad, np.nan, b1), np.where(bad, np.nan, b2)
 
 
-@dataclass(frozen=True)
-class Obstacle:
-    kind: str                 # "plane" | "sphere" | "box" | "mesh"
-    values: tuple             # a plane's unit normal and offset; a sphere's centre and radius; a box's corners;
-                              # a mesh's file
-    motion: tuple = None      # three TimeFunctions of its translation, or None (fixed)
-    text: str = ""
-    surface: tuple = None     # a mesh's (points (n, 3), triangles (m, 3)) as read
-
-    def shift(self, t):
-        """The obstacle's translation at time t."""
-        return np.zeros(3) if self.motion is None else np.array([m(t) for m in self.motion])
-
-    def at(self, t):
-        """(kind, values) at time t: a plane's offset, a sphere's centre and a box's corners moved by the translation."""
-        u = self.shift(t)
-        v = np.array(self.values, float)
-        if self.kind == "plane":
-            v[3] += float(v[:3] @ u)
-        elif self.kind == "box":
-            v[:3] += u
-            v[3:] += u
-        else:
-            v[:3] += u
-        return v
-
-
 def mollifier(y, eps):
     """(f0, f1/y, (f1' y - f1)/y^2) of IPC's smoothed Coulomb friction at slip lengths y >= 0 (Li et al. 2020, eq. 14:
     f1(y) = 2y/eps - y^2/eps^2 below eps, 1 beyond; f0' = f1, f0(eps) = eps), all finite at y = 0. The energy
@@ -100,68 +71,7 @@ def mollifier(y, eps):
     return f0, f1y, f2
 
 
-def distances(kind, v, x):
-    """(d, g, rho) of nodes x (n, 3) to one obstacle at values v: the distance, its gradient (unit) and, for a sphere,
-    the distance to its centre (None for a plane)."""
-    if kind == "plane":
-        return x @ v[:3] - v[3], np.broadcast_to(v[:3], x.shape), None
-    if kind == "box":
-        # outside: |q|, q the excess over the half-widths per axis (Euclidean distance to the box; gradient q/|q|,
-        # away from the nearest face, edge or corner); inside: the largest (negative) excess, the nearest face's normal
-        c, e = 0.5 * (v[:3] + v[3:]), 0.5 * (v[3:] - v[:3])
-        r = x - c
-        over = np.abs(r) - e
-        q = np.maximum(over, 0.0)
-        out = np.linalg.norm(q, axis=1)
-        inside = out <= 0
-        d = np.where(inside, over.max(axis=1), out)
-        g = np.sign(r) * q / np.maximum(out, 1e-300)[:, None]
-        if inside.any():
-            k = np.argmax(over[inside], axis=1)
-            gi = np.zeros((int(inside.sum()), 3))
-            gi[np.arange(len(k)), k] = np.sign(r[inside, k])
-            g[inside] = gi
-        return d, g, None
-    r = x - v[:3]
-    rho = np.linalg.norm(r, axis=1)
-    return rho - v[3], r / np.maximum(rho, 1e-300)[:, None], rho
-
-
-def _plane_impact(old, new, a, b):
-    """Per node, the fraction s of the straight move a -> b at which it meets a plane moving from `old` to `new`
-    (inf if never): the signed distance (a + s (b - a)) . n - D(s) is linear in s."""
-    d0, d1 = a @ old[:3] - old[3], b @ new[:3] - new[3]
-    with np.errstate(divide="ignore", invalid="ignore"):
-        return np.where(d1 < d0, np.where(d0 <= 0, 0.0, d0 / (d0 - d1)), np.inf)
-
-
-def time_of_impact(kind, v, x, dx):
-    """Per node, the fraction s > 0 of the straight move dx at which it first touches the obstacle (inf if never)."""
-    if kind == "plane":
-        rate = dx @ v[:3]
-        d = x @ v[:3] - v[3]
-        with np.errstate(divide="ignore", invalid="ignore"):
-            return np.where(rate < 0, d / -rate, np.inf)
-    if kind == "box":
-        # the slabs: per axis the interval of s in which the coordinate lies between the faces; the ray enters the
-        # box at the latest entry, if that is before the earliest exit
-        with np.errstate(divide="ignore", invalid="ignore"):
-            t0, t1 = (v[:3] - x) / dx, (v[3:] - x) / dx
-        still = dx == 0
-        between = (x >= v[:3]) & (x <= v[3:])
-        lo = np.where(still, np.where(between, -np.inf, np.inf), np.minimum(t0, t1))
-        hi = np.where(still, np.where(between, np.inf, -np.inf), np.maximum(t0, t1))
-        enter, leave = lo.max(axis=1), hi.min(axis=1)
-        return np.where((enter <= leave) & (leave >= 0), np.maximum(enter, 0.0), np.inf)
-    r = x - v[:3]
-    a, b, c = (dx * dx).sum(axis=1), 2 * (r * dx).sum(axis=1), (r * r).sum(axis=1) - v[3] ** 2
-    disc = b * b - 4 * a * c
-    with np.errstate(divide="ignore", invalid="ignore"):
-        s = (-b - np.sqrt(np.maximum(disc, 0))) / (2 * a)
-    return np.where((disc >= 0) & (b < 0) & (a > 0), np.maximum(s, 0.0), np.inf)
-
-
-class Contact(NodeBlocks):
+class Contact(NodeBlocks, StepLimiter, DomainCheck, StepStart, AdaptiveStiffness):
     """The barrier of the contact nodes (this rank's owned nodes of the contact surfaces) against the obstacles."""
     name = "contact"
     linear = False
@@ -186,7 +96,7 @@ class Contact(NodeBlocks):
         self.held = np.zeros(0, np.int64)     # (the contact nodes whose path the scene gives: hold)
         x = np.asarray(X, float).reshape(-1, 3)[self.nodes]
         for o, v in zip(self.obstacles, self.now):                       # a start inside an obstacle: one line
-            d = distances(o.kind, v, x)[0]
+            d = o.form.distances(v, x)[0]
             if len(d) and d.min() <= 0:
                 i = int(np.argmin(d))
                 raise UserError(f"-obstacle {o.text}: node {int(input_ids[i])} of the contact surface at "
@@ -203,7 +113,7 @@ class Contact(NodeBlocks):
             self.slip_eps = self.eps_v * h
             self.friction = []
             for o, old in zip(self.obstacles, self.before):
-                d, g, _ = distances(o.kind, old, xc)
+                d, g = o.form.distances(old, xc)
                 lam = np.nan_to_num(-self.kappa * self.area * barrier(d, self.dhat)[1], nan=0.0)
                 T = np.eye(3) - g[:, :, None] * g[:, None, :]
                 self.friction.append((lam, T, xc.copy(), o.shift(t) - o.shift(t - h)))
@@ -233,8 +143,8 @@ class Contact(NodeBlocks):
             if o.motion is None:
                 continue
             xc = on[self.nodes]
-            d_old = distances(o.kind, old, xc)[0]
-            d_new, g, _ = distances(o.kind, new, xc)
+            d_old = o.form.distances(old, xc)[0]
+            d_new, g = o.form.distances(new, xc)
             closer = d_new < d_old
             push = (d_old - d_new)[closer]
             ok = ok and bool((push <= PUSH_LIMIT * self.edge[closer]).all())
@@ -242,12 +152,12 @@ class Contact(NodeBlocks):
         return out, ok
 
     def _terms(self, x):
-        """Per obstacle: (d, g, rho) of the contact nodes at local positions x."""
+        """Per obstacle: (d, g) of the contact nodes at local positions x."""
         xc = x.reshape(-1, 3)[self.nodes]
-        return [distances(o.kind, v, xc) for o, v in zip(self.obstacles, self.now)]
+        return [o.form.distances(v, xc) for o, v in zip(self.obstacles, self.now)]
 
     def _potential(self, terms):
-        return sum(float(self.kappa * (self.area * barrier(d, self.dhat)[0]).sum()) for d, _, _ in terms)
+        return sum(float(self.kappa * (self.area * barrier(d, self.dhat)[0]).sum()) for d, _ in terms)
 
     def potential(self, x):
         return self._potential(self._terms(x)) + (self._friction_potential(x) if self.friction else 0.0)
@@ -256,7 +166,7 @@ class Contact(NodeBlocks):
     def residual(self, x, r):
         self.undefined = 0
         rn = r.reshape(-1, 3)
-        for d, g, _ in self._terms(x):
+        for d, g in self._terms(x):
             self.undefined += int((d <= 0).sum())
             b1 = barrier(d, self.dhat)[1]
             np.add.at(rn, self.nodes, (self.kappa * self.area * b1)[:, None] * g)
@@ -268,7 +178,7 @@ class Contact(NodeBlocks):
             np.add.at(rn, self.nodes, (self.mu * lam * mollifier(y, self.slip_eps)[1])[:, None] * u)
 
     def undefined_at(self, x):
-        return sum(int((d <= 0).sum()) for d, _, _ in self._terms(x))
+        return sum(int((d <= 0).sum()) for d, _ in self._terms(x))
 
     def residual_discrete_gradient(self, x, base, r):
         """-energy_momentum's midpoint stage x: r += a discrete gradient of the barrier from the step's start base to
@@ -283,7 +193,7 @@ class Contact(NodeBlocks):
         D = b - a
         DD = (D * D).sum(axis=1)
         moved = DD > 1e-300
-        for (d0, g0, _), (d1, g1, _) in zip(self._terms(base), self._terms(x1)):
+        for (d0, g0), (d1, g1) in zip(self._terms(base), self._terms(x1)):
             self.undefined += int((d1 <= 0).sum())
             b0, b1 = barrier(d0, self.dhat)[:2], barrier(d1, self.dhat)[:2]
             p0, p1 = self.kappa * self.area * b0[0], self.kappa * self.area * b1[0]
@@ -295,7 +205,7 @@ class Contact(NodeBlocks):
 
     def linearize(self, x):
         self.blocks[:] = 0.0
-        for d, g, _ in self._terms(x):
+        for d, g in self._terms(x):
             b2 = np.nan_to_num(barrier(d, self.dhat)[2], nan=0.0)
             self.blocks += (self.kappa * self.area * b2)[:, None, None] * g[:, :, None] * g[:, None, :]
         for lam, T, u, y in self._slips(x) if self.friction else ():
@@ -311,18 +221,15 @@ class Contact(NodeBlocks):
         xc, dc = x.reshape(-1, 3)[self.nodes], dx.reshape(-1, 3)[self.nodes]
         s = 1.0
         for o, v in zip(self.obstacles, self.now):
-            toi = time_of_impact(o.kind, v, xc, dc)
+            toi = o.form.time_of_impact(v, xc, dc)
             if len(toi):
                 s = min(s, (1.0 - CCD_MARGIN) * float(toi.min()))
         return s
 
-    def set_kappa(self, kappa):
-        self.kappa = float(kappa)
-
     def barrier_gradient(self, x, r):
         """r += the barrier's gradient per unit kappa at local positions x (no friction)."""
         rn = r.reshape(-1, 3)
-        for d, g, _ in self._terms(x):
+        for d, g in self._terms(x):
             np.add.at(rn, self.nodes, np.nan_to_num(self.area * barrier(d, self.dhat)[1])[:, None] * g)
 
     def hold(self, held):
@@ -339,18 +246,19 @@ class Contact(NodeBlocks):
         a = x0.reshape(-1, 3)[self.nodes[self.held]]
         b = x1.reshape(-1, 3)[self.nodes[self.held]]
         for o, old, new in zip(self.obstacles, self.before, self.now):
-            # (relative to a sphere's or box's translation; a plane's offset moves linearly too)
-            s = _plane_impact(old, new, a, b) if o.kind == "plane" else \
-                time_of_impact(o.kind, old, a, b - a - (new[:3] - old[:3]))
+            s = o.form.impact_moving(old, new, a, b)
             if len(s) and s.min() <= 1 and (first is None or s.min() < first[0]):
                 i = int(np.argmin(s))
                 first = (float(s[i]), f"-obstacle {o.text} and the held node at {np.round(a[i], 6).tolist()}")
         return first
 
+    def moves_linearly(self, t0, t1):
+        return linear_motion(self.obstacles, t0, t1)
+
     def energy(self, x, v):
         terms = self._terms(x)
-        active = sum(int((d < self.dhat).sum()) for d, _, _ in terms)
-        dmin = min((float(d.min()) for d, _, _ in terms if len(d)), default=np.inf)
+        active = sum(int((d < self.dhat).sum()) for d, _ in terms)
+        dmin = min((float(d.min()) for d, _ in terms if len(d)), default=np.inf)
         out = {"contact_energy": self._potential(terms), "contact_nodes": active, "contact_dmin": dmin,
                "contact_kappa": self.kappa}
         if self.mu > 0:                        # (nodes pressed at the step's start that slid more than eps_v h)
@@ -384,57 +292,12 @@ def split_top(text, sep):
     return out + [cur]
 
 
-def _obstacle(text, motion):
-    m = re.fullmatch(r"\s*(\w+)\s*:\s*(.*?)\s*", text)
-    kind = m.group(1) if m else ""
-    if kind not in KINDS:
-        raise UserError(f"option -obstacle: '{text}' is not an obstacle (give " +
-                        "; ".join(f"{k}:{v}" for k, v in KINDS.items()) + ", several separated by ';')")
-    if kind == "mesh":
-        return Obstacle(kind, (m.group(2),), motion, text.strip(), read_surface(m.group(2), text))
-    try:
-        vals = [float(s) for s in m.group(2).split(",")]
-    except ValueError:
-        vals = []
-    count = 6 if kind == "box" else 4
-    if len(vals) != count or not np.all(np.isfinite(vals)):
-        raise UserError(f"option -obstacle: '{text}': {kind} takes {'six' if count == 6 else 'four'} numbers, "
-                        f"{KINDS[kind]}")
-    if kind == "box":
-        if not all(a < b for a, b in zip(vals[:3], vals[3:])):
-            raise UserError(f"option -obstacle: '{text}': the box's first corner must be below its second in x, y "
-                            "and z")
-        return Obstacle(kind, tuple(vals), motion, text.strip())
-    if kind == "plane":
-        n = np.linalg.norm(vals[:3])
-        if n == 0:
-            raise UserError(f"option -obstacle: '{text}': the plane's normal is zero")
-        vals = [v / n for v in vals]
-    elif vals[3] <= 0:
-        raise UserError(f"option -obstacle: '{text}': the sphere's radius must be > 0")
-    return Obstacle(kind, tuple(vals), motion, text.strip())
-
-
-def read_surface(path, text):
-    """(points, triangles) of a triangulated obstacle's file (meshio), or one line saying why not."""
-    if not os.path.isfile(path):
-        raise UserError(f"option -obstacle: '{text}': cannot read {path}: no such file")
-    mesh = read_meshio(path, f"option -obstacle: '{text}': {path}")
-    tris = [c.data for c in mesh.cells if c.type == "triangle"]
-    points = np.asarray(mesh.points, float)
-    if not tris or points.ndim != 2 or points.shape[1] != 3 or not np.isfinite(points).all():
-        raise UserError(f"option -obstacle: '{text}': {path} holds no triangles with finite 3-d points")
-    tris = np.concatenate(tris).astype(np.int64)
-    used = np.unique(tris)
-    return points[used], np.searchsorted(used, tris)
-
-
 def _read(opts, where):
     texts = [t for t in split_top(opts.string("obstacle", "") or "", ";") if t.strip()]
     self_contact = opts.flag("contact_self", False)
     if not texts and not self_contact:
         raise UserError(f"{where}: effect 'contact' needs -obstacle (" +
-                        "; ".join(f"{k}:{v}" for k, v in KINDS.items()) + ") or -contact_self")
+                        f"{kinds_help()}) or -contact_self")
     motions = [None] * len(texts)
     if opts.has("obstacle_motion"):
         given = split_top(opts.string("obstacle_motion"), ";")
@@ -448,7 +311,7 @@ def _read(opts, where):
             motions[i] = tuple(TimeFunction(p, "option -obstacle_motion") for p in parts)
             for f in motions[i]:
                 f(0.0)
-    obstacles = tuple(_obstacle(t, m) for t, m in zip(texts, motions))
+    obstacles = tuple(parse(t, m) for t, m in zip(texts, motions))
     faces_ = tuple(facet_sets(opts, "contact_faces", default="boundary"))
     mu = opts.real("contact_friction", 0.0, minimum=0, exclusive=False)
     eps_v = opts.real("contact_friction_eps", 1e-3, minimum=0)
@@ -483,8 +346,8 @@ def build_contact(p, ctx):
     lo, hi = sp.bbox
     dhat = p.dhat if p.dhat is not None else DHAT_SCALE * float(np.linalg.norm(np.asarray(hi) - np.asarray(lo)))
     kappa = p.kappa if p.kappa is not None else KAPPA_SCALE * ctx.modulus / dhat
-    analytic = tuple(o for o in p.obstacles if o.kind != "mesh")
-    meshes = tuple(o for o in p.obstacles if o.kind == "mesh")
+    analytic = tuple(o for o in p.obstacles if o.form.analytic)
+    meshes = tuple(o for o in p.obstacles if not o.form.analytic)
     out = [Contact(nodes, owned_share[owned_share > 0], X, sp.orig[nodes], analytic, dhat, kappa, edge[nodes],
                    p.mu, p.eps_v)] if analytic else []
     if p.self_contact or meshes:
@@ -503,7 +366,7 @@ SPEC = Spec(
     "contact", "rigid obstacles (planes, spheres) and self-contact: the boundary touches but never passes through "
     "(IPC barrier)",
     implied_by=("obstacle", "contact_self", "contact_dhat", "contact_kappa", "contact_faces", "contact_friction"), read=_read, sets=_uses,
-    build=build_contact,
+    build=build_contact, couples=lambda p: p.self_contact,
     energies=(Energy("contact_energy", 1, "the contact barrier's energy"),
               Energy("contact_nodes", 0, "contact nodes within dhat of an obstacle"),
               Energy("contact_pairs", 0, "self-contact pairs (point-triangle, edge-edge, ...) within dhat"),
@@ -513,12 +376,11 @@ SPEC = Spec(
               Energy("contact_dmin", 0, "the smallest distance of a contact node to an obstacle (or of two parts of the "
                      "contact surface within dhat)", combine="min")),
     rows=(Row(("obstacle", "obstacle_motion"), "-obstacle KIND:VALUES[;…]",
-              "rigid obstacles: `plane:NX,NY,NZ,D` (the half-space N·x > D is free: the normal points into the "
-              "body), `sphere:CX,CY,CZ,R`, `box:X0,Y0,Z0,X1,Y1,Z1` (axis-aligned, between those corners), `mesh:FILE` "
-              "(a triangulated surface meshio reads: .stl, .obj, .msh, …); "
-              "`-obstacle_motion EX,EY,EZ[;…]`: each one's translation, expressions of "
+              "rigid obstacles: " + "; ".join(f"`{k}:{c.values.split(': ', 1)[0]}` ({c.values.split(': ', 1)[1]})"
+                                              for k, c in KINDS.items()) +
+              "; `-obstacle_motion EX,EY,EZ[;…]`: each one's translation, expressions of "
               "t. The boundary never passes through them (IPC's barrier in the energy, each Newton update stopped "
-              "short of the first impact); frictionless"),
+              "short of the first impact); frictionless unless -contact_friction"),
           Row(("contact_self",), "-contact_self",
               "self-contact: the contact surfaces touch themselves and each other (a body folding onto itself, "
               "separate pieces of the mesh) but never pass through (IPC's barrier over point-triangle and edge-edge "

@@ -15,6 +15,7 @@ class Constraint:
     name = "constraint"
     option = "-fix"        # the option that holds it (error lines)
     evaluates = False      # values(t) may raise (an expression not finite at some vertices)
+    path_given = True      # the scene gives its nodes' paths (contact checks them before a step: seams.StepStart)
 
     def __init__(self, X, vertices, comps=None):
         self.vertices = np.asarray(vertices, np.int64)
@@ -30,6 +31,44 @@ class Constraint:
     def values(self, t):
         """Prescribed positions of the held dofs (in the order of self.dofs)."""
         return self.positions(t)[self.comps]
+
+
+class HeldBody(Constraint):
+    """A seam (physics/effects/seams.py): held dofs whose targets follow a body of their own, a reference point's
+    motion q = (u, theta) with some components prescribed and the loaded ones (`free`) balanced around each step's
+    solve (solving/rigid.py), its reaction reported about its point (`center`) and its state kept in checkpoints. Its
+    nodes' paths are not the scene's to give (`path_given`). One per run (rigid.Rigid: a rigid face)."""
+    path_given = False
+    free = np.zeros(6, bool)        # the loaded components of q
+    surface = ""                    # the facet set it holds (its name in lines and columns)
+
+    def predict(self, h):
+        """An attempt of size h begins: the loaded components predicted."""
+        raise NotImplementedError
+
+    def accept(self, h):
+        """The attempt of size h is accepted."""
+        raise NotImplementedError
+
+    def state(self):
+        """What a checkpoint keeps of it (an array)."""
+        raise NotImplementedError
+
+    def resume(self, state):
+        """Continue from a checkpoint's `state()`."""
+        raise NotImplementedError
+
+    def center(self, q=None):
+        """The reference point's position at the motion q (default: the attempt's)."""
+        raise NotImplementedError
+
+    def direction(self, j, q=None):
+        """(n, 3): d(node positions)/dq_j at q."""
+        raise NotImplementedError
+
+    def imbalance(self, F, M, q, t):
+        """The loaded components' equilibrium residual for the reaction (F, M about center(q)) at time t."""
+        raise NotImplementedError
 
 
 class Fixed(Constraint):

@@ -28,7 +28,7 @@ from ...core.errors import UserError
 from ...core.expressions import Expression
 from ...core.options import Row, facet_sets, needs
 from .base import Spec
-from .dirichlet import Constraint
+from .dirichlet import HeldBody
 
 COMPONENTS = ("ux", "uy", "uz", "rx", "ry", "rz")       # the reference point's motion: displacement, rotation vector
 LOADS = ("fx", "fy", "fz", "mx", "my", "mz")            # its loads: force, moment about it
@@ -61,7 +61,7 @@ def left_jacobian(theta):
     return np.eye(3) + c * K + s3 * K @ K
 
 
-class Rigid(Constraint):
+class Rigid(HeldBody):
     """The rigid face's nodes as held dofs (all three components), placed by the reference point's motion q = (u,
     theta). q holds the attempt's values; `qn` the last accepted ones and `rate` their rate (the next attempt's
     predictor of the loaded components). Expressions are of t alone, the same on every rank."""

@@ -30,6 +30,8 @@ from mpi4py import MPI
 
 from ...core.errors import UserError
 from .base import NodeBlocks, timed
+from .obstacles import linear_motion
+from .seams import AdaptiveStiffness, Couplings, DomainCheck, StepLimiter, StepStart
 
 KAPPA_WEIGHT = 1.1           # W above: the area weights' sum per unit area of two facing faces (measured)
 
@@ -51,7 +53,7 @@ def linear_triangles(tris):
     return np.concatenate([np.c_[a, ab, ac], np.c_[ab, b, bc], np.c_[ac, bc, c], np.c_[ab, bc, ac]])
 
 
-class SelfContact(NodeBlocks):
+class SelfContact(NodeBlocks, StepLimiter, DomainCheck, StepStart, AdaptiveStiffness, Couplings):
     """The barrier between all pairs of the contact surface's primitives within dhat (the whole surface on every
     rank, this rank's owned rows)."""
     name = "contact"
@@ -62,7 +64,7 @@ class SelfContact(NodeBlocks):
     end_state = True          # (generalized-alpha: acts at the step's end, System._end_state)
 
     def __init__(self, space, tris, dhat, kappa, obstacles=(), mu=0.0, eps_v=1e-3):
-        """obstacles: triangulated rigid obstacles (contact.Obstacle of kind mesh): their triangles join the collision
+        """obstacles: triangulated rigid obstacles (obstacles.Obstacle of kind mesh): their triangles join the collision
         mesh as vertices that are not unknowns, placed by their translation at each step's end. mu, eps_v: Coulomb
         friction (IPC's smoothed, lagged: ipctk's TangentialCollisions and FrictionPotential on the step's
         displacements, smoothed below a slip of eps_v h)."""
@@ -187,6 +189,9 @@ class SelfContact(NodeBlocks):
             s += ds * (1.0 - s)
         body = self.held_v[self.held_v < len(self.ids)]
         return s, f"held triangles of the contact surface ({len(body)} held nodes from node {int(self.ids[body[0]])})"
+
+    def moves_linearly(self, t0, t1):
+        return linear_motion(self.obstacles, t0, t1)
 
     def first_intersection(self, V):
         """In words, the first edge of the collision mesh (in its order) that crosses one of its triangles at positions

@@ -1,0 +1,102 @@
+"""The seams between the solver and what an effect or a constraint needs of it beyond a residual and a tangent.
+
+Most effects are sums over cells or nodes: the solver asks them for R(x), J(x) and an energy (base.Effect) and
+nothing else. Contact with obstacles, self-contact and rigid faces need more: their own limit on a Newton update, a
+check of a state the material cannot see, a say in where a step starts, a stiffness that adapts between steps,
+couplings outside the cell pattern, or held dofs that follow a body of their own. Each such capability is one class
+here, with defaults that do nothing; an effect offers it by subclassing it, and `solving/` iterates over the effects
+that declare it (`isinstance`). Nothing in `solving/` or `formulations/` probes an effect with `hasattr`, `getattr` with a
+default or a comparison of its name (tests/test_layers.py walks their syntax trees and fails on one).
+
+| capability | what the solver does with it | declared by |
+|---|---|---|
+| `StepLimiter` | shortens every Newton update to the smallest `max_step` over the limiters and the ranks (the line search's pre-check); counts the cut in the limiter's statistics column | `Contact`, `SelfContact`; the inversion guard (`solving.solver.InversionGuard`) |
+| `DomainCheck` | a state where `undefined_at` counts something on some rank is no solution and no step's start (besides the material's inverted cells) | `Contact`, `SelfContact` |
+| `StepStart` | before a step is solved: which nodes' paths the scene gives (`hold`), whether those paths collide (`held_collision`), where a moving surrounding pushes the body (`pushed`), whether the surroundings move linearly in t (`moves_linearly`) | `Contact`, `SelfContact` |
+| `AdaptiveStiffness` | at each step's start, the stiffness balanced against the other forces within `kappa_range` (`set_kappa`, `barrier_gradient`) | `Contact`, `SelfContact` (with `-contact_kappa adaptive`) |
+| `Couplings` | a matrix of entries between nodes that the cell pattern does not join, multiplied beside the assembled operator (`jacobians.Coupled`) | `SelfContact` |
+| `dirichlet.HeldBody` | held dofs whose targets follow a body of their own (a reference point balanced around each step's solve, its reaction and state its own) | `rigid.Rigid` |
+
+A new friction law, limiter or kind of held constraint subclasses the capability and fills in its methods; nothing in
+`solving/` changes (docs/design.md, "Seams").
+"""
+import numpy as np
+
+
+class StepLimiter:
+    """A limit on each Newton update: the largest fraction (<= 1) of the update dx from the local positions x that
+    keeps the state admissible, this rank's part (the solver takes the minimum over the limiters and the ranks)."""
+    counter = "contact_cuts"    # the statistics column counting the updates this limiter shortened
+    sticky = False              # True: a cut anywhere in a solve makes its step-norm stop not convergence (the
+                                # inversion guard); False: only a cut in its last update does (a barrier's stiff start
+                                # is cut in its first iterations, then converges quadratically)
+
+    def max_step(self, x, dx):
+        return 1.0
+
+
+class DomainCheck:
+    """A check of a state beyond the material's own (which counts inverted cells): where `undefined_at` counts
+    something, the state is no solution and no step may start there. `domain = True` makes every residual count it as
+    it counts inverted cells (base.Effect.undefined)."""
+    domain = True
+
+    def undefined_at(self, x):
+        """This rank's count of where the local positions x are outside the effect's domain, as reached from the
+        step's start (a contact node at or through an obstacle, the surface through itself)."""
+        return 0
+
+
+class StepStart:
+    """A say in where a step starts. The solver tells the effect which nodes' paths the scene gives (`hold`), asks
+    whether those paths run into something the effect cannot stop (`held_collision`), whether the effect moves the
+    body's surroundings (`moving`), pushes the nodes they reach ahead of them (`pushed`) and moves them linearly in t
+    over a step (`moves_linearly`: a collision of given paths is then certain to stay at any smaller step)."""
+    moving = False              # the effect moves the body's surroundings with time (-obstacle_motion)
+
+    def hold(self, held):
+        """held: per local node, whether the scene prescribes all three of its components (its path is given)."""
+
+    def held_collision(self, x0, x1):
+        """(s, words): the first fraction s <= 1 of the straight move of the held nodes from local positions x0 (the
+        step's start) to x1 (their targets) at which they meet something the effect keeps apart, and what meets; None
+        where nothing does (this rank's nodes, or the same on every rank)."""
+        return None
+
+    def pushed(self, x):
+        """(x', fits): x with the nodes the surroundings' move since the step's start reached pushed ahead of them,
+        and whether every push stays small enough for the cells beside them (this rank's nodes)."""
+        return x, True
+
+    def moves_linearly(self, t0, t1):
+        """Whether the surroundings' move is linear in t over [t0, t1] (checked at the midpoint)."""
+        return True
+
+
+class AdaptiveStiffness:
+    """A stiffness (kappa) the solver may balance between steps against the other forces (IPC's adaptive barrier
+    stiffness: System's begin_step), within `kappa_range` = (lo, hi); None: kept as given."""
+    kappa = 1.0
+    kappa_range = None
+
+    def set_kappa(self, kappa):
+        self.kappa = float(kappa)
+
+    def barrier_gradient(self, x, r):
+        """r += the gradient of the stiffness-weighted term per unit kappa at local positions x."""
+
+
+class Couplings:
+    """Tangent entries between nodes that the cell pattern does not join (self-contact's pairs): `coupled` says,
+    after a linearization and the same on every rank, whether some rank has any; `coupling_entries` gives them."""
+    coupled = False
+
+    def coupling_entries(self, constrained):
+        """(rows, cols, values) in global dof numbering of this rank's rows; `constrained`: a mask of the owned dofs
+        held, whose rows and columns are left out. Collective."""
+        return np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0)
+
+
+def declaring(items, capability):
+    """The items (effects or constraints) that declare the capability, in their order."""
+    return [e for e in items if isinstance(e, capability)]
