@@ -52,6 +52,16 @@ CASES.update({
                     "0.5"], 1e-12),
     "bend2_mixed_2ranks": (["-np2", "bend2", "-order", "2", "-formulation", "mixed", "-material", "neohookean_split",
                             "-nu", "0.49", "-quasistatic", "-dt", "0.5"], 1e-12),
+    # contact's and rigid faces' paths through the solver (limiters, start states, adaptive stiffness, couplings)
+    "drop_floor_adaptive": (["drop_floor", "-contact_kappa", "adaptive", "-final_time", "0.6"], 1e-14),
+    "drop_floor_ts": (["drop_floor", "-integrator", "ts", "-final_time", "0.6"], 1e-14),
+    "bend_box_friction": (["bend", "-quasistatic", "-dt", "0.25", "-obstacle", "box:3,-4,-4,6,-2.3,4",
+                           "-contact_friction", "0.3"], 1e-14),
+    "stack_self_contact": (["MESH:stack.geo:0.25", EXAMPLES + "/stack.opts"], 1e-14),
+    "invert_self_contact": (["invert", "-contact_self", "-final_time", "0.15", "-dt", "0.05"], 1e-14),
+    "bend_rigid_loaded": (["bend", "-effects", "elasticity,fixed,rigid", "-fix", "left", "-rigid", "right",
+                           "-rigid_fy", "-2000*t", "-quasistatic", "-dt", "0.25"], 1e-14),
+    "bend_p2_static_default": (["bend", "-order", "2", "-quasistatic", "-dt", "0.5", "-level", "2"], 1e-6),
 })
 
 
