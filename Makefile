@@ -1,5 +1,6 @@
 # make demo: set up .venv, generate the mesh, run the default scene, write its output and a PNG.
 # make test: the same set-up, then the whole test suite.
+# make docs: the user guide as a website in build/site/ (MkDocs; the options reference regenerated from the catalog).
 VENV ?= .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.hyperelastic-installed
@@ -7,7 +8,7 @@ KERNELS_STAMP := $(VENV)/.kernels-built
 DEMO_SCENE ?= bend
 DEMO_LEVEL ?= 3
 
-.PHONY: all setup demo test clean
+.PHONY: all setup demo test docs clean
 
 all: setup
 
@@ -34,6 +35,11 @@ demo: setup
 test: setup
 	$(PY) -m compileall -q hyperelastic
 	PATH="$(abspath $(VENV))/bin:$$PATH" $(PY) -m pytest -q -n 2 --dist loadfile --durations=30 tests
+
+docs: setup
+	$(PY) -m hyperelastic.app.catalog --reference > docs/reference/options.md
+	$(VENV)/bin/mkdocs build --strict
+	@echo "the guide: build/site/index.html"
 
 clean:
 	rm -rf output build hyperelastic/discretization/_kernels*.so

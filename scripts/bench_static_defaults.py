@@ -4,7 +4,10 @@ explicit -pc_type jacobi (the default before: no switch), with options/gamg.opts
 would set it; each a real `hyperelastic run`; prints outcome, wall seconds, Newton steps and Krylov iterations
 per Newton step as a markdown table.
 
-    python scripts/bench_static_defaults.py [--out DIR] [--only lbracket,bracket,...]
+    python scripts/bench_static_defaults.py [--out DIR] [--only lbracket,bracket,...] [--order 2]
+
+--order 2: every part on quadratic tetrahedra (their default is then CG + p-multigrid; options/pmg.opts joins the
+variants).
 
 Parts: a steel L-bracket (0.2 m arms, 2 cm thick; the top of its upright clamped, 1e5 Pa on its arm's top face:
 the user report of issue 34), examples/bracket (aluminium, two sizes), Cook's membrane (rubber, mixed where
@@ -86,7 +89,10 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--out", default=None)
     ap.add_argument("--only", default="")
+    ap.add_argument("--order", default="1", choices=("1", "2"))
     a = ap.parse_args()
+    variants = dict(VARIANTS, **({"options/pmg.opts": ["-options_file", os.path.join(ROOT, "options", "pmg.opts")]}
+                                  if a.order == "2" else {}))
     d = a.out or tempfile.mkdtemp(prefix="static_defaults_")
     os.makedirs(d, exist_ok=True)
     todo = cases(d)
@@ -96,10 +102,10 @@ def main():
     for name, (scene, args) in todo.items():
         if only and name not in only:
             continue
-        for label, extra in VARIANTS.items():
+        for label, extra in variants.items():
             out = os.path.join(d, f"{name}_{label.split()[0].replace('/', '_')}.h5")
             t0 = time.perf_counter()
-            p = hyper(["run", scene, *args, *extra, "-output", out, "-quiet"], timeout=1800)
+            p = hyper(["run", scene, *args, "-order", a.order, *extra, "-output", out, "-quiet"], timeout=1800)
             wall = time.perf_counter() - t0
             c = read_cost(out) if p.returncode == 0 else {}
             tets = h5py.File(out, "r")["mesh/tetra"].shape[0] if os.path.exists(out) else "?"

@@ -1,6 +1,7 @@
 """Every option of the application, with its default and a line of help: the one list that
 `hyperelastic run --help` / `-help` prints, that the unknown-option check reads, and that the README's
-option table is generated from (`python -m hyperelastic.app.catalog --markdown`; a test keeps them equal).
+option table is generated from (`python -m hyperelastic.app.catalog --reference`: docs/reference/options.md; a test
+keeps them equal).
 
 Options named after a region or a load (`-soft_E`, `-pull_faces`) are written with the placeholder
 REGION or LOAD and expanded with the names the scene lists in -regions / -loads.
@@ -345,13 +346,29 @@ def help_text(values=None, width=100):
 
 
 def markdown_table():
-    """The README's option table."""
+    """The option table of the options reference (docs/reference/options.md)."""
     def cell(s):
         return s.replace("|", "\\|")
     out = ["| option | meaning | default |", "|---|---|---|"]
     for row in ROWS:
         out.append(f"| `{cell(row.synopsis)}` | {cell(row.help)} | {cell(row.default)} |")
     return "\n".join(out)
+
+
+REFERENCE_HEAD = """# Options reference
+
+Every option of the application, as `hyperelastic run --help` prints it (`hyperelastic run SCENE -help`: with the
+scene's values, then PETSc's own options as its solvers read them). This page is generated from the application's
+catalog (`python -m hyperelastic.app.catalog --reference`, which `make docs` runs; tests/test_catalog.py keeps the two
+equal). PETSc's own options (`-snes_*`, `-ksp_*`, `-pc_*`, `-ts_*`, `-log_view`, ...) work as PETSc documents them; an
+option that is neither the application's nor PETSc's, or a solver option the run did not use, is refused before
+anything runs, naming the closest one.
+"""
+
+
+def reference_page():
+    """docs/reference/options.md: the option table with its heading."""
+    return REFERENCE_HEAD + "\n" + markdown_table() + "\n"
 
 
 def load_scene(scene_arg):
@@ -382,4 +399,6 @@ def scene_option_names(scene):
 
 
 if __name__ == "__main__":
-    print(markdown_table() if "--markdown" in sys.argv[1:] else help_text())
+    flags = sys.argv[1:]
+    print(markdown_table() if "--markdown" in flags else reference_page() if "--reference" in flags else help_text(),
+          end="\n" if "--reference" not in flags else "")

@@ -180,14 +180,15 @@ class Integrator:
     def _counters(self):
         s = self.system
         return (effect_counters(s.effects), s.residual_evals, s.residual_seconds, s.objective_evals, s.objective_seconds,
-                self.solver.inversion_cuts, self.solver.contact_cuts)
+                dict(self.solver.cuts))
 
     def _counter_stats(self, c0):
-        """The counters' increments since the snapshot c0 (_counters) as statistics columns."""
+        """The counters' increments since the snapshot c0 (_counters) as statistics columns (the step limiters' cuts:
+        each limiter's column, seams.StepLimiter.counter)."""
         c1 = self._counters()
-        keys = ("residual_evals", "residual_seconds", "objective_evals", "objective_seconds", "inversion_cuts",
-                "contact_cuts")
-        stats = {k: b - a for k, a, b in zip(keys, c0[1:], c1[1:])}
+        keys = ("residual_evals", "residual_seconds", "objective_evals", "objective_seconds")
+        stats = {k: b - a for k, a, b in zip(keys, c0[1:5], c1[1:5])}
+        stats.update({k: n - c0[5][k] for k, n in c1[5].items()})
         for name, (ev, ap, sec) in c1[0].items():
             e0 = c0[0][name]
             stats[effect_column(name, "evals")] = ev - e0[0]

@@ -1,0 +1,143 @@
+"""The user guide (issue 69 item 5): every command its pages show runs as written, page by page, in order, each page in
+a scratch directory that holds the project's .venv, examples/ and scripts/ and nothing else; what a page says a command
+prints, it prints; the README's first runs are lines of the guide; the site builds with `mkdocs build --strict` (no
+warning, no link to a page or an anchor that is not there)."""
+import glob
+import math
+import os
+import re
+import shlex
+import subprocess
+
+import h5py
+import pytest
+
+from conftest import BIN, ROOT
+
+GUIDE = os.path.join(ROOT, "docs", "guide")
+# commands the guide shows that other tests run on smaller grids (their time would add minutes to the suite)
+LONG = {"examples/coil.opts": "test_contact.py::test_a_twisted_rod_coils_onto_itself_and_never_through (coarser)",
+        "study price": "test_price.py and test_walkthrough.py::test_price_of_the_torque_answers_and_is_true"}
+
+
+def commands(path):
+    """The lines of a page's ```sh blocks that start with .venv/bin/ (a trailing comment cut), in order."""
+    text = open(path, encoding="utf-8").read()
+    out = []
+    for block in re.findall(r"```sh\n(.*?)```", text, re.S):
+        for line in block.splitlines():
+            if line.startswith(".venv/bin/"):
+                out.append(re.sub(r"\s+#.*$", "", line.strip()))
+    return out
+
+
+def pages():
+    return sorted(os.path.basename(p)[:-3] for p in glob.glob(os.path.join(GUIDE, "*.md")))
+
+
+def run_page(name, tmp_path, timeout=600):
+    """[(command, CompletedProcess)] of the page's commands run in tmp_path (LONG ones left out)."""
+    for d in ("examples", "scripts"):
+        os.symlink(os.path.join(ROOT, d), tmp_path / d)
+    os.symlink(os.path.dirname(BIN), tmp_path / ".venv")
+    (tmp_path / "output").mkdir()
+    done = []
+    for c in commands(os.path.join(GUIDE, name + ".md")):
+        if any(key in c for key in LONG):
+            continue
+        p = subprocess.run(c, shell=True, cwd=tmp_path, capture_output=True, text=True, timeout=timeout,
+                           stdin=subprocess.DEVNULL)
+        assert p.returncode == 0, f"{name}: {c}\n{p.stderr[-2000:]}"
+        done.append((c, p))
+    return done
+
+
+CHECKED = ("your-part", "rubber", "scenes")        # (the pages with checks of their own below)
+
+
+@pytest.mark.parametrize("page", [p for p in pages() if p not in CHECKED and commands(os.path.join(GUIDE, p + ".md"))])
+def test_a_guide_page_runs_as_written(page, tmp_path):
+    assert run_page(page, tmp_path)
+
+
+def test_scenes_page_runs_as_written(tmp_path):
+    done = run_page("scenes", tmp_path)
+    assert len(done) >= 9 and any("mpiexec" in c for c, _ in done)
+    for f in ("output/bend.h5", "output/twist3.h5", "output/bar8.msh", "output/bracket.h5", "output/bend.png",
+              "output/twist3.png"):
+        assert (tmp_path / f).stat().st_size > 0, f
+
+
+def test_your_part_runs_as_written_and_prints_what_it_shows(tmp_path):
+    """The bracket meshed and run prints what the page shows: its set lines, the STEP part's surfaces table, the forces
+    table from `report`; both pictures are drawn."""
+    text = open(os.path.join(GUIDE, "your-part.md"), encoding="utf-8").read()
+    shown = {"bracket": [ln.strip() for ln in text.split("loads `load`", 1)[1].split("```text\n", 1)[1]
+                         .split("```", 1)[0].splitlines()],
+             "bimaterial": [text.split("prints `", 1)[1].split("`", 1)[0]]}
+    done = run_page("your-part", tmp_path)
+    assert len(done) == 9 and done[0][0].startswith(".venv/bin/hyperelastic mesh examples/")
+    for c, p in done:
+        if "bracket.step" in c:              # the STEP part's surfaces table
+            assert "surface_1          326      0.0048  (0, 0.03, 0.04)" in p.stdout, p.stdout
+            assert "surface_8           42      0.0006  (0.1, 0.03, 0.005)                   +x" in p.stdout, p.stdout
+        if "bracket_step.msh -fix surface_1" in c:
+            assert "reaction surface_1: F = (" in p.stderr and "set surface_8: 42 facets" in p.stderr, p.stderr
+        if " report " in c:
+            assert "forces at t = 1" in p.stdout and "at (0.1, 0.03, 0.005), frame" in p.stdout, p.stdout
+        if " run " in c and "bracket_step" not in c:
+            for line in shown["bracket" if "bracket" in c else "bimaterial"]:
+                assert line in p.stderr, line                       # the set lines the page shows
+    assert (tmp_path / "output" / "bracket.png").stat().st_size > 10000
+    assert (tmp_path / "output" / "bracket_von_mises.png").stat().st_size > 10000
+
+
+def test_rubber_runs_as_written_and_meets_rivlin(tmp_path):
+    """Cook's membrane: the tip "within 0.5% of the converged 6.92 mm"; the rod's torque within 0.1% of Rivlin's
+    closed form M = (pi/2) mu (psi/L) a^4 for an incompressible neo-Hookean cylinder, as the page says."""
+    done = run_page("rubber", tmp_path)
+    with h5py.File(tmp_path / "output" / "cook.h5", "r") as f:
+        X, x = f["mesh/points"][:], f["x"][-1]
+    tip = (abs(X[:, 0] - 48) < 1e-9) & (abs(X[:, 1] - 60) < 1e-9)
+    assert abs((x - X)[tip, 1].mean() / 6.922 - 1) < 0.005
+    report = [p for c, p in done if "moment_z:top" in c][0]
+    m = re.search(r"moment_z:top:0,0,0\.04 = (\S+)", report.stdout)
+    assert m, report.stdout
+    mu, a, L, psi = 5e5, 0.01, 0.04, math.pi / 2
+    assert abs(float(m.group(1)) / (math.pi / 2 * mu * (psi / L) * a ** 4) - 1) < 1e-3, m.group(1)
+
+
+def test_the_readmes_first_runs_are_lines_of_the_guide():
+    """Every command of the README runs as the guide's same line does (those run above)."""
+    text = open(os.path.join(ROOT, "README.md"), encoding="utf-8").read()
+    readme = [ln.strip() for ln in text.split("## Three first runs", 1)[1].split("\n## ", 1)[0].splitlines()
+              if ln.startswith("    .venv/bin/")]
+    guide = {c for p in pages() for c in commands(os.path.join(GUIDE, p + ".md"))}
+    assert len(readme) == 9 and [c for c in readme if c not in guide] == []
+    assert len(text.splitlines()) <= 200
+
+
+def test_the_site_builds_without_warnings_or_dead_links(tmp_path):
+    """`mkdocs build --strict` (mkdocs.yml: a link to a missing page or anchor, a page outside the navigation, an
+    absolute link are warnings, and --strict makes a warning an error); the options reference is the catalog's
+    (test_catalog.py)."""
+    p = subprocess.run([os.path.join(BIN, "mkdocs"), "build", "--strict", "-d", str(tmp_path / "site")],
+                       cwd=ROOT, capture_output=True, text=True, timeout=300)
+    assert p.returncode == 0, p.stdout + p.stderr
+    assert (tmp_path / "site" / "index.html").exists() and (tmp_path / "site" / "guide" / "contact.html").exists()
+    bad = subprocess.run([os.path.join(BIN, "mkdocs"), "build", "--strict", "-d", str(tmp_path / "bad"),
+                          "-f", str(_broken_config(tmp_path))], cwd=ROOT, capture_output=True, text=True, timeout=300)
+    assert bad.returncode != 0 and "nowhere.md" in bad.stdout + bad.stderr      # (the check can fail)
+
+
+def _broken_config(tmp_path):
+    """A copy of the site with one dead link, to show that the strict build refuses it."""
+    import shutil
+    docs = tmp_path / "docs"
+    shutil.copytree(os.path.join(ROOT, "docs"), docs)
+    (docs / "index.md").write_text((docs / "index.md").read_text() + "\n[gone](nowhere.md)\n")
+    cfg = open(os.path.join(ROOT, "mkdocs.yml"), encoding="utf-8").read().replace("docs_dir: docs",
+                                                                                    f"docs_dir: {shlex.quote(str(docs))}")
+    path = tmp_path / "mkdocs.yml"
+    path.write_text(cfg)
+    return path
