@@ -1,6 +1,6 @@
 """Every option of the application, with its default and a line of help: the one list that
-`hyperelastic run --help` / `-help` prints, that the unknown-option check reads, and that the README's
-option table is generated from (`python -m hyperelastic.app.catalog --reference`: docs/reference/options.md; a test
+`hyperelastic run --help` / `-help` prints, that the unknown-option check reads, and that the options reference's
+table is generated from (`python -m hyperelastic.app.catalog --reference`: docs/reference/options.md; a test
 keeps them equal).
 
 Options named after a region or a load (`-soft_E`, `-pull_faces`) are written with the placeholder

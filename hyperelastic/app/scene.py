@@ -19,7 +19,7 @@ OUTPUT_LAYOUTS = ("auto", "gather", "ranks")     # -output_layout (output/writer
 DEFAULT_MATERIAL = "stvk"
 DEFAULT_EFFECTS = effects_pkg.DEFAULT
 EFFECTS = effects_pkg.NAMES
-# How effects switch on (stated in -help and the README, catalog.py):
+# How effects switch on (stated in -help and the options reference, catalog.py):
 EFFECTS_RULE = ("an effect is on when `-effects` lists it or one of its main options is given (`-gravity` adds "
                 "gravity; elasticity is always on); a `-effects` on the command line replaces the scene file's "
                 "effects: the scene file's options for effects that are not on otherwise are then ignored, and "

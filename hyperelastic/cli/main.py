@@ -57,7 +57,7 @@ def _petsc(argv):
 
 def _recipes(argv):
     """The arguments with every `-options_file NAME` that names no file here but one of the package's recipes
-    (`gamg`, `gamg.opts` or the README's `options/gamg.opts`) pointing at that recipe: recipes work from any
+    (`gamg`, `gamg.opts` or the guide's `options/gamg.opts`) pointing at that recipe: recipes work from any
     directory, an installed package included."""
     out = list(argv)
     for i, a in enumerate(out[:-1]):

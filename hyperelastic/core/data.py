@@ -30,7 +30,7 @@ def recipes():
 
 def recipe_path(arg):
     """The package's recipe an `-options_file` argument names where it is not a file here: `gamg`, `gamg.opts` or
-    `options/gamg.opts` (the README's spelling, from any directory); None when it names none."""
+    `options/gamg.opts` (the guide's spelling, from any directory); None when it names none."""
     if os.path.exists(arg):
         return None
     name = os.path.basename(arg)

@@ -20,10 +20,10 @@ from .files import option_lines
 
 @dataclass(frozen=True)
 class Row:
-    """Options as `-help` and the README's table list them: one row of related options. The catalog
+    """Options as `-help` and the options reference list them: one row of related options. The catalog
     (catalog.py) gathers the rows of the application, of every material and of every effect."""
     names: tuple      # the options of the row, without the dash (REGION_x / LOAD_x: per region / load)
-    synopsis: str     # how the row shows them (README's first column)
+    synopsis: str     # how the row shows them (the options reference's first column)
     help: str         # what they do (backticks: code)
     default: str = ""
 

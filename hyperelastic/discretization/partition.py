@@ -32,7 +32,7 @@ def refusal(name):
         return None
     if name in PETSC_OWN:
         return (f"'{name}' is a partitioner of PETSc, and the PETSc in use was built without it (it needs a PETSc "
-                f"configured with --download-{name}, e.g. a cluster's: README 'Your own PETSc'); here: "
+                f"configured with --download-{name}, e.g. a cluster's: docs/guide/install.md, on a cluster's PETSc); here: "
                 f"{', '.join(names())}")
     return f"'{name}': the partitioners are {', '.join(names())}"
 

@@ -29,5 +29,5 @@ def choose(problem):
 
 
 def rows():
-    """The option rows of the formulations' own options (-help, the README's table)."""
+    """The option rows of the formulations' own options (-help, the options reference)."""
     return tuple(r for f in REGISTRY for r in f.rows)

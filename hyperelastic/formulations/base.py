@@ -21,7 +21,7 @@ class Problem:
 
 class Formulation:
     name = ""
-    summary = ""            # what it is, for -help and the README's table (after `NAME`:)
+    summary = ""            # what it is, for -help and the options reference (after `NAME`:)
     rows = ()               # options of its own (core.options.Row), listed in -help after -formulation
     implied_by = ()         # options whose presence makes `-formulation auto` this one (-incompressible: mixed)
     auto_rank = 0           # -formulation auto asks the specs from the lowest rank up; the first that claims runs

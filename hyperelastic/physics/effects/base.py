@@ -51,12 +51,12 @@ class LoadKind:
 @dataclass(frozen=True)
 class Spec:
     """Everything the application knows of an effect, declared once in its module (effects/NAME.py) and
-    listed in effects.REGISTRY: the scene reader, the option catalog (-help, the README table, the
+    listed in effects.REGISTRY: the scene reader, the option catalog (-help, the options reference, the
     unknown-option check), the set labels, `effects.build`, the statistics columns and the energy totals
     all loop over the registry.
       name       the name -effects lists
       summary    one line for -help
-      rows       its options (options.Row), as -help and the README list them
+      rows       its options (options.Row), as -help and the options reference list them
       shares     options of another effect's rows that it reads too (the follower twist's surfaces)
       implied_by the options whose presence switches the effect on (see scene.read_effects)
       read       (opts, where) -> its parameters (a dataclass), read and checked; None: it has none
