@@ -82,8 +82,7 @@ class Model:
     scene: object
     element: Element            # the run's element (its order and stiffness rule), decided once
     formulation: object         # the formulation's spec (formulations.REGISTRY) that runs the scene
-    points: np.ndarray          # the checked input mesh's nodes (rank 0; None elsewhere) ...
-    tets: np.ndarray            # ... and its cells: (nc, 4) corners, or (nc, 10) nodes of quadratic cells
+    source: object              # where the mesh came from (a MeshSource: whole on rank 0, in slices, refined)
     space: Space
     kernels: object             # the material(s)' cell kernels on the space's cells (kernels.py)
     system: System
@@ -91,40 +90,149 @@ class Model:
     v0: np.ndarray
     sets: list = None           # [{name, kind, count, measure, ...}] of the sets the run uses (all ranks)
     notes: list = None          # what the start-up report says of the model's choices, one line each
-    sliced_from: str = None     # the mesh file every rank read its slice of (a prepared mesh or a per-rank output;
-                                # points, tets: then None everywhere)
-    refined: object = None      # -refine on one rank: its SliceMesh, the whole fine mesh
+
+    @property
+    def tets(self):
+        """The whole input mesh's cells on rank 0 where rank 0 read it whole (None otherwise)."""
+        return self.source.tets
 
     def whole_mesh(self):
         """(points, tets) of the whole input mesh in its own numbering on rank 0 (None elsewhere), for the gathered
         output: a mesh read in slices is read whole here, on rank 0, only where that output asks for it."""
-        if self.points is None and self.scene.refine and self.space.mpi.rank == 0:
-            self.points, self.tets = self._whole_refined()
-        elif self.points is None and self.sliced_from and self.space.mpi.rank == 0:
-            m = read_mesh(self.sliced_from, self.scene.mesh_frame)
-            m = elevate(m) if self.element.order == 2 and m.order == 1 else m     # (as the slices were)
-            self.points, self.tets = m.points, m.cell_nodes
+        return self.source.whole(self.element, self.space.mpi.rank)
+
+    def set_lines(self):
+        """One line per set: name, facets or tets, area or volume."""
+        return [s["line"] for s in self.sets]
+
+
+class MeshSource:
+    """The one way in for a scene's mesh: a source reads it into the distributed space, and gives the whole mesh on
+    rank 0 where the gathered output asks for it. Which source a scene takes is decided once, by mesh_source: the
+    only place that reads -refine and the mesh's format.
+      WholeMesh    rank 0 reads and checks the whole mesh (any format meshio reads) and distributes it
+      SlicedMesh   every rank reads its own slice of a prepared mesh or a per-rank output
+      RefinedMesh  -refine K: the coarse mesh distributed (in slices where it can be, else scattered from rank 0),
+                   every rank refining its own part K times"""
+    sliced_from = None           # the file every rank read its slice of (the output's `mesh_read`), or None
+    points = tets = None         # the whole mesh on rank 0, where it was read whole
+
+    def __init__(self, scene):
+        self.scene = scene
+        self.name = scene.mesh or f"bar L{scene.level}"
+
+    def distribute(self, comm):
+        """(Space, Element, the set report, notes) of the scene's mesh on the ranks of comm. Collective."""
+        raise NotImplementedError
+
+    def whole(self, element, rank):
+        """(points, cells) of the whole mesh at the run's order on rank 0 (None, None elsewhere)."""
         return self.points, self.tets
 
-    def _whole_refined(self):
-        """(points, cells) of the whole -refine'd mesh on rank 0: the one rank's own part, else the coarse mesh read
-        and refined again here (refine.refine_whole: the parts' numbering), at the run's order."""
-        if self.refined is not None:
-            m = self.refined
+
+class WholeMesh(MeshSource):
+    def distribute(self, comm):
+        loaded = collective(comm, lambda: load_mesh(self.scene))
+        mesh, element, labels, report, notes = loaded if loaded is not None else (None,) * 5
+        mpi = comm.tompi4py()
+        element, notes = mpi.bcast((element, notes), root=0)
+        space = make_space(comm, element, mesh, labels, self.scene.partitioner)
+        if mesh is not None:
+            self.points, self.tets = mesh.points, mesh.cell_nodes
+        return space, element, mpi.bcast(report, root=0), notes
+
+
+class SlicedMesh(MeshSource):
+    levels = 0                   # -refine K of the slices (RefinedMesh)
+
+    def __init__(self, scene):
+        super().__init__(scene)
+        self.sliced_from = scene.mesh
+
+    def coarse_source(self, comm):
+        """(where the slices come from: None, the file itself, or a slices.MemorySource; notes; seconds rank 0 read
+        the mesh whole)."""
+        return None, [], 0.0
+
+    def distribute(self, comm):
+        source, notes, serial = self.coarse_source(comm)
+        mesh, dm = read_slice(self.scene.mesh, comm, self.scene.mesh_frame, source, self.levels,
+                              lambda nv: check_index_range(nv, self.name))
+        element = Element.decide(self.scene.order, self.scene.quadrature, mesh.source_order)
+        check_index_range(mesh.totals[0] * (7 if element.order == 2 else 1), self.name)   # (P2: ~6 edges a vertex)
+        labels, report = mesh_labels(self.scene, mesh)
+        space = make_space(comm, element, mesh, labels, self.scene.partitioner, dm=dm)
+        self.keep(mesh, comm)
+        return space, element, report, self.note(mesh, serial) + notes
+
+    def keep(self, mesh, comm):
+        """Keep what whole() needs of this rank's slice (RefinedMesh: the one rank's fine mesh)."""
+
+    def note(self, mesh, serial):
+        return []
+
+    def whole(self, element, rank):
+        if rank != 0:
+            return None, None
+        m = read_mesh(self.sliced_from, self.scene.mesh_frame)
+        m = elevate(m) if element.order == 2 and m.order == 1 else m     # (as the slices were)
+        return m.points, m.cell_nodes
+
+
+class RefinedMesh(SlicedMesh):
+    def __init__(self, scene, levels):
+        super().__init__(scene)
+        self.levels = levels
+        self.fine = None         # on one rank: its SliceMesh, the whole fine mesh
+
+    def coarse_source(self, comm):
+        if self.scene.mesh and sliceable(self.scene.mesh):
+            return None, [], 0.0
+        t0 = time.perf_counter()
+        mpi = comm.tompi4py()
+
+        def coarse():
+            mesh = read_coarse(self.scene)
+            return prepared_arrays(mesh), (straight_sided_note(mesh, self.levels) if mesh.order == 1 else [])
+        data, notes = collective(comm, coarse) or (None, None)
+        return MemorySource(mpi, data, self.name), mpi.bcast(notes, root=0), time.perf_counter() - t0
+
+    def keep(self, mesh, comm):
+        self.fine = mesh if comm.getSize() == 1 else None
+
+    def note(self, mesh, serial):
+        return [refine_note(self.levels, mesh, serial)]
+
+    def whole(self, element, rank):
+        """The whole -refine'd mesh on rank 0: the one rank's own part, else the coarse mesh read and refined again
+        here (refine.refine_whole: the parts' numbering), at the run's order."""
+        if rank != 0:
+            return None, None
+        if self.fine is not None:
+            m = self.fine
             points = np.empty((m.totals[0], 3))
             points[m.ids] = m.points
             tets = np.empty((m.totals[1], 4), np.int64)
             tets[m.cell_ids] = m.ids[m.tets]
         else:
-            points, tets = refine_whole(read_coarse(self.scene), self.scene.refine)
-        if self.element.order == 1:
+            points, tets = refine_whole(read_coarse(self.scene), self.levels)
+        if element.order == 1:
             return points, tets
         m = elevate(Mesh(self.sliced_from, points, tets))
         return m.points, m.cell_nodes
 
-    def set_lines(self):
-        """One line per set: name, facets or tets, area or volume."""
-        return [s["line"] for s in self.sets]
+
+def mesh_source(scene):
+    """The scene's MeshSource: -refine K refines in slices; a prepared mesh or a per-rank output of linear cells
+    (output/ranks.py; -order 2 elevates their cells) is read in slices, unless METIS partitions it (the whole dual graph
+    on rank 0) or -order 1 asks for a quadratic mesh's corners; anything else is read whole on rank 0."""
+    if scene.refine:
+        return RefinedMesh(scene, scene.refine)
+    if scene.mesh and scene.partitioner != "metis":
+        order = sliceable(scene.mesh)
+        if order and not (order == 2 and scene.order == 1):
+            return SlicedMesh(scene)
+    return WholeMesh(scene)
 
 
 def load_mesh(scene):
@@ -155,57 +263,17 @@ def read_coarse(scene):
     return read_mesh(scene.mesh, scene.mesh_frame) if scene.mesh else read_mesh(cached_bar(scene.level))
 
 
-def in_slices(scene):
-    """Whether every rank reads its slice of the scene's mesh: a prepared mesh (mesh/prepared.py) or a per-rank output
-    of linear cells (output/ranks.py; -order 2 elevates their cells), with a partitioner but METIS (which partitions
-    the whole dual graph on rank 0); otherwise rank 0 reads it whole (read_mesh reads both too). A mesh to -refine
-    is always distributed in slices (rank 0 reads a file that is neither, and scatters them: load_slices)."""
-    if scene.refine:
-        return True
-    if not scene.mesh or scene.partitioner == "metis":
-        return False
-    order = sliceable(scene.mesh)
-    return bool(order) and not (order == 2 and scene.order == 1)     # (-order 1 of a quadratic mesh: rank 0)
-
-
-def load_slices(scene, comm):
-    """(this rank's SliceMesh, the DMPlex built from the slices, Element, its labels, the set report, notes) of a
-    prepared mesh or a per-rank output, every rank reading its own slice (collective; errors raised on every rank);
-    -refine: each rank's part refined where it lies (discretization/refine.py), a mesh that cannot be read in slices
-    read and checked whole on rank 0 and scattered coarse (slices.MemorySource)."""
-    mpi, name = comm.tompi4py(), scene.mesh or f"bar L{scene.level}"
-    source, notes, serial = None, [], 0.0
-    if scene.refine and not (scene.mesh and sliceable(scene.mesh)):
-        t0 = time.perf_counter()
-
-        def coarse():
-            mesh = read_coarse(scene)
-            return prepared_arrays(mesh), (straight_sided_note(mesh, scene.refine) if mesh.order == 1 else [])
-        data, notes = collective(comm, coarse) or (None, None)
-        notes = mpi.bcast(notes, root=0)
-        source = MemorySource(mpi, data, name)
-        serial = time.perf_counter() - t0
-    mesh, dm = read_slice(scene.mesh, comm, scene.mesh_frame, source, scene.refine,
-                          lambda nv: check_index_range(nv, name))
-    element = Element.decide(scene.order, scene.quadrature, mesh.source_order)
-    check_index_range(mesh.totals[0] * (7 if element.order == 2 else 1), name)         # (P2: ~6 edges a vertex)
-    labels, report = mesh_labels(scene, mesh)
-    if scene.refine:
-        notes = [refine_note(scene, mesh, serial)] + notes
-    return mesh, dm, element, labels, report, notes
-
-
-def refine_note(scene, mesh, serial):
+def refine_note(levels, mesh, serial):
     """The start-up report's line on -refine: what it made, where and how fast (serial: the seconds rank 0 read the
     coarse mesh whole, where it did)."""
     nv, nc, _ = mesh.totals
     seconds = mesh.mpi.allreduce(mesh.refine_seconds, op=MPI.MAX)
     if mesh.source_order == 2:
-        where = ("the quadratic mesh's edge nodes" + (", then at edge midpoints" if scene.refine > 1 else "") +
+        where = ("the quadratic mesh's edge nodes" + (", then at edge midpoints" if levels > 1 else "") +
                  ": curved surfaces are as faithful as its edge nodes make them")
     else:
         where = "edge midpoints: curved surfaces stay as faceted as the coarse mesh's"
-    return (f"-refine {scene.refine}: {nc // 8 ** scene.refine} -> {nc} tetrahedra, {nv} vertices, refined on "
+    return (f"-refine {levels}: {nc // 8 ** levels} -> {nc} tetrahedra, {nv} vertices, refined on "
             f"{mesh.mpi.size} rank(s) in {seconds:.2f} s ({nc / max(seconds, 1e-9) / mesh.mpi.size / 1e3:.0f}k "
             f"tetrahedra/s a rank{f'; the coarse mesh read on rank 0 in {serial:.2f} s' if serial else ''}); "
             f"new vertices at {where}")
@@ -334,22 +402,11 @@ def cell_kernels(scene, space, constants):
 
 
 def build_model(scene, comm):
-    """Read the scene's mesh (rank 0) and decide its element, distribute it with the sets the scene uses, choose
+    """Read the scene's mesh (its MeshSource) and decide its element, distribute it with the sets the scene uses, choose
     the formulation, build the effects the scene names and the formulation's System, calibrated at the initial
     state. The scene is read, never written."""
-    sliced, refined = in_slices(scene), None
-    if sliced:
-        mesh, dm, element, labels, report, mesh_notes = load_slices(scene, comm)
-        space = make_space(comm, element, mesh, labels, scene.partitioner, dm=dm)
-        refined = mesh if scene.refine and comm.getSize() == 1 else None
-        mesh = None                                 # (Model.whole_mesh reads it whole where the output needs it)
-    else:
-        loaded = collective(comm, lambda: load_mesh(scene))
-        mesh, element, labels, report, mesh_notes = loaded if loaded is not None else (None,) * 5
-        mpi = comm.tompi4py()
-        element, mesh_notes = mpi.bcast((element, mesh_notes), root=0)
-        space = make_space(comm, element, mesh, labels, scene.partitioner)
-        report = mpi.bcast(report, root=0)
+    source = mesh_source(scene)
+    space, element, report, mesh_notes = source.distribute(comm)
     solids = solids_in_use(scene, space)
     problem = Problem(scene, element, solids)
     formulation, notes = choose(problem)
@@ -360,6 +417,4 @@ def build_model(scene, comm):
     x0, v0 = initial_state(scene, space)
     system = formulation.system(problem, space, k, effects, constraints, x0, v0)
     system.volume_bound = volume_bound(problem, scene.incompressible)     # (every accepted state is checked)
-    points, cells = (mesh.points, mesh.cell_nodes) if mesh is not None else (None, None)
-    return Model(scene, element, formulation, points, cells, space, k, system, x0, v0, report, mesh_notes + notes,
-                 scene.mesh if sliced else None, refined)
+    return Model(scene, element, formulation, source, space, k, system, x0, v0, report, mesh_notes + notes)

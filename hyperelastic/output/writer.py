@@ -187,7 +187,7 @@ def run_attributes(model, scene_file, solver):
             "material_parameters": json.dumps(sc.solid.record()),
             "regions": json.dumps([{"name": r.name, **r.solid.record()} for r in sc.regions]),
             "mesh": os.path.abspath(sc.mesh) if sc.mesh else f"bar level {sc.level}",
-            "mesh_read": "slices" if model.sliced_from else "rank 0",
+            "mesh_read": "slices" if model.source.sliced_from else "rank 0",
             "vertices_per_rank": np.array(space.mpi.allgather(space.nlv)),
             "cells_per_rank": np.array(space.mpi.allgather(space.nc)),
             "partitioner": space.partitioner,
