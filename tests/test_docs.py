@@ -82,7 +82,7 @@ def test_your_part_runs_as_written_and_prints_what_it_shows(tmp_path):
             assert "surface_1          326      0.0048  (0, 0.03, 0.04)" in p.stdout, p.stdout
             assert "surface_8           42      0.0006  (0.1, 0.03, 0.005)                   +x" in p.stdout, p.stdout
         if "bracket_step.msh -fix surface_1" in c:
-            assert "reaction surface_1: F = (" in p.stderr and "set surface_8: 42 facets" in p.stderr, p.stderr
+            assert "reaction surface_1 (holds xyz): F = (" in p.stderr and "set surface_8: 42 facets" in p.stderr, p.stderr
         if " report " in c:
             assert "forces at t = 1" in p.stdout and "at (0.1, 0.03, 0.005), frame" in p.stdout, p.stdout
         if " run " in c and "bracket_step" not in c:

@@ -38,13 +38,13 @@ def test_bracket_reaction_balances_the_load(tmp_path, bracket_mesh, order, nproc
     assert np.allclose(Fl, [0, 0, -2e5 * area], rtol=1e-12, atol=1e-9)        # the dead traction's resultant
     assert np.abs(Fr + Fl).max() <= 1e-6 * np.abs(Fl).max()                     # equilibrium of forces
     assert np.abs(Mr + Ml).max() <= 1e-6 * np.abs(Ml).max()                     # and of moments
-    assert "reaction clamp: F = (" in p.stderr and "sum: F = (" in p.stderr
+    assert "reaction clamp (holds xyz): F = (" in p.stderr and "sum: F = (" in p.stderr
 
 
 def test_surfaces_sharing_held_nodes_and_the_mixed_pressure(tmp_path):
-    """Cook's membrane, mixed P2-P1: the clamp and the two roller faces share the nodes of two edges, so their
-    rows count those nodes' reactions twice; the `all_held` row counts each held component once and balances
-    the load, and the pressure's terms (internal forces) are not a load."""
+    """Cook's membrane, mixed P2-P1: the clamp (xyz) and the two roller faces (z) share the nodes of two edges, whose z
+    reactions are split equally between the clamp and the roller (issue 70): the rows add up to the `all_held` row,
+    which balances the load, and the pressure's terms (internal forces) are not a load."""
     m, out = tmp_path / "cook.msh", tmp_path / "c.h5"
     run_ok(["mesh", f"{ROOT}/examples/cook.geo", "--size", 8, "--order", 2, "-o", m])
     p = hyperelastic(["run", f"{ROOT}/examples/cook.opts", "-mesh", m, "-order", 2, "-formulation", "mixed",
@@ -56,9 +56,38 @@ def test_surfaces_sharing_held_nodes_and_the_mixed_pressure(tmp_path):
     assert np.allclose(Fl, [0, 0.25 * 6.25 * 160, 0], rtol=1e-12, atol=1e-9)
     assert np.abs(Fa + Fl).max() <= 1e-7 * np.abs(Fl).max() and np.abs(Ma + Ml).max() <= 1e-7 * np.abs(Ml).max()
     rows = sum(F[("reaction", n)][0] for n in ("left", "front", "back"))
-    assert np.abs(rows + Fl).max() > 1e-3 * np.abs(Fl).max()      # the shared edges counted twice
+    assert np.abs(rows - Fa).max() <= 1e-12 * np.abs(Fa).max()     # the shared edges' reactions split, not doubled
+    assert "reaction front (holds z): F = (0, 0, " in p.stderr and "reaction left (holds xyz)" in p.stderr
     line = [ln for ln in p.stderr.splitlines() if ln.strip().startswith("sum: F")][0]
     assert float(line.split("(")[2].split()[0]) < 1e-7
+
+
+@pytest.mark.parametrize("fix", ["left:x,bottom:z,front:y,back:y", "left,front:y"])
+def test_each_row_holds_only_its_components_and_the_rows_add_up(tmp_path, fix):
+    """Issue 70 item 1. Rollers on three faces and a fourth (the quarter section of a seal: symmetry planes held in
+    their normal components, the sides in y), the bar pushed in x and pressed in z at its right end: a row holds the
+    components its surface holds and nothing else (a face held only in y shows 0 in x and z, though its nodes on the
+    edges it shares with the others are held in x and z too); a clamp and a symmetry plane sharing an edge split that
+    edge's y reactions. In both, every component of the rows adds up to the `all_held` row (1e-12), which balances
+    the load, and the report prints the same table from the file with the components each row holds."""
+    out = tmp_path / "q.h5"
+    p = run_ok(["run", "bend", "-level", 2, "-effects", "elasticity,fixed,traction", "-quasistatic", "-dt", 1,
+                "-fix", fix, "-traction", "-2000,0,-500", "-traction_face", "right", "-snes_rtol", "1e-10",
+                "-ksp_rtol", "1e-12", "-output", out])
+    _, F = forces(out)
+    holds = dict(part.partition(":")[::2] for part in fix.split(","))
+    reactions = {n: F[("reaction", n)][0] for n in holds}
+    total, load = F[("reaction", "all_held")][0], F[("load", "traction")][0]
+    for name, comps in holds.items():
+        comps = comps or "xyz"
+        for i, c in enumerate("xyz"):
+            if c not in comps:
+                assert reactions[name][i] == 0.0, (name, reactions[name])
+        assert f"reaction {name} (holds {comps}): F = (" in p.stderr
+    assert np.abs(sum(reactions.values()) - total).max() <= 1e-12 * np.abs(total).max()
+    assert np.abs(total + load).max() <= 1e-7 * np.abs(load).max()
+    q = run_ok(["report", out])
+    assert f"reaction {list(holds)[0]} (holds {holds[list(holds)[0]] or 'xyz'}): F = (" in q.stdout
 
 
 def test_dynamic_balance_includes_inertia_and_damping(tmp_path):

@@ -147,7 +147,7 @@ def test_report_prints_the_run_forces_and_material_points(cube, tmp_path):
     p = run_ok(["report", out, "--at", "0.5,0.5,1", "--watch", "u_z:0.5,0.5,1", "--watch", "reaction_z:zmax"])
     lines = p.stdout.splitlines()
     assert lines[0].startswith(f"{out}: scene plain") and "finished" in lines[0] and "3 frames to t = 1" in lines[0]
-    assert lines[1].startswith("forces at t = 1") and any(ln.startswith("  reaction zmax: F = (") for ln in lines)
+    assert lines[1].startswith("forces at t = 1") and any(ln.startswith("  reaction zmax (holds ") for ln in lines)
     at = [ln for ln in lines if ln.startswith("at (0.5, 0.5, 1), frame 2 (t = 1): u = (")][0]
     u = [float(v) for v in at.split("u = (")[1].split(")")[0].split(",")]
     assert np.allclose(u, [(lam[0] - 1) * 0.5, (lam[1] - 1) * 0.5, 0.1], rtol=1e-5, atol=1e-9), (u, lam)

@@ -14,7 +14,7 @@ from petsc4py import PETSc
 from .catalog import check_solver_options, check_viewer_files, help_text, load_scene, scene_option_names
 from ..core.errors import Interrupted, UserError
 from ..core.files import StateRows, check_output_path, output_names
-from ..solving.forces import record, surface_forces, table
+from ..solving.forces import held_components, record, surface_forces, table
 from ..solving.integrators import BackwardEuler
 from ..solving.rigid import line as rigid_line
 from .model import build_model, collective
@@ -78,7 +78,7 @@ def run_scene(scene_arg, options_files, restart=None, restart_path=None):
     forces, rigid_lines = _integrate(integ, writer, comm, scene)
     if not quiet and comm.getRank() == 0:
         if forces:
-            print("\n".join(table(forces, integ.t) + rigid_lines), file=sys.stderr)
+            print("\n".join(table(forces, integ.t, held_components(scene)) + rigid_lines), file=sys.stderr)
         print(f"wrote {out} ({integ.step} steps, {writer.nframes} frames)", file=sys.stderr)
         advice = solver.advice()
         if advice:
@@ -144,7 +144,7 @@ def _integrate(integ, writer, comm, scene):
         ended = True
         if isinstance(integ, BackwardEuler):
             forces = surface_forces(scene, integ.system, integ.x)
-            writer.set_attr("forces", json.dumps({"t": integ.t, "forces": record(forces)}))
+            writer.set_attr("forces", json.dumps({"t": integ.t, "forces": record(forces, held_components(scene))}))
             if integ.rigid is not None:          # the rigid face's reference point and its reaction about it
                 text, rec = rigid_line(integ.system, integ.rigid, integ.x)
                 lines.append(text)

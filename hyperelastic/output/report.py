@@ -52,7 +52,7 @@ def report(path, frame, points, watches, forces=False):
         if "forces" in f.attrs and not forces:
             rec = json.loads(f.attrs["forces"])
             lines += table([(r["kind"], r["name"], np.array(r["F"]), np.array(r["M"])) for r in rec["forces"]],
-                           rec["t"])
+                           rec["t"], holds(f))
         if points or forces:
             if n == 0:
                 raise UserError(f"report: '{path}' has no frames")
@@ -75,7 +75,14 @@ def _forces_at(f, t, i):
     if not rows:
         why = "its start (t = 0)" if i == 0 else f"t = {t:.6g} ({_no_forces(f, st)})"
         raise UserError(f"report: --forces: the statistics record no forces at frame {i}, {why}")
-    return table(rows, t)
+    return table(rows, t, holds(f))
+
+
+def holds(f):
+    """{surface: the components it holds} from the output's `forces` attribute (written at a run's end; {} without)."""
+    if "forces" not in f.attrs:
+        return {}
+    return {r["name"]: r["holds"] for r in json.loads(f.attrs["forces"])["forces"] if "holds" in r}
 
 
 def _no_forces(f, st):

@@ -4,18 +4,22 @@ resultant of every load, with their moments about the origin.
 The residual r(x) of the effects (system.residual_local, without the constrained rows' replacement) is,
 at a node, the force the node needs from outside: r = M a + C v + f_int - f_ext. At a free node it is zero
 when the solve has converged; at a held node it is the support's force on the body. So a constrained
-surface's reaction is the sum of r over its nodes' held components, and an effect's force on the body is
-minus the sum of its own residual over every node (loads: the applied force; inertia: the d'Alembert force
+surface's reaction is the sum of r over its nodes' components that surface holds, and an effect's force on the body
+is minus the sum of its own residual over every node (loads: the applied force; inertia: the d'Alembert force
 -M a; damping: -C v). The internal forces sum to zero, so reactions + loads + inertia + damping = 0 to the
 solver's tolerance. Sums run over each rank's local nodes, ghosts included: every cell lives on one rank,
-so each cell's contribution is counted once. A node on two constrained surfaces counts in both surfaces'
-rows; with more than one such surface a row `reaction all_held` counts every held component once, and the
-balance line sums that row and the loads.
+so each cell's contribution is counted once.
+
+Which row a held component's reaction belongs to (issue 70): the surfaces that hold that component of that node (a
+surface held in y only, `-fix front:y`, never shows the z reaction of the nodes it shares with `-fix zsym:z`); where
+several surfaces hold the same component of a shared node (`-fix left,bottom`: their common edge), it is split equally
+among them. So the rows of every component add up to the total of the held components, which the row `reaction
+all_held` gives (where more than one surface is held) and the balance line sums with the loads. The table names the
+components each row holds.
 """
 import numpy as np
 from mpi4py import MPI
 
-from ..physics.effects import SPECS
 
 TOTAL = "all_held"         # the row of every held component once (surfaces sharing held nodes count them in both rows;
                            # a name without spaces or parentheses: it is also a statistics column's, reaction_all_held_Fz)
@@ -23,8 +27,9 @@ TOTALS = (TOTAL, "(all held)")   # (its name in outputs written before 2026-11-2
 
 
 def surface_forces(scene, system, x):
-    """[(kind, name, F (3,), M (3,))]: ('reaction', set) for each constrained surface, ('load', effect) for
-    each other effect's force on the body; x: the local positions. Collective."""
+    """[(kind, name, F (3,), M (3,))]: ('reaction', set) for each constrained surface (the components it holds; a
+    component several surfaces hold at a node split equally among them), ('load', effect) for each other effect's
+    force on the body; x: the local positions. Collective."""
     sp = system.space
     mpi = sp.mpi
     each = [(e, system.residual_local(x, effects=[e]).reshape(-1, 3)) for e in system.effects]   # once each
@@ -32,12 +37,18 @@ def surface_forces(scene, system, x):
     held = system.cmask.reshape(-1, 3)
     X = x.reshape(-1, 3)
     rows = []
-    names = constrained_sets(scene)
-    for name in names:
-        v = sp.set_vertices(name)
-        f = np.where(held[v], r[v], 0.0)
-        rows.append(("reaction", name, f.sum(axis=0), np.cross(X[v], f).sum(axis=0)))
-    if len(names) > 1:                  # every held component once: what the loads balance
+    holds = held_components(scene)
+    masks = []
+    for name, comps in holds.items():                   # the components each surface holds, at its vertices
+        m = np.zeros(held.shape, bool)
+        m[np.ix_(sp.set_vertices(name), ["xyz".index(c) for c in comps])] = True
+        masks.append(m & held)
+    count = sum(m.astype(np.int64) for m in masks) if masks else np.zeros(held.shape, np.int64)
+    share = np.where(count > 0, r / np.maximum(count, 1), 0.0)
+    for name, m in zip(holds, masks):
+        f = np.where(m, share, 0.0)
+        rows.append(("reaction", name, f.sum(axis=0), np.cross(X, f).sum(axis=0)))
+    if len(holds) > 1:                  # every held component once: what the loads balance
         f = np.where(held, r, 0.0)
         rows.append(("reaction", TOTAL, f.sum(axis=0), np.cross(X, f).sum(axis=0)))
     for e, re in each:
@@ -51,20 +62,32 @@ def surface_forces(scene, system, x):
 
 def constrained_sets(scene):
     """The surfaces the scene holds (-fix, -prescribe_faces, -rigid), in order, each once."""
-    names = []
+    return list(held_components(scene))
+
+
+def held_components(scene):
+    """{surface: the components the scene holds on it ("xyz", "y", ...)} of -fix, -prescribe_faces (their S:xyz) and
+    -rigid (all three), in order; a surface named by several options holds the union."""
+    out = {}
     for effect in ("fixed", "prescribed", "rigid"):
-        uses = SPECS[effect].set_uses(scene.effects[effect]) if effect in scene.effects else []
-        for _, name, _ in uses:
-            if name not in names:
-                names.append(name)
-    return names
+        if effect not in scene.effects:
+            continue
+        params = scene.effects[effect]
+        faces = params.faces if effect != "rigid" else ((params.surface, "xyz"),)
+        for name, comps in faces:
+            held = set(out.get(name, "")) | set(comps)
+            out[name] = "".join(c for c in "xyz" if c in held)
+    return out
 
 
-def table(rows, t):
-    """The end-of-run lines: one per surface and load, and their sum against the largest force."""
+def table(rows, t, holds=None):
+    """The end-of-run lines: one per surface (with the components it holds, where `holds` {surface: "xyz"} says) and
+    load, and their sum against the largest force."""
+    holds = holds or {}
     lines = [f"forces at t = {t:.6g} (N; moments about the origin, N m):"]
     for kind, name, F, M in rows:
-        lines.append(f"  {kind} {name}: F = ({F[0]:.6g}, {F[1]:.6g}, {F[2]:.6g}), "
+        which = f" (holds {holds[name]})" if kind == "reaction" and name in holds else ""
+        lines.append(f"  {kind} {name}{which}: F = ({F[0]:.6g}, {F[1]:.6g}, {F[2]:.6g}), "
                      f"M = ({M[0]:.6g}, {M[1]:.6g}, {M[2]:.6g})")
     if rows:
         total = any(k == "reaction" and n in TOTALS for k, n, _, _ in rows)
@@ -76,6 +99,9 @@ def table(rows, t):
     return lines
 
 
-def record(rows):
-    """The rows as the output file's `forces` attribute records them (JSON-able)."""
-    return [{"kind": k, "name": n, "F": [float(v) for v in F], "M": [float(v) for v in M]} for k, n, F, M in rows]
+def record(rows, holds=None):
+    """The rows as the output file's `forces` attribute records them (JSON-able; a reaction's `holds`: its
+    components)."""
+    holds = holds or {}
+    return [{"kind": k, "name": n, "F": [float(v) for v in F], "M": [float(v) for v in M]}
+            | ({"holds": holds[n]} if k == "reaction" and n in holds else {}) for k, n, F, M in rows]

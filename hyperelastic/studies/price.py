@@ -27,7 +27,8 @@ most per second of the next run; every run updates the models. It stops when no 
 cheaper than the cheapest run already meeting the target, or at --budget / --max-runs. The linear solver (the
 Jacobian mode and the preconditioner: the assembled tangent with the default preconditioner or GAMG, the
 matrix-free exact tangent with Jacobi; on quadratic tetrahedra also p-multigrid) is a cost-only dimension: on each
-order's first run over PC_TRIAL seconds the other solvers run at the same setting and the fastest is kept. (PETSc's
+order's first run over PC_TRIAL seconds the other solvers run at the same setting (each stopped once it is TRIAL_STOP
+times slower than the fastest so far) and the fastest is kept. (PETSc's
 MFFD, -snes_mf_operator, is not tried: it costs a residual per Krylov iteration and is never faster than the exact
 tangent, BENCHMARKS.md.)
 """
@@ -62,6 +63,10 @@ SOLVER_NAMES = {"default": "assembled, default PC", "gamg": "assembled, GAMG", "
                 "pmg": "assembled, p-multigrid"}
 SOLVER_ORDERS = {"pmg": (2,)}     # the element orders a solver is tried on (others: every order)
 PC_TRIAL = 0.5          # s: an order's first run at least this long also runs with the other solvers
+# a solver trial is stopped at TRIAL_STOP x the wall time of the fastest trial of the same setting so far, plus
+# TRIAL_FLOOR s (a process's start): it cannot be the fastest then (the bar's matrix-free P2 trial ran 44 s where the
+# default finished in 3.5 s)
+TRIAL_STOP, TRIAL_FLOOR = 3.0, 2.0
 # s: the defaults' setting is run for the comparison where predicted to take at most DEFAULTS_CAP, and stopped at
 # DEFAULTS_STOP of wall time (a prediction from coarser runs can be far off: on the bar at 10%, P1 r4 with default
 # tolerances was predicted under 30 s and took ~260 s, Jacobi's iterations growing with the mesh)
@@ -351,8 +356,12 @@ class Search:
             if _formulation(row["path"]) == "mixed":
                 self.solver[s.order] = "default"       # its Schur field split (GAMG inside): nothing to try
             else:
-                trials = [row] + [self.run(replace(s, solver=k), "linear solver trial")
-                                  for k in solvers(s.order) if k != s.solver]
+                trials = [row]
+                for k in solvers(s.order):
+                    if k != s.solver:       # (stopped once it cannot be the fastest: TRIAL_STOP)
+                        fastest = min(r["wall_s"] for r in trials if r["outcome"] == "finished")
+                        trials.append(self.run(replace(s, solver=k), "linear solver trial",
+                                               limit=TRIAL_STOP * fastest + TRIAL_FLOOR))
                 done = [r for r in trials if r["outcome"] == "finished"]
                 self.solver[s.order] = min(done, key=lambda r: r["solve_s"])["setting"].solver
         return row
