@@ -238,6 +238,39 @@ def test_an_obstacle_kind_added_by_its_recipe_presses_as_the_plane_does(tmp_path
     assert abs(fw[0] - fp[0]) <= 1e-9 * abs(fp[0]) and fp[0] != 0
 
 
+SPHERE = """-quasistatic
+-effects elasticity,fixed,contact
+-material linear
+-E 1e6
+-nu 0.3
+-fix zmin
+-obstacle sphere:0.5,0.5,1.501,0.5
+-obstacle_motion 0,0,-0.03*t
+-contact_faces zmax
+-contact_dhat 1e-5
+-dt 0.2
+"""
+
+
+@pytest.mark.parametrize("order,extra", [(1, ["-options_file", "gamg"]), (2, [])])
+def test_a_sphere_pressed_into_a_block_balances_at_every_step(tmp_path, order, extra):
+    """Issue 72 item 1: a rigid sphere pressed into a clamped unit cube with a barrier reach 1e-5 of the part (its
+    stiffness makes Newton's updates tiny at contact). Before, SNES stopped on the step norm with the contact force
+    unbalanced, and the step was accepted: on P1 with GAMG every step (a contact force of 500-3,200 N against a clamp
+    reaction of 0), on P2 4e-4 of the force off. Now every accepted step balances: the clamp's reaction equals the
+    contact force to 1e-6 (measured: 2e-9 on P1, 6e-8 on P2)."""
+    (tmp_path / "sphere.opts").write_text(SPHERE)
+    mesh = tmp_path / "cube.msh"
+    run_ok(["mesh", os.path.join(EXAMPLES, "cube.geo"), "--size", 0.2, "-o", mesh])
+    run_ok(["run", tmp_path / "sphere.opts", "-mesh", mesh, "-order", order, *extra, "-quiet", "-output",
+            tmp_path / "s.h5"])
+    st = read_h5(tmp_path / "s.h5")["stats"]
+    ok = st["rejected"] == 0
+    reaction, contact = st["reaction_zmin_Fz"][ok], st["load_contact_Fz"][ok]
+    assert ok.sum() == 5 and (np.abs(contact) > 100).all(), contact
+    assert (np.abs(reaction + contact) <= 1e-6 * np.abs(contact)).all(), (reaction, contact)
+
+
 def test_the_bent_bar_rests_on_a_box(tmp_path):
     """The quasi-static bend's tip (it sags ~1.3 m) comes down on a box below it: no node inside the box in any frame,
     a contact force that carries part of the load."""

@@ -273,6 +273,7 @@ def test_a_small_step_after_an_inversion_cut_is_not_convergence():
             pass
     s = Solver.__new__(Solver)
     s.system, s.cuts, s.sticky_cuts = System(), dict.fromkeys(CUT_COUNTERS, 0), 0
+    s.imbalance = lambda X: 0.0                   # (a residual at its rounding floor: the step-norm stop stands)
     for limiter, early in ((InversionGuard(None), Solver.GUARDED_SNORM), (StepLimiter(), R.CONVERGED_SNORM_RELATIVE)):
         for reason, cut_at, want in ((R.CONVERGED_SNORM_RELATIVE, ITS - 1, Solver.GUARDED_SNORM),
                                      (R.CONVERGED_SNORM_RELATIVE, 1, early),
@@ -281,3 +282,12 @@ def test_a_small_step_after_an_inversion_cut_is_not_convergence():
             s.snes = Snes(s, reason, cut_at)
             assert s.solve(None) == want, (limiter.counter, reason, cut_at)
     assert Solver.GUARDED_SNORM < 0 and "not convergence" in s.reason_name(Solver.GUARDED_SNORM)
+    # a step-norm stop without a cut whose residual is not small against the forces is not the end (issue 72): Newton
+    # goes on (_newton_on), and its reason is the solve's; a stop that cannot go on is refused
+    s.snes, s.imbalance = Snes(s, R.CONVERGED_SNORM_RELATIVE, None), lambda X: 2e-3
+    s._newton_on = lambda X, reason: R.DIVERGED_MAX_IT
+    assert s.solve(None) == R.DIVERGED_MAX_IT
+    s.imbalance = lambda X: 0.5 * Solver.SNORM_EQUILIBRIUM
+    assert s.solve(None) == R.CONVERGED_SNORM_RELATIVE
+    s.last_imbalance = 2e-3
+    assert Solver.UNBALANCED_SNORM < 0 and "not an equilibrium" in s.reason_name(Solver.UNBALANCED_SNORM)

@@ -359,11 +359,10 @@ class BackwardEuler(Integrator):
             return refused
         indefinite = self.solver.indefinite_solves
         reason = self.solver.solve(self.X)
-        snes = self.solver.snes
         indefinite = self.solver.indefinite_solves - indefinite
+        newton, ksp = self.solver.iterations()
         stats = {"step": self.step + 1, "time": t1, "dt": h, "snes_reason": int(reason),
-                 "newton_its": snes.getIterationNumber(),
-                 "ksp_its": snes.getLinearSolveIterations() + self.guess_ksp, "rejected": 1}
+                 "newton_its": newton, "ksp_its": ksp + self.guess_ksp, "rejected": 1}
         if reason > 0 and self.balance is not None:
             ok, why, its, newton, ksp = self.balance.run(self.X, t1)
             stats.update(rigid_its=its, newton_its=stats["newton_its"] + newton, ksp_its=stats["ksp_its"] + ksp)

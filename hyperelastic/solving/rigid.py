@@ -88,7 +88,6 @@ class Balance:
         """Balance the point from the step's converged solve in X (updated in place). Returns (converged, why,
         balance iterations, Newton iterations, Krylov iterations) of the solves it added."""
         rb, sysm, solver = self.rb, self.system, self.solver
-        snes = solver.snes
         newton = ksp_its = 0
         for it in range(rb.max_it + 1):
             e, scale = self.error(X, rb.q, t)
@@ -112,8 +111,9 @@ class Balance:
             sysm.retarget(rb, rb.place(rb.q))
             sysm.impose_global(X)
             reason = solver.solve(X)
-            newton += snes.getIterationNumber()
-            ksp_its += snes.getLinearSolveIterations()
+            n, k = solver.iterations()
+            newton += n
+            ksp_its += k
             if reason <= 0:
                 return (False, f"rigid face {rb.surface}: the solve of balance iteration {it + 1} did not converge "
                                f"({solver.reason_name(reason)})", it + 1, newton, ksp_its)

@@ -210,19 +210,15 @@ class Solver:
         if self.op is not None and own:
             snes.setJacobian(self._jacobian, self.op.operator, self.op.mat)
         self.levels = None        # p-multigrid's levels (pmg.py), where the run uses them
-        # the Newton-step limiters (seams.StepLimiter): the inversion guard first (a tie is its cut), then the effects'
-        self.limiters = ([InversionGuard(system.elastic_kernels())] if guard else []) + \
-            declaring(system.effects, StepLimiter)
-        self.cuts = dict.fromkeys(CUT_COUNTERS + tuple(lim.counter for lim in self.limiters), 0)
-        self.sticky_cuts = 0      # cuts by a sticky limiter (the inversion guard) over the run ...
-        self.last_cut_at = -1     # ... and the Newton iteration of this solve's last cut by any limiter
-        if self.limiters:
-            snes.setLineSearchPreCheck(self._precheck)
+        self._set_limiters(guard)
         self.plan.before_options(self)
         if own:
             snes.setFromOptions()
             self.plan.configure(self)       # (a TS's SNES: once the TS has read the options, ts_integrator.py)
         self.reuse = None
+        self.last_imbalance = 0.0        # the last step-norm stop's residual against the largest force (imbalance)
+        self.carried = (0, 0)            # the (Newton, Krylov) iterations of a solve before Newton went on (_newton_on)
+        self.snes.setConvergenceHistory(reset=True)     # (|F0| of each solve: _newton_on's target)
         self.linear_solves, self.linear_its = 0, 0
         self.indefinite_solves = 0       # Krylov solves that stopped at negative curvature (DIVERGED_INDEFINITE_MAT)
         if self.op is not None:
@@ -234,6 +230,17 @@ class Solver:
             snes.setMonitor(self._watch_divergence)
         self.ev_res = PETSc.Log.Event("HE_Residual")
         self.ev_jac = PETSc.Log.Event("HE_Jacobian")
+
+    def _set_limiters(self, guard):
+        """The Newton-step limiters (seams.StepLimiter), applied in the line search's pre-check: the inversion guard
+        first (a tie is its cut), then the effects'; their cuts counted by column."""
+        self.limiters = ([InversionGuard(self.system.elastic_kernels())] if guard else []) + \
+            declaring(self.system.effects, StepLimiter)
+        self.cuts = dict.fromkeys(CUT_COUNTERS + tuple(lim.counter for lim in self.limiters), 0)
+        self.sticky_cuts = 0      # cuts by a sticky limiter (the inversion guard) over the run ...
+        self.last_cut_at = -1     # ... and the Newton iteration of this solve's last cut by any limiter
+        if self.limiters:
+            self.snes.setLineSearchPreCheck(self._precheck)
 
     def _merit(self, objective, under_ts):
         """The line search merit: the energy where every effect has a potential and SNES is ours, else the residual
@@ -489,11 +496,29 @@ class Solver:
     # step was accepted at J_min 0.107, J_max 2.05 in an incompressible rubber, and every later step failed).
     GUARDED_SNORM = -101
 
+    # A step-norm stop (CONVERGED_SNORM_RELATIVE: the update fell below -snes_stol of |x|) certifies nothing about the
+    # residual, and with the positions as the unknown stol |x| is an absolute step (1e-8 of the part's size times the
+    # square root of its node count): a barrier that stiff made Newton's updates that small while a node 3e-16 m from
+    # a sphere carried 4.4e4 N against held reactions of 4e-6 N, and the step was accepted (issue 72). So a step-norm
+    # stop is measured against the forces on the body (`imbalance`: the free dofs' residual against the largest force
+    # an effect exerts there, that force at least what a move of -snes_stol times the part's size takes): at or below
+    # SNORM_EQUILIBRIUM it stands; above it Newton goes on from there without the step-norm test, to the residual the
+    # first solve aimed at (max(atol, rtol |F0|)), for at most SNORM_MORE iterations (a barrier's stiff start makes
+    # Newton's first updates tiny; quadratic convergence follows: the sphere pressed into a cube, 10-15 iterations a
+    # step, balanced to 1e-10). Where Newton cannot get there, the stop stands if it was within SNORM_BALANCE (the
+    # self-contact and triangulated-obstacle scenes' stops at 1e-6 to 1.4e-4 of the largest force, at the IPC
+    # barrier's rounding floor), else the solve failed (UNBALANCED_SNORM: two blocks pressed together had stopped
+    # after one iteration at 0.17, the sphere at 1) and the step is retried shorter.
+    SNORM_EQUILIBRIUM, SNORM_BALANCE, SNORM_MORE = 1e-6, 1e-3, 25
+    UNBALANCED_SNORM = -102
+
     def solve(self, X):
-        """Solve for the step's state in X; SNES's converged reason, or GUARDED_SNORM (refused)."""
+        """Solve for the step's state in X; SNES's converged reason, or GUARDED_SNORM or UNBALANCED_SNORM (a step-norm
+        stop refused)."""
         self.system.set_objective_base(None)
         sticky = self.sticky_cuts
         self.last_cut_at = -1
+        self.carried = (0, 0)
         self.snes.solve(None, X)
         reason = self.snes.getConvergedReason()
         # (a sticky limiter's cut anywhere in the solve; any cut in its last update: a barrier's stiff start is cut
@@ -501,7 +526,66 @@ class Solver:
         guarded = self.sticky_cuts > sticky or 0 <= self.last_cut_at >= self.snes.getIterationNumber() - 1
         if reason == PETSc.SNES.ConvergedReason.CONVERGED_SNORM_RELATIVE and guarded:
             return self.GUARDED_SNORM
+        if reason == PETSc.SNES.ConvergedReason.CONVERGED_SNORM_RELATIVE and self.imbalance(X) > self.SNORM_EQUILIBRIUM:
+            reason = self._newton_on(X, reason)
         return reason
+
+    def _newton_on(self, X, reason):
+        """Newton on from X after a step-norm stop that is not an equilibrium (the comment above): -snes_stol 0, the
+        first solve's residual target as the absolute tolerance, at most SNORM_MORE iterations, the first solve's
+        iterations carried into `iterations()`. Its reason where it converges; else `reason` with X back at the stop
+        where that was within SNORM_BALANCE, or UNBALANCED_SNORM."""
+        snes = self.snes
+        its, lits = snes.getIterationNumber(), snes.getLinearSolveIterations()
+        stop, first = X.copy(), self.last_imbalance
+        history = snes.getConvergenceHistory()[0]
+        rtol, atol, stol, max_it = snes.getTolerances()
+        if len(history):
+            snes.setTolerances(rtol=rtol, atol=max(atol, rtol * float(history[0])), stol=0.0,
+                               max_it=min(self.SNORM_MORE, max(max_it - its, 1)))
+            try:
+                self.system.set_objective_base(None)
+                snes.solve(None, X)
+            finally:
+                snes.setTolerances(rtol=rtol, atol=atol, stol=stol, max_it=max_it)
+            self.carried = (self.carried[0] + its, self.carried[1] + lits)
+            if snes.getConvergedReason() > 0:
+                stop.destroy()
+                return snes.getConvergedReason()
+        self.last_imbalance = first
+        if first <= self.SNORM_BALANCE:
+            stop.copy(X)
+            reason = PETSc.SNES.ConvergedReason.CONVERGED_SNORM_RELATIVE
+        else:
+            reason = self.UNBALANCED_SNORM
+        stop.destroy()
+        return reason
+
+    def imbalance(self, X):
+        """|R| over the free dofs at X against the largest |r_e| of an effect there (0 where no effect exerts a
+        force): how far X is from an equilibrium, as the forces table's balance measures it. Collective."""
+        sysm = self.system
+        sp = sysm.space
+        x = sysm.impose(sysm.local(X, sysm.xl).copy())
+        free = np.ones(3 * sp.n_owned, bool)
+        free[sysm.c_owned_pos] = False
+        total, squares = 0.0, []
+        for e in sysm.effects:
+            r = sp.sum_owned(sysm.residual_local(x, [e]).reshape(-1, 3)).ravel()[free]
+            total = total + r
+            squares.append(float(r @ r))
+        sq = np.array(squares + [float(np.dot(total, total))])
+        sp.mpi.Allreduce(MPI.IN_PLACE, sq, op=MPI.SUM)
+        lo, hi = sp.bbox
+        floor = sysm.scale * self.snes.getTolerances()[2] * float(np.linalg.norm(np.asarray(hi) - np.asarray(lo)))
+        scale = max(float(np.sqrt(sq[:-1].max(initial=0.0))), floor)
+        self.last_imbalance = float(np.sqrt(sq[-1])) / scale if scale > 0 else 0.0
+        return self.last_imbalance
+
+    def iterations(self):
+        """(Newton, Krylov) iterations of the last solve (Newton's continuation included: _newton_on)."""
+        return (self.carried[0] + self.snes.getIterationNumber(),
+                self.carried[1] + self.snes.getLinearSolveIterations())
 
     def reason_name(self, reason):
         if reason == PETSc.SNES.ConvergedReason.DIVERGED_DTOL and self.diverged_early:
@@ -509,6 +593,9 @@ class Solver:
                     f"{self.diverging} Newton iterations, -diverging_newton")
         if reason == self.GUARDED_SNORM:
             return "CONVERGED_SNORM_RELATIVE after an update cut by the inversion guard (or, in its last update, by contact): a small step, not convergence"
+        if reason == self.UNBALANCED_SNORM:
+            return (f"CONVERGED_SNORM_RELATIVE with the residual at {self.last_imbalance:.2g} of the largest force on "
+                    "the body: a small step, not an equilibrium")
         return enum_name(PETSc.SNES.ConvergedReason, reason)
 
     def ksp_reason_name(self):
