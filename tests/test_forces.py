@@ -101,6 +101,28 @@ def test_dynamic_balance_includes_inertia_and_damping(tmp_path):
     assert np.abs(total).max() <= 1e-8 * big and np.abs(F[("load", "inertia")][0]).max() > 0.1 * big
 
 
+@pytest.mark.parametrize("integrator", ["beuler", "ts"])
+def test_frame_times_are_exact_and_a_printed_time_finds_its_frame(tmp_path, integrator):
+    """Issue 70 item 4: steps of 1/30 s with three frames a second end their frames at k/3 to the last bit (the
+    nominal grid, not a sum of h: 0.3333333333333333, not 0.33333333333333304), under both integrators; the time as
+    messages print it (0.333333) finds that frame; `--frame N` with a `--watch` reads the watch at that frame, and
+    with a watch at a time of its own it is refused in one line."""
+    out = tmp_path / "t.h5"
+    run_ok(["run", "bend", "-level", 1, "-dt", repr(1 / 30), "-frames_per_second", 3, "-integrator", integrator,
+            "-quiet", "-output", out])
+    t = read_h5(out)["time"]
+    assert t.tolist() == [0.0, 1 / 3, 2 / 3, 1.0], t.tolist()
+    at = run_ok(["report", out, "--watch", "u_y:5,0,0@0.333333"]).stdout
+    framed = run_ok(["report", out, "--watch", "u_y:5,0,0", "--frame", 1]).stdout
+    v1 = float(at.split("u_y:5,0,0@0.333333 = ")[1].split()[0])
+    v2 = float(framed.split("u_y:5,0,0 = ")[1].split()[0])
+    last = float(run_ok(["report", out, "--watch", "u_y:5,0,0"]).stdout.split("u_y:5,0,0 = ")[1].split()[0])
+    assert v1 == v2 != last and "(frame 1, t = 0.333333333333)" in framed
+    for bad in (["--watch", "u_y:5,0,0@0.3", "--frame", 1], ["--watch", "u_y:5,0,0@0.5"]):
+        p = hyperelastic(["report", out, *bad])
+        assert p.returncode == 2 and len(p.stderr.strip().splitlines()) == 1, p.stderr
+
+
 def test_watch_quantities_by_name(tmp_path, bracket_mesh):
     """Quantities a user asks for by name (issues 34, 35), read from a run's output: a displacement component at
     a material point, a held surface's reaction, the maximum over a surface (physical, through the mesh the run

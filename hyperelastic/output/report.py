@@ -2,6 +2,7 @@
 of its end (reactions, load resultants, their sum), and on request the displacement and the cell fields at
 material points of a frame and the quantities `study refinement --watch` takes. Reads only; writes nothing."""
 import json
+from dataclasses import replace
 
 import numpy as np
 
@@ -27,6 +28,9 @@ def main(argv):
     a = ap.parse_args(argv)
     points = [_point(s) for s in a.at]
     watches = [parse_watch(w) for w in a.watch]
+    if a.frame is not None and any(w.when is not None for w in watches):
+        raise UserError("report: --frame and a --watch at a time (@T or @max): give the time once, in the watch or "
+                        "as --frame")
     for line in report(a.file, a.frame, points, watches, a.forces):
         print(line)
     return 0
@@ -49,6 +53,8 @@ def report(path, frame, points, watches, forces=False):
         frame = -1 if frame is None else frame
         if given and not -n <= frame < n:
             raise UserError(f"report: --frame {frame} out of range ({f'0..{n - 1}' if n else 'the file has no frames'})")
+        i_frame = frame % n if given else None
+        frame_time = float(f["time"][i_frame]) if given else None
         if "forces" in f.attrs and not forces:
             rec = json.loads(f.attrs["forces"])
             lines += table([(r["kind"], r["name"], np.array(r["F"]), np.array(r["M"])) for r in rec["forces"]],
@@ -63,7 +69,10 @@ def report(path, frame, points, watches, forces=False):
                 lines += _forces_at(f, float(f["time"][i]), i)
             lines += [_at(f, i, p) for p in points]
     for w in watches:
-        lines.append(f"{w.spec} = {watched(path, w):.9g}")
+        if given:                         # (--frame N: the watch at that frame's time)
+            w = replace(w, when=frame_time)
+        lines.append(f"{w.spec} = {watched(path, w):.9g}" + (f" (frame {i_frame}, t = {frame_time:.12g})" if given
+                                                                 else ""))
     return lines
 
 

@@ -84,7 +84,7 @@ def table(rows, t, holds=None):
     """The end-of-run lines: one per surface (with the components it holds, where `holds` {surface: "xyz"} says) and
     load, and their sum against the largest force."""
     holds = holds or {}
-    lines = [f"forces at t = {t:.6g} (N; moments about the origin, N m):"]
+    lines = [f"forces at t = {t:.12g} (N; moments about the origin, N m):"]
     for kind, name, F, M in rows:
         which = f" (holds {holds[name]})" if kind == "reaction" and name in holds else ""
         lines.append(f"  {kind} {name}{which}: F = ({F[0]:.6g}, {F[1]:.6g}, {F[2]:.6g}), "

@@ -271,7 +271,9 @@ class BackwardEuler(Integrator):
         progress = {"last_print": t_start}
         self.h_try = H if self.h_try is None else self.h_try
         for n in range(self.n0, nsteps):
-            t_end = self.t + (min(H, sc.final_time - self.t) if n == nsteps - 1 else H)
+            # (the nominal grid t_n = n H, the last step ending at -final_time: a frame's time has no summed drift,
+            # 1/3 is 0.333... to the last digit, not 0.33333333333333304; issue 70)
+            t_end = sc.final_time if n == nsteps - 1 else (n + 1) * H
             if n == self.n0 and self.t_end0 is not None:
                 t_end = self.t_end0                  # (a restart inside a nominal step keeps its end)
             stats = self._nominal_step(t_end, H, n)

@@ -93,9 +93,21 @@ def read(f):
     return {k: f["stats"][k][:] for k in f["stats"]}
 
 
+# a time a user gives (report --watch Q@T, --forces) matches the nearest frame or step time within this relative
+# distance: half a unit of the 6th significant digit that the progress lines and messages print (0.333333 for 1/3)
+TIME_DIGITS = 5e-6
+
+
 def at_time(times, t):
-    """Indices of `times` equal to t (to 1e-9 relative): the frames or steps that end there."""
-    return np.flatnonzero(np.abs(np.asarray(times) - t) <= 1e-9 * max(1.0, abs(t)))
+    """Indices of `times` at t: those equal (to 1e-12) to the time nearest t, where that is within 1e-9 of max(1, |t|)
+    or within TIME_DIGITS of |t| (a time as printed); none otherwise."""
+    times = np.asarray(times, float)
+    if not len(times):
+        return np.zeros(0, np.int64)
+    near = times[np.argmin(np.abs(times - t))]
+    if abs(near - t) > max(1e-9 * max(1.0, abs(t)), TIME_DIGITS * abs(t)):
+        return np.zeros(0, np.int64)
+    return np.flatnonzero(np.abs(times - near) <= 1e-12 * max(1.0, abs(near)))
 
 
 def accepted_at(st, t):

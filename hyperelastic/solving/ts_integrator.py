@@ -189,15 +189,16 @@ class GeneralizedAlpha(Integrator):
             h = min(self.h_try, nxt - self.t)
             if nxt - (self.t + h) < eps:
                 h = nxt - self.t                 # end on the frame time exactly
-            stats = self._step(h)
+            stats = self._step(h, nxt)
             framed = abs(self.t - nxt) <= eps or self.t >= sc.final_time - eps
             if self._output(self.step, framed, self.t >= sc.final_time - eps, x_frame=self.x_out):
                 self.ts.restartStep()            # a checkpoint is where a restart begins (module doc)
             self._progress(progress, self.step - 1, nsteps, stats, t_start, force=self.t >= sc.final_time - eps)
         return self
 
-    def _step(self, h):
-        """One TSStep of (at most) size h: a stats row per attempt; the state moves to its end."""
+    def _step(self, h, t_frame=None):
+        """One TSStep of (at most) size h: a stats row per attempt; the state moves to its end (t_frame where the step
+        ends there to TS's rounding: a frame's time exact, not summed)."""
         sysm, ts = self.system, self.ts
         ts.setTimeStep(h)
         self.attempts = []
@@ -219,6 +220,8 @@ class GeneralizedAlpha(Integrator):
             self._write_stats(row)
         self.rejections += len(rows) - 1
         row = rows[-1][0]
+        if t_frame is not None and abs(ts.getTime() - t_frame) <= 1e-12 * max(1.0, abs(t_frame)):
+            ts.setTime(t_frame)
         self.t = ts.getTime()
         row["time"] = self.t
         U, V = ts.getSolution2()
