@@ -101,3 +101,11 @@ def test_lazily_read_petsc_options_still_work(tmp_path):
     assert "type: gamg" in p.stdout and "richardson" in p.stdout
     run_ok(["run", "bend", "-final_time", "0.02", "-output", out, "-quiet", "-snes_mf_operator", "-mat_mffd_type",
             "ds", "-integrator", "ts", "-ts_adapt_type", "basic", "-ts_rtol", "1e-3", "-ts_view"])
+
+
+def test_the_guide_lists_every_preset_with_its_values():
+    """Issue 70 item 6: docs/guide/scenes.md's table of presets is materials.PRESETS."""
+    text = open(os.path.join(ROOT, "docs", "guide", "scenes.md"), encoding="utf-8").read()
+    rows = re.findall(r"^\| `(\w+)` \| (\S+) \| (\S+) \| (\S+) \|$", text, re.M)
+    assert {name: tuple(map(float, v)) for name, *v in rows} == materials.PRESETS
+

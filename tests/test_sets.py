@@ -453,3 +453,41 @@ def test_the_parsed_mesh_cache_stays_bounded(parts, tmp_path, monkeypatch):
     read.read_mesh(str(tmp_path / "m3.msh"))         # a fourth: down to two, m0 and m3 kept
     kept = sorted(os.listdir(cache))
     assert len(kept) == 2 and os.path.basename(read._parsed_path(str(paths[0]))) in kept
+
+
+EMPTY_GROUPS = """SetFactory("OpenCASCADE");
+Box(1) = {0, 0, 0, 1000, 200, 100};
+e = 1e-9;
+Physical Surface("clamp", 1) = Surface In BoundingBox{-e, -e, -e, e, 200 + e, 100 + e};
+Physical Surface("load", 2) = Surface In BoundingBox{1000.001 - e, -e, -e, 1000.001 + e, 200 + e, 100 + e};
+Physical Surface("top", 4) = Surface In BoundingBox{-1, -1, 99, 1001, 201, 101};
+Physical Volume("solid", 3) = {1};
+"""
+
+
+def test_mesh_lists_its_groups_and_names_the_empty_ones(tmp_path):
+    """Issue 70 item 6: `mesh` lists every physical group it wrote, and warns by name (one line each, on stderr) of a
+    group the .geo declares that caught nothing (a bounding-box tolerance of 1e-9 on a part 1,000 units across:
+    gmsh writes no such group, and a run naming it failed only later); the mesh is still written (exit 0)."""
+    (tmp_path / "p.geo").write_text(EMPTY_GROUPS)
+    p = run_ok(["mesh", tmp_path / "p.geo", "--size", 100, "-o", tmp_path / "p.msh"])
+    assert "physical groups written: top (surface), solid (volume)" in p.stdout, p.stdout
+    warnings = [ln for ln in p.stderr.splitlines() if ln.startswith("warning:")]
+    assert [w.split("'")[1] for w in warnings] == ["clamp", "load"], p.stderr
+    assert all("BoundingBox" in w and "1.02e+03 across" in w for w in warnings)
+    assert (tmp_path / "p.msh").stat().st_size > 0
+
+
+def test_help_shows_the_presets_values_and_quiet_keeps_the_notes(tmp_path):
+    """Issue 70 item 6: `-help` after `-preset rubber` shows the values the preset sets (and the constants that follow
+    from them), not the defaults; `-quiet` silences the start-up report and the forces table but not a note (the
+    warning that linear tetrahedra lock)."""
+    p = run_ok(["run", "bend", "-preset", "rubber", "-material", "neohookean_split", "-help"])
+    line = [ln for ln in p.stdout.splitlines() if ln.startswith("  -E -nu -rho")][0]
+    assert "E=1e+07 (-preset rubber)" in line and "nu=0.4995 (-preset rubber)" in line, line
+    assert "kappa=3.33333e+09 (-preset rubber)" in p.stdout
+    q = run_ok(["run", "bend", "-preset", "rubber", "-material", "neohookean_split", "-final_time", 0.02, "-quiet",
+                "-output", tmp_path / "q.h5"])
+    assert "note: nearly incompressible" in q.stderr and "linear tetrahedra lock" in q.stderr
+    assert "part:" not in q.stderr and "forces at" not in q.stderr and "wrote" not in q.stderr
+

@@ -159,7 +159,7 @@ TAIL = (
         "(Simo & Tarnow 1992; Gonzalez 2000), so total energy and angular momentum are conserved to the solver's "
         "tolerance; the Jacobian stays the midpoint tangent (Newton converges linearly; `-snes_mf_operator` "
         "gives the exact one)", "off"),
-    Row(("quiet",), "-quiet", "no progress lines"),
+    Row(("quiet",), "-quiet", "no progress lines, start-up report or forces table (notes and warnings are still printed)"),
     Row(("debug",), "-debug", "a Python traceback instead of the one-line error"),
     Row(("help",), "-help", "this list (with the scene's values), then PETSc's own options as its solvers read "
         "them; nothing is run or written"),

@@ -36,7 +36,7 @@ def run_scene(scene_arg, options_files, restart=None, restart_path=None):
     opts = Options()
     helping = opts.has("help")
     if helping and comm.getRank() == 0:
-        print(help_text({n: opts.o.getString(n, "") for n in scene_option_names(scene) if opts.has(n)}), flush=True)
+        print(help_text(_help_values(scene, opts)), flush=True)
     out = opts.string("output", os.path.join("output", f"{scene.name}.h5"))
     quiet = opts.flag("quiet")
     inputs = [scene_file, scene.mesh] + list(options_files)
@@ -59,8 +59,8 @@ def run_scene(scene_arg, options_files, restart=None, restart_path=None):
     check_solver_options(PETSc.Options())
     if helping:                  # PETSc printed its own options as its solvers read them
         return 0
-    if not quiet and comm.getRank() == 0:
-        _start_lines(scene, model, solver)
+    if comm.getRank() == 0:
+        _start_lines(scene, model, solver, quiet)
     if restart is not None:      # the state read (collective) before anything is written: a bad row is one line
         restart = dict(restart, **{k: model.space.read_state(v) for k, v in restart.items()
                                    if isinstance(v, StateRows)})
@@ -76,23 +76,40 @@ def run_scene(scene_arg, options_files, restart=None, restart_path=None):
                               quiet=quiet)
     integ.run_notes = [n for n in attrs["notes"].splitlines() if n]     # the start-up's; the run's own follow
     forces, rigid_lines = _integrate(integ, writer, comm, scene)
-    if not quiet and comm.getRank() == 0:
+    advice = solver.advice()
+    if comm.getRank() == 0 and not quiet:
         if forces:
             print("\n".join(table(forces, integ.t, held_components(scene)) + rigid_lines), file=sys.stderr)
         print(f"wrote {out} ({integ.step} steps, {writer.nframes} frames)", file=sys.stderr)
-        advice = solver.advice()
-        if advice:
-            print(f"note: {advice}", file=sys.stderr)
+    if comm.getRank() == 0 and advice:          # (a note: -quiet silences progress, never a note)
+        print(f"note: {advice}", file=sys.stderr)
     return 0
 
 
-def _start_lines(scene, model, solver):
-    """The run's start-up lines on stderr: the part, its sets, the partition, the notes."""
+def _help_values(scene, opts):
+    """The scene's values of its options for `-help`: those given, and the material's E, nu, rho and own constants
+    as the scene resolved them (a -preset's, or a constant's default from E and nu), where not given."""
+    values = {n: opts.o.getString(n, "") for n in scene_option_names(scene) if opts.has(n)}
+    solid = scene.solid
+    preset = opts.string("preset", None)
+    why = f" (-preset {preset})" if preset else " (from E and nu)"
+    for name, v in list(solid.values.items()) + [("rho", solid.rho)]:
+        if name not in values:
+            values[name] = f"{v:g}" + (why if preset or name not in ("E", "nu", "rho") else "")
+    return values
+
+
+def _start_lines(scene, model, solver, quiet=False):
+    """The run's start-up lines on stderr: the part, its sets, the partition, the notes (with -quiet the notes only:
+    -quiet silences what a run reports, never what it warns of)."""
     lines = part_lines(model, scene) + [f"set {line}" for line in model.set_lines()]
     lines += [model.space.partition_line] if model.space.partition_line else []
     notes = scene.notes + model.notes + ([solver.merit_note] if solver.merit_note else []) + solver.notes
     lines += [f"note: {n}" for n in notes]
-    print("\n".join(lines), file=sys.stderr)
+    if quiet:
+        lines = [ln for ln in lines if ln.startswith("note: ")]
+    if lines:
+        print("\n".join(lines), file=sys.stderr)
 
 
 MM_LIKE = (20.0, 1e8)      # a part longer than this in mesh units with a modulus above this (Pa) looks like mm

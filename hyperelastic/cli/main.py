@@ -27,7 +27,7 @@ import traceback
 from ..core.data import recipe_path, recipes
 from ..core.errors import ArgParser, Interrupted, SolveError, UserError
 from ..core.files import option_lines, read_checkpoint
-from ..mesh.generate import format_normal, generate
+from ..mesh.generate import empty_group_lines, format_normal, generate
 from ..output.plot import render
 
 # petsc4py reads the command line when PETSc is first imported, and mpi4py initializes MPI when imported:
@@ -236,6 +236,11 @@ def mesh_cmd(argv):
         print(f"{s['file']}: level {a.level or '-'} target edge {s['target_size']:.4g}: {s['vertices']} vertices"
               f"{nodes}, {s['tets']} tets, min edge {s['min_edge']:.4g}")
     first = st[0] if a.refine else st
+    written = [f"{name} ({kind})" for kind, name, n in first["groups"] if n]
+    if written and not first["auto_named"]:
+        print(f"physical groups written: {', '.join(written)}")
+    for line in empty_group_lines(first["groups"], first["extent"]):
+        print(line, file=sys.stderr)
     if first["flattened"]:
         print(f"note: the geometry declares its own mesh sizes (a background field); every edge was made {a.size:g} "
               f"(give --graded to keep its sizes, at most {a.size:g})" if a.size else

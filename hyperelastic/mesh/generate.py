@@ -3,6 +3,7 @@ part, meshed at a target edge length, linear or quadratic, optionally refined; t
 first use. Every mesh written is read back and checked (read.py) before it is moved into place."""
 import math
 import os
+import re
 
 import numpy as np
 
@@ -73,6 +74,7 @@ def generate(name, level, out, size=None, refine=0, order=1, graded=False):
     tmps = []
     try:
         auto_named, flattened = _mesh(gmsh, name, geo, size, refine, graded)
+        groups, extent = physical_groups(gmsh, geo)
         for i, o in enumerate(outs):
             if i:
                 if order > 1:
@@ -98,7 +100,8 @@ def generate(name, level, out, size=None, refine=0, order=1, graded=False):
                                                    "vertices": len(unique(m.tets)), "nodes": len(m.points),
                                                    "order": m.order, "auto_named": auto_named,
                                                    "graded": graded, "flattened": flattened,
-                                                   "surfaces": surface_rows(m) if i == 0 else []})
+                                                   "surfaces": surface_rows(m) if i == 0 else [],
+                                                   "groups": groups, "extent": extent})
     return stats if refine else stats[0]
 
 
@@ -137,6 +140,38 @@ def _mesh(gmsh, name, geo, size, refine, graded=False):
         raise UserError(f"geometry '{name}': gmsh made no tetrahedra (a 2-D geometry, or surfaces that do not "
                         "close a volume)")
     return auto_named, fields and not graded
+
+
+DECLARED = re.compile(r'Physical\s+(Surface|Volume)\s*\(\s*"([^"]+)"')
+
+
+def physical_groups(gmsh, geo):
+    """([(kind, name, entities)] of the geometry's physical groups, surfaces and volumes: those gmsh holds, and
+    those a .geo declares by name (`Physical Surface("clamp", 1) = ...`) that gmsh does not hold because their list
+    came out empty (0 entities); and the geometry's extent (its bounding box's diagonal)."""
+    out = []
+    for dim, tag in gmsh.model.getPhysicalGroups():
+        if dim in (2, 3):
+            name = gmsh.model.getPhysicalName(dim, tag) or str(tag)
+            out.append(("surface" if dim == 2 else "volume", name,
+                        len(gmsh.model.getEntitiesForPhysicalGroup(dim, tag))))
+    if geo.lower().endswith(".geo"):
+        held = {(kind, name) for kind, name, _ in out}
+        with open(geo, encoding="utf-8", errors="replace") as fh:
+            for kind, name in DECLARED.findall(fh.read()):
+                if (kind.lower(), name) not in held:
+                    out.append((kind.lower(), name, 0))
+                    held.add((kind.lower(), name))
+    box = np.array(gmsh.model.getBoundingBox(-1, -1))
+    return out, float(np.linalg.norm(box[3:] - box[:3]))
+
+
+def empty_group_lines(groups, extent):
+    """One warning line per physical group that holds nothing (gmsh writes no such group: a run naming it fails
+    later), with what usually causes it."""
+    return [f"warning: physical {kind} '{name}' holds no {kind} of the geometry and is not in the mesh (a "
+            f"selection such as 'In BoundingBox' that caught nothing: its tolerance or coordinates may not fit a part "
+            f"{extent:.3g} across, in the geometry's units)" for kind, name, n in groups if n == 0]
 
 
 def _read_back(outs, tmps, size):

@@ -125,8 +125,10 @@ class Integrator:
             print(line, file=sys.stderr, flush=True)
 
     def _note(self, text):
-        """A note the run must leave: on stderr (rank 0; not with -quiet) and in the output's attribute `notes`."""
-        self._say(f"note: {text}")
+        """A note the run must leave: on stderr (rank 0; -quiet too: it silences progress, never a note) and in the
+        output's attribute `notes`."""
+        if self.sp.mpi.rank == 0:
+            print(f"note: {text}", file=sys.stderr, flush=True)
         self.run_notes = self.run_notes + [text]
         if self.writer:
             self.writer.set_attr("notes", "\n".join(self.run_notes))
