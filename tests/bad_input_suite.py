@@ -840,8 +840,8 @@ def run_case(case, world, workdir):
         return "hang", f"no exit within {TIME_LIMIT:g} s"
     dt = time.time() - t0
     err = p.stderr.decode(errors="replace")
-    lines = [ln for ln in err.splitlines() if ln.strip()]
-    if p.returncode < 0:
+    lines = [ln for ln in err.splitlines() if ln.strip() and not ln.startswith("note: ")]   # (one error line; notes
+    if p.returncode < 0:                                                                      # are kept by -quiet)
         return "crash", f"signal {-p.returncode}: {err[-300:]}"
     if p.returncode == 0:
         return "accepted", "exit 0"
