@@ -11,15 +11,15 @@ step, solve seconds, max relative error of u_r over the nodes."""
 import argparse
 import os
 import shlex
-import subprocess
 import sys
 import tempfile
 
 import h5py
 import numpy as np
 
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-BIN = os.path.join(ROOT, ".venv", "bin", "hyperelastic")
+import launch
+
+ROOT = launch.ROOT
 A_IN, B_OUT, MU, P = 0.1, 0.2, 1e6, 1e2
 
 
@@ -32,20 +32,19 @@ def lame_ur(r, mu, kappa):
 def mesh(size, out_dir):
     path = os.path.join(out_dir, f"cyl_{size:g}.msh")
     if not os.path.exists(path):
-        subprocess.run([BIN, "mesh", os.path.join(ROOT, "examples", "cylinder.geo"), "--size", str(size), "--order",
-                        "2", "-o", path], check=True, capture_output=True)
+        launch.ok(["mesh", os.path.join(ROOT, "examples", "cylinder.geo"), "--size", size, "--order", 2, "-o", path])
     return path
 
 
 def run(msh, ratio, order, formulation, extra, out):
     kappa = np.inf if ratio == np.inf else ratio * MU
-    args = [BIN, "run", "bend", "-mesh", msh, "-order", str(order), "-material", "neohookean_split", "-mu", str(MU),
+    args = ["run", "bend", "-mesh", msh, "-order", str(order), "-material", "neohookean_split", "-mu", str(MU),
             "-kappa", str(1e30 if ratio == np.inf else kappa), "-E", str(2.9 * MU), "-nu", "0.45",
             "-quasistatic", "-dt", "1", "-final_time", "1",
             "-effects", "elasticity,fixed,pressure", "-fix", "xsym:x,ysym:y,bottom:z,top:z", "-pressure", str(P),
             "-pressure_faces", "inner", "-snes_rtol", "1e-10", "-output", out, "-quiet"] + extra
     args += ["-formulation", formulation] + (["-incompressible"] if ratio == np.inf else [])
-    p = subprocess.run(args, capture_output=True, text=True)
+    p, _ = launch.run(args)
     if p.returncode:
         return None, p.stderr.strip().splitlines()[-1]
     with h5py.File(out, "r") as f:

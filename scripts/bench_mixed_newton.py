@@ -21,7 +21,6 @@ largest difference of the final displacement from the first variant's (relative 
 import argparse
 import os
 import shlex
-import subprocess
 import sys
 import tempfile
 from concurrent.futures import ThreadPoolExecutor
@@ -29,8 +28,9 @@ from concurrent.futures import ThreadPoolExecutor
 import h5py
 import numpy as np
 
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-BIN = os.path.join(ROOT, ".venv", "bin", "hyperelastic")
+import launch
+
+ROOT = launch.ROOT
 EX = os.path.join(ROOT, "examples")
 RUBBER = ["-material", "neohookean_split", "-preset", "rubber"]
 MATRIX = ["-level", "1", "-material", "neohookean_split", "-E", "1e6", "-dt", "0.01", "-order", "2",
@@ -64,16 +64,14 @@ def mesh(name, out):
     geo, size = MESHES[name]
     path = os.path.join(out, f"{name}.msh")
     if not os.path.exists(path):
-        subprocess.run([BIN, "mesh", os.path.join(EX, geo), "--size", size, "--order", "2", "-o", path], check=True,
-                       capture_output=True)
+        launch.ok(["mesh", os.path.join(EX, geo), "--size", size, "--order", "2", "-o", path])
     return ["-mesh", path]
 
 
 def run(case, variant, opts, out):
     where, args = CASES[case]
     h5 = os.path.join(out, f"{case}-{variant}.h5")
-    cmd = [BIN, "run"] + args + mesh(where, out) + shlex.split(opts) + ["-quiet", "-output", h5]
-    p = subprocess.run(cmd, capture_output=True, text=True)
+    p, _ = launch.run(["run"] + args + mesh(where, out) + shlex.split(opts) + ["-quiet", "-output", h5])
     try:
         with h5py.File(h5, "r") as f:
             s = f["stats"]

@@ -13,11 +13,11 @@ Ranks beyond the cores are oversubscribed: their seconds are not a machine's, th
 """
 import argparse
 import os
-import subprocess
 import sys
-import time
 
 import numpy as np
+
+import launch  # noqa: E402
 
 sys.path.append(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))     # (after an installed hyperelastic)
 
@@ -84,14 +84,10 @@ def main():
             for layout in a.layouts.split(","):
                 tag = f"{box}_{n}_{layout}"
                 path, log = os.path.join(a.out, f"{tag}.h5"), os.path.join(a.out, f"{tag}.log")
-                cmd = [sys.executable, "-m", "hyperelastic", "run", "bend", "-mesh", mesh, "-dt", "0.01",
-                       "-final_time", str(0.01 * a.steps), "-frames_per_second", "100", "-output", path,
-                       "-output_layout", layout, "-quiet", "-ksp_type", "cg", "-pc_type", "gamg", "-log_view", f":{log}"]
-                if n > 1:
-                    cmd = [a.mpiexec, "-n", str(n)] + cmd
-                t0 = time.perf_counter()
-                p = subprocess.run(cmd, capture_output=True, text=True, cwd=a.out)   # (not the checkout's package)
-                wall = time.perf_counter() - t0
+                cmd = ["run", "bend", "-mesh", mesh, "-dt", "0.01", "-final_time", 0.01 * a.steps,
+                       "-frames_per_second", "100", "-output", path, "-output_layout", layout, "-quiet", "-ksp_type",
+                       "cg", "-pc_type", "gamg", "-log_view", f":{log}"]
+                p, wall = launch.run(cmd, n, cwd=a.out, launcher=a.mpiexec)   # (cwd: not the checkout's package)
                 if p.returncode:
                     print(f"{ntet:>9} {n:>5} {layout:>7} failed: {p.stderr.strip().splitlines()[-1:]}", flush=True)
                     continue

@@ -10,7 +10,6 @@ per Newton step, seconds per Newton step (wall_s summed over the steps / Newton 
 import argparse
 import json
 import os
-import subprocess
 import sys
 import tempfile
 
@@ -19,8 +18,8 @@ import h5py
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, ROOT)
 from hyperelastic.studies.experiments.runner import run_hyperelastic  # noqa: E402
+import launch  # noqa: E402
 
-BIN = os.path.dirname(sys.executable)
 EX = os.path.join(ROOT, "examples")
 GAMG = ["-options_file", os.path.join(ROOT, "options", "gamg.opts")]
 BEND = ["bend", "-quasistatic", "-dt", "0.25", "-final_time", "1", "-material", "neohookean"]
@@ -65,8 +64,7 @@ def main():
             geo, args = MESHES[name]
             if geo is not None:
                 msh = os.path.join(d, f"{name}.msh")
-                subprocess.run([os.path.join(BIN, "hyperelastic"), "mesh"] + geo + ["-o", msh], check=True,
-                               capture_output=True)
+                launch.ok(["mesh"] + geo + ["-o", msh])
                 args = args + ["-mesh", msh]
             for n in ranks:
                 for part in ("morton", "metis"):

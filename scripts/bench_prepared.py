@@ -27,7 +27,7 @@ sys.path.append(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))    
 from scripts.bench_output import stages  # noqa: E402
 from scripts.bench_output_ranks import kuhn_box  # noqa: E402
 
-EXE = [sys.executable, "-m", "hyperelastic"]      # (the device machine runs the package from PYTHONPATH)
+import launch  # noqa: E402     (the device machine runs the package from PYTHONPATH)
 
 
 def run(cmd):
@@ -56,15 +56,15 @@ def main():
         nx, ny, nz = map(int, box.split("x"))
         msh, prep = os.path.join(out, f"box_{box}.msh"), os.path.join(out, f"box_{box}.h5")
         tets = kuhn_box(nx, ny, nz, msh)
-        t_prep, _ = run(EXE + ["mesh", msh, "--prepare", "-o", prep])
+        t_prep, _ = run(launch.command(["mesh", msh, "--prepare", "-o", prep]))
         print(f"# {tets} tets: --prepare {t_prep:.1f} s (once per mesh)", flush=True)
         for n in map(int, a.ranks.split(",")):
             for kind, mesh in (("msh", msh), ("prepared", prep)):
                 res, log = os.path.join(out, f"run_{box}_{n}_{kind}.h5"), os.path.join(out, "log.txt")
                 end = "0" if a.setup_only else "0.01"
-                cmd = EXE + ["run", "bend", "-mesh", mesh, "-dt", "0.01", "-final_time", end, "-ksp_type", "cg",
-                       "-pc_type", "gamg", "-order", str(a.order), "-output", res, "-log_view", f":{log}"]
-                wall, _ = run(([a.mpiexec, "-n", str(n)] if n > 1 else []) + cmd)
+                cmd = ["run", "bend", "-mesh", mesh, "-dt", "0.01", "-final_time", end, "-ksp_type", "cg",
+                       "-pc_type", "gamg", "-order", a.order, "-output", res, "-log_view", f":{log}"]
+                wall, _ = run(launch.command(cmd, n, a.mpiexec))
                 with h5py.File(res) as f:
                     mem = np.asarray(f.attrs["peak_rss_mb_per_rank"], float)
                     assert f.attrs["mesh_read"] == ("slices" if kind == "prepared" else "rank 0")

@@ -13,15 +13,14 @@ Part 2, per size: on the faces of that run's last frame (pressed within dhat), t
 toward each other: seconds against the number of surface triangles (no quadratic growth: the ratio per triangle)."""
 import argparse
 import os
-import subprocess
-import sys
 import time
 
 import h5py
 import numpy as np
 
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-EXE = [sys.executable, "-m", "hyperelastic"]
+import launch
+
+ROOT = launch.ROOT
 
 
 def best(fn, repeat=5):
@@ -48,16 +47,14 @@ def main():
     print("|---|---|---|---|---|---|---|---|---|---|---|---|")
     for size in map(float, a.sizes.split(",")):
         msh = os.path.join(a.out, f"stack_{size:g}.msh")
-        subprocess.run(EXE + ["mesh", os.path.join(ROOT, "examples", "stack.geo"), "--size", str(size), "-o", msh],
-                       check=True, capture_output=True)
+        launch.ok(["mesh", os.path.join(ROOT, "examples", "stack.geo"), "--size", size, "-o", msh])
         h5 = os.path.join(a.out, f"stack_{size:g}.h5")
         for f in (h5, h5 + ".partial"):
             if os.path.exists(f):
                 os.remove(f)
         t = time.perf_counter()
-        subprocess.run(EXE + ["run", os.path.join(ROOT, "examples", "stack.opts"), "-mesh", msh, "-refine",
-                              str(a.refine), "-final_time", str(a.final_time), "-output", h5],
-                       check=True, capture_output=True)
+        launch.ok(["run", os.path.join(ROOT, "examples", "stack.opts"), "-mesh", msh, "-refine", a.refine,
+                   "-final_time", a.final_time, "-output", h5])
         wall = time.perf_counter() - t
         with h5py.File(h5, "r") as f:
             st = {k: f["stats"][k][:] for k in f["stats"]}

@@ -27,7 +27,8 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, ROOT)
 from hyperelastic.studies.measure import read_cost  # noqa: E402
 
-BIN = os.path.dirname(sys.executable)
+import launch  # noqa: E402
+
 LBRACKET = """// an L-bracket in metres: arm x 0..0.2 (z 0..0.02), upright x 0..0.02 (z 0..0.2), 0.05 thick in y
 SetFactory("OpenCASCADE");
 Box(1) = {0, 0, 0, 0.2, 0.05, 0.02};
@@ -48,8 +49,9 @@ VARIANTS = {"default": [], "jacobi (no switch)": ["-pc_type", "jacobi"],
                                      "chebyshev", "-mg_levels_pc_type", "jacobi"]}
 
 
-def hyper(args, **kw):
-    return subprocess.run([os.path.join(BIN, "hyperelastic"), *map(str, args)], capture_output=True, text=True, **kw)
+def hyper(args, check=False, timeout=None):
+    p = launch.ok(args)[0] if check else launch.run(args, timeout=timeout)[0]
+    return p
 
 
 def cases(d):

@@ -11,7 +11,6 @@ than its tolerance (1e-14 relative; 1e-12 with GAMG, whose set-up sums in a diff
 about the matrix's creation changes)."""
 import argparse
 import os
-import shutil
 import subprocess
 import sys
 import tempfile
@@ -19,6 +18,8 @@ from concurrent.futures import ThreadPoolExecutor
 
 import h5py
 import numpy as np
+
+import launch
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 SCENES = ROOT + "/options/scenes"
@@ -75,20 +76,16 @@ def worktree(rev, where):
 
 def run(code, args, out, mesh_dir):
     """Run `hyperelastic run ARGS` with the package at `code`; (returncode, stderr's last line)."""
-    env = dict(os.environ, PYTHONPATH=code)
-    cmd, extra = [sys.executable, "-m", "hyperelastic", "run"], []
+    nprocs, extra = 1, []
     if args[0] == "-np2":
-        mpiexec = shutil.which("mpiexec", path=os.path.dirname(sys.executable)) or "mpiexec"
-        cmd, args = [mpiexec, "-n", "2"] + cmd, args[1:]
+        nprocs, args = 2, args[1:]
     if args[0].startswith("MESH:"):
         _, geo, size = args[0].split(":")
         mesh = os.path.join(mesh_dir, geo.replace(".geo", ".msh"))
         if not os.path.exists(mesh):
-            subprocess.run([sys.executable, "-m", "hyperelastic", "mesh", os.path.join(EXAMPLES, geo),
-                            "--size", size, "-o", mesh], check=True, capture_output=True, env=env)
+            launch.ok(["mesh", os.path.join(EXAMPLES, geo), "--size", size, "-o", mesh], code=code)
         args, extra = args[1:], ["-mesh", mesh]
-    p = subprocess.run(cmd + list(args) + extra + ["-quiet", "-output", out], capture_output=True, text=True,
-                       env=env, cwd=mesh_dir)
+    p, _ = launch.run(["run", *args, *extra, "-quiet", "-output", out], nprocs=nprocs, code=code, cwd=mesh_dir)
     return p.returncode, (p.stderr.strip().splitlines() or [""])[-1]
 
 

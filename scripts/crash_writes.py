@@ -27,8 +27,8 @@ import numpy as np
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
 from hyperelastic.core.files import completed_frames  # noqa: E402
+import launch  # noqa: E402
 
-BIN = os.path.dirname(sys.executable)
 RUN = ["bend", "-level", "1", "-final_time", "0.6", "-checkpoint_every", "7", "-quiet"]
 
 
@@ -38,15 +38,9 @@ RANKS = [1]
 STRACE = ["-f", "--seccomp-bpf"]
 
 
-def mpi(cmd):
-    """cmd under the venv's mpiexec with --ranks ranks (as it is on one)."""
-    if RANKS[0] == 1:
-        return cmd
-    return [shutil.which("mpiexec", path=BIN) or "mpiexec", "-n", str(RANKS[0])] + cmd
-
-
 def command(out):
-    return mpi([os.path.join(BIN, "hyperelastic"), "run", *RUN, "-output", out])
+    """The run, under the venv's mpiexec with --ranks ranks (as it is on one)."""
+    return launch.command(["run", *RUN, "-output", out], RANKS[0])
 
 
 def count_writes(out):
@@ -93,8 +87,7 @@ def check(n_write, ref, tmp, restart):
             if not n - 1 <= grids <= n:
                 return f"the XDMF has {grids} frames, the file {n}"
         if restart and r["slot"] >= 0:
-            q = subprocess.run(mpi([os.path.join(BIN, "hyperelastic"), "run", "--restart", out, "-quiet"]),
-                               capture_output=True, text=True)
+            q, _ = launch.run(["run", "--restart", out, "-quiet"], RANKS[0])
             if q.returncode != 0:
                 return f"restart failed: {q.stderr.strip()}"
             s = read(out)
