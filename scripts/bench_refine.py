@@ -26,7 +26,7 @@ from scripts.bench_output import stages  # noqa: E402
 from scripts.bench_output_ranks import kuhn_box  # noqa: E402
 from scripts.bench_prepared import run  # noqa: E402
 
-EXE = [sys.executable, "-m", "hyperelastic"]      # (the device machine runs the package from PYTHONPATH)
+import launch  # noqa: E402     (the device machine runs the package from PYTHONPATH)
 NOTE = re.compile(r"refined on \d+ rank\(s\) in ([0-9.]+) s \(([0-9]+)k tetrahedra/s a rank(?:; the coarse mesh "
                   r"read on rank 0 in ([0-9.]+) s)?")
 
@@ -57,16 +57,16 @@ def main():
             f = 2 ** k
             fine = os.path.join(out, f"fine_{k}.msh")
             kuhn_box(nx * f, ny * f, nz * f, fine)
-            t_prep, _ = run(EXE + ["mesh", fine, "--prepare", "-o", fine[:-4] + ".h5"])
+            t_prep, _ = run(launch.command(["mesh", fine, "--prepare", "-o", fine[:-4] + ".h5"]))
             print(f"# fine {nx * f}x{ny * f}x{nz * f}: --prepare {t_prep:.1f} s (once per mesh)", flush=True)
             inputs += [("msh", fine, []), ("prepared", fine[:-4] + ".h5", [])]
         for n in map(int, a.ranks.split(",")):
             for kind, mesh, extra in inputs:
                 res, log = os.path.join(out, f"run_{k}_{n}.h5"), os.path.join(out, "log.txt")
                 end = "0" if a.setup_only else "0.01"
-                cmd = EXE + ["run", "bend", "-mesh", mesh, *extra, "-dt", "0.01", "-final_time", end, "-ksp_type",
-                             "cg", "-pc_type", "gamg", "-order", str(a.order), "-output", res, "-log_view", f":{log}"]
-                wall, err = run(([a.mpiexec, "-n", str(n)] if n > 1 else []) + cmd)
+                cmd = ["run", "bend", "-mesh", mesh, *extra, "-dt", "0.01", "-final_time", end, "-ksp_type", "cg",
+                       "-pc_type", "gamg", "-order", a.order, "-output", res, "-log_view", f":{log}"]
+                wall, err = run(launch.command(cmd, n, a.mpiexec))
                 with h5py.File(res) as fh:
                     mem = np.asarray(fh.attrs["peak_rss_mb_per_rank"], float)
                     tets = fh["mesh/tetra"].shape[0]

@@ -37,7 +37,7 @@ from scripts.bench_output_ranks import kuhn_box  # noqa: E402
 from scripts.bench_prepared import run  # noqa: E402
 from scripts.bench_refine import NOTE  # noqa: E402
 
-EXE = [sys.executable, "-m", "hyperelastic"]
+import launch  # noqa: E402
 EVENTS = ("SNESJacobianEval", "PCSetUp", "KSPSolve", "HE_OutRankPart", "HE_OutFields", "HE_OutRank0")
 
 
@@ -58,9 +58,9 @@ def run_once(out, coarse, order, refine):
     """One rank's costs of `bend` on the coarse mesh refined `refine` times (one step): {tets, nodes, seconds per
     part, Krylov iterations and reductions per Newton step, peak memory}."""
     res, log = os.path.join(out, f"m{order}_{refine}.h5"), os.path.join(out, f"m{order}_{refine}.log")
-    _, err = run(EXE + ["run", "bend", "-mesh", coarse, "-refine", str(refine), "-order", str(order), "-dt", "0.01",
-                        "-final_time", "0.01", "-ksp_type", "cg", "-pc_type", "gamg", "-output", res, "-log_view",
-                        f":{log}"])
+    _, err = run(launch.command(["run", "bend", "-mesh", coarse, "-refine", refine, "-order", order, "-dt", "0.01",
+                                 "-final_time", "0.01", "-ksp_type", "cg", "-pc_type", "gamg", "-output", res,
+                                 "-log_view", f":{log}"]))
     m = NOTE.search(err)
     with h5py.File(res) as f:
         tets, nodes = f["mesh/tetra"].shape[0], f["mesh/points"].shape[0]

@@ -287,3 +287,28 @@ def test_the_solver_reaches_effects_and_constraints_through_declared_seams():
                     found += [f"{os.path.relpath(path, PKG)}:{line} {what}"
                               for line, what in probes(open(path, encoding="utf-8").read())]
     assert found == [], found
+
+
+def test_scripts_have_one_entry_point_and_one_launcher():
+    """Issue 69 item 6: `python scripts` lists every script of the folder by name with its first line; `python scripts
+    NAME ARGS` runs it (an unknown name: exit 2); no script builds a launch command of hyperelastic of its own (each
+    goes through scripts/launch.py, or the package's studies runner)."""
+    import subprocess
+    import sys
+    here = os.path.join(os.path.dirname(PKG), "scripts")
+    names = sorted(f[:-3] for f in os.listdir(here) if f.endswith((".py", ".sh")) and f not in ("__main__.py",
+                                                                                               "launch.py"))
+    p = subprocess.run([sys.executable, here], capture_output=True, text=True, timeout=60)
+    listed = [ln.split()[0] for ln in p.stdout.splitlines()[1:]]
+    assert p.returncode == 0 and listed == names and all(len(ln.split()) > 1 for ln in p.stdout.splitlines()[1:])
+    assert subprocess.run([sys.executable, here, "compare_versions", "--help"], capture_output=True,
+                          timeout=60).returncode == 0
+    assert subprocess.run([sys.executable, here, "nowhere"], capture_output=True, timeout=60).returncode == 2
+    own = []
+    for f in names:
+        path = os.path.join(here, f + ".py")
+        if os.path.exists(path):
+            text = open(path, encoding="utf-8").read()
+            if re.search(r'"-m", "hyperelastic"|bin", "hyperelastic"|\(BIN, "hyperelastic"\)', text):
+                own.append(f)
+    assert own == [], own
