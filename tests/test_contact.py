@@ -271,6 +271,16 @@ def test_a_sphere_pressed_into_a_block_balances_at_every_step(tmp_path, order, e
     assert (np.abs(reaction + contact) <= 1e-4 * np.abs(contact)).all(), (reaction, contact)
 
 
+def test_a_refused_start_names_what_crosses(tmp_path):
+    """Issue 72 item 2 (its message): `press`'s plate moves 0.4 m into a 5 mm gap in its first step of 0.2 s, further than
+    a start may push the end's nodes: the rejected attempt says which obstacle reaches which node, and no longer that
+    held nodes were moved (none is)."""
+    p = run_ok(["run", "press", "-dt", 0.2, "-final_time", 0.2, "-output", tmp_path / "p.h5"])
+    line = next(ln for ln in p.stderr.splitlines() if "rejected" in ln)
+    assert "no start of the step is free of contact" in line and "held nodes" not in line, line
+    assert "-obstacle plane:-1,0,0,-5.005 reaches contact node " in line and "inside it" in line, line
+
+
 def test_the_bent_bar_rests_on_a_box(tmp_path):
     """The quasi-static bend's tip (it sags ~1.3 m) comes down on a box below it: no node inside the box in any frame,
     a contact force that carries part of the load."""

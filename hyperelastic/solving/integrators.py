@@ -431,8 +431,10 @@ class BackwardEuler(Integrator):
                            "scene passes them through each other)")
             why += " along the step's straight move"
         elif not self._initial_guess(h):
-            why = ("every start of the step (the held nodes moved to their targets) passes the contact surface through "
-                   "itself or an obstacle")
+            held = " with the held nodes at their targets" if self.system.moves_prescribed(self.x) else ""
+            what = self.system.starts.crossing(self.system.impose(self.x.copy())) or "contact is crossed"
+            why = (f"no start of the step is free of contact (from the last state{held}, or with the nodes that moving "
+                   f"obstacles reach pushed ahead of them where that fits the cells beside them): {what}")
         else:
             return None
         stats = {"step": self.step + 1, "time": t1, "dt": h, "snes_reason": 0, "newton_its": 0, "ksp_its": 0,

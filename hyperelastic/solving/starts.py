@@ -81,6 +81,12 @@ class Starts:
         or the contact surface, as reached from the step's start)."""
         return sum(e.undefined_at(x) for e in self.checks)
 
+    def crossing(self, x):
+        """In words, the first place (the lowest rank's) where the local positions x leave a check's domain; "" where
+        none does. Collective."""
+        mine = next((w for w in (e.crossing(x) for e in self.checks) if w), "")
+        return next((w for w in self.system.space.mpi.allgather(mine) if w), "")
+
     def free(self, x):
         """Whether the local positions x pass every check, on all ranks."""
         return self.system.space.mpi.allreduce(self.through(x), op=MPI.SUM) == 0

@@ -90,6 +90,7 @@ class Contact(NodeBlocks, StepLimiter, DomainCheck, StepStart, AdaptiveStiffness
         self.nodes, self.area = np.asarray(nodes, np.int64), np.asarray(area, float)
         self.edge = np.full(len(self.nodes), np.inf) if edge is None else np.asarray(edge, float)
         self.obstacles, self.dhat, self.kappa = tuple(obstacles), float(dhat), float(kappa)
+        self.input_ids = np.asarray(input_ids, np.int64)
         self.now = self.before = [o.at(0.0) for o in self.obstacles]
         self.moving = any(o.motion is not None for o in self.obstacles)
         self.blocks = np.zeros((len(self.nodes), 3, 3))
@@ -179,6 +180,15 @@ class Contact(NodeBlocks, StepLimiter, DomainCheck, StepStart, AdaptiveStiffness
 
     def undefined_at(self, x):
         return sum(int((d <= 0).sum()) for d, _ in self._terms(x))
+
+    def crossing(self, x):
+        xc = x.reshape(-1, 3)[self.nodes]
+        for o, (d, _) in zip(self.obstacles, self._terms(x)):
+            if len(d) and d.min() <= 0:
+                i = int(np.argmin(d))
+                return (f"-obstacle {o.text} reaches contact node {int(self.input_ids[i])} at "
+                        f"{np.round(xc[i], 6).tolist()} ({d[i]:.3g} inside it)")
+        return ""
 
     def residual_discrete_gradient(self, x, base, r):
         """-energy_momentum's midpoint stage x: r += a discrete gradient of the barrier from the step's start base to

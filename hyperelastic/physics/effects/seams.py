@@ -46,6 +46,11 @@ class DomainCheck:
         step's start (a contact node at or through an obstacle, the surface through itself)."""
         return 0
 
+    def crossing(self, x):
+        """In words, where the local positions x leave the domain as this rank sees it ("" where they do not): what a
+        refused start names."""
+        return ""
+
 
 class StepStart:
     """A say in where a step starts. The solver tells the effect which nodes' paths the scene gives (`hold`), asks

@@ -296,6 +296,14 @@ class SelfContact(NodeBlocks, StepLimiter, DomainCheck, StepStart, AdaptiveStiff
         ok = self.ip.is_step_collision_free(self.mesh, self.start, V, 0.0, None, self.ccd)
         return 0 if ok else 1
 
+    def crossing(self, x):
+        if not self.undefined_at(x):
+            return ""
+        if self.moving:
+            return (f"the contact surface crosses itself or a triangulated obstacle moving within the step "
+                    f"({'; '.join(o.text for o in self.obstacles if o.motion is not None)})")
+        return "the contact surface passes through itself along the straight move from the step's start"
+
     def begin_step(self, t, h, xn, vn):
         self.start = self.last = self._V(xn, self._obstacles_at(t - h)) if xn is not None else self.start
         self.fixed = self._obstacles_at(t)
