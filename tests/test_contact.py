@@ -330,6 +330,27 @@ def test_a_plate_pressing_the_bar_is_the_end_prescribed_there(tmp_path):
     ok = st["rejected"] == 0                     # (a rejected attempt's row has no energies)
     assert (~ok).sum() <= 2, st["rejected"]      # (0.2 m a step into a 5 mm gap: the start pushed; 6 without it)
     assert st["contact_dmin"][ok].min() > 0 and st["contact_nodes"][ok][-1] > 0 and st["contact_energy"][ok][-1] > 0
+    # contact results (issue 70 item 2): the plate's force in every accepted step is the forces table's contact load,
+    # its translation the scene's motion, its area at the end the whole end face (4 x 4), and the frame's pressure
+    # field the homogeneous compression's F / A at every node of the end; report --contact prints them
+    F = np.stack([st[f"obstacle1_F{c}"][ok] for c in "xyz"], axis=1)
+    assert np.allclose(F[:, 0], st["load_contact_Fx"][ok], rtol=1e-12, atol=0) and np.abs(F[:, 1:]).max() == 0
+    assert np.allclose(st["obstacle1_ux"][ok], -2 * np.minimum(st["time"][ok], 1), rtol=0, atol=1e-15)
+    assert st["obstacle1_area"][ok][-1] == pytest.approx(16.0, rel=1e-12)
+    last = got["frames"][-1]
+    pressed = last["contact_status"] == 1
+    assert pressed.sum() > 0 and np.allclose(last["contact_pressure"][pressed], -F[-1, 0] / 16.0, rtol=1e-6)
+    assert np.array_equal(pressed, np.isclose(X[:, 0], X[:, 0].max()))
+    line = run_ok(["report", tmp_path / "c.h5", "--contact"]).stdout.splitlines()[-1]
+    assert line.startswith(f"  obstacle1 plane:-1,0,0,-5.005: F = ({F[-1, 0]:.6g}, ") and "area 16," in line, line
+    assert f"peak pressure {-F[-1, 0] / 16:.6g}," in line and f"{int(pressed.sum())} nodes in contact" in line, line
+    assert "patch extent (0, 4.2" in line and "moved by (-2, 0, 0)" in line, line
+
+
+def test_contact_results_refused_where_there_are_none(tmp_path):
+    run_ok(["run", "bend", "-level", 1, "-final_time", 0.02, "-quiet", "-output", tmp_path / "b.h5"])
+    p = hyperelastic(["report", tmp_path / "b.h5", "--contact"])
+    assert p.returncode == 2 and len(p.stderr.strip().splitlines()) == 1 and "--contact" in p.stderr, p.stderr
 
 
 def test_a_dropped_bar_never_passes_through_the_floor_on_1_and_2_ranks(tmp_path):

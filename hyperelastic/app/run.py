@@ -14,6 +14,7 @@ from petsc4py import PETSc
 from .catalog import check_solver_options, check_viewer_files, help_text, load_scene, scene_option_names
 from ..core.errors import Interrupted, UserError
 from ..core.files import StateRows, check_output_path, output_names
+from ..physics.effects.seams import Results, declaring
 from ..solving.forces import held_components, record, surface_forces, table
 from ..solving.integrators import BackwardEuler
 from ..solving.rigid import line as rigid_line
@@ -67,7 +68,7 @@ def run_scene(scene_arg, options_files, restart=None, restart_path=None):
     attrs = run_attributes(model, scene_file, solver)
     stage.pop()
     writer = open_writer(_layout(scene, comm, restart, out), out, model, attrs, restart, scene.output_fields)
-    writer.point_scalars = model.formulation.point_values(model.system)
+    writer.point_scalars = point_values(model)
     if ts is not None:
         integ = GeneralizedAlpha(scene, model.system, solver, writer, model.x0, model.v0, ts, checkpoint=restart,
                                  quiet=quiet)
@@ -84,6 +85,24 @@ def run_scene(scene_arg, options_files, restart=None, restart_path=None):
     if comm.getRank() == 0 and advice:          # (a note: -quiet silences progress, never a note)
         print(f"note: {advice}", file=sys.stderr)
     return 0
+
+
+def point_values(model):
+    """(local positions x) -> {name: local array per node} of every frame's scalar point fields: the formulation's
+    (the mixed pressure) and the effects' Results (contact pressure and status; the same name from several effects
+    added); None where there are none."""
+    own = model.formulation.point_values(model.system)
+    effects = declaring(model.system.effects, Results)
+    if own is None and not effects:
+        return None
+
+    def values(x):
+        out = dict(own(x)) if own is not None else {}
+        for e in effects:
+            for k, a in e.point_values(x).items():
+                out[k] = out[k] + a if k in out else a
+        return out
+    return values
 
 
 def _help_values(scene, opts):

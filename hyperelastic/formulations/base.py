@@ -52,7 +52,8 @@ class Formulation:
         return System(space, effects, constraints, x0, v0, problem.scene.dt)
 
     def point_values(self, system):
-        """() -> {name: local array per node} of its point fields, for the writer; None: it has none."""
+        """(local positions x) -> {name: local array per node} of its point fields, for the writer; None: it has
+        none."""
         return None
 
     def solver_plan(self, system):

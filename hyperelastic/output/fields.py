@@ -30,7 +30,10 @@ from ..element.reference import REFERENCE_NODES
 
 
 POINT_FIELDS = ("displacement", "velocity")
-POINT_SCALARS = ("pressure",)     # scalar point fields: the mixed formulation's pressure (mean Cauchy stress)
+# scalar point fields: the mixed formulation's pressure (the mean Cauchy stress); contact's pressure (the barrier's force
+# per unit reference area at a contact node) and status (the number of the nearest obstacle within dhat, 0: none),
+# seams.Results
+POINT_SCALARS = ("pressure", "contact_pressure", "contact_status")
 CELL_FIELDS = ("J", "energy_density", "von_mises")
 TENSOR_FIELDS = ("stress", "strain")              # Tensor6 cell fields, on request
 EXTRA_CELL_FIELDS = TENSOR_FIELDS + ("principal_stress",)

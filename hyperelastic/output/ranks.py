@@ -293,7 +293,7 @@ class RankWriter(Writer):
         if v_local is not None and "velocity" in self.fields:
             nodes["velocity"] = self._owned(v_local)
         cells = {}
-        scalars = self.point_scalars() if self.point_scalars is not None else {}
+        scalars = self.point_scalars(x_local) if self.point_scalars is not None else {}
         if self.kernels is not None:
             EVENTS.Fields.begin()
             local = cell_fields(self.kernels, x_local, cell_quantities(self.fields))

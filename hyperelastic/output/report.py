@@ -25,13 +25,15 @@ def main(argv):
     ap.add_argument("--watch", action="append", default=[], metavar="Q", help=f"a quantity: {WATCH_HELP}")
     ap.add_argument("--forces", action="store_true", help="the forces table at the time of --frame (from the "
                     "statistics: quasi-static runs record every step's, dynamic runs those of -step_forces)")
+    ap.add_argument("--contact", action="store_true", help="per obstacle at --frame: its force on the body, contact "
+                    "area, peak contact pressure, the contact patch's extent along x, y, z, and its translation")
     a = ap.parse_args(argv)
     points = [_point(s) for s in a.at]
     watches = [parse_watch(w) for w in a.watch]
     if a.frame is not None and any(w.when is not None for w in watches):
         raise UserError("report: --frame and a --watch at a time (@T or @max): give the time once, in the watch or "
                         "as --frame")
-    for line in report(a.file, a.frame, points, watches, a.forces):
+    for line in report(a.file, a.frame, points, watches, a.forces, a.contact):
         print(line)
     return 0
 
@@ -43,7 +45,7 @@ def _point(spec):
     return p
 
 
-def report(path, frame, points, watches, forces=False):
+def report(path, frame, points, watches, forces=False, contact=False):
     """The report's lines (UserError for a file that is not a readable output or a frame it lacks: --frame is
     checked whether or not --at or --forces read it)."""
     with open_output(path, "report") as f:
@@ -59,7 +61,7 @@ def report(path, frame, points, watches, forces=False):
             rec = json.loads(f.attrs["forces"])
             lines += table([(r["kind"], r["name"], np.array(r["F"]), np.array(r["M"])) for r in rec["forces"]],
                            rec["t"], holds(f))
-        if points or forces:
+        if points or forces or contact:
             if n == 0:
                 raise UserError(f"report: '{path}' has no frames")
             i = frame if frame >= 0 else n + frame
@@ -67,6 +69,8 @@ def report(path, frame, points, watches, forces=False):
                 raise UserError(f"report: --frame {frame} out of range (0..{n - 1})")
             if forces:
                 lines += _forces_at(f, float(f["time"][i]), i)
+            if contact:
+                lines += contact_lines(f, i)
             lines += [_at(f, i, p) for p in points]
     for w in watches:
         if given:                         # (--frame N: the watch at that frame's time)
@@ -92,6 +96,45 @@ def holds(f):
     if "forces" not in f.attrs:
         return {}
     return {r["name"]: r["holds"] for r in json.loads(f.attrs["forces"])["forces"] if "holds" in r}
+
+
+def contact_lines(f, i):
+    """Per obstacle at frame i: its force on the body and contact area (the statistics of the accepted step that ends
+    at the frame's time; 0 at the start), the peak contact pressure and the contact patch's extent along x, y, z (the
+    frame's positions of the nodes whose contact_status is that obstacle: within dhat of it), and its translation."""
+    st = stats.read(f)
+    names = sorted({k[:-len("_area")] for k in st if k.startswith("obstacle") and k.endswith("_area")},
+                   key=lambda s: int(s[len("obstacle"):] or 0))
+    g = f[f"frames/{i}"]
+    if not names or "contact_status" not in g:
+        raise UserError("report: --contact: the run wrote no contact results (no -obstacle among its effects, or an "
+                        "output of a version before 0.2.0)")
+    t = float(f["time"][i])
+    acc = stats.accepted_at(st, t)
+    texts = _obstacle_texts(f)
+    status, pressure, x = g["contact_status"][:], g["contact_pressure"][:], f["x"][i]
+    lines = [f"contact at t = {t:.12g} (frame {i}; forces in N, areas in m^2 of the reference surface, pressures in "
+             "Pa, lengths in m):"]
+    for k, name in enumerate(names, 1):
+        def col(q):
+            return float(st[f"{name}_{q}"][acc[-1]]) if len(acc) else 0.0
+        on = status == k
+        peak = float(pressure[on].max()) if on.any() else 0.0
+        ext = x[on].max(axis=0) - x[on].min(axis=0) if on.any() else np.zeros(3)
+        text = f" {texts[k - 1]}" if k <= len(texts) else ""
+        lines.append(f"  {name}{text}: F = ({col('Fx'):.6g}, {col('Fy'):.6g}, {col('Fz'):.6g}), area {col('area'):.6g}, "
+                     f"peak pressure {peak:.6g}, {int(on.sum())} nodes in contact, patch extent "
+                     f"({ext[0]:.6g}, {ext[1]:.6g}, {ext[2]:.6g}), moved by ({col('ux'):.6g}, {col('uy'):.6g}, "
+                     f"{col('uz'):.6g})")
+    return lines
+
+
+def _obstacle_texts(f):
+    """The -obstacle items of the run's recorded options, in order ([] where none is recorded)."""
+    for line in str(f.attrs.get("options", "")).splitlines():
+        if line.startswith("-obstacle "):
+            return [t.strip() for t in line[len("-obstacle "):].split(";") if t.strip()]
+    return []
 
 
 def _no_forces(f, st):

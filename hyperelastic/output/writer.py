@@ -206,7 +206,7 @@ class Writer:
         self.space = space
         self.kernels = kernels
         self.fields = tuple(fields)
-        self.point_scalars = None      # () -> {name: local array per node}: scalar point fields of a frame
+        self.point_scalars = None      # (x) -> {name: local array per node}: scalar point fields of a frame
         self.f = None            # the HDF5 file (rank 0, once opened)
         self.h5 = None           # the file's end-of-file reserve (Guard; rank 0, once opened)
         self.root = space.mpi.rank == 0
@@ -371,7 +371,7 @@ class Writer:
             EVENTS.Fields.begin()
             local = cell_fields(self.kernels, x_local, cell_quantities(self.fields))
             EVENTS.Fields.end()
-        scalars = self.point_scalars() if self.point_scalars is not None else {}    # (the mixed formulation's pressure)
+        scalars = self.point_scalars(x_local) if self.point_scalars is not None else {}  # (mixed: pressure; contact)
         if self.kernels is not None:
             if AT_NODES in local:         # recovered on each rank's own cells (their node order), then gathered
                 sp = self.space

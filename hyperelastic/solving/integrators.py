@@ -12,7 +12,9 @@ from petsc4py import PETSc
 from ..core.errors import Interrupted, SolveError
 from .forces import surface_forces
 from . import rigid
-from .stats import effect_column, effect_counters, effect_energies, energy_sum, extremal, force_columns
+from ..physics.effects.seams import Results, declaring
+from .stats import (effect_column, effect_counters, effect_energies, energy_sum, extremal, force_columns,
+                    result_columns)
 
 
 def step_count(final_time, dt):
@@ -139,8 +141,9 @@ class Integrator:
             self.writer.stats(stats)
         self.stages["Output"].pop()
 
-    def _energy_stats(self, x1, v1, stats):
-        """The energies of the state (x1, v1) into the stats row; False if they or x1 are not finite."""
+    def _energy_stats(self, x1, v1, stats, t1):
+        """The energies of the state (x1, v1) at time t1 (and the effects' results) into the stats row; False if they
+        or x1 are not finite."""
         en = effect_energies(self.system.effects, self.sp.mpi, x1, v1)
         en.setdefault("kinetic", 0.0)
         finite = self.sp.mpi.allreduce(bool(np.isfinite(x1).all()), op=MPI.LAND) and all(
@@ -150,7 +153,19 @@ class Integrator:
         tot = energy_sum(en)
         stats.update(en)
         stats.update({"energy_total": tot, "energy_dissipated": self.energy0 - tot})
+        stats.update(self._result_stats(x1, t1))
         return True
+
+    def _result_stats(self, x, t):
+        """The statistics columns of the effects' Results (seams.Results: each obstacle's force, contact area and
+        translation) at the local positions x at time t (forces and areas summed over the ranks)."""
+        effects = declaring(self.system.effects, Results)
+        if not effects:
+            return {}
+        rows = [r for e in effects for r in e.result_rows(x, t)]
+        summed = np.array([np.append(F, area) for _, F, area, _ in rows], float).reshape(-1, 4)
+        self.sp.mpi.Allreduce(MPI.IN_PLACE, summed, op=MPI.SUM)
+        return result_columns([(name, s[:3], s[3], u) for (name, _, _, u), s in zip(rows, summed)])
 
     def _output(self, n_done, framed, last, x_frame=None):
         """After a completed step: the frame (x_frame, default the state's x), a checkpoint every
@@ -379,7 +394,7 @@ class BackwardEuler(Integrator):
         sysm.solved(self.X)
         x1 = sysm.impose(sysm.local(self.X, sysm.xl).copy())
         v1 = np.zeros_like(x1) if self.scene.quasistatic else (x1 - self.x) / h
-        if not self._energy_stats(x1, v1, stats):   # a NaN/Inf state never reaches the output
+        if not self._energy_stats(x1, v1, stats, t1):   # a NaN/Inf state never reaches the output
             stats["why"] = "non-finite positions or energies after a converged solve"
             return self._rejected(stats, w0)
         why = volume_refusal(stats, self.system)

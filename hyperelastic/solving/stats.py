@@ -60,6 +60,23 @@ def force_columns(rows):
     return out
 
 
+# <name>_<quantity>: each obstacle's results (seams.Results.result_rows) after each accepted step: its force on the
+# body, its contact area and its translation, NaN in rejected attempts' rows
+RESULT_QUANTITIES = {"Fx": "force on the body [N], x", "Fy": "force on the body [N], y", "Fz": "force on the body "
+                     "[N], z", "area": "reference area of the contact nodes within dhat [m^2]",
+                     "ux": "translation [m], x", "uy": "translation [m], y", "uz": "translation [m], z"}
+
+
+def result_columns(rows):
+    """{column: value} of the Results rows (name, force, area, translation), summed over the ranks already."""
+    out = {}
+    for name, F, area, u in rows:
+        out.update({f"{name}_F{c}": float(v) for c, v in zip("xyz", F)})
+        out[f"{name}_area"] = float(area)
+        out.update({f"{name}_u{c}": float(v) for c, v in zip("xyz", u)})
+    return out
+
+
 def forces_of(st, i):
     """[(kind, name, F (3,), M (3,))] of statistics row i (the columns force_columns made), in column order."""
     rows = {}
@@ -84,6 +101,8 @@ def column_type(name):
         if kind in EFFECT_COLUMNS:
             return EFFECT_COLUMNS[kind][0]
     if name.partition("_")[0] in FORCE_KINDS and name.rpartition("_")[2] in FORCE_COMPONENTS:
+        return float
+    if name.startswith("obstacle") and name.rpartition("_")[2] in RESULT_QUANTITIES:
         return float
     raise KeyError(f"'{name}' is not a declared statistics column (hyperelastic/stats.py)")
 

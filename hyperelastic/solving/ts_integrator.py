@@ -228,7 +228,7 @@ class GeneralizedAlpha(Integrator):
         x_raw, v1 = sysm.local(U, sysm.xl).copy(), sysm.local(V, sysm.vl).copy()
         sysm.begin_step(self.t, row["dt"], x0, v0)        # loads and constrained positions at the step's end
         x1 = sysm.impose(x_raw.copy())
-        if not self._energy_stats(x1, v1, row):
+        if not self._energy_stats(x1, v1, row, self.t):
             self._write_stats(row)
             self._fail(f"step {self.step + 1} (t={self.t:.6g}, h={row['dt']:.3g})",
                        "non-finite positions or energies after a converged solve")

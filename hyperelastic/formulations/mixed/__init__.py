@@ -166,7 +166,7 @@ class Mixed(Formulation):
         return MixedSystem(space, effects + couplings, constraints, x0, v0, problem.scene.dt, couplings, pspace)
 
     def point_values(self, system):
-        return lambda: {"pressure": system.pressure_nodal()}
+        return lambda x: {"pressure": system.pressure_nodal()}
 
     def solver_plan(self, system):
         return FieldSplitPlan()

@@ -34,7 +34,7 @@ from ...core.expressions import TimeFunction
 from ...core.options import Row, facet_sets
 from .base import Energy, NodeBlocks, Spec, timed
 from .obstacles import KINDS, kinds_help, linear_motion, parse
-from .seams import AdaptiveStiffness, DomainCheck, StepLimiter, StepStart
+from .seams import AdaptiveStiffness, DomainCheck, Results, StepLimiter, StepStart
 
 CCD_MARGIN = 0.1            # a Newton update stops this fraction short of the first contact along it
 PUSH_LIMIT = 0.3            # a step's start pushes contact nodes ahead of a moving obstacle by at most this fraction
@@ -71,7 +71,7 @@ def mollifier(y, eps):
     return f0, f1y, f2
 
 
-class Contact(NodeBlocks, StepLimiter, DomainCheck, StepStart, AdaptiveStiffness):
+class Contact(NodeBlocks, StepLimiter, DomainCheck, StepStart, AdaptiveStiffness, Results):
     """The barrier of the contact nodes (this rank's owned nodes of the contact surfaces) against the obstacles."""
     name = "contact"
     linear = False
@@ -264,6 +264,31 @@ class Contact(NodeBlocks, StepLimiter, DomainCheck, StepStart, AdaptiveStiffness
 
     def moves_linearly(self, t0, t1):
         return linear_motion(self.obstacles, t0, t1)
+
+    def point_values(self, x):
+        """contact_pressure: -kappa b'(d) summed over the obstacles at each contact node (the barrier's force per unit
+        of the node's reference area: Abaqus' CPRESS); contact_status: the number (in -obstacle's order, from 1) of the
+        nearest obstacle a node is within dhat of, 0 where none."""
+        n = len(x) // 3
+        pressure, status = np.zeros(n), np.zeros(n)
+        nearest = np.full(len(self.nodes), np.inf)
+        for k, (d, _) in enumerate(self._terms(x)):
+            b1 = np.nan_to_num(barrier(d, self.dhat)[1], nan=0.0)
+            pressure[self.nodes] += -self.kappa * b1
+            closer = (d < self.dhat) & (d < nearest)
+            status[self.nodes[closer]] = k + 1
+            nearest = np.where(closer, d, nearest)
+        return {"contact_pressure": pressure, "contact_status": status}
+
+    def result_rows(self, x, t):
+        """Per obstacle (named by its place in -obstacle, from 1): its force on the body (the barrier's, friction's
+        left out), the reference area of the contact nodes within dhat of it, its translation at t."""
+        rows = []
+        for k, (o, (d, g)) in enumerate(zip(self.obstacles, self._terms(x))):
+            b1 = np.nan_to_num(barrier(d, self.dhat)[1], nan=0.0)
+            force = -((self.kappa * self.area * b1)[:, None] * g).sum(axis=0)
+            rows.append((f"obstacle{k + 1}", force, float(self.area[d < self.dhat].sum()), o.shift(t)))
+        return rows
 
     def energy(self, x, v):
         terms = self._terms(x)
