@@ -345,6 +345,20 @@ def test_a_plate_pressing_the_bar_is_the_end_prescribed_there(tmp_path):
     assert line.startswith(f"  obstacle1 plane:-1,0,0,-5.005: F = ({F[-1, 0]:.6g}, ") and "area 16," in line, line
     assert f"peak pressure {-F[-1, 0] / 16:.6g}," in line and f"{int(pressed.sum())} nodes in contact" in line, line
     assert "patch extent (0, 4.2" in line and "moved by (-2, 0, 0)" in line, line
+    # the force-squeeze curve (issue 70 item 3): report --curve X,Y writes the CSV and the PNG of two statistics
+    # columns, a point per accepted step; a watched quantity gives a point per frame; --list names the columns
+    (tmp_path / "curves").mkdir()
+    q = run_ok(["report", tmp_path / "c.h5", "--list", "--curve", "obstacle1_ux,obstacle1_Fx",
+                "--curve", "time,u_x:5,0,0", "--out", tmp_path / "curves"])
+    assert "  obstacle1_Fx" in q.stdout.splitlines() and f"({ok.sum()} points, one per step)" in q.stdout, q.stdout
+    rows = np.loadtxt(tmp_path / "curves" / "c_obstacle1_ux_obstacle1_Fx.csv", delimiter=",", skiprows=1)
+    assert np.array_equal(rows[:, 0], st["obstacle1_ux"][ok]) and np.array_equal(rows[:, 1], F[:, 0])
+    assert (tmp_path / "curves" / "c_obstacle1_ux_obstacle1_Fx.png").stat().st_size > 10000
+    frames = np.loadtxt(tmp_path / "curves" / "c_time_u_x-5-0-0.csv", delimiter=",", skiprows=1)
+    assert np.array_equal(frames[:, 0], got["time"]) and np.allclose(frames[-1, 1], end.mean() - 5, atol=1e-6)
+    bad = hyperelastic(["report", tmp_path / "c.h5", "--curve", "time,obstacle9_Fx", "--out", tmp_path / "curves"])
+    assert bad.returncode == 2 and "obstacle9_Fx" in bad.stderr and len(bad.stderr.strip().splitlines()) == 1
+    assert not list((tmp_path / "curves").glob("*obstacle9*"))
 
 
 def test_contact_results_refused_where_there_are_none(tmp_path):

@@ -2,6 +2,7 @@
 of its end (reactions, load resultants, their sum), and on request the displacement and the cell fields at
 material points of a frame and the quantities `study refinement --watch` takes. Reads only; writes nothing."""
 import json
+import os
 from dataclasses import replace
 
 import numpy as np
@@ -11,6 +12,7 @@ from ..core.errors import ArgParser, UserError
 from ..core.files import cell_blocks, completed_frames, open_output, read_rows
 from ..solving.forces import table
 from ..mesh.read import deepest, interpolate
+from .curves import curves, list_lines
 from .watch import HELP as WATCH_HELP, parse_watch, point3, watched
 
 
@@ -27,7 +29,20 @@ def main(argv):
                     "statistics: quasi-static runs record every step's, dynamic runs those of -step_forces)")
     ap.add_argument("--contact", action="store_true", help="per obstacle at --frame: its force on the body, contact "
                     "area, peak contact pressure, the contact patch's extent along x, y, z, and its translation")
+    ap.add_argument("--curve", action="append", default=[], metavar="X,Y",
+                    help="write Y against X as FILE_X_Y.csv and .png (beside FILE, or in --out): two quantities of "
+                    "--list (statistics columns: a point per accepted step) or watched quantities (a point per frame)")
+    ap.add_argument("--list", action="store_true", help="the quantities --curve takes from this file")
+    ap.add_argument("--out", default=None, metavar="DIR", help="where --curve writes (default: FILE's folder)")
     a = ap.parse_args(argv)
+    if a.list or a.curve:
+        if a.out is not None and not os.path.isdir(a.out):
+            raise UserError(f"report: --out '{a.out}' is not a directory")
+        lines = list_lines(a.file) if a.list else []
+        for line in lines + (curves(a.file, a.curve, a.out) if a.curve else []):
+            print(line)
+        if not (a.at or a.watch or a.forces or a.contact):
+            return 0
     points = [_point(s) for s in a.at]
     watches = [parse_watch(w) for w in a.watch]
     if a.frame is not None and any(w.when is not None for w in watches):
