@@ -359,6 +359,16 @@ def test_a_plate_pressing_the_bar_is_the_end_prescribed_there(tmp_path):
     bad = hyperelastic(["report", tmp_path / "c.h5", "--curve", "time,obstacle9_Fx", "--out", tmp_path / "curves"])
     assert bad.returncode == 2 and "obstacle9_Fx" in bad.stderr and len(bad.stderr.strip().splitlines()) == 1
     assert not list((tmp_path / "curves").glob("*obstacle9*"))
+    # a picture worth looking at (issue 70 item 5): the contact pressure, seen along y, with the plate drawn
+    import matplotlib.image
+    pic = run_ok(["plot", tmp_path / "c.h5", "-o", tmp_path / "p.png", "--field", "contact_pressure", "--view", "y"])
+    assert f"field contact_pressure from 0 to {-F[-1, 0] / 16:.6g}, displacement scale 1" in pic.stdout, pic.stdout
+    img = matplotlib.image.imread(tmp_path / "p.png")
+    assert img.shape[:2] == (700, 1000) and img[..., :3].std() > 0.05           # (not blank)
+    for bad in (["--field", "nothing"], ["--field", "von_mises:x"], ["--view", "w"], ["--range", "2,1"]):
+        q = hyperelastic(["plot", tmp_path / "c.h5", "-o", tmp_path / "q.png", *bad])
+        assert q.returncode == 2 and len(q.stderr.strip().splitlines()) == 1, (bad, q.stderr)
+    assert not (tmp_path / "q.png").exists()
 
 
 def test_contact_results_refused_where_there_are_none(tmp_path):

@@ -17,6 +17,7 @@
   hyperelastic study price --part P --scene S --size H --watch Q --target ERR
                                                  the cheapest setting for a target error on your part
 """
+import math
 import os
 import re
 import sys
@@ -28,7 +29,6 @@ from ..core.data import recipe_path, recipes
 from ..core.errors import ArgParser, Interrupted, SolveError, UserError
 from ..core.files import option_lines, read_checkpoint
 from ..mesh.generate import empty_group_lines, format_normal, generate
-from ..output.plot import render
 
 # petsc4py reads the command line when PETSc is first imported, and mpi4py initializes MPI when imported:
 # every module that imports either (options, catalog, run, study, libpetsc) is imported only where a
@@ -276,14 +276,32 @@ def prepare_cmd(a):
 
 
 def plot_cmd(argv):
-    ap = ArgParser(prog="hyperelastic plot", description="Render a frame of an output file to PNG.")
+    ap = ArgParser(prog="hyperelastic plot", description="Render a frame of an output file to PNG (off-screen, as "
+                   "ParaView shows it): the deformed body coloured by a field, the reference outline, the obstacles.")
     ap.add_argument("file")
     ap.add_argument("-o", "--output", default=None)
     ap.add_argument("--frame", type=int, default=-1)
+    ap.add_argument("--field", default=None, metavar="NAME[:C]", help="the field to colour by (default |displacement|): "
+                    "any field of the frame (von_mises, J, pressure, contact_pressure, stress, ...), a component "
+                    "x|y|z of a vector or xx..zz of a tensor")
+    ap.add_argument("--view", default="iso", help="the camera: iso (default), x, y or z")
+    ap.add_argument("--scale", type=float, default=None, help="the displacement's scale (default: 1, or larger where "
+                    "the motion is under 2%% of the part's size, so that it shows)")
+    ap.add_argument("--range", default=None, metavar="LO,HI", help="the colour scale's range (default: the frame's)")
     a = ap.parse_args(argv)
     out = a.output if a.output is not None else os.path.splitext(a.file)[0] + ".png"
-    render(a.file, out, a.frame)
-    print(out)
+    clim = None
+    if a.range is not None:
+        try:
+            clim = [float(v) for v in a.range.split(",")]
+        except ValueError:
+            clim = []
+        if len(clim) != 2 or not all(map(math.isfinite, clim)) or clim[0] >= clim[1]:
+            raise UserError(f"plot: --range '{a.range[:40]}': give LO,HI with LO < HI")
+    if a.scale is not None and not (math.isfinite(a.scale) and a.scale > 0):
+        raise UserError(f"plot: --scale {a.scale}: give a number > 0")
+    from ..output.picture import picture    # (deferred: it reaches physics/, whose import initializes MPI and PETSc)
+    print(picture(a.file, out, a.frame, a.field, a.view, a.scale, clim))
     return 0
 
 

@@ -1,0 +1,133 @@
+"""`hyperelastic plot`: a PNG of a frame of an output, rendered off-screen by pyvista (VTK) as ParaView would show it:
+the body deformed (by its displacement times a scale, automatic where the motion would not show), coloured by any of
+its fields (`--field von_mises`, a component `displacement:z`, `stress:xy`), over the reference shape's outline, with
+the rigid obstacles of the run drawn (issue 70 item 5). Reads the output file (either layout: its rows are one mesh);
+nothing else."""
+import os
+
+import numpy as np
+
+from ..core.errors import UserError
+from ..core.expressions import TimeFunction
+from ..core.files import check_output_path, completed_frames, open_output
+from ..physics.effects.contact import split_top
+from ..physics.effects.obstacles import parse as parse_obstacle
+from .fields import is_point_field
+
+VIEWS = {"iso": None, "x": (1, 0, 0), "y": (0, -1, 0), "z": (0, 0, 1)}   # the direction the camera looks from
+TENSOR = ("xx", "xy", "xz", "yy", "yz", "zz")              # (Tensor6, as the output stores it)
+VISIBLE = 0.02        # a displacement below this fraction of the part's size is scaled up to AUTO_SHOW of it
+AUTO_SHOW = 0.1
+
+
+def component(name, spec, values):
+    """The scalar per row of field `name` (values: (n,), (n, 3) or (n, 6)) for `spec` (None: its magnitude, or the
+    scalar itself; x|y|z of a vector; xx..zz of a tensor); UserError where the field has no such component."""
+    v = np.asarray(values, float)
+    if v.ndim == 1:
+        if spec:
+            raise UserError(f"plot: --field {name}:{spec}: '{name}' is a scalar field (no components)")
+        return v
+    names = "xyz" if v.shape[1] == 3 else TENSOR if v.shape[1] == 6 else ()
+    if spec is None:
+        return np.linalg.norm(v, axis=1) if v.shape[1] == 3 else v[:, 0]
+    if spec not in names:
+        raise UserError(f"plot: --field {name}:{spec}: the components of '{name}' are {', '.join(names)}")
+    return v[:, names.index(spec)]
+
+
+def _obstacles(attrs, t, lo, hi):
+    """[(points, triangles)] of the run's -obstacle items at time t (from its recorded options)."""
+    opts = dict(line.split(" ", 1) for line in str(attrs.get("options", "")).splitlines() if " " in line)
+    items = [s for s in split_top(opts.get("-obstacle", ""), ";") if s.strip()]
+    motions = split_top(opts["-obstacle_motion"], ";") if "-obstacle_motion" in opts else [None] * len(items)
+    out = []
+    for text, motion in zip(items, motions):
+        m = None if motion is None else tuple(TimeFunction(p, "-obstacle_motion") for p in split_top(motion, ","))
+        try:
+            out.append(parse_obstacle(text, m).drawing(t, lo, hi))
+        except UserError:
+            continue            # (a triangulated obstacle whose file is not where the run read it: not drawn)
+    return out
+
+
+def _read(path, frame, field):
+    """(points X, positions x, cells (n, 4), time, values, point field?, attrs) of frame `frame` of an output."""
+    name = field.partition(":")[0] if field else "displacement"
+    with open_output(path, "plot") as f:
+        n = completed_frames(f)
+        if n == 0:
+            raise UserError(f"plot: '{path}' has no frames")
+        i = frame if frame >= 0 else n + frame
+        if not 0 <= i < n:
+            raise UserError(f"plot: frame {frame} out of range (0..{n - 1})")
+        X, x = f["mesh/points"][:], f["x"][i]
+        cells = f["mesh/tetra"][:, :4]
+        g = f[f"frames/{i}"]
+        if name == "displacement":
+            values = x - X
+        elif name in g:
+            values = g[name][:]
+        else:
+            raise UserError(f"plot: --field {name}: frame {i} has no such field (it has {', '.join(sorted(g))}; "
+                            "-output_fields writes more)")
+        return X, x, cells, float(f["time"][i]), values, is_point_field(name), dict(f.attrs), i
+
+
+def picture(path, out, frame=-1, field=None, view="iso", scale=None, clim=None):
+    """Render frame `frame` of the output `path` to the PNG `out`; returns the line to print (the field, its range
+    and the displacement's scale). UserError (one line) for what cannot be drawn."""
+    if not out.lower().endswith(".png") or os.path.isdir(out):
+        raise UserError(f"plot: -o '{out}' must be a .png file")
+    if view not in VIEWS:
+        raise UserError(f"plot: --view {view}: give one of {', '.join(VIEWS)}")
+    X, x, cells, t, values, at_points, attrs, i = _read(path, frame, field)
+    name, _, spec = (field or "displacement").partition(":")
+    scalars = component(name, spec or None, values)
+    if not (np.isfinite(x).all() and np.isfinite(X).all()):
+        raise UserError(f"plot: frame {i} of '{path}' holds non-finite positions (choose another with --frame)")
+    check_output_path(out, [path], suffixes=())
+    size = float(np.linalg.norm(X.max(axis=0) - X.min(axis=0))) or 1.0
+    moved = float(np.linalg.norm(x - X, axis=1).max())
+    if scale is None:
+        scale = AUTO_SHOW * size / moved if 0 < moved < VISIBLE * size else 1.0
+    title = f"{name}{':' + spec if spec else ''}"
+    _draw(out, X, X + scale * (x - X), cells, scalars, at_points, title, view, clim,
+          _obstacles(attrs, t, X.min(axis=0), X.max(axis=0)) if scale == 1.0 else [],
+          f"{attrs.get('scene', '')}  t = {t:.6g}  (frame {i}{'' if scale == 1.0 else f'; displacement x {scale:.3g}'})")
+    lo, hi = (clim if clim is not None else (float(np.nanmin(scalars)), float(np.nanmax(scalars))))
+    return f"wrote {out} (field {title} from {lo:.6g} to {hi:.6g}, displacement scale {scale:.3g})"
+
+
+def _draw(out, X, xs, cells, scalars, at_points, title, view, clim, obstacles, caption):
+    import pyvista as pv      # deferred on purpose: VTK takes ~1 s to load, and only pictures need it
+    import vtk
+    vtk.vtkLogger.SetStderrVerbosity(vtk.vtkLogger.VERBOSITY_OFF)   # (an X server's absence is no news off-screen)
+    pv.OFF_SCREEN = True
+    kinds = np.full(len(cells), pv.CellType.TETRA, np.uint8)
+    flat = np.hstack([np.full((len(cells), 1), 4), cells]).ravel()
+    body = pv.UnstructuredGrid(flat, kinds, xs)
+    (body.point_data if at_points else body.cell_data)[title] = scalars
+    ref = pv.UnstructuredGrid(flat, kinds, X).extract_surface(algorithm="dataset_surface").extract_feature_edges(30)
+    p = pv.Plotter(off_screen=True, window_size=(1000, 700))
+    p.add_mesh(body.extract_surface(algorithm="dataset_surface"), scalars=title, cmap="viridis", clim=clim,
+               scalar_bar_args={"title": title, "vertical": False})
+    p.add_mesh(ref, color="grey", opacity=0.5, line_width=1)
+    for pts, tris in obstacles:
+        faces = np.hstack([np.full((len(tris), 1), 3), tris]).ravel()
+        p.add_mesh(pv.PolyData(np.asarray(pts, float), faces), color="lightgrey", opacity=0.35)
+    p.add_text(caption, font_size=10)
+    if VIEWS[view] is None:
+        p.view_isometric()
+    else:
+        p.view_vector(VIEWS[view])
+    tmp = f"{out}.{os.getpid()}.tmp.png"
+    try:
+        p.screenshot(tmp)
+        os.replace(tmp, out)
+    except OSError as e:
+        raise UserError(f"plot: cannot write '{out}' ({e.strerror})") from None
+    finally:
+        p.close()
+        if os.path.exists(tmp):
+            os.remove(tmp)
