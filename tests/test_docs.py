@@ -10,6 +10,7 @@ import shlex
 import subprocess
 
 import h5py
+import numpy as np
 import pytest
 
 from conftest import BIN, ROOT
@@ -100,6 +101,21 @@ def test_rubber_runs_as_written_and_meets_rivlin(tmp_path):
         X, x = f["mesh/points"][:], f["x"][-1]
     tip = (abs(X[:, 0] - 48) < 1e-9) & (abs(X[:, 1] - 60) < 1e-9)
     assert abs((x - X)[tip, 1].mean() / 6.922 - 1) < 0.005
+    # the O-ring (issue 70 item 7): the forces table's rows add up to all_held and balance the plate; report --contact's
+    # patch half-width is the largest x of the nodes the last frame has within dhat of the plate (computed here from
+    # the positions and the plate's place), and its force per slice the statistics'
+    import h5py as _h5
+    with _h5.File(tmp_path / "output" / "oring.h5", "r") as f:
+        x, st = f["x"][-1], {k: f["stats"][k][:] for k in f["stats"]}
+        rec = {r["name"]: np.array(r["F"]) for r in __import__("json").loads(f.attrs["forces"])["forces"]}
+    rows = sum(F for n, F in rec.items() if n not in ("all_held", "contact"))
+    assert np.abs(rows - rec["all_held"]).max() <= 1e-12 * np.abs(rec["all_held"]).max()
+    assert abs(rec["all_held"][1] + rec["contact"][1]) <= 1e-8 * abs(rec["contact"][1])
+    plate = 0.00177 - 0.3 * 0.001765                  # (its y at t = 1)
+    dhat = 1e-3 * np.sqrt(0.001765 ** 2 * 2 + 0.0002 ** 2)
+    width = x[plate - x[:, 1] < dhat, 0].max()
+    line = [p for c, p in done if "--contact" in c][0].stdout.splitlines()[-1]
+    assert f"patch extent ({width:.6g}, " in line and f"F = (-0, {st['obstacle1_Fy'][-1]:.6g}, " in line, line
     report = [p for c, p in done if "moment_z:top" in c][0]
     m = re.search(r"moment_z:top:0,0,0\.04 = (\S+)", report.stdout)
     assert m, report.stdout

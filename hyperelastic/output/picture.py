@@ -14,7 +14,8 @@ from ..physics.effects.contact import split_top
 from ..physics.effects.obstacles import parse as parse_obstacle
 from .fields import is_point_field
 
-VIEWS = {"iso": None, "x": (1, 0, 0), "y": (0, -1, 0), "z": (0, 0, 1)}   # the direction the camera looks from
+# the direction the camera looks from, and which way is up in the picture
+VIEWS = {"iso": None, "x": ((1, 0, 0), (0, 0, 1)), "y": ((0, -1, 0), (0, 0, 1)), "z": ((0, 0, 1), (0, 1, 0))}
 TENSOR = ("xx", "xy", "xz", "yy", "yz", "zz")              # (Tensor6, as the output stores it)
 VISIBLE = 0.02        # a displacement below this fraction of the part's size is scaled up to AUTO_SHOW of it
 AUTO_SHOW = 0.1
@@ -120,7 +121,7 @@ def _draw(out, X, xs, cells, scalars, at_points, title, view, clim, obstacles, c
     if VIEWS[view] is None:
         p.view_isometric()
     else:
-        p.view_vector(VIEWS[view])
+        p.view_vector(VIEWS[view][0], viewup=VIEWS[view][1])
     tmp = f"{out}.{os.getpid()}.tmp.png"
     try:
         p.screenshot(tmp)
