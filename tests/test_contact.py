@@ -281,6 +281,48 @@ def test_a_refused_start_names_what_crosses(tmp_path):
     assert "-obstacle plane:-1,0,0,-5.005 reaches contact node " in line and "inside it" in line, line
 
 
+FRICTION_STATIC = """-quasistatic
+-effects elasticity,prescribed,contact
+-material linear
+-E 1e6
+-nu 0.3
+-obstacle plane:0,0,1,-0.001
+-contact_faces zmin
+-contact_friction 0.3
+-prescribe_faces zmax
+-prescribe_uz -0.05*min(2*t,1)
+-prescribe_ux 0.2*max(2*t-1,0)
+-dt 0.05
+-final_time 1
+"""
+
+
+def test_quasi_static_friction_by_slip_distance(tmp_path):
+    """Issue 72 item 3: a unit cube (E = 1 MPa) pressed onto a floor through its top face (5% in the first half of the
+    load), then its top pulled sideways by 0.2 m, mu = 0.3, quasi-static: the smoothing is a slip a step (the default
+    0.1 dhat), not a speed in pseudo-time. While the pull is small the bottom sticks (it moves 2% of the top's 0.02 m,
+    the smoothed law's creep; the tangential reaction 0.1 of the normal one); once it slides the tangential reaction is
+    mu N to 1% (measured 0.01% at the end). A speed (-contact_friction_eps) in a quasi-static run is refused."""
+    (tmp_path / "f.opts").write_text(FRICTION_STATIC)
+    mesh = tmp_path / "cube.msh"
+    run_ok(["mesh", os.path.join(EXAMPLES, "cube.geo"), "--size", 0.25, "-o", mesh])
+    run_ok(["run", tmp_path / "f.opts", "-mesh", mesh, "-quiet", "-output", tmp_path / "f.h5"])
+    got = read_h5(tmp_path / "f.h5")
+    st, X, x, t = got["stats"], got["points"], got["x"], got["time"]
+    ok = st["rejected"] == 0
+    ratio = -st["reaction_zmax_Fx"][ok] / st["reaction_zmax_Fz"][ok]
+    ts = st["time"][ok]
+    assert np.abs(ratio[ts >= 0.75] / 0.3 - 1).max() < 1e-2, ratio
+    first_pull = int(np.argmin(abs(t - 0.55)))
+    bottom, top = np.isclose(X[:, 2], 0), np.isclose(X[:, 2], 1)
+    moved = (x[first_pull] - X)[:, 0]
+    assert ratio[np.argmin(abs(ts - 0.55))] < 0.5 * 0.3 and moved[bottom].mean() < 0.05 * moved[top].mean()
+    p = hyperelastic(["run", tmp_path / "f.opts", "-mesh", mesh, "-contact_friction_eps", 1e-3, "-output",
+                      tmp_path / "g.h5"])
+    lines = [ln for ln in p.stderr.strip().splitlines() if not ln.startswith("note: ")]
+    assert p.returncode == 2 and len(lines) == 1 and "-contact_friction_slip" in lines[0], p.stderr
+
+
 def test_the_bent_bar_rests_on_a_box(tmp_path):
     """The quasi-static bend's tip (it sags ~1.3 m) comes down on a box below it: no node inside the box in any frame,
     a contact force that carries part of the load."""

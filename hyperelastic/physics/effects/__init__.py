@@ -51,7 +51,8 @@ class Context:
     """What an effect is built from: the distributed space, the elastic cell kernels of the material(s),
     the cells' geometry (kernels.Cells, for mass matrices and body forces), the density (a scalar, or one
     per local cell with -regions), the mass matrix kind, -hessian_projection and the largest Young's modulus of the
-    solids in use (a stiffness scale: the contact barrier's default)."""
+    solids in use (a stiffness scale: the contact barrier's default), and whether the run is quasi-static (time a load
+    parameter: contact's friction smooths by a slip per step, not a speed)."""
     space: object
     kernels: object
     cells: object
@@ -59,6 +60,7 @@ class Context:
     lumped: bool = False
     projection: bool = False
     modulus: float = 1.0
+    quasistatic: bool = False
 
 
 def build(scene, ctx):

@@ -42,6 +42,8 @@ PUSH_LIMIT = 0.3            # a step's start pushes contact nodes ahead of a mov
 KAPPA_SCALE = 0.1           # kappa = KAPPA_SCALE E / dhat by default
 DHAT_SCALE = 1e-3           # dhat = DHAT_SCALE x the bounding-box diagonal by default
 ADAPTIVE_RANGE = 100.0      # -contact_kappa adaptive: kappa in [kappa_min, ADAPTIVE_RANGE kappa_min] (IPC's ratio)
+EPS_V = 1e-3                # -contact_friction_eps [m/s]: dynamic runs' smoothing speed (IPC's epsilon_v)
+SLIP_SCALE = 0.1            # quasi-static runs' smoothing slip a step, -contact_friction_slip: SLIP_SCALE dhat
 
 
 
@@ -81,11 +83,12 @@ class Contact(NodeBlocks, StepLimiter, DomainCheck, StepStart, AdaptiveStiffness
     end_state = True         # (generalized-alpha: acts at the step's end, System._end_state)
     discrete_gradient = True  # (-energy_momentum: residual_discrete_gradient)
 
-    def __init__(self, nodes, area, X, input_ids, obstacles, dhat, kappa, edge=None, mu=0.0, eps_v=1e-3):
+    def __init__(self, nodes, area, X, input_ids, obstacles, dhat, kappa, edge=None, mu=0.0, eps_v=EPS_V, eps_d=None):
         """mu: Coulomb's friction coefficient (0: frictionless); eps_v [m/s]: the slip speed below which friction is
-        smoothed (IPC's epsilon_v; a slip length of eps_v h a step)."""
+        smoothed (IPC's epsilon_v; a slip length of eps_v h a step); eps_d [m]: in a quasi-static run, the slip a step
+        below which it is smoothed instead (time there is a load parameter: a speed in it means nothing)."""
         super().__init__()
-        self.mu, self.eps_v = float(mu), float(eps_v)
+        self.mu, self.eps_v, self.eps_d = float(mu), float(eps_v), eps_d
         self.friction = []        # per obstacle, lagged at the step's start: (normal force, tangent projector, x^n, move)
         self.nodes, self.area = np.asarray(nodes, np.int64), np.asarray(area, float)
         self.edge = np.full(len(self.nodes), np.inf) if edge is None else np.asarray(edge, float)
@@ -109,9 +112,9 @@ class Contact(NodeBlocks, StepLimiter, DomainCheck, StepStart, AdaptiveStiffness
         self.now = [o.at(t) for o in self.obstacles]
         if self.mu > 0 and xn is not None:
             # lagged friction (IPC sec. 5): each node's normal force kappa A |b'(d)| and tangent plane at the step's
-            # start, the slip u = T (x - x^n - the obstacle's move), smoothed below eps_v h
+            # start, the slip u = T (x - x^n - the obstacle's move), smoothed below eps_v h (quasi-static: eps_d)
             xc = np.asarray(xn).reshape(-1, 3)[self.nodes]
-            self.slip_eps = self.eps_v * h
+            self.slip_eps = self.eps_v * h if self.eps_d is None else self.eps_d
             self.friction = []
             for o, old in zip(self.obstacles, self.before):
                 d, g = o.form.distances(old, xc)
@@ -310,8 +313,9 @@ class ContactParams:
     kappa: float              # None: KAPPA_SCALE E / dhat
     self_contact: bool = False  # -contact_self: the contact surfaces against themselves (self_contact.py)
     mu: float = 0.0           # -contact_friction: Coulomb's coefficient
-    eps_v: float = 1e-3       # -contact_friction_eps [m/s]
+    eps_v: float = None       # -contact_friction_eps [m/s] (dynamic runs; None: EPS_V)
     adaptive: bool = False    # -contact_kappa adaptive: IPC's balance at each step's start (System._adapt_contact)
+    eps_d: float = None       # -contact_friction_slip [m] (quasi-static runs; None: SLIP_SCALE dhat)
 
 
 def split_top(text, sep):
@@ -349,14 +353,15 @@ def _read(opts, where):
     obstacles = tuple(parse(t, m) for t, m in zip(texts, motions))
     faces_ = tuple(facet_sets(opts, "contact_faces", default="boundary"))
     mu = opts.real("contact_friction", 0.0, minimum=0, exclusive=False)
-    eps_v = opts.real("contact_friction_eps", 1e-3, minimum=0)
+    eps_v = opts.real("contact_friction_eps", None, minimum=0)
+    eps_d = opts.real("contact_friction_slip", None, minimum=0)
     adaptive = opts.has("contact_kappa") and opts.string("contact_kappa").strip().lower() == "adaptive"
     try:
         kappa = None if adaptive else opts.real("contact_kappa", None, minimum=0)
     except UserError as e:
         raise UserError(f"{e} (or 'adaptive')") from None
     return ContactParams(obstacles, faces_, opts.real("contact_dhat", None, minimum=0), kappa, self_contact, mu, eps_v,
-                         adaptive)
+                         adaptive, eps_d)
 
 
 def build_contact(p, ctx):
@@ -383,14 +388,30 @@ def build_contact(p, ctx):
     kappa = p.kappa if p.kappa is not None else KAPPA_SCALE * ctx.modulus / dhat
     analytic = tuple(o for o in p.obstacles if o.form.analytic)
     meshes = tuple(o for o in p.obstacles if not o.form.analytic)
+    eps_v, eps_d = friction_smoothing(p, ctx.quasistatic, dhat)
     out = [Contact(nodes, owned_share[owned_share > 0], X, sp.orig[nodes], analytic, dhat, kappa, edge[nodes],
-                   p.mu, p.eps_v)] if analytic else []
+                   p.mu, eps_v, eps_d)] if analytic else []
     if p.self_contact or meshes:
         from .self_contact import SelfContact
-        out.append(SelfContact(sp, tris, dhat, kappa, meshes, p.mu, p.eps_v))
+        out.append(SelfContact(sp, tris, dhat, kappa, meshes, p.mu, eps_v, eps_d))
     for e in out:
         e.kappa_range = (kappa, ADAPTIVE_RANGE * kappa) if p.adaptive else None
     return out
+
+
+def friction_smoothing(p, quasistatic, dhat):
+    """(eps_v, eps_d) of the friction's smoothing: a dynamic run's slip speed (-contact_friction_eps, EPS_V: IPC's, a
+    slip of eps_v h a step), or a quasi-static run's slip a step (-contact_friction_slip, SLIP_SCALE dhat: time is a
+    load parameter there, and a speed in it means nothing; eps_d None in a dynamic run). The option of the other kind
+    of run is refused in one line."""
+    if quasistatic and p.eps_v is not None:
+        raise UserError("option -contact_friction_eps: a slip speed means nothing in a quasi-static run (its time is a "
+                        "load parameter); give the smoothing's slip a step, -contact_friction_slip d [m]")
+    if not quasistatic and p.eps_d is not None:
+        raise UserError("option -contact_friction_slip: a dynamic run smooths friction below a slip speed, "
+                        "-contact_friction_eps v [m/s]; -contact_friction_slip is for quasi-static runs")
+    eps_v = EPS_V if p.eps_v is None else p.eps_v
+    return eps_v, ((SLIP_SCALE * dhat if p.eps_d is None else p.eps_d) if quasistatic else None)
 
 
 def _uses(p):
@@ -400,12 +421,14 @@ def _uses(p):
 SPEC = Spec(
     "contact", "rigid obstacles (planes, spheres) and self-contact: the boundary touches but never passes through "
     "(IPC barrier)",
-    implied_by=("obstacle", "contact_self", "contact_dhat", "contact_kappa", "contact_faces", "contact_friction"), read=_read, sets=_uses,
+    implied_by=("obstacle", "contact_self", "contact_dhat", "contact_kappa", "contact_faces", "contact_friction"),
+    read=_read, sets=_uses,
     build=build_contact, couples=lambda p: p.self_contact,
     energies=(Energy("contact_energy", 1, "the contact barrier's energy"),
               Energy("contact_nodes", 0, "contact nodes within dhat of an obstacle"),
               Energy("contact_pairs", 0, "self-contact pairs (point-triangle, edge-edge, ...) within dhat"),
-              Energy("contact_sliding", 0, "contact nodes sliding (slip over eps_v h) on an obstacle (friction)"),
+              Energy("contact_sliding", 0, "contact nodes sliding (a step's slip over the smoothing's: eps_v h, "
+                     "quasi-static eps_d) on an obstacle (friction)"),
               Energy("contact_kappa", 0, "the barrier's stiffness [Pa/m] (-contact_kappa adaptive: as balanced at the "
                      "step's start)", combine="max"),
               Energy("contact_dmin", 0, "the smallest distance of a contact node to an obstacle (or of two parts of the "
@@ -422,11 +445,13 @@ SPEC = Spec(
               "pairs, each Newton update stopped short of the first collision: the IPC Toolkit); the surface is "
               "gathered to every rank; not with -formulation mixed"),
           Row(("contact_faces",), "-contact_faces S1,S2,…", "the surfaces that touch the obstacles", "boundary"),
-          Row(("contact_friction", "contact_friction_eps"), "-contact_friction μ -contact_friction_eps v",
+          Row(("contact_friction", "contact_friction_eps", "contact_friction_slip"),
+              "-contact_friction μ -contact_friction_eps v -contact_friction_slip d",
               "Coulomb friction on obstacles and in self-contact (IPC's smoothed, lagged friction: each step's normal "
               "forces and tangent planes from its start; static below the slip speed v [m/s], i.e. a slip of v h a "
-              "step)",
-              "0 (frictionless), v = 1e-3"),
+              "step, in dynamic runs, and below the slip d [m] a step in quasi-static ones, where time is a load "
+              "parameter)",
+              "0 (frictionless), v = 1e-3, d = 0.1 dhat"),
           Row(("contact_dhat", "contact_kappa"), "-contact_dhat d -contact_kappa k|adaptive",
               "the barrier's reach [m] (default 1e-3 of the bounding box's diagonal: forces act at distances below "
               "it, so it is the contact's accuracy) and stiffness [Pa/m] (default 0.1 E / dhat: a pressure of "

@@ -63,17 +63,17 @@ class SelfContact(NodeBlocks, StepLimiter, DomainCheck, StepStart, AdaptiveStiff
     domain = True
     end_state = True          # (generalized-alpha: acts at the step's end, System._end_state)
 
-    def __init__(self, space, tris, dhat, kappa, obstacles=(), mu=0.0, eps_v=1e-3):
+    def __init__(self, space, tris, dhat, kappa, obstacles=(), mu=0.0, eps_v=1e-3, eps_d=None):
         """obstacles: triangulated rigid obstacles (obstacles.Obstacle of kind mesh): their triangles join the collision
         mesh as vertices that are not unknowns, placed by their translation at each step's end. mu, eps_v: Coulomb
         friction (IPC's smoothed, lagged: ipctk's TangentialCollisions and FrictionPotential on the step's
-        displacements, smoothed below a slip of eps_v h)."""
+        displacements, smoothed below a slip of eps_v h; of eps_d a step in a quasi-static run)."""
         super().__init__()
         ip = self.ip = _ipctk()
         sp = self.space = space
         self.mpi = sp.mpi
         self.dhat, self.kappa = float(dhat), float(kappa)
-        self.mu, self.eps_v = float(mu), float(eps_v)
+        self.mu, self.eps_v, self.eps_d = float(mu), float(eps_v), eps_d
         self.tangential = None       # the step's lagged friction pairs (begin_step), and its potential
         self.friction = None
         # additive CCD (Li et al. 2021, "Codimensional IPC"): ~1000x faster than Tight-Inclusion's on surfaces that
@@ -312,7 +312,7 @@ class SelfContact(NodeBlocks, StepLimiter, DomainCheck, StepStart, AdaptiveStiff
             # displacement, smoothed below eps_v h)
             self.tangential = self.ip.TangentialCollisions()
             self.tangential.build(self.mesh, self.start, self._collisions(self.start), self.potential_fn, self.mu)
-            self.friction = self.ip.FrictionPotential(self.eps_v * h)
+            self.friction = self.ip.FrictionPotential(self.eps_v * h if self.eps_d is None else self.eps_d)
 
     def _has_friction(self):
         """Whether the step has friction pairs (built at its start)."""
