@@ -66,7 +66,8 @@ HEAD = (
 ) + formulations.rows() + (
     Row(("material",), "-material NAME", _material_list(), DEFAULT_MATERIAL),
     Row(("hessian_projection",), "-hessian_projection", "element tangents projected to positive semi-definite "
-        "(eigenvalues clamped at 0); the residual is unchanged", "off"),
+        "(eigenvalues clamped at 0), and the contact barrier's pairs with triangulated obstacles pair by pair as "
+        "those within the contact surface are (else exact in the body's unknowns); the residual is unchanged", "off"),
     Row(("objective",), "-objective", "register the incremental potential E(x) (backward Euler as energy "
         "minimization) with SNES, so the line search uses the energy as merit; a scene with an effect that has none "
         "(follower traction) falls back to the residual norm and says so. `-objective 0`: residual-norm merit", "on"),

@@ -393,7 +393,7 @@ def build_contact(p, ctx):
                    p.mu, eps_v, eps_d)] if analytic else []
     if p.self_contact or meshes:
         from .self_contact import SelfContact
-        out.append(SelfContact(sp, tris, dhat, kappa, meshes, p.mu, eps_v, eps_d))
+        out.append(SelfContact(sp, tris, dhat, kappa, meshes, p.mu, eps_v, eps_d, ctx.projection))
     for e in out:
         e.kappa_range = (kappa, ADAPTIVE_RANGE * kappa) if p.adaptive else None
     return out
