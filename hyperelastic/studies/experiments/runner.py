@@ -30,10 +30,11 @@ def command(args, nprocs=1):
 GRACE_S = 15.0
 
 
-def run_hyperelastic(args, output, nprocs=1, timeout=900):
+def run_hyperelastic(args, output, nprocs=1, timeout=900, grace=GRACE_S):
     """(exit status, stderr, wall seconds) of `python -m hyperelastic ARGS` writing `output` (removed
     first, so that a stale file is never read as this run's result); nprocs > 1 runs it under mpiexec. A run
-    past `timeout` is stopped (SIGTERM, then SIGKILL after GRACE_S): exit status -1, stderr 'timed out after ...'.
+    past `timeout` is stopped (SIGTERM, then SIGKILL after `grace` s; grace 0: SIGKILL at once, for a run nothing of
+    which is kept): exit status -1, stderr 'timed out after ...'.
     On Ctrl-C (KeyboardInterrupt here; the child, in the same process group, got the SIGINT too) the child is
     given GRACE_S to end before it is killed, and the interrupt goes on: no child outlives the study."""
     if os.path.exists(output):
@@ -48,8 +49,9 @@ def run_hyperelastic(args, output, nprocs=1, timeout=900):
         _, err = p.communicate(timeout=timeout)
         rc = p.returncode
     except subprocess.TimeoutExpired:
-        p.terminate()
-        _end(p)
+        if grace > 0:
+            p.terminate()
+        _end(p, grace)
         rc, err = -1, f"timed out after {timeout:g} s"
     except KeyboardInterrupt:
         _end(p)
@@ -60,10 +62,10 @@ def run_hyperelastic(args, output, nprocs=1, timeout=900):
 MAIN = os.path.join(os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)))), "__main__.py")
 
 
-def _end(p):
-    """Wait up to GRACE_S for a signalled child, then kill it."""
+def _end(p, grace=GRACE_S):
+    """Wait up to `grace` s for a signalled child, then kill it."""
     try:
-        p.communicate(timeout=GRACE_S)
+        p.communicate(timeout=grace)
     except subprocess.TimeoutExpired:
         p.kill()
         p.communicate()
