@@ -781,6 +781,41 @@ def contract_cases(rng):
     return [Case(f"contract:{n}", "contracts", a, setup=setup, words=w) for n, a, w, setup in C]
 
 
+def error_contract_cases(rng):
+    """Issue 73: the error contract for what runs past one machine and for contact. Each case is one of its causes,
+    on 2 ranks where ranks are involved (a hang fails at TIME_LIMIT)."""
+    def big(d):
+        with open(os.path.join(d, "big.opts"), "w") as fh:
+            fh.write(SCENE + "-E " + "1" * 1_000_000 + "\n")
+    C = [  # name, args, words, setup, ranks
+        ("obstacle_inside_one_rank", BEND + ["-obstacle", "sphere:1,1,1,0.3"], ("-obstacle", "at the start"), None, 2),
+        ("obstacle_inside_other_rank", BEND + ["-obstacle", "sphere:0,0,0,0.3"], ("-obstacle", "at the start"), None,
+         2),
+        ("prepare_into_directory", ["mesh", "good.msh", "--prepare", "-o", "d.h5"], ("--prepare", "directory"),
+         lambda d: os.mkdir(os.path.join(d, "d.h5")), 1),
+        ("prepare_over_xdmf_data", ["mesh", "prev.xdmf", "--prepare", "-o", "prev.h5"], ("--prepare", "data"), None,
+         1),
+        ("dhat_beyond_the_part", BEND + ["-obstacle", "plane:0,0,1,-3", "-contact_dhat", "1e20"],
+         ("-contact_dhat", "size"), None, 1),
+        ("megabyte_value", ["run", "big.opts", "-quiet", "-output", "prev.h5"], ("line 9", "1,000,003 characters"),
+         big, 1),
+        ("ignored_option", BEND + ["-mixed_augment", "5"], ("-mixed_augment", "does not read"), None, 1),
+        ("ignored_option_two_ranks", BEND + ["-mixed_augment", "5"], ("-mixed_augment", "does not read"), None, 2),
+        ("box_face_without_facets", BEND + ["-mesh", "tet.msh"], ("-traction_face", "'right'", "no boundary facet"),
+         lambda d: write_msh(os.path.join(d, "tet.msh"), np.eye(4, 3, -1), [[0, 1, 2, 3]]), 1),
+        ("box_face_without_facets_two_ranks", BEND + ["-mesh", "tets.msh"], ("-traction_face", "no boundary facet"),
+         lambda d: write_msh(os.path.join(d, "tets.msh"), np.vstack([np.eye(4, 3, -1), [0, 0, -1]]),
+                             [[0, 1, 2, 3], [0, 2, 1, 4]]), 2),
+        ("sphere_inside_the_part", BEND + ["-obstacle", "sphere:0.5,0.5,0.5,0.2"], ("-obstacle", "inside the part"),
+         None, 2),
+        ("box_inside_the_part", BEND + ["-obstacle", "box:0.3,0.3,0.3,0.6,0.6,0.6"], ("-obstacle", "inside the part"),
+         None, 1),
+        ("triangles_inside_the_part", BEND + ["-obstacle", "mesh:inner.obj"], ("-obstacle", "inside the part"),
+         lambda d: _write(d, "inner.obj", b"v 0.4 0.4 0.5\nv 0.6 0.4 0.5\nv 0.5 0.6 0.5\nf 1 2 3\n"), 1),
+    ]
+    return [Case(f"contract73:{n}", "contracts", a, setup=setup, nprocs=r, words=w) for n, a, w, setup, r in C]
+
+
 MPI_CATEGORIES = ("option values", "unknown options", "conflicting combinations", "scene and options files",
                   "meshes", "output paths", "restart files")
 
@@ -791,7 +826,7 @@ def all_cases(seed=SEED):
     cases = []
     for gen in (option_value_cases, unknown_option_cases, conflict_cases, file_cases, mesh_cases, output_cases,
                 restart_cases, plot_cases, command_line_cases, options_line_cases, viewer_cases, mesh_command_cases,
-                study_cases, contract_cases):
+                study_cases, contract_cases, error_contract_cases):
         cases += gen(rng)
     pool = [c for c in cases if c.category in MPI_CATEGORIES and not c.fsize]
     mpi = []

@@ -20,7 +20,7 @@ def test_the_suite_covers_the_issue():
     names; the same seed gives the same cases."""
     names = [c.name for c in CASES]
     assert len(set(names)) == len(names) >= 600
-    assert 55 <= sum(c.nprocs == 2 for c in CASES) <= 70
+    assert 55 <= sum(c.name.startswith("mpi2:") for c in CASES) <= 70
     cats = Counter(c.category for c in CASES)
     for cat in ("option values", "PETSc values", "unknown options", "conflicting combinations",
                 "scene and options files", "meshes", "output paths", "restart files", "plot"):

@@ -300,6 +300,18 @@ def check_solver_options(opts):
                         f"chosen){hint}")
 
 
+def check_application_used(opts):
+    """After the model and its solvers are set up (before any output is written): an option of the application that
+    nothing read is one this run ignores (-mixed_augment on a displacement run, -contact_dhat without contact, ...):
+    one line, rather than PETSc's four-line warning after the run (issue 73)."""
+    names = set(option_names())
+    for key, _ in all_options():
+        if (key in names or _prefixed_template(key)) and key.split("_", 1)[0] not in PETSC_FAMILIES \
+                and not opts.used(key):
+            raise UserError(f"option -{key}: this run does not read it (it is for another formulation, effect, "
+                            "integrator or kind of run: see `hyperelastic run --help`)")
+
+
 # options that take a PETSc viewer, `[type]:FILE[:format]` (-log_view, -ksp_view, -snes_monitor, ...)
 VIEWERS = re.compile(r"(?:^|_)(?:view|monitor|converged_reason|log_trace)(?:_|$)")
 

@@ -11,7 +11,8 @@ import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from .catalog import check_solver_options, check_viewer_files, help_text, load_scene, scene_option_names
+from .catalog import (check_application_used, check_solver_options, check_viewer_files, help_text, load_scene,
+                      scene_option_names)
 from ..core.errors import Interrupted, UserError
 from ..core.files import StateRows, check_output_path, output_names
 from ..physics.effects.seams import Results, declaring
@@ -60,6 +61,7 @@ def run_scene(scene_arg, options_files, restart=None, restart_path=None):
     check_solver_options(PETSc.Options())
     if helping:                  # PETSc printed its own options as its solvers read them
         return 0
+    check_application_used(PETSc.Options())
     if comm.getRank() == 0:
         _start_lines(scene, model, solver, quiet)
     if restart is not None:      # the state read (collective) before anything is written: a bad row is one line

@@ -366,9 +366,13 @@ def main(argv=None):
     if cmd is None:
         _error(f"unknown command '{argv[0]}' (choose from {', '.join(COMMANDS)})")
         return EXIT_USER
+    alike = _alike_world()
     try:
         return cmd(argv[1:])
     except UserError as e:
+        if alike is not None and not _all_reach(alike):
+            print(f"hyperelastic: error: {_cut(str(e))}", file=sys.stderr, flush=True)
+            os._exit(EXIT_USER)      # (mpiexec ends the ranks waiting in a collective call: one line, exit status 2)
         _error(str(e))
         return EXIT_USER
     except SolveError as e:
@@ -392,6 +396,34 @@ def main(argv=None):
             _error(f"internal error: {type(e).__name__}: {msg} (rerun with -debug for a traceback)", any_rank=True)
         _abort_if_parallel(EXIT_INTERNAL)
         return EXIT_INTERNAL
+
+
+# A bad-input error is raised on every rank alike (core.errors.raise_agreed makes a check of one rank's own data so):
+# then rank 0 prints it and every rank returns. One that some ranks raise alone would leave the others waiting in a
+# collective call for ever: where not every rank reaches the error within ALIKE_WAIT_S, a rank that has it prints it
+# and leaves at once, and mpiexec ends the others (issue 73: 4 hangs).
+ALIKE_WAIT_S = 2.0
+
+
+def _alike_world():
+    """Under mpiexec with more than one rank (Hydra's PMI_SIZE): a duplicate of MPI's world, made by every rank at the
+    start of its command, for the agreement above alone (its barrier never meets a collective call of the run's);
+    else None."""
+    if int(os.environ.get("PMI_SIZE", "1") or 1) < 2:
+        return None
+    from mpi4py import MPI
+    return MPI.COMM_WORLD.Dup() if MPI.COMM_WORLD.size > 1 else None
+
+
+def _all_reach(world):
+    """Whether every rank of `world` reaches this call within ALIKE_WAIT_S."""
+    req = world.Ibarrier()
+    end = time.monotonic() + ALIKE_WAIT_S
+    while not req.Test():
+        if time.monotonic() > end:
+            return False
+        time.sleep(0.005)
+    return True
 
 
 def _comm():
@@ -423,6 +455,13 @@ def _abort_if_parallel(code):
 ANY_RANK_GRACE_S = 2.0
 
 
+MAX_ERROR = 1000       # characters of the error line's message (a value a user gave may be a million)
+
+
+def _cut(msg):
+    return msg if len(msg) <= MAX_ERROR else f"{msg[:MAX_ERROR]}... ({len(msg) - MAX_ERROR:,} characters more)"
+
+
 def _error(msg, any_rank=False):
     """The one error line: printed by rank 0 (errors of the user and of the solver are raised on every rank alike);
     with any_rank (an internal error, maybe on some ranks only) by the others too, after ANY_RANK_GRACE_S."""
@@ -439,7 +478,7 @@ def _error(msg, any_rank=False):
         sys.stderr.flush()
         time.sleep(ANY_RANK_GRACE_S)
     if any_rank or rank == 0:
-        print(f"hyperelastic: error: {msg}", file=sys.stderr, flush=True)
+        print(f"hyperelastic: error: {_cut(msg)}", file=sys.stderr, flush=True)
 
 
 if __name__ == "__main__":

@@ -24,6 +24,9 @@ def writable_dir(d, who):
         raise UserError(f"{who}: directory '{d}' is not writable")
 
 
+MAX_OPTION_LINE = 10_000      # characters of a line of an options file (a path is at most 4,096)
+
+
 def option_lines(text, where):
     """[(line number, key without its '-', value or None)] of a PETSc options file's text: one
     `-option [value]` per line, `#` comments. UserError naming `where` and the line for anything else —
@@ -34,6 +37,9 @@ def option_lines(text, where):
         line = line.split("#", 1)[0].strip()
         if not line:
             continue
+        if len(line) > MAX_OPTION_LINE:     # (shlex takes time quadratic in a token's length: 76 s for 1 MB)
+            raise UserError(f"{where} line {lineno}: {len(line):,} characters (at most {MAX_OPTION_LINE:,} for an "
+                            f"option and its value): '{line[:40]}...'")
         try:
             toks = shlex.split(line)
         except ValueError as e:

@@ -52,8 +52,28 @@ def check_prepare_output(src, out):
     """The output of `--prepare` must be HDF5 by name and not its input (checked before the input is read)."""
     if not out.lower().endswith((".h5", ".hdf5")):
         raise UserError(f"hyperelastic mesh --prepare: the output '{out}' must end in .h5 or .hdf5")
-    if os.path.abspath(out) == os.path.abspath(src):
+    if os.path.realpath(out) == os.path.realpath(src):
         raise UserError(f"hyperelastic mesh --prepare: the output '{out}' is the input")
+    if os.path.isdir(out):
+        raise UserError(f"hyperelastic mesh --prepare: the output '{out}' is a directory")
+    for data in _xdmf_data_files(src):
+        if os.path.realpath(out) == os.path.realpath(data):
+            raise UserError(f"hyperelastic mesh --prepare: the output '{out}' holds the data of the input '{src}' "
+                            "(an XDMF file's arrays live in it): choose another name")
+
+
+def _xdmf_data_files(src):
+    """The HDF5 files an .xdmf file's DataItems name (FILE:/path, relative to the .xdmf's folder); [] for any other
+    input or an XDMF that cannot be read (its reader says why later)."""
+    if not src.lower().endswith((".xdmf", ".xmf")) or not os.path.isfile(src):
+        return []
+    import xml.etree.ElementTree as ET
+    try:
+        items = ET.parse(src).getroot().iter("DataItem")
+        names = {(d.text or "").strip().split(":", 1)[0] for d in items if d.get("Format", "").upper() == "HDF"}
+    except (ET.ParseError, OSError):
+        return []
+    return [os.path.join(os.path.dirname(os.path.abspath(src)), n) for n in names if n]
 
 
 def prepared_arrays(mesh):

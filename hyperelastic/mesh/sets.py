@@ -216,9 +216,17 @@ class Mesh:
         UserError listing what the mesh has when there is no such set."""
         for g in self.groups.values():
             if g.kind == kind and (g.name == spec or (g.tag is not None and str(g.tag) == spec)):
+                if kind == "facets" and not self.total(len(g.items)):     # (a run would hold or load nothing there)
+                    raise UserError(f"option -{option}: surface '{spec}' of mesh '{self.path}' holds no boundary "
+                                    "facet (an empty physical group, or a damaged file)")
                 return g
         if kind == "facets" and spec in BOX:
-            return NamedSet(spec, None, "facets", self.box_facets(spec))
+            items = self.box_facets(spec)
+            if not self.total(len(items)):
+                axis, side = BOX[spec]
+                raise UserError(f"option -{option}: box face '{spec}' (the bounding box's {'xyz'[axis]} = {side}) "
+                                f"holds no boundary facet of mesh '{self.path}'")
+            return NamedSet(spec, None, "facets", items)
         if kind == "facets" and spec == WHOLE_BOUNDARY:
             return NamedSet(spec, None, "facets", np.arange(len(self.facet_cell)))
         if kind == "facets" and "=" in spec:

@@ -28,8 +28,9 @@ System._end_state); with -energy_momentum the barrier is a discrete gradient (`r
 from dataclasses import dataclass
 
 import numpy as np
+from mpi4py import MPI
 
-from ...core.errors import UserError
+from ...core.errors import UserError, raise_agreed
 from ...core.expressions import TimeFunction
 from ...core.options import Row, facet_sets
 from .base import Energy, NodeBlocks, Spec, timed
@@ -41,6 +42,7 @@ PUSH_LIMIT = 0.3            # a step's start pushes contact nodes ahead of a mov
                             # of their shortest surface edge (else the step is retried shorter)
 KAPPA_SCALE = 0.1           # kappa = KAPPA_SCALE E / dhat by default
 DHAT_SCALE = 1e-3           # dhat = DHAT_SCALE x the bounding-box diagonal by default
+DHAT_MAX = 0.1              # and at most DHAT_MAX x it (-contact_dhat 1e20 ran to a 587 km displacement: issue 73)
 ADAPTIVE_RANGE = 100.0      # -contact_kappa adaptive: kappa in [kappa_min, ADAPTIVE_RANGE kappa_min] (IPC's ratio)
 EPS_V = 1e-3                # -contact_friction_eps [m/s]: dynamic runs' smoothing speed (IPC's epsilon_v)
 SLIP_SCALE = 0.1            # quasi-static runs' smoothing slip a step, -contact_friction_slip: SLIP_SCALE dhat
@@ -83,10 +85,12 @@ class Contact(NodeBlocks, StepLimiter, DomainCheck, StepStart, AdaptiveStiffness
     end_state = True         # (generalized-alpha: acts at the step's end, System._end_state)
     discrete_gradient = True  # (-energy_momentum: residual_discrete_gradient)
 
-    def __init__(self, nodes, area, X, input_ids, obstacles, dhat, kappa, edge=None, mu=0.0, eps_v=EPS_V, eps_d=None):
+    def __init__(self, nodes, area, X, input_ids, obstacles, dhat, kappa, edge=None, mu=0.0, eps_v=EPS_V, eps_d=None,
+                 mpi=None):
         """mu: Coulomb's friction coefficient (0: frictionless); eps_v [m/s]: the slip speed below which friction is
         smoothed (IPC's epsilon_v; a slip length of eps_v h a step); eps_d [m]: in a quasi-static run, the slip a step
-        below which it is smoothed instead (time there is a load parameter: a speed in it means nothing)."""
+        below which it is smoothed instead (time there is a load parameter: a speed in it means nothing). mpi: the
+        ranks that build it together (the start check is theirs: a node inside an obstacle is one rank's)."""
         super().__init__()
         self.mu, self.eps_v, self.eps_d = float(mu), float(eps_v), eps_d
         self.friction = []        # per obstacle, lagged at the step's start: (normal force, tangent projector, x^n, move)
@@ -99,13 +103,15 @@ class Contact(NodeBlocks, StepLimiter, DomainCheck, StepStart, AdaptiveStiffness
         self.blocks = np.zeros((len(self.nodes), 3, 3))
         self.held = np.zeros(0, np.int64)     # (the contact nodes whose path the scene gives: hold)
         x = np.asarray(X, float).reshape(-1, 3)[self.nodes]
+        inside = None
         for o, v in zip(self.obstacles, self.now):                       # a start inside an obstacle: one line
             d = o.form.distances(v, x)[0]
-            if len(d) and d.min() <= 0:
+            if len(d) and d.min() <= 0 and inside is None:
                 i = int(np.argmin(d))
-                raise UserError(f"-obstacle {o.text}: node {int(input_ids[i])} of the contact surface at "
-                                f"{x[i].tolist()} lies {'inside' if d[i] < 0 else 'on'} it at the start (distance "
-                                f"{d[i]:.3g}): a start state must be free of contact")
+                inside = (f"-obstacle {o.text}: node {int(input_ids[i])} of the contact surface at {x[i].tolist()} "
+                          f"lies {'inside' if d[i] < 0 else 'on'} it at the start (distance {d[i]:.3g}): a start "
+                          "state must be free of contact")
+        raise_agreed(mpi, inside)
 
     def begin_step(self, t, h, xn, vn):
         self.before = [o.at(t - h) for o in self.obstacles]       # (where the step starts: an attempt's retry too)
@@ -384,19 +390,45 @@ def build_contact(p, ctx):
         for k, (a, b) in enumerate(((0, 1), (1, 2), (0, 2))):
             np.minimum.at(edge, tris[:, 3 + k], 0.5 * np.linalg.norm(X[corners[:, a]] - X[corners[:, b]], axis=1))
     lo, hi = sp.bbox
-    dhat = p.dhat if p.dhat is not None else DHAT_SCALE * float(np.linalg.norm(np.asarray(hi) - np.asarray(lo)))
+    diagonal = float(np.linalg.norm(np.asarray(hi) - np.asarray(lo)))
+    dhat = p.dhat if p.dhat is not None else DHAT_SCALE * diagonal
+    if dhat > DHAT_MAX * diagonal:
+        raise UserError(f"option -contact_dhat {dhat:g}: the barrier's reach must be under {DHAT_MAX:g} of the part's "
+                        f"size (its bounding-box diagonal {diagonal:.4g}; the default is {DHAT_SCALE:g} of it): beyond, "
+                        "the obstacles push the part from afar")
     kappa = p.kappa if p.kappa is not None else KAPPA_SCALE * ctx.modulus / dhat
     analytic = tuple(o for o in p.obstacles if o.form.analytic)
     meshes = tuple(o for o in p.obstacles if not o.form.analytic)
     eps_v, eps_d = friction_smoothing(p, ctx.quasistatic, dhat)
     out = [Contact(nodes, owned_share[owned_share > 0], X, sp.orig[nodes], analytic, dhat, kappa, edge[nodes],
-                   p.mu, eps_v, eps_d)] if analytic else []
+                   p.mu, eps_v, eps_d, sp.mpi)] if analytic else []
     if p.self_contact or meshes:
         from .self_contact import SelfContact
         out.append(SelfContact(sp, tris, dhat, kappa, meshes, p.mu, eps_v, eps_d, ctx.projection))
+    for o in p.obstacles:
+        points, every = o.inside_test(0.0)
+        inside = _inside_part(sp, points)
+        if len(points) and (inside.all() if every else inside.any()):
+            at = ", ".join(f"{c:.6g}" for c in points[np.argmax(inside)])
+            raise UserError(f"-obstacle {o.text}: it lies inside the part (its point ({at}) does, and no node of the "
+                            "part lies inside it): it would never be touched")
     for e in out:
         e.kappa_range = (kappa, ADAPTIVE_RANGE * kappa) if p.adaptive else None
     return out
+
+
+def _inside_part(space, points, tol=1e-12):
+    """Per point (k, 3): whether it lies in a cell of the part (any rank's; collective)."""
+    X, cells = space.X.reshape(-1, 3), space.cells[:, :4]
+    hit = np.zeros(len(points), bool)
+    if len(cells) and len(points):
+        lo, hi = X.min(axis=0), X.max(axis=0)
+        X0 = X[cells[:, 0]]
+        for i, p in enumerate(points):
+            if np.all(p >= lo) and np.all(p <= hi):
+                lam = np.einsum("cij,cj->ci", space.Dminv, p - X0)
+                hit[i] = bool(((lam >= -tol).all(axis=1) & (lam.sum(axis=1) <= 1 + tol)).any())
+    return space.mpi.allreduce(hit.astype(np.int8), op=MPI.MAX).astype(bool) if len(points) else hit
 
 
 def friction_smoothing(p, quasistatic, dhat):

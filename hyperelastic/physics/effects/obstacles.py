@@ -78,6 +78,12 @@ class ObstacleKind:
         [lo, hi] needs (a plane: a square about the box's centre, twice its diagonal wide)."""
         raise NotImplementedError
 
+    @staticmethod
+    def inner_points(v):
+        """Points (k, 3) of the obstacle at values v that lie inside the body only where the whole obstacle does (no
+        node of the body being inside it): its centre for a ball or a box; none for a half-space (the default)."""
+        return np.zeros((0, 3))
+
 
 NUMBERS = {4: "four", 6: "six"}
 
@@ -136,6 +142,10 @@ class Sphere(ObstacleKind):
     values = "CX,CY,CZ,R: a rigid ball of radius R (the body stays outside)"
     count = 4
 
+    @staticmethod
+    def inner_points(v):
+        return np.asarray(v[:3], float)[None]
+
     @classmethod
     def check(cls, vals, text):
         if vals[3] <= 0:
@@ -178,6 +188,10 @@ class Box(ObstacleKind):
     name = "box"
     values = "X0,Y0,Z0,X1,Y1,Z1: a rigid axis-aligned box between those corners (the body stays outside)"
     count = 6
+
+    @staticmethod
+    def inner_points(v):
+        return ((np.asarray(v[:3], float) + np.asarray(v[3:6], float)) / 2)[None]
 
     @classmethod
     def check(cls, vals, text):
@@ -244,6 +258,7 @@ class TriangleMesh(ObstacleKind):
 
 
 KINDS = {k.name: k for k in (Plane, Sphere, Box, TriangleMesh)}
+INSIDE_SAMPLE = 64          # vertices of a triangulated obstacle tested for lying inside the body (Obstacle.inside_test)
 
 
 def kinds_help():
@@ -271,6 +286,15 @@ class Obstacle:
     def at(self, t):
         """Its values at time t (moved by its translation)."""
         return self.form.moved(np.array(self.values, float), self.shift(t))
+
+    def inside_test(self, t):
+        """(points (k, 3), all): the obstacle is wholly inside the body where any (all=False) or all (all=True) of
+        these lie inside it: a ball's or a box's centre (ObstacleKind.inner_points); a triangulated obstacle's
+        vertices, at most INSIDE_SAMPLE of them evenly spaced (one crossing the body's surface is another error)."""
+        if not self.form.analytic:
+            P = self.surface[0]
+            return P[np.linspace(0, len(P) - 1, min(len(P), INSIDE_SAMPLE)).astype(int)] + self.shift(t), True
+        return self.form.inner_points(self.at(t)), False
 
     def drawing(self, t, lo, hi):
         """(points, triangles) of the obstacle at time t, for a picture of a body in the box [lo, hi]."""
