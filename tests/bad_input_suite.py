@@ -781,6 +781,20 @@ def contract_cases(rng):
     return [Case(f"contract:{n}", "contracts", a, setup=setup, words=w) for n, a, w, setup in C]
 
 
+def _damaged_prepared(key, i, j):
+    """A setup: good.msh prepared as p.h5 (in-process), then row i of dataset `key` set to row j's value."""
+    def setup(d):
+        import h5py
+        from hyperelastic.mesh.prepared import prepare
+        from hyperelastic.mesh.read import read_mesh
+        prepare(read_mesh(os.path.join(d, "good.msh")), os.path.join(d, "p.h5"))
+        with h5py.File(os.path.join(d, "p.h5"), "r+") as f:
+            v = f[key][:]
+            v[i] = v[j]
+            f[key][:] = v
+    return setup
+
+
 def error_contract_cases(rng):
     """Issue 73: the error contract for what runs past one machine and for contact. Each case is one of its causes,
     on 2 ranks where ranks are involved (a hang fails at TIME_LIMIT)."""
@@ -810,6 +824,12 @@ def error_contract_cases(rng):
          None, 2),
         ("box_inside_the_part", BEND + ["-obstacle", "box:0.3,0.3,0.3,0.6,0.6,0.6"], ("-obstacle", "inside the part"),
          None, 1),
+        ("prepared_repeated_vertex_two_ranks", BEND + ["-mesh", "p.h5"], ("node indices", "not a numbering"),
+         _damaged_prepared("input_index", 1, 0), 2),
+        ("prepared_repeated_cell_two_ranks", BEND + ["-mesh", "p.h5"], ("cell indices", "not a numbering"),
+         _damaged_prepared("cell_input_index", 5, 30), 2),
+        ("prepared_repeated_vertex_gather", BEND + ["-mesh", "p.h5", "-output_layout", "gather"],
+         ("node indices", "not a numbering"), _damaged_prepared("input_index", 20, 3), 2),
         ("triangles_inside_the_part", BEND + ["-obstacle", "mesh:inner.obj"], ("-obstacle", "inside the part"),
          lambda d: _write(d, "inner.obj", b"v 0.4 0.4 0.5\nv 0.6 0.4 0.5\nv 0.5 0.6 0.5\nf 1 2 3\n"), 1),
     ]

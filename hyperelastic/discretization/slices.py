@@ -49,6 +49,14 @@ def cell_ranges(nc, size):
     return np.concatenate([[0], np.cumsum(sizes)])
 
 
+def _hash_sum(ids):
+    """The sum mod 2^64 of splitmix64 (Steele, Lea and Flood, OOPSLA 2014) of each index, as a Python int."""
+    z = ids.astype(np.uint64) + np.uint64(0x9E3779B97F4A7C15)
+    z = (z ^ (z >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
+    z = (z ^ (z >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
+    return int(np.sum(z ^ (z >> np.uint64(31)), dtype=np.uint64))
+
+
 def _first_error(mpi, message):
     """Raise on every rank the first (by rank) of the ranks' error lines, if any (collective)."""
     lines = mpi.allgather(message)
@@ -115,6 +123,30 @@ class PreparedSource:
 
     def groups(self, mpi, f, lo, hi):
         return read_groups(f, lo, hi)
+
+    def check_numbering(self, mpi):
+        """The source indices are a numbering — each node (vertex or edge node) and each cell once — read by every
+        rank in a slice (collective; one line on every rank where not). Each rank checks its slice's range; the
+        counts add up; the slices' sums of a 64-bit hash of each index equal the sum over 0..n-1 (a repeated index
+        in place of another changes it but with probability 2^-64). Read whole, the file gets the same check
+        (mesh.prepared._check_numbering): on 2 ranks a repeated index ran, its output's input_index no numbering."""
+        size, rank = mpi.size, mpi.rank
+        with self.open() as f:
+            parts = {"node": [(f["input_index"], self.nv)], "cell": [(f["cell_input_index"], self.nc)]}
+            if self.order == 2:
+                parts["node"].append((f["edge_input_index"], f["edge_input_index"].shape[0]))
+            msg = None
+            for what, n in (("node", self.n_nodes), ("cell", self.nc)):
+                got = np.concatenate([d[len_ * rank // size:len_ * (rank + 1) // size].astype(np.int64)
+                                      for d, len_ in parts[what]])
+                ok = not len(got) or (got.min() >= 0 and got.max() < n)
+                count, mine, expected = mpi.allreduce(np.array([len(got), 1 - ok], np.int64)), _hash_sum(got), \
+                    _hash_sum(np.arange(n * rank // size, n * (rank + 1) // size))
+                sums = mpi.allgather((mine, expected))
+                if count[0] != n or count[1] or sum(a for a, _ in sums) % 2**64 != sum(b for _, b in sums) % 2**64:
+                    msg = msg or (f"mesh '{self.path}': its {what} indices are not a numbering of the source's {n} "
+                                  f"{what}s (a damaged or hand-edited file: prepare it again)")
+        _first_error(mpi, msg)
 
     def edges(self, mpi, f, lo, hi):
         """A quadratic mesh's edge nodes of cells lo:hi: (input ids (nc, 6), positions (nc, 6, 3)), every rank
@@ -349,6 +381,8 @@ def read_slice(path, comm, frame=-1, source=None, refine_levels=0, check=None):
     except UserError as e:
         err, src = str(e), None
     _first_error(mpi, err)
+    if source is None and isinstance(src, PreparedSource):        # (a MemorySource's rows are made here)
+        src.check_numbering(mpi)
     rows = _read_rows(path, mpi, src)
     check_slice(mpi, path, rows.held_points, rows.cells, rows.cell_ids, rows.nv)
     seconds = 0.0
