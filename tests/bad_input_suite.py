@@ -124,6 +124,10 @@ def make_world(d):
                                          "-quiet"]), cwd=d, capture_output=True, text=True, timeout=120)
     if p.returncode != 0:
         raise RuntimeError(f"the previous result could not be made: {p.stderr}")
+    p = subprocess.run(hyperelastic_cmd(["run", "scene.opts", "-checkpoint_every", "1", "-output", "ranks.h5", "-quiet"],
+                                        nprocs=2), cwd=d, capture_output=True, text=True, timeout=120)
+    if p.returncode != 0:
+        raise RuntimeError(f"the per-rank result could not be made: {p.stderr}")
     return d
 
 
@@ -795,6 +799,19 @@ def _damaged_prepared(key, i, j):
     return setup
 
 
+def _truncated_piece(d):
+    """Rank 1's file of the per-rank output ranks.h5 cut to half its size."""
+    folder = os.path.join(d, "ranks.h5.d")
+    piece = os.path.join(folder, sorted(os.listdir(folder))[1])
+    os.truncate(piece, os.path.getsize(piece) // 2)
+
+
+def _renamed_output(d):
+    """ranks.h5 and its folder renamed to moved.h5 and moved.h5.d."""
+    os.rename(os.path.join(d, "ranks.h5"), os.path.join(d, "moved.h5"))
+    os.rename(os.path.join(d, "ranks.h5.d"), os.path.join(d, "moved.h5.d"))
+
+
 def error_contract_cases(rng):
     """Issue 73: the error contract for what runs past one machine and for contact. Each case is one of its causes,
     on 2 ranks where ranks are involved (a hang fails at TIME_LIMIT)."""
@@ -830,6 +847,17 @@ def error_contract_cases(rng):
          _damaged_prepared("cell_input_index", 5, 30), 2),
         ("prepared_repeated_vertex_gather", BEND + ["-mesh", "p.h5", "-output_layout", "gather"],
          ("node indices", "not a numbering"), _damaged_prepared("input_index", 20, 3), 2),
+        ("truncated_piece_report", ["report", "ranks.h5"], ("ranks.h5.d/", "truncated"), _truncated_piece, 1),
+        ("truncated_piece_plot", ["plot", "ranks.h5", "-o", "r.png"], ("ranks.h5.d/", "truncated"), _truncated_piece,
+         1),
+        ("truncated_piece_restart", ["run", "--restart", "ranks.h5", "-quiet"], ("ranks.h5.d/", "truncated"),
+         _truncated_piece, 1),
+        ("truncated_piece_restart_two_ranks", ["run", "--restart", "ranks.h5", "-quiet"], ("ranks.h5.d/", "truncated"),
+         _truncated_piece, 2),
+        ("truncated_piece_as_mesh_two_ranks", ["run", "scene.opts", "-mesh", "ranks.h5", "-quiet", "-output", "n.h5"],
+         ("ranks.h5.d/", "truncated"), _truncated_piece, 2),
+        ("renamed_output_report", ["report", "moved.h5"], ("keep ranks.h5.d/", "written as 'ranks.h5'"),
+         _renamed_output, 1),
         ("triangles_inside_the_part", BEND + ["-obstacle", "mesh:inner.obj"], ("-obstacle", "inside the part"),
          lambda d: _write(d, "inner.obj", b"v 0.4 0.4 0.5\nv 0.6 0.4 0.5\nv 0.5 0.6 0.5\nf 1 2 3\n"), 1),
     ]

@@ -109,10 +109,29 @@ def require_parts(f, path, where):
     here = os.path.dirname(os.path.abspath(path))
     for part in parts(f) or []:
         for name in part["files"]:
+            folder = os.path.dirname(name)
             if not os.path.isfile(os.path.join(here, name)):
                 f.close()
-                raise UserError(f"{where}: written per rank, and its file '{name}' is missing (keep "
-                                f"{os.path.basename(path)}{RANKS}/ beside it)")
+                renamed = (f"; it was written as '{folder[:-len(RANKS)]}': a renamed output keeps its folder's name"
+                           if folder != os.path.basename(path) + RANKS else "")
+                raise UserError(f"{where}: written per rank, and its file '{name}' is missing (keep {folder}/ beside "
+                                f"it{renamed})")
+            try:
+                with h5py.File(os.path.join(here, name), "r") as piece:
+                    _check_piece(piece, part, name)
+            except (OSError, KeyError, ValueError) as e:
+                f.close()
+                why = "truncated" if "truncated" in str(e) else " ".join(str(e).split())[:200]
+                raise UserError(f"{where}: written per rank, and its file '{name}' cannot be read ({why}: a damaged "
+                                "or partly copied output)") from None
+
+
+def _check_piece(piece, part, name):
+    """A per-rank file's mesh rows are the part's: its points and cells as many as the part says (ValueError)."""
+    k = part["files"].index(name)
+    for dset, n in (("mesh/points", part["nodes"][k]), ("mesh/tetra", part["cells"][k])):
+        if dset in piece and piece[dset].shape[0] != n:
+            raise ValueError(f"{dset} has {piece[dset].shape[0]} rows, the output says {n}")
 
 
 def open_output(path, who):
