@@ -1,6 +1,7 @@
 """The per-rank output layout (issue 45): every rank writes its own part of each frame to FILE.h5.d/, FILE.h5 holds
 metadata and HDF5 virtual datasets; the same answers as the gathered layout through mesh/input_index; real readers
 read it; a restart continues it on any rank count; a kill -9 at any write leaves it readable."""
+import json
 import os
 import subprocess
 import sys
@@ -97,6 +98,12 @@ def test_restart_on_any_rank_count(outs, tmp_path, ranks):
     with h5py.File(cut) as f:
         parts = __import__("json").loads(f.attrs["parts"])
         assert [len(p["files"]) for p in parts] == [2, ranks] and f.attrs["restarts"] == 1
+        # the file's rank count, partition and memory are the restart's; the first part's are kept beside them
+        a = f.attrs
+        assert a["mpi_ranks"] == ranks == len(a["cells_per_rank"]) == len(a["peak_rss_mb_per_rank"])
+        assert json.loads(a["partition"]).get("cut_faces", 0) >= 0 and sum(a["cells_per_rank"]) == len(b["tetra"])
+        earlier = json.loads(a["earlier_parts"])
+        assert [e["mpi_ranks"] for e in earlier] == [2] and len(earlier[0]["peak_rss_mb_per_rank"]) == 2
     after = sorted(os.listdir(tmp_path / "cut.h5.d"))
     assert set(before) < set(after) and len(after) == 2 + ranks      # the first part's files kept as they were
 

@@ -30,7 +30,7 @@ from ..core.files import RANKS, parts, rank_file
 from ..discretization.exchange import Exchange
 from .fields import cell_fields, cell_quantities, finish, is_point_field, needs_volumes, reference_volumes
 from .writer import (EVENTS, FIELD_LINKS, FRAME_LINKS, ROOM_ATTR, ROOM_ATTR_BYTES, STATS_EVERY_S, Guard, Writer,
-                     _compact_group, room_for, trim)
+                     _compact_group, resumed_attrs, room_for, trim)
 
 MESH = (("points", 3, "node", np.float64), ("input_index", 1, "node", np.int64), ("tetra", None, "cell", np.int64),
         ("region", 1, "cell", np.int64), ("cell_input_index", 1, "cell", np.int64))
@@ -236,10 +236,7 @@ class RankWriter(Writer):
         """(rank 0) A restart's new FILE.h5 (partial until its first step): the checkpoint's frames, statistics rows
         and checkpoint, mapping to the earlier parts' files, which are not touched."""
         with h5py.File(self.final, "r") as src:
-            keep = {k: v for k, v in src.attrs.items()
-                    if k not in ("failure", "interrupted", "checkpoint_slot", ROOM_ATTR, "parts")}
-            keep["restarts"] = int(src.attrs.get("restarts", 0)) + 1
-            keep["options"] = attrs["options"]
+            keep = resumed_attrs(src.attrs, attrs, ("failure", "interrupted", "checkpoint_slot", ROOM_ATTR, "parts"))
             f = h5py.File(self.path, "w")
             mesh = f.create_group("mesh")
             for name in src["mesh"]:

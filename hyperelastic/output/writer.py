@@ -197,6 +197,26 @@ def run_attributes(model, scene_file, solver):
             "sets": json.dumps([{k: v for k, v in s.items() if k != "line"} for s in model.sets])}
 
 
+# the attributes that describe the part of a run one process ran: a restart (on another rank count, partitioner or
+# version) writes its own, and keeps the earlier parts' in `earlier_parts` (a 3-rank restart's file said mpi_ranks 2,
+# with 2 ranks' cells_per_rank and partition, beside its own 3 ranks' peak memory: issue 73)
+PART_ATTRS = ("mpi_ranks", "vertices_per_rank", "cells_per_rank", "partitioner", "partition", "mesh_read",
+              "hyperelastic_version", "petsc_version", "operator_storage", "peak_rss_mb", "peak_rss_mb_per_rank")
+
+
+def resumed_attrs(old, attrs, drop=()):
+    """A restart's attributes: the checkpoint's file's `old` (less `drop`), one more restart, and this part's options
+    (what a later restart replays) and PART_ATTRS from `attrs`, the earlier parts' appended to earlier_parts."""
+    keep = {k: v for k, v in old.items() if k not in drop}
+    keep["restarts"] = int(old.get("restarts", 0)) + 1
+    keep["options"] = attrs["options"]
+    earlier = json.loads(old.get("earlier_parts", "[]"))
+    earlier.append({k: np.asarray(old[k]).tolist() for k in PART_ATTRS if k in old})
+    keep["earlier_parts"] = json.dumps(earlier)
+    keep.update({k: attrs[k] for k in PART_ATTRS if k in attrs})
+    return keep
+
+
 class Writer:
     """-output_layout gather: rank 0 gathers every frame in the input mesh's order and writes the one file."""
     layout = "gather"
@@ -284,9 +304,7 @@ class Writer:
         statistics rows, the checkpoint, the run's attributes. Only those objects are read: a file left by
         a kill may hold a frame or a checkpoint slot that was being written (unreadable), which a copy of
         the whole file would carry on and cutting it back in place would have to open."""
-        keep = {k: v for k, v in src.attrs.items() if k not in ("failure", "interrupted", "checkpoint_slot", ROOM_ATTR)}
-        keep["restarts"] = int(src.attrs.get("restarts", 0)) + 1
-        keep["options"] = attrs["options"]         # what this part ran with (a later restart uses it)
+        keep = resumed_attrs(src.attrs, attrs, ("failure", "interrupted", "checkpoint_slot", ROOM_ATTR))
         self.points = src["mesh/points"][:]
         tets = src["mesh/tetra"][:]
         self.nv, self.nc = len(self.points), len(tets)
