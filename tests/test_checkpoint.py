@@ -422,3 +422,22 @@ def test_a_first_prescribed_step_starts_from_the_linearized_answer(tmp_path):
     assert not a["stats"]["rejected"].any() and len(a["stats"]["step"]) == 4
     Ma, Mb = (json.loads(h["attrs"]["forces"])["forces"][1]["M"][2] for h in (a, b))
     assert abs(Ma - Mb) < 1e-8 * abs(Mb)
+
+
+def test_a_restart_replays_neither_viewers_nor_another_meshs_recipe(tmp_path):
+    """Issue 73: a restart replayed -log_view :FILE (the first part's profile overwritten) and, with another -mesh, the
+    recorded -refine (10.5M tets built before a vertex count refused them). Neither is replayed now, and a note says
+    so: the profile stays the first part's, and the other mesh is refused at once, with the note naming -refine."""
+    run_ok(["run", "bend", "-level", 1, "-final_time", 0.1, "-checkpoint_every", 1, "-quiet", "-log_view",
+            f":{tmp_path / 'prof.txt'}", "-output", tmp_path / "a.h5"])
+    before = (tmp_path / "prof.txt").read_bytes()
+    p = run_ok(["run", "--restart", tmp_path / "a.h5", "-final_time", 0.2])
+    assert (tmp_path / "prof.txt").read_bytes() == before
+    assert "not replayed" in p.stderr and "-log_view" in p.stderr, p.stderr
+    from hyperelastic.mesh.generate import cached_bar
+    run_ok(["run", "bend", "-level", 1, "-refine", 1, "-final_time", 0.1, "-checkpoint_every", 1, "-quiet",
+            "-output", tmp_path / "r.h5"])
+    q = hyperelastic(["run", "--restart", tmp_path / "r.h5", "-mesh", cached_bar(2)])
+    notes = [ln for ln in q.stderr.splitlines() if ln.startswith("note: --restart")]
+    assert q.returncode == 2 and len(notes) == 1 and "-refine 1" in notes[0], q.stderr
+    assert "vertices" in q.stderr.splitlines()[-1]

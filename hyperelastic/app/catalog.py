@@ -22,6 +22,7 @@ from ..physics import effects, materials
 from ..element.reference import DEFAULT_DEGREE, TET_RULES
 from ..discretization import partition
 from ..core.errors import UserError
+from ..core.files import VIEWERS
 from ..core.options import PREFIX, Options, Row, all_options, insert_defaults, parse_options_file, resolve_scene
 from .scene import (ASSEMBLIES, DEFAULT_EFFECTS, DEFAULT_MATERIAL, EFFECTS, EFFECTS_RULE, INTEGRATORS, JACOBIANS,
                     STORAGES, Scene, read_scene)
@@ -312,8 +313,6 @@ def check_application_used(opts):
                             "integrator or kind of run: see `hyperelastic run --help`)")
 
 
-# options that take a PETSc viewer, `[type]:FILE[:format]` (-log_view, -ksp_view, -snes_monitor, ...)
-VIEWERS = re.compile(r"(?:^|_)(?:view|monitor|converged_reason|log_trace)(?:_|$)")
 
 
 def check_viewer_files(opts, taken=()):

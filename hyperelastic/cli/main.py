@@ -27,7 +27,7 @@ import traceback
 
 from ..core.data import recipe_path, recipes
 from ..core.errors import ArgParser, Interrupted, SolveError, UserError
-from ..core.files import option_lines, read_checkpoint
+from ..core.files import option_lines, read_checkpoint, replayed
 from ..mesh.generate import empty_group_lines, format_normal, generate
 
 # petsc4py reads the command line when PETSc is first imported, and mpi4py initializes MPI when imported:
@@ -163,11 +163,17 @@ def _restart_args(argv):
     if MPI.COMM_WORLD.rank == 0:
         try:
             state, attrs = read_checkpoint(path)
-            args = []
+            recorded = []
             for line in str(attrs.get("options", "")).splitlines():
                 key, _, val = line.partition(" ")
                 if key.lstrip("-") != "output":
-                    args += [key] + ([val] if val else [])
+                    recorded.append((key.lstrip("-"), val))
+            given = {a.lstrip("-") for a in rest if a.startswith("-") and len(a) > 1 and not _number(a)}
+            kept, left = replayed(recorded, given)
+            if left:      # (a note: printed under -quiet too)
+                print(f"note: --restart: not replayed from '{path}': {', '.join(left)} (viewers are the first "
+                      "part's; a mesh's recipe is its mesh's)", file=sys.stderr, flush=True)
+            args = [a for key, val in kept for a in ([f"-{key}"] + ([val] if val else []))]
             res = (attrs["scene_file"], args + ["-output", path] + list(argv[2:]), state)
         except UserError as e:
             err = str(e)
@@ -179,6 +185,15 @@ def _restart_args(argv):
     # the state holds no mesh-sized array: its x, v (and pressure) are read by every rank in slices
     # (files.StateRows, Space.read_state)
     return MPI.COMM_WORLD.bcast(res, root=0)
+
+
+def _number(word):
+    """Whether a word that starts with '-' is a negative number (a value, not an option)."""
+    try:
+        float(word)
+        return True
+    except ValueError:
+        return False
 
 
 def run_cmd(argv):

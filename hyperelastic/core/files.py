@@ -52,6 +52,26 @@ def option_lines(text, where):
     return out
 
 
+# options that take a PETSc viewer, `[type]:FILE[:format]` (-log_view, -ksp_view, -snes_monitor, ...)
+VIEWERS = re.compile(r"(?:^|_)(?:view|monitor|converged_reason|log_trace)(?:_|$)")
+# what a restart does not replay of the recorded options: the viewers (what the first part printed or wrote: a
+# replayed -log_view :FILE overwrote its profile), and where the command line gives another -mesh, the recorded
+# mesh's recipe (a replayed -refine 2 built 10.5M tets of the new mesh before a vertex count refused it: issue 73)
+MESH_RECIPE = ("level", "refine", "mesh_frame")
+
+
+def replayed(recorded, given):
+    """(options to replay, [the recorded options left out, as text]) of a restart: `recorded` [(key, value)] of the
+    file's options (less -output), `given` the command line's keys."""
+    out, left = [], []
+    for key, val in recorded:
+        if VIEWERS.search(key) or (key in MESH_RECIPE and "mesh" in given):
+            left.append(f"-{key} {val}".rstrip())
+        else:
+            out.append((key, val))
+    return out, left
+
+
 PARTIAL = ".partial"      # a run writes FILE.h5.partial until it has completed a step (Writer._commit)
 
 
