@@ -154,9 +154,12 @@ def test_order_2_in_slices_and_metis_whole(meshes):
         assert np.array_equal(got["tetra"], ref["tetra"]) and np.array_equal(got["points"], ref["points"])
         err = np.abs(got["x"] - ref["x"]).max() / np.abs(ref["x"]).max()
         assert err == 0 if n == 1 else err < 1e-12, (n, err)
-    _, ref = _run(meshes, "bi.msh", "mref.h5", 2, "-partitioner", "metis")
-    _, got = _run(meshes, "bi.h5", "m.h5", 2, "-partitioner", "metis")
+    p_ref, ref = _run(meshes, "bi.msh", "mref.h5", 2, "-partitioner", "metis")
+    p, got = _run(meshes, "bi.h5", "m.h5", 2, "-partitioner", "metis")
     assert got["attrs"]["mesh_read"] == "rank 0" and np.array_equal(got["x"], ref["x"])
+    # and says so (issue 73: it did so quietly); a .msh is read whole anyway: no note
+    assert "note: -partitioner metis: mesh" in p.stderr and "read whole on rank 0" in p.stderr, p.stderr
+    assert "note: -partitioner metis" not in p_ref.stderr
 
 
 def test_a_per_rank_output_is_read_in_slices(meshes):

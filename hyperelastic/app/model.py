@@ -131,11 +131,17 @@ class MeshSource:
 
 
 class WholeMesh(MeshSource):
+    def __init__(self, scene, why=None):
+        """why: the note saying why a mesh that could be read in slices is read whole (or None)."""
+        super().__init__(scene)
+        self.why = why
+
     def distribute(self, comm):
         loaded = collective(comm, lambda: load_mesh(self.scene))
         mesh, element, labels, report, notes = loaded if loaded is not None else (None,) * 5
         mpi = comm.tompi4py()
         element, notes = mpi.bcast((element, notes), root=0)
+        notes = notes + ([self.why] if self.why else [])
         space = make_space(comm, element, mesh, labels, self.scene.partitioner)
         if mesh is not None:
             self.points, self.tets = mesh.points, mesh.cell_nodes
@@ -228,10 +234,12 @@ def mesh_source(scene):
     on rank 0) or -order 1 asks for a quadratic mesh's corners; anything else is read whole on rank 0."""
     if scene.refine:
         return RefinedMesh(scene, scene.refine)
-    if scene.mesh and scene.partitioner != "metis":
-        order = sliceable(scene.mesh)
-        if order and not (order == 2 and scene.order == 1):
+    order = sliceable(scene.mesh) if scene.mesh else None
+    if order and not (order == 2 and scene.order == 1):
+        if scene.partitioner != "metis":
             return SlicedMesh(scene)
+        return WholeMesh(scene, f"-partitioner metis: mesh '{scene.mesh}' is read whole on rank 0 (METIS partitions the "
+                                "whole mesh's dual graph there); with the default morton every rank reads its own slice")
     return WholeMesh(scene)
 
 
