@@ -441,3 +441,24 @@ def test_a_restart_replays_neither_viewers_nor_another_meshs_recipe(tmp_path):
     notes = [ln for ln in q.stderr.splitlines() if ln.startswith("note: --restart")]
     assert q.returncode == 2 and len(notes) == 1 and "-refine 1" in notes[0], q.stderr
     assert "vertices" in q.stderr.splitlines()[-1]
+
+
+@pytest.mark.parametrize("nprocs", [1, 2])
+def test_a_signal_during_set_up_stops_before_the_first_step(tmp_path, nprocs):
+    """Issue 73: SIGTERM in the first seconds of a run (its set-up: a refined mesh) gave PETSc's banner and Abort(59),
+    an empty FILE.h5.d/ and no restart line. It is recorded from the command's first line and honoured before the
+    first step: exit 143, one line naming --restart, and the restart runs from t = 0."""
+    out = tmp_path / "s.h5"
+    cmd = [os.path.join(BIN, "hyperelastic"), "run", "bend", "-level", "2", "-refine", "2", "-final_time", "0.02",
+           "-quiet", "-output", str(out)]
+    if nprocs > 1:
+        cmd = [os.path.join(BIN, "mpiexec"), "-n", str(nprocs)] + cmd
+    p = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    time.sleep(0.6)                   # (the set-up takes ~1 s: the PETSc import, 134k tets refined and distributed)
+    p.send_signal(signal.SIGTERM)
+    _, err = p.communicate(timeout=120)
+    lines = [ln for ln in err.splitlines() if ln.strip() and not ln.startswith("note: ")]
+    assert p.returncode == 128 + signal.SIGTERM and len(lines) == 1 and "--restart" in lines[0], err
+    run_ok(["run", "--restart", out, "-quiet"], nprocs=nprocs)
+    r = read_h5(out)
+    assert np.isclose(r["time"][-1], 0.02) and r["attrs"]["restarts"] == 1

@@ -28,9 +28,10 @@ from ..solving.solver import Solver
 from ..solving.ts_integrator import GeneralizedAlpha, check_energy_momentum, make_ts
 
 
-def run_scene(scene_arg, options_files, restart=None, restart_path=None):
+def run_scene(scene_arg, options_files, restart=None, restart_path=None, signals=None):
     """Set up and run a scene (a built-in name or an options file) with the options database as it is;
-    restart: the checkpoint state of `restart_path` to continue from (files.read_checkpoint)."""
+    restart: the checkpoint state of `restart_path` to continue from (files.read_checkpoint); signals: a list the
+    SIGINT/SIGTERM of the set-up are recorded in (honoured by the integrator before its first step)."""
     comm = PETSc.COMM_WORLD
     stage = PETSc.Log.Stage("Setup")
     stage.push()
@@ -78,7 +79,7 @@ def run_scene(scene_arg, options_files, restart=None, restart_path=None):
         integ = BackwardEuler(scene, model.system, solver, writer, model.x0, model.v0, checkpoint=restart,
                               quiet=quiet)
     integ.run_notes = [n for n in attrs["notes"].splitlines() if n]     # the start-up's; the run's own follow
-    forces, rigid_lines = _integrate(integ, writer, comm, scene)
+    forces, rigid_lines = _integrate(integ, writer, comm, scene, signals)
     advice = solver.advice()
     if comm.getRank() == 0 and not quiet:
         if forces:
@@ -168,13 +169,15 @@ def _solver(scene, model, comm):
     return solver, ts
 
 
-def _integrate(integ, writer, comm, scene):
+def _integrate(integ, writer, comm, scene, signals=None):
     """Run the integrator with SIGINT/SIGTERM honoured at the next frame; the file is closed whatever
     happens, kept when the run ended or stopped on request with a checkpoint. Returns the forces on the
     body at the end (forces.py; backward Euler and quasi-static runs) and the rigid face's line (solving/rigid.py),
     also recorded in the file."""
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, lambda signum, frame: integ.request_stop(signum))
+    if signals:                  # (one that came while the run was set up: before its first step)
+        integ.request_stop(signals[0])
     ended = False
     forces, lines = None, []
     try:

@@ -20,6 +20,7 @@
 import math
 import os
 import re
+import signal
 import sys
 import tempfile
 import time
@@ -51,8 +52,25 @@ def _petsc(argv):
     def initialize():
         from petsc4py import PETSc
         PETSc.COMM_WORLD.getSize()       # (the import initializes PETSc)
+        if SETUP_SIGNALS is not None:    # (PETSc's initialization put its own handler in place of the run's)
+            _hold_signals()
         return PETSc
     return _held_stderr(initialize), files
+
+
+# SIGINT/SIGTERM that arrive while a run sets up (before its integrator takes the signals over): recorded here, from
+# the command's first line, and honoured by the integrator before its first step, which stops with a checkpoint and
+# the restart line as it does later (PETSc's own handler printed its banner and aborted: exit 59, an empty FILE.h5.d/)
+SETUP_SIGNALS = None
+
+
+def _hold_signals():
+    """Record SIGINT and SIGTERM in SETUP_SIGNALS (made a list here) instead of acting on them."""
+    global SETUP_SIGNALS
+    if SETUP_SIGNALS is None:
+        SETUP_SIGNALS = []
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, lambda signum, frame: SETUP_SIGNALS.append(signum))
 
 
 def _recipes(argv):
@@ -202,6 +220,7 @@ def run_cmd(argv):
     if argv and argv[0] in ("--help", "-help", "-h"):
         print(catalog_help())
         return 0
+    _hold_signals()
     if argv and argv[0] == "--restart":
         scene_arg, petsc_args, restart = _restart_args(argv)
     elif not argv or argv[0].startswith("-"):
@@ -214,7 +233,7 @@ def run_cmd(argv):
     # deferred on purpose: petsc4py reads the command line when PETSc is first imported, so every module
     # that imports it comes after _petsc
     from ..app.run import run_scene
-    return run_scene(scene_arg, options_files, restart, argv[1] if restart is not None else None)
+    return run_scene(scene_arg, options_files, restart, argv[1] if restart is not None else None, SETUP_SIGNALS)
 
 
 def catalog_help():

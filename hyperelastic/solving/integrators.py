@@ -287,6 +287,9 @@ class BackwardEuler(Integrator):
         t_start = time.perf_counter()
         progress = {"last_print": t_start}
         self.h_try = H if self.h_try is None else self.h_try
+        stop = self._stop_signal()       # (a signal that came while the run was set up)
+        if stop:
+            self._interrupt(stop, self.n0, self.t_end0)
         for n in range(self.n0, nsteps):
             # (the nominal grid t_n = n H, the last step ending at -final_time: a frame's time has no summed drift,
             # 1/3 is 0.333... to the last digit, not 0.33333333333333304; issue 70)
