@@ -858,6 +858,8 @@ def error_contract_cases(rng):
          ("ranks.h5.d/", "truncated"), _truncated_piece, 2),
         ("renamed_output_report", ["report", "moved.h5"], ("keep ranks.h5.d/", "written as 'ranks.h5'"),
          _renamed_output, 1),
+        ("refine_beyond_memory", BEND + ["-refine", "8"], ("-refine 8", "805,306,368", "GB a rank"), None, 1),
+        ("refine_beyond_memory_two_ranks", BEND + ["-refine", "8"], ("-refine 8", "GB a rank on 2"), None, 2),
         ("triangles_inside_the_part", BEND + ["-obstacle", "mesh:inner.obj"], ("-obstacle", "inside the part"),
          lambda d: _write(d, "inner.obj", b"v 0.4 0.4 0.5\nv 0.6 0.4 0.5\nv 0.5 0.6 0.5\nf 1 2 3\n"), 1),
     ]

@@ -118,6 +118,63 @@ def refine_level(mpi, part, edges=None):
                 _child_masks(part.ids, ids, face_of, part.bmask), groups, nv, 8 * part.nc, 4 * part.nb)
 
 
+# what a run needs a tetrahedron, measured: bend -level 1 -refine 3 (877,568 tets, P1, Jacobi) peaked at 996 MB of
+# RSS, ~1.0 KB a tet past the ~100 MB a process starts with (GAMG and P2 need more: this is the least)
+BYTES_PER_TET = 1000
+# a refined tet mesh holds about one vertex per 5.5 tets (a cube's uniform refinement: 6); the index check's estimate
+TETS_PER_VERTEX = 6
+
+
+def available_bytes(mpi):
+    """The memory this rank may take: its address-space limit (ulimit -v) less what it maps now, and the node's
+    available memory (MemAvailable) shared among the node's ranks; the least over the ranks (collective)."""
+    import resource
+    room = []
+    soft, _ = resource.getrlimit(resource.RLIMIT_AS)
+    status = _proc_kb("/proc/self/status", "VmSize:")
+    if soft != resource.RLIM_INFINITY and status is not None:
+        room.append(soft - 1024 * status)
+    avail = _proc_kb("/proc/meminfo", "MemAvailable:")
+    if avail is not None:
+        local = mpi.Split_type(MPI.COMM_TYPE_SHARED)
+        room.append(1024 * avail // local.size)
+        local.Free()
+    return mpi.allreduce(min(room) if room else float("inf"), op=MPI.MIN)
+
+
+def _proc_kb(path, key):
+    try:
+        with open(path) as fh:
+            for line in fh:
+                if line.startswith(key):
+                    return int(line.split()[1])
+    except OSError:
+        pass
+    return None
+
+
+def check_room(mpi, name, nc, levels, index_bits):
+    """Before refining: the fine mesh's size against this machine's memory (BYTES_PER_TET a tet, shared by the ranks)
+    and its unknowns against PETSc's indices (3 per vertex, about nc / TETS_PER_VERTEX vertices), one line on every
+    rank (collective): -refine 8 ran 30-58 s into a MemoryError (issue 73)."""
+    from ..core.errors import UserError
+    fine = nc * 8 ** levels
+    need = BYTES_PER_TET * fine / mpi.size
+    have = available_bytes(mpi)
+    if need > have:
+        raise UserError(f"-refine {levels}: the {nc:,} tetrahedra of mesh '{name}' become {fine:,} (8^{levels} "
+                        f"each), which need about {need / 1e9:.3g} GB a rank on {mpi.size} rank(s) (at least "
+                        f"{BYTES_PER_TET / 1e3:g} KB a tetrahedron) where a rank here has {max(have, 0) / 1e9:.3g} GB "
+                        "(the memory available, or its limit): refine less, or run on more ranks or machines")
+    dofs = 3 * fine // TETS_PER_VERTEX
+    if dofs >= 2 ** (index_bits - 1):
+        raise UserError(f"-refine {levels}: the {nc:,} tetrahedra of mesh '{name}' become {fine:,}, about {dofs:,} "
+                        "unknowns: "
+                        f"more than the {index_bits}-bit indices of this PETSc hold (at most "
+                        f"{2 ** (index_bits - 1) - 1:,}); build PETSc with 64-bit indices "
+                        "(PETSC_CONFIGURE_OPTIONS='--with-64-bit-indices')")
+
+
 def refine(mpi, part, levels, edges=None, check=None):
     """The part `levels` levels finer (collective); edges: a quadratic mesh's edge nodes (refine_level), the first
     level's new vertices;

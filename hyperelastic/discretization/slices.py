@@ -11,6 +11,7 @@ from dataclasses import dataclass
 import h5py
 import numpy as np
 from mpi4py import MPI
+from petsc4py import PETSc
 
 from ..core.errors import UserError
 from ..core.files import is_output, require_parts
@@ -19,7 +20,7 @@ from ..mesh.prepared import add_group, face_mask, faces_of, is_prepared, open_pr
 from ..mesh.read import flat_or_inverted, output_frame, region_names
 from ..mesh.sets import FACE_VERTICES, Mesh, face_keys
 from .exchange import Exchange, alltoallv
-from .refine import Part, first_use_rows, refine
+from .refine import Part, check_room, first_use_rows, refine
 
 
 class SliceMesh(Mesh):
@@ -387,6 +388,7 @@ def read_slice(path, comm, frame=-1, source=None, refine_levels=0, check=None):
     check_slice(mpi, path, rows.held_points, rows.cells, rows.cell_ids, rows.nv)
     seconds = 0.0
     if refine_levels:
+        check_room(mpi, src.path, rows.nc, refine_levels, 8 * np.dtype(PETSc.IntType).itemsize)
         rows, seconds = _refined(mpi, path, rows, refine_levels, check)
     dm, vertices = plex_from_slices(comm, rows.cells, rows.b - rows.a, rows.nv, rows.held_points)
     X, ids = _positions(mpi, path, rows, vertices)
