@@ -860,6 +860,10 @@ def error_contract_cases(rng):
          _renamed_output, 1),
         ("refine_beyond_memory", BEND + ["-refine", "8"], ("-refine 8", "805,306,368", "GB a rank"), None, 1),
         ("refine_beyond_memory_two_ranks", BEND + ["-refine", "8"], ("-refine 8", "GB a rank on 2"), None, 2),
+        ("motion_not_finite_later", BEND + ["-obstacle", "plane:0,0,1,-3", "-obstacle_motion", "0,0,log(0.015-t)"],
+         ("-obstacle_motion", "t=0.02"), None, 1),
+        ("rigid_not_finite_later_two_ranks", BEND + ["-effects", "elasticity,fixed,rigid", "-rigid", "right",
+                                                     "-rigid_uy", "1/(t-0.02)"], ("-rigid_uy", "t=0.02"), None, 2),
         ("triangles_inside_the_part", BEND + ["-obstacle", "mesh:inner.obj"], ("-obstacle", "inside the part"),
          lambda d: _write(d, "inner.obj", b"v 0.4 0.4 0.5\nv 0.6 0.4 0.5\nv 0.5 0.6 0.5\nf 1 2 3\n"), 1),
     ]

@@ -462,3 +462,40 @@ def test_a_signal_during_set_up_stops_before_the_first_step(tmp_path, nprocs):
     run_ok(["run", "--restart", out, "-quiet"], nprocs=nprocs)
     r = read_h5(out)
     assert np.isclose(r["time"][-1], 0.02) and r["attrs"]["restarts"] == 1
+
+
+def test_an_input_that_fails_inside_a_step_is_the_files_failure(petsc):
+    """Issue 73: an expression not finite at a time only a shortened step reaches (the step ends are checked before
+    the run) ends the run with its one line; the file it leaves says it failed and why, not "finished"."""
+    from hyperelastic.app.run import _integrate
+    from hyperelastic.core.errors import UserError
+
+    class Writer:
+        def __init__(self):
+            self.attrs, self.kept = {}, None
+
+        def set_attr(self, k, v):
+            self.attrs[k] = v
+
+        def close(self, keep=True):
+            self.kept = keep
+
+    class Integrator:
+        step = 3
+
+        def run(self):
+            raise UserError("option -rigid_uy: '1/(t-0.015)' is not finite at t=0.015")
+
+        def request_stop(self, signum):
+            pass
+
+    w = Writer()
+    saved = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        with pytest.raises(UserError):
+            _integrate(Integrator(), w, petsc.COMM_WORLD, None)
+    finally:
+        for s, h in saved.items():
+            signal.signal(s, h)
+    assert w.attrs["failure"].endswith("not finite at t=0.015") and w.attrs["steps_completed"] == 3
+    assert w.kept is False

@@ -14,10 +14,11 @@ from petsc4py import PETSc
 from .catalog import (check_application_used, check_solver_options, check_viewer_files, help_text, load_scene,
                       scene_option_names)
 from ..core.errors import Interrupted, UserError
+from ..core.expressions import TIME_EXPRESSIONS, check_times
 from ..core.files import StateRows, check_output_path, output_names
 from ..physics.effects.seams import Results, declaring
 from ..solving.forces import held_components, record, surface_forces, table
-from ..solving.integrators import BackwardEuler
+from ..solving.integrators import BackwardEuler, step_count
 from ..solving.rigid import line as rigid_line
 from .model import build_model, collective
 from ..core.options import Options
@@ -33,6 +34,7 @@ def run_scene(scene_arg, options_files, restart=None, restart_path=None, signals
     restart: the checkpoint state of `restart_path` to continue from (files.read_checkpoint); signals: a list the
     SIGINT/SIGTERM of the set-up are recorded in (honoured by the integrator before its first step)."""
     comm = PETSc.COMM_WORLD
+    TIME_EXPRESSIONS.clear()          # (this run's, made from here on: check_times)
     stage = PETSc.Log.Stage("Setup")
     stage.push()
     scene, scene_file = load_scene(scene_arg)
@@ -63,6 +65,7 @@ def run_scene(scene_arg, options_files, restart=None, restart_path=None, signals
     if helping:                  # PETSc printed its own options as its solvers read them
         return 0
     check_application_used(PETSc.Options())
+    check_times([min(n * scene.dt, scene.final_time) for n in range(step_count(scene.final_time, scene.dt) + 1)])
     if comm.getRank() == 0:
         _start_lines(scene, model, solver, quiet)
     if restart is not None:      # the state read (collective) before anything is written: a bad row is one line
@@ -193,6 +196,9 @@ def _integrate(integ, writer, comm, scene, signals=None):
         return forces, lines
     except Interrupted:
         ended = True          # stopped on request with a checkpoint: keep it, even before a first step
+        raise
+    except UserError as e:    # (an input that fails only now, inside a step: the file says so, not "finished")
+        writer.set_attr("failure", str(e))
         raise
     finally:
         writer.set_attr("steps_completed", integ.step)

@@ -29,6 +29,24 @@ COMPARE = {ast.Lt: np.less, ast.LtE: np.less_equal, ast.Gt: np.greater, ast.GtE:
            ast.Eq: np.equal, ast.NotEq: np.not_equal}
 
 
+# every expression of t alone made in this process (-obstacle_motion, -rigid_uy, -NAME_time, ...): a run checks them
+# at its steps' ends before it writes anything (check_times)
+TIME_EXPRESSIONS = []
+
+
+def check_times(times):
+    """Every expression of t alone is finite at `times` (a run's step ends): else one line naming the first such time,
+    before any output (issue 73: 'log(0.015-t)' failed at the second step, after the run had replaced the previous
+    output of its name)."""
+    t = np.asarray(times, np.float64)
+    for e in TIME_EXPRESSIONS:
+        with np.errstate(all="ignore"):
+            v = np.broadcast_to(np.asarray(e._eval(e.tree, {"t": t}), np.float64), t.shape)
+        bad = np.flatnonzero(~np.isfinite(v))
+        if len(bad):
+            raise UserError(f"{e.where}: '{e.text}' is not finite at t={t[bad[0]]:g} (a step of this run ends there)")
+
+
 class Expression:
     """A parsed, checked expression in the given variables; call it with their values (scalars or
     arrays, broadcast together). `where` names the option in error lines."""
@@ -51,6 +69,8 @@ class Expression:
             raise UserError(f"{where}: '{self.text[:60]}' is nested too deeply") from None
         self.tree = tree.body
         self.uses = sorted({n.id for n in ast.walk(tree) if isinstance(n, ast.Name)} & set(self.variables))
+        if self.variables == ("t",):
+            TIME_EXPRESSIONS.append(self)
 
     def _fail(self, what):
         raise UserError(f"{self.where}: {what} in '{self.text}' (allowed: numbers, {', '.join(self.variables)}, "
