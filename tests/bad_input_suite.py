@@ -864,6 +864,10 @@ def error_contract_cases(rng):
          ("-obstacle_motion", "t=0.02"), None, 1),
         ("rigid_not_finite_later_two_ranks", BEND + ["-effects", "elasticity,fixed,rigid", "-rigid", "right",
                                                      "-rigid_uy", "1/(t-0.02)"], ("-rigid_uy", "t=0.02"), None, 2),
+        ("graded_geometry_asks_a_billion", ["mesh", "fine.geo", "--graded", "--size", "0.5", "-o", "f.msh"],
+         ("fine.geo", "--graded", "tetrahedra"), lambda d: _write(
+             d, "fine.geo", b'SetFactory("OpenCASCADE");\nBox(1) = {0, 0, 0, 1, 1, 1};\nField[1] = MathEval;\n'
+                            b'Field[1].F = "0.002";\nBackground Field = 1;\n'), 1),
         ("triangles_inside_the_part", BEND + ["-obstacle", "mesh:inner.obj"], ("-obstacle", "inside the part"),
          lambda d: _write(d, "inner.obj", b"v 0.4 0.4 0.5\nv 0.6 0.4 0.5\nv 0.5 0.6 0.5\nf 1 2 3\n"), 1),
     ]
