@@ -301,6 +301,24 @@ def check_solver_options(opts):
                         f"chosen){hint}")
 
 
+# PETSc's families whose options PETSc itself reads as it finalizes (or at any time): never reported unused
+READ_AT_EXIT = frozenset("log options malloc memory objects on viewer info help version check fp no skip error display "
+                         "debugger start stop history saws petsc".split())
+
+
+def unused_petsc_options(opts):
+    """At the end of a run: ['-key value'] of the PETSc options (not the application's: check_application_used) that
+    nothing read, and PETSc's own report of them (four lines on stdout as it finalizes) turned off: the run says
+    them in one note (issue 73: -dm_bogus 1 was reported only there)."""
+    names = set(option_names())
+    left = [f"-{k} {v}".rstrip() for k, v in all_options() if not opts.used(k) and k not in names
+            and not _prefixed_template(k) and k.split("_", 1)[0] not in READ_AT_EXIT]
+    if opts.hasName("options_left"):       # (asked for: PETSc's own report stands)
+        return []
+    opts.setValue("options_left", "0")
+    return left
+
+
 def check_application_used(opts):
     """After the model and its solvers are set up (before any output is written): an option of the application that
     nothing read is one this run ignores (-mixed_augment on a displacement run, -contact_dhat without contact, ...):

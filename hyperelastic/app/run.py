@@ -12,7 +12,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from .catalog import (check_application_used, check_solver_options, check_viewer_files, help_text, load_scene,
-                      scene_option_names)
+                      scene_option_names, unused_petsc_options)
 from ..core.errors import Interrupted, UserError
 from ..core.expressions import TIME_EXPRESSIONS, check_times
 from ..core.files import StateRows, check_output_path, output_names
@@ -64,8 +64,7 @@ def run_scene(scene_arg, options_files, restart=None, restart_path=None, signals
     check_solver_options(PETSc.Options())
     if helping:                  # PETSc printed its own options as its solvers read them
         return 0
-    check_application_used(PETSc.Options())
-    check_times([min(n * scene.dt, scene.final_time) for n in range(step_count(scene.final_time, scene.dt) + 1)])
+    _check_before_writing(scene)
     if comm.getRank() == 0:
         _start_lines(scene, model, solver, quiet)
     if restart is not None:      # the state read (collective) before anything is written: a bad row is one line
@@ -75,12 +74,7 @@ def run_scene(scene_arg, options_files, restart=None, restart_path=None, signals
     stage.pop()
     writer = open_writer(_layout(scene, comm, restart, out), out, model, attrs, restart, scene.output_fields)
     writer.point_scalars = point_values(model)
-    if ts is not None:
-        integ = GeneralizedAlpha(scene, model.system, solver, writer, model.x0, model.v0, ts, checkpoint=restart,
-                                 quiet=quiet)
-    else:
-        integ = BackwardEuler(scene, model.system, solver, writer, model.x0, model.v0, checkpoint=restart,
-                              quiet=quiet)
+    integ = _integrator(scene, model, solver, writer, ts, restart, quiet)
     integ.run_notes = [n for n in attrs["notes"].splitlines() if n]     # the start-up's; the run's own follow
     forces, rigid_lines = _integrate(integ, writer, comm, scene, signals)
     advice = solver.advice()
@@ -90,7 +84,25 @@ def run_scene(scene_arg, options_files, restart=None, restart_path=None, signals
         print(f"wrote {out} ({integ.step} steps, {writer.nframes} frames)", file=sys.stderr)
     if comm.getRank() == 0 and advice:          # (a note: -quiet silences progress, never a note)
         print(f"note: {advice}", file=sys.stderr)
+    unused = unused_petsc_options(PETSc.Options())
+    if comm.getRank() == 0 and unused:
+        print(f"note: PETSc options this run did not use: {', '.join(unused)}", file=sys.stderr)
     return 0
+
+
+def _check_before_writing(scene):
+    """What can still be refused once the model and its solvers are set up: an application option nothing read, an
+    expression of t not finite at a step end."""
+    check_application_used(PETSc.Options())
+    check_times([min(n * scene.dt, scene.final_time) for n in range(step_count(scene.final_time, scene.dt) + 1)])
+
+
+def _integrator(scene, model, solver, writer, ts, restart, quiet):
+    """The run's integrator: generalized-alpha through PETSc's TS (ts given), else backward Euler."""
+    if ts is not None:
+        return GeneralizedAlpha(scene, model.system, solver, writer, model.x0, model.v0, ts, checkpoint=restart,
+                                quiet=quiet)
+    return BackwardEuler(scene, model.system, solver, writer, model.x0, model.v0, checkpoint=restart, quiet=quiet)
 
 
 def point_values(model):
