@@ -4,6 +4,7 @@ plate pressing the bar equal to prescribing its end at the same place, a dropped
 floor (checked from the output alone, at every frame), boxes and triangulated obstacles, self-contact between pieces
 and within one body (checked by the toolkit's intersection test on the output), Hertz's contact radius, Coulomb
 friction sliding and sticking, the same answer on 1 and 2 ranks, and bad input refused in one line."""
+import math
 import os
 
 import numpy as np
@@ -842,3 +843,36 @@ def test_a_twisted_rod_coils_onto_itself_and_never_through(tmp_path):
     assert not any(ipctk.has_intersections(collision, xf) for xf in got["x"])
     assert st["contact_pairs"][-1] > 0 and 0 < st["contact_dmin"][-1] < 0.002 and st["rejected"].sum() == 0
     assert np.ptp(got["x"][-1][:, 2]) > 0.2            # (out of its axis: a loop, not a straight twisted rod)
+
+
+@pytest.mark.parametrize("tan_theta", [0.5, 0.2])
+def test_a_block_on_a_tilted_floor_slides_at_its_closed_form_or_sticks(tmp_path, tan_theta):
+    """Issue 72 item 3's dynamic closed form: a stiff unit block (E = 1e8, rho = 1000, 100 tets) on a floor with
+    Coulomb friction mu = 0.3, gravity tilted by theta (the floor tilted the other way), 0.5 s of backward Euler.
+    tan(theta) = 0.5 > mu: it slides with a = g (sin(theta) - mu cos(theta)) (the centroid's motion fitted after
+    0.2 s: within 1%, measured 3e-7) and the floor's force on it is mu N (obstacle1_F: friction's with the barrier's;
+    the forces table's load contact). tan(theta) = 0.2 < mu: it sticks — the floor's tangential force is tan(theta)
+    N (1%) and the block creeps below IPC's smoothing speed eps_v = 1 mm/s (0.43 mm/s) where it would be sliding at
+    ~1 m/s without friction."""
+    msh = tmp_path / "cube.msh"
+    run_ok(["mesh", os.path.join(EXAMPLES, "cube.geo"), "--size", 0.5, "-o", msh])
+    g, th, mu = 9.81, math.atan(tan_theta), 0.3
+    out = tmp_path / "b.h5"
+    run_ok(["run", "bend", "-mesh", msh, "-material", "neohookean", "-E", 1e8, "-nu", 0.3, "-rho", 1000,
+            "-effects", "elasticity,inertia,gravity,contact", "-gravity", f"{g * math.sin(th)!r},0,{-g * math.cos(th)!r}",
+            "-obstacle", "plane:0,0,1,-0.0005", "-contact_faces", "zmin", "-contact_friction", mu, "-final_time", 0.5,
+            "-dt", 0.005, "-frames_per_second", 100, "-quiet", "-output", out])
+    r = read_h5(out)
+    t, ux = r["time"], (r["x"][:, :, 0] - r["points"][:, 0]).mean(axis=1)
+    ratio = r["stats"]["obstacle1_Fx"][-1] / r["stats"]["obstacle1_Fz"][-1]
+    assert int(r["stats"]["rejected"].sum()) == 0
+    if tan_theta > mu:
+        late = t >= 0.2
+        a = 2 * np.polyfit(t[late], ux[late], 2)[0]
+        want = g * (math.sin(th) - mu * math.cos(th))
+        assert abs(a - want) <= 0.01 * want, (a, want)
+        assert abs(ratio + mu) <= 1e-3 * mu, ratio
+    else:
+        assert abs(ratio + tan_theta) <= 0.01 * tan_theta, ratio
+        early = np.searchsorted(t, 0.1)
+        assert (ux[-1] - ux[early]) / (t[-1] - t[early]) < 1e-3

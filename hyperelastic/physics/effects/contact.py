@@ -290,12 +290,17 @@ class Contact(NodeBlocks, StepLimiter, DomainCheck, StepStart, AdaptiveStiffness
         return {"contact_pressure": pressure, "contact_status": status}
 
     def result_rows(self, x, t):
-        """Per obstacle (named by its place in -obstacle, from 1): its force on the body (the barrier's, friction's
-        left out), the reference area of the contact nodes within dhat of it, its translation at t."""
+        """Per obstacle (named by its place in -obstacle, from 1): its force on the body (the barrier's and
+        friction's: what the forces table's `load contact` sums), the reference area of the contact nodes within dhat
+        of it, its translation at t."""
         rows = []
-        for k, (o, (d, g)) in enumerate(zip(self.obstacles, self._terms(x))):
+        slips = self._slips(x) if self.friction else [None] * len(self.obstacles)
+        for k, (o, (d, g), slip) in enumerate(zip(self.obstacles, self._terms(x), slips)):
             b1 = np.nan_to_num(barrier(d, self.dhat)[1], nan=0.0)
             force = -((self.kappa * self.area * b1)[:, None] * g).sum(axis=0)
+            if slip is not None:
+                lam, _, u, y = slip
+                force = force - ((self.mu * lam * mollifier(y, self.slip_eps)[1])[:, None] * u).sum(axis=0)
             rows.append((f"obstacle{k + 1}", force, float(self.area[d < self.dhat].sum()), o.shift(t)))
         return rows
 
