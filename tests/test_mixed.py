@@ -668,3 +668,25 @@ def test_report_at_gives_the_pressure_with_its_sign(cook8, tmp_path):
     c = int(locate(X, tets, X[k])[0][0])
     assert watched(out, parse_watch(f"stress_xy:{at}")) == stress[c, 1]
     assert watched(out, parse_watch(f"stress_zz:{at}")) == stress[c, 5]
+
+
+def test_yeoh_rubber_stretched_to_twice_its_length_is_the_closed_form(tmp_path):
+    """Issue 71 item 1 (Yeoh): a unit cube of nearly incompressible Yeoh rubber (nu = 0.4999, mixed P2-P1, C10 = mu/2,
+    C20 = -1e5, C30 = 1e4 Pa: a filled rubber's signs) stretched to lambda = 2 between symmetry planes: the force on
+    the moved face per reference area is the incompressible closed form 2 (l - l^-2) W'(I1), I1 = l^2 + 2/l
+    (Ogden, Non-linear Elastic Deformations, 1984, sec. 7.2; Yeoh 1993), within 1e-4 (measured 4.3e-6: the
+    compressibility of kappa/mu = 5,000)."""
+    msh = tmp_path / "cube.msh"
+    run_ok(["mesh", os.path.join(ROOT, "examples", "cube.geo"), "--size", 0.5, "--order", 2, "-o", msh])
+    E, nu, C20, C30 = 3e6, 0.4999, -1e5, 1e4
+    p = run_ok(["run", "bend", "-mesh", msh, "-material", "yeoh", "-formulation", "mixed", "-E", E, "-nu", nu,
+                "-C20", C20, "-C30", C30, "-effects", "elasticity,fixed,prescribed", "-fix", "xmin:x,ymin:y,zmin:z",
+                "-prescribe_faces", "xmax:x", "-prescribe_ux", "t", "-quasistatic", "-final_time", 1, "-dt", 0.25,
+                "-output", tmp_path / "u.h5"])
+    line = [ln for ln in p.stderr.splitlines() if ln.strip().startswith("reaction xmax")][0]
+    force = float(line.split("F = (")[1].split(",")[0])
+    C10 = E / (2 * (1 + nu)) / 2
+    lam = 2.0
+    I1 = lam ** 2 + 2 / lam
+    want = 2 * (lam - lam ** -2) * (C10 + 2 * C20 * (I1 - 3) + 3 * C30 * (I1 - 3) ** 2)
+    assert abs(force - want) <= 1e-4 * want, (force, want)
