@@ -71,4 +71,20 @@ HE_INLINE int split_scalars(const double *F, double *J, double *Q, double *jm23)
   *jm23 = 1.0 / (c * c);
   return 0;
 }
+/* The isochoric/volumetric split's directional derivative for an isochoric energy W(I1_bar) (neohookean_split.h,
+ * yeoh.h): dP = a (dF - 2/3 (Q:dF) F - 2/3 (F:dF) Q + 2/9 I1 (Q:dF) Q + I1/3 Q dF^T Q) + kJ2 (Q:dF) Q - g Q dF^T Q
+ *             + b (F:dF - I1/3 Q:dF) (F - I1/3 Q),
+ * a = 2 W' J^(-2/3), b = 4 W'' J^(-4/3) (0: neo-Hookean), kJ2 = kappa J^2, g = kappa/2 (J^2 - 1), Q = F^-T. */
+HE_INLINE void split_dstress(double a, double b, double I1, double kJ2, double g, const double *F, const double *Q,
+                             const double *dF, double *dP) {
+  double T[9], U[9], qd = 0, fd = 0;
+  mtm(dF, Q, T); /* U = Q dF^T Q */
+  mm(Q, T, U);
+  for (int k = 0; k < 9; k++) { qd += Q[k] * dF[k]; fd += F[k] * dF[k]; }
+  const double r = b * (fd - I1 / 3.0 * qd);
+  const double cF = -2.0 / 3.0 * a * qd + r, cQ = a * (2.0 / 9.0 * I1 * qd - 2.0 / 3.0 * fd) + kJ2 * qd - r * I1 / 3.0,
+               cU = a * I1 / 3.0 - g;
+  for (int k = 0; k < 9; k++) dP[k] = a * dF[k] + cF * F[k] + cQ * Q[k] + cU * U[k];
+}
+
 #endif

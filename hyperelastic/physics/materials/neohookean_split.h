@@ -44,14 +44,7 @@ HE_INLINE int neohookean_split_prepare(const double *prm, const double *F, neoho
 HE_INLINE void neohookean_split_dstress(const double *prm, const neohookean_split_cache *d, const double *dF,
                                             double *dP) {
   (void)prm;
-  const double *Q = d->Q, *F = d->F;
-  double T[9], U[9], qd = 0, fd = 0;
-  mtm(dF, Q, T); /* U = Q dF^T Q */
-  mm(Q, T, U);
-  for (int k = 0; k < 9; k++) { qd += Q[k] * dF[k]; fd += F[k] * dF[k]; }
-  const double cF = -2.0 / 3.0 * d->a * qd, cQ = d->a * (2.0 / 9.0 * d->I1 * qd - 2.0 / 3.0 * fd) + d->kJ2 * qd,
-               cU = d->a * d->I1 / 3.0 - d->g;
-  for (int k = 0; k < 9; k++) dP[k] = d->a * dF[k] + cF * F[k] + cQ * Q[k] + cU * U[k];
+  split_dstress(d->a, 0.0, d->I1, d->kJ2, d->g, d->F, d->Q, dF, dP);
 }
 
 /* The 12x12 cell tangent in closed form: along dF = e_k (x) G_b (Q:dF = h_b,k, F:dF = u_b,k, Q dF^T Q G_a =

@@ -47,14 +47,5 @@ HE_INLINE int yeoh_prepare(const double *prm, const double *F, yeoh_cache *d) {
  *      + kappa J^2 (Q:dF) Q - g Q dF^T Q */
 HE_INLINE void yeoh_dstress(const double *prm, const yeoh_cache *d, const double *dF, double *dP) {
   (void)prm;
-  const double *Q = d->Q, *F = d->F;
-  double T[9], U[9], qd = 0, fd = 0;
-  mtm(dF, Q, T); /* U = Q dF^T Q */
-  mm(Q, T, U);
-  for (int k = 0; k < 9; k++) { qd += Q[k] * dF[k]; fd += F[k] * dF[k]; }
-  const double r = d->b * (fd - d->I1 / 3.0 * qd);
-  const double cF = -2.0 / 3.0 * d->a * qd + r,
-               cQ = d->a * (2.0 / 9.0 * d->I1 * qd - 2.0 / 3.0 * fd) + d->kJ2 * qd - r * d->I1 / 3.0,
-               cU = d->a * d->I1 / 3.0 - d->g;
-  for (int k = 0; k < 9; k++) dP[k] = d->a * dF[k] + cF * F[k] + cQ * Q[k] + cU * U[k];
+  split_dstress(d->a, d->b, d->I1, d->kJ2, d->g, d->F, d->Q, dF, dP);
 }
