@@ -208,6 +208,16 @@ def test_mpi_ranks_start_warm_and_are_the_exec_ranks(run_server, tmp_path):
     assert np.array_equal(read_h5(tmp_path / "a.h5")["x"], read_h5(tmp_path / "c.h5")["x"])
 
 
+def _alive(pid):
+    """Whether process pid runs (not a zombie); a process that ends while /proc is read is not (reading its stat then
+    raised ProcessLookupError: the check raced the end it waits for)."""
+    try:
+        with open(f"/proc/{pid}/stat") as fh:
+            return "Z" not in fh.read().split()[2]
+    except OSError:
+        return False
+
+
 def test_mpi_ranks_started_warm_take_signals_and_die_with_their_clients(run_server, tmp_path):
     """SIGTERM to mpiexec reaches both warm ranks through their clients: the run stops cleanly at a step (143, one
     line naming the restart); a client killed with SIGKILL (as the launcher kills ranks) takes its child with it."""
@@ -228,8 +238,7 @@ def test_mpi_ranks_started_warm_take_signals_and_die_with_their_clients(run_serv
     p.communicate(timeout=60)
     assert p.returncode != 0
     for _ in range(100):
-        if not any(os.path.exists(f"/proc/{k}") and "Z" not in open(f"/proc/{k}/stat").read().split()[2]
-                   for k in kids):
+        if not any(_alive(k) for k in kids):
             break
         time.sleep(0.1)
     else:
