@@ -408,7 +408,13 @@ def test_a_plate_pressing_the_bar_is_the_end_prescribed_there(tmp_path):
     assert f"field contact_pressure from 0 to {-F[-1, 0] / 16:.6g}, displacement scale 1" in pic.stdout, pic.stdout
     img = matplotlib.image.imread(tmp_path / "p.png")
     assert img.shape[:2] == (700, 1000) and img[..., :3].std() > 0.05           # (not blank)
-    for bad in (["--field", "nothing"], ["--field", "von_mises:x"], ["--view", "w"], ["--range", "2,1"]):
+    # inside the part (issue 70 item 5): the field on a plane (--slice), the part below a plane (--clip)
+    for cut in (["--slice", "x=0"], ["--clip", "y=0", "--view", "z"]):
+        q = run_ok(["plot", tmp_path / "c.h5", "-o", tmp_path / "cut.png", "--field", "von_mises", *cut])
+        img = matplotlib.image.imread(tmp_path / "cut.png")
+        assert img.shape[:2] == (700, 1000) and img[..., :3].std() > 0.05 and "field von_mises" in q.stdout, cut
+    for bad in (["--field", "nothing"], ["--field", "von_mises:x"], ["--view", "w"], ["--range", "2,1"],
+                ["--slice", "x=99"], ["--clip", "q=1"], ["--clip", "x=0", "--slice", "y=0"]):
         q = hyperelastic(["plot", tmp_path / "c.h5", "-o", tmp_path / "q.png", *bad])
         assert q.returncode == 2 and len(q.stderr.strip().splitlines()) == 1, (bad, q.stderr)
     assert not (tmp_path / "q.png").exists()

@@ -322,8 +322,14 @@ def plot_cmd(argv):
     ap.add_argument("--scale", type=float, default=None, help="the displacement's scale (default: 1, or larger where "
                     "the motion is under 2%% of the part's size, so that it shows)")
     ap.add_argument("--range", default=None, metavar="LO,HI", help="the colour scale's range (default: the frame's)")
+    ap.add_argument("--clip", default=None, metavar="AXIS=VALUE", help="cut the part by the plane x, y or z = VALUE "
+                    "(as drawn) and show what lies below it, its inside on the cut")
+    ap.add_argument("--slice", default=None, metavar="AXIS=VALUE", help="show the field on the plane x, y or z = "
+                    "VALUE alone (as drawn), with the part's outline")
     a = ap.parse_args(argv)
     out = a.output if a.output is not None else os.path.splitext(a.file)[0] + ".png"
+    if a.clip is not None and a.slice is not None:
+        raise UserError("plot: give one of --clip and --slice")
     clim = None
     if a.range is not None:
         try:
@@ -334,8 +340,9 @@ def plot_cmd(argv):
             raise UserError(f"plot: --range '{a.range[:40]}': give LO,HI with LO < HI")
     if a.scale is not None and not (math.isfinite(a.scale) and a.scale > 0):
         raise UserError(f"plot: --scale {a.scale}: give a number > 0")
-    from ..output.picture import picture    # (deferred: it reaches physics/, whose import initializes MPI and PETSc)
-    print(picture(a.file, out, a.frame, a.field, a.view, a.scale, clim))
+    from ..output.picture import parse_cut, picture    # (deferred: it reaches physics/, which initializes MPI, PETSc)
+    cut = parse_cut("clip", a.clip) or parse_cut("slice", a.slice)
+    print(picture(a.file, out, a.frame, a.field, a.view, a.scale, clim, cut))
     return 0
 
 

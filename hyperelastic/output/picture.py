@@ -3,6 +3,7 @@ the body deformed (by its displacement times a scale, automatic where the motion
 its fields (`--field von_mises`, a component `displacement:z`, `stress:xy`), over the reference shape's outline, with
 the rigid obstacles of the run drawn (issue 70 item 5). Reads the output file (either layout: its rows are one mesh);
 nothing else."""
+import math
 import os
 
 import numpy as np
@@ -75,9 +76,26 @@ def _read(path, frame, field):
         return X, x, cells, float(f["time"][i]), values, is_point_field(name), dict(f.attrs), i
 
 
-def picture(path, out, frame=-1, field=None, view="iso", scale=None, clim=None):
+def parse_cut(kind, text):
+    """(kind, axis 0-2, value) of `--clip|--slice AXIS=VALUE` (a plane x, y or z = VALUE in the drawn configuration);
+    None for None; one line for anything else."""
+    if text is None:
+        return None
+    axis, eq, value = text.partition("=")
+    try:
+        v = float(value)
+    except ValueError:
+        v = math.nan
+    if not eq or axis.strip() not in ("x", "y", "z") or not math.isfinite(v):
+        raise UserError(f"plot: --{kind} '{text[:40]}': give AXIS=VALUE, a plane x, y or z = VALUE (e.g. x=0.5)")
+    return kind, "xyz".index(axis.strip()), v
+
+
+def picture(path, out, frame=-1, field=None, view="iso", scale=None, clim=None, cut=None):
     """Render frame `frame` of the output `path` to the PNG `out`; returns the line to print (the field, its range
-    and the displacement's scale). UserError (one line) for what cannot be drawn."""
+    and the displacement's scale). cut: parse_cut's (--clip: the part on the lower side of the plane, its inside shown
+    on the cut; --slice: the field on the plane alone, with the part's outline). UserError (one line) for what cannot
+    be drawn."""
     if not out.lower().endswith(".png") or os.path.isdir(out):
         raise UserError(f"plot: -o '{out}' must be a .png file")
     if view not in VIEWS:
@@ -93,14 +111,19 @@ def picture(path, out, frame=-1, field=None, view="iso", scale=None, clim=None):
     if scale is None:
         scale = AUTO_SHOW * size / moved if 0 < moved < VISIBLE * size else 1.0
     title = f"{name}{':' + spec if spec else ''}"
-    _draw(out, X, X + scale * (x - X), cells, scalars, at_points, title, view, clim,
+    xs = X + scale * (x - X)
+    if cut is not None and not xs[:, cut[1]].min() < cut[2] < xs[:, cut[1]].max():
+        raise UserError(f"plot: --{cut[0]} {'xyz'[cut[1]]}={cut[2]:g}: the plane misses the part (its {'xyz'[cut[1]]} "
+                        f"from {xs[:, cut[1]].min():.6g} to {xs[:, cut[1]].max():.6g} in frame {i})")
+    _draw(out, X, xs, cells, scalars, at_points, title, view, clim, cut,
           _obstacles(attrs, t, X.min(axis=0), X.max(axis=0)) if scale == 1.0 else [],
-          f"{attrs.get('scene', '')}  t = {t:.6g}  (frame {i}{'' if scale == 1.0 else f'; displacement x {scale:.3g}'})")
+          f"{attrs.get('scene', '')}  t = {t:.6g}  (frame {i}{'' if scale == 1.0 else f'; displacement x {scale:.3g}'}"
+          f"{'' if cut is None else f'; {cut[0]} {chr(120 + cut[1])} = {cut[2]:g}'})")
     lo, hi = (clim if clim is not None else (float(np.nanmin(scalars)), float(np.nanmax(scalars))))
     return f"wrote {out} (field {title} from {lo:.6g} to {hi:.6g}, displacement scale {scale:.3g})"
 
 
-def _draw(out, X, xs, cells, scalars, at_points, title, view, clim, obstacles, caption):
+def _draw(out, X, xs, cells, scalars, at_points, title, view, clim, cut, obstacles, caption):
     import pyvista as pv      # deferred on purpose: VTK takes ~1 s to load, and only pictures need it
     import vtk
     vtk.vtkLogger.SetStderrVerbosity(vtk.vtkLogger.VERBOSITY_OFF)   # (an X server's absence is no news off-screen)
@@ -111,8 +134,12 @@ def _draw(out, X, xs, cells, scalars, at_points, title, view, clim, obstacles, c
     (body.point_data if at_points else body.cell_data)[title] = scalars
     ref = pv.UnstructuredGrid(flat, kinds, X).extract_surface(algorithm="dataset_surface").extract_feature_edges(30)
     p = pv.Plotter(off_screen=True, window_size=(1000, 700))
-    p.add_mesh(body.extract_surface(algorithm="dataset_surface"), scalars=title, cmap="viridis", clim=clim,
-               scalar_bar_args={"title": title, "vertical": False})
+    shown = body.extract_surface(algorithm="dataset_surface")
+    if cut is not None:
+        normal, origin = np.eye(3)[cut[1]], np.eye(3)[cut[1]] * cut[2]
+        shown = (body.clip(normal=normal, origin=origin, invert=True).extract_surface(algorithm="dataset_surface")
+                 if cut[0] == "clip" else body.slice(normal=normal, origin=origin))
+    p.add_mesh(shown, scalars=title, cmap="viridis", clim=clim, scalar_bar_args={"title": title, "vertical": False})
     p.add_mesh(ref, color="grey", opacity=0.5, line_width=1)
     for pts, tris in obstacles:
         faces = np.hstack([np.full((len(tris), 1), 3), tris]).ravel()
