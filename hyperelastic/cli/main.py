@@ -326,8 +326,16 @@ def plot_cmd(argv):
                     "(as drawn) and show what lies below it, its inside on the cut")
     ap.add_argument("--slice", default=None, metavar="AXIS=VALUE", help="show the field on the plane x, y or z = "
                     "VALUE alone (as drawn), with the part's outline")
+    ap.add_argument("--frames", default=None, metavar="A:B", help="frames A to B (both included) as an animated GIF "
+                    "(-o FILE.gif), one camera, colour range and scale for all")
     a = ap.parse_args(argv)
-    out = a.output if a.output is not None else os.path.splitext(a.file)[0] + ".png"
+    out = a.output if a.output is not None else os.path.splitext(a.file)[0] + (".gif" if a.frames else ".png")
+    frames = None
+    if a.frames is not None:
+        lo, colon, hi = a.frames.partition(":")
+        if not (colon and lo.strip().isdigit() and hi.strip().isdigit() and int(lo) <= int(hi)):
+            raise UserError(f"plot: --frames '{a.frames[:40]}': give A:B, frame numbers with A <= B (e.g. 0:10)")
+        frames = (int(lo), int(hi))
     if a.clip is not None and a.slice is not None:
         raise UserError("plot: give one of --clip and --slice")
     clim = None
@@ -340,9 +348,12 @@ def plot_cmd(argv):
             raise UserError(f"plot: --range '{a.range[:40]}': give LO,HI with LO < HI")
     if a.scale is not None and not (math.isfinite(a.scale) and a.scale > 0):
         raise UserError(f"plot: --scale {a.scale}: give a number > 0")
-    from ..output.picture import parse_cut, picture    # (deferred: it reaches physics/, which initializes MPI, PETSc)
-    cut = parse_cut("clip", a.clip) or parse_cut("slice", a.slice)
-    print(picture(a.file, out, a.frame, a.field, a.view, a.scale, clim, cut))
+    from ..output.picture import animation, parse_cut, picture    # (deferred: it reaches physics/, which starts
+    cut = parse_cut("clip", a.clip) or parse_cut("slice", a.slice)    # MPI and PETSc)
+    if frames is not None:
+        print(animation(a.file, out, frames, a.field, a.view, a.scale, clim, cut))
+    else:
+        print(picture(a.file, out, a.frame, a.field, a.view, a.scale, clim, cut))
     return 0
 
 

@@ -123,7 +123,69 @@ def picture(path, out, frame=-1, field=None, view="iso", scale=None, clim=None, 
     return f"wrote {out} (field {title} from {lo:.6g} to {hi:.6g}, displacement scale {scale:.3g})"
 
 
-def _draw(out, X, xs, cells, scalars, at_points, title, view, clim, cut, obstacles, caption):
+FRAME_SECONDS = 0.1          # an animation's frame on screen
+
+
+def animation(path, out, frames, field=None, view="iso", scale=None, clim=None, cut=None):
+    """Frames a..b (frames = (a, b), both included) of the output `path` as an animated GIF `out`, one camera, one
+    colour range (--range, else the frames' least and largest) and one displacement scale (as picture's, from the
+    frames' largest motion) for all; returns the line to print. UserError (one line) for what cannot be drawn."""
+    if not out.lower().endswith(".gif") or os.path.isdir(out):
+        raise UserError(f"plot: -o '{out}' must be a .gif file with --frames")
+    if view not in VIEWS:
+        raise UserError(f"plot: --view {view}: give one of {', '.join(VIEWS)}")
+    a, b = frames
+    with open_output(path, "plot") as f:
+        n = completed_frames(f)
+    if b >= n:
+        raise UserError(f"plot: --frames {a}:{b}: '{path}' holds frames 0..{n - 1}")
+    got = [_read(path, k, field) for k in range(a, b + 1)]
+    X, cells, attrs = got[0][0], got[0][2], got[0][6]
+    name, _, spec = (field or "displacement").partition(":")
+    values = [component(name, spec or None, g[4]) for g in got]
+    if not all(np.isfinite(g[1]).all() for g in got):
+        raise UserError(f"plot: a frame of {a}..{b} of '{path}' holds non-finite positions")
+    check_output_path(out, [path], suffixes=())
+    size = float(np.linalg.norm(X.max(axis=0) - X.min(axis=0))) or 1.0
+    moved = max(float(np.linalg.norm(g[1] - X, axis=1).max()) for g in got)
+    if scale is None:
+        scale = AUTO_SHOW * size / moved if 0 < moved < VISIBLE * size else 1.0
+    if clim is None:
+        clim = [float(min(np.nanmin(v) for v in values)), float(max(np.nanmax(v) for v in values))]
+        clim = clim if clim[0] < clim[1] else [clim[0] - 0.5, clim[0] + 0.5]
+    shapes = [X + scale * (g[1] - X) for g in got]
+    lo, hi = np.min([x.min(axis=0) for x in shapes], axis=0), np.max([x.max(axis=0) for x in shapes], axis=0)
+    if cut is not None and not lo[cut[1]] < cut[2] < hi[cut[1]]:
+        raise UserError(f"plot: --{cut[0]} {'xyz'[cut[1]]}={cut[2]:g}: the plane misses the part (its {'xyz'[cut[1]]} "
+                        f"from {lo[cut[1]]:.6g} to {hi[cut[1]]:.6g} in frames {a}..{b})")
+    title = f"{name}{':' + spec if spec else ''}"
+    import tempfile
+    from PIL import Image
+    with tempfile.TemporaryDirectory() as d:
+        pngs = []
+        for k, (g, xs, v) in enumerate(zip(got, shapes, values)):
+            t, i = g[3], g[7]
+            pngs.append(os.path.join(d, f"{k:06d}.png"))
+            _draw(pngs[-1], X, xs, cells, v, g[5], title, view, clim, cut,
+                  _obstacles(attrs, t, X.min(axis=0), X.max(axis=0)) if scale == 1.0 else [],
+                  f"{attrs.get('scene', '')}  t = {t:.6g}  (frame {i}"
+                  f"{'' if scale == 1.0 else f'; displacement x {scale:.3g}'})",
+                  bounds=[lo[0], hi[0], lo[1], hi[1], lo[2], hi[2]])
+        images = [Image.open(p).convert("RGB") for p in pngs]
+        tmp = f"{out}.{os.getpid()}.tmp.gif"
+        try:
+            images[0].save(tmp, save_all=True, append_images=images[1:], duration=int(1000 * FRAME_SECONDS), loop=0)
+            os.replace(tmp, out)
+        except OSError as e:
+            raise UserError(f"plot: cannot write '{out}' ({e.strerror})") from None
+        finally:
+            if os.path.exists(tmp):
+                os.remove(tmp)
+    return (f"wrote {out} ({len(got)} frames {a}..{b}, field {title} from {clim[0]:.6g} to {clim[1]:.6g}, "
+            f"displacement scale {scale:.3g})")
+
+
+def _draw(out, X, xs, cells, scalars, at_points, title, view, clim, cut, obstacles, caption, bounds=None):
     import pyvista as pv      # deferred on purpose: VTK takes ~1 s to load, and only pictures need it
     import vtk
     vtk.vtkLogger.SetStderrVerbosity(vtk.vtkLogger.VERBOSITY_OFF)   # (an X server's absence is no news off-screen)
@@ -149,6 +211,8 @@ def _draw(out, X, xs, cells, scalars, at_points, title, view, clim, cut, obstacl
         p.view_isometric()
     else:
         p.view_vector(VIEWS[view][0], viewup=VIEWS[view][1])
+    if bounds is not None:        # (an animation's frames: one camera for all)
+        p.reset_camera(bounds=bounds)
     tmp = f"{out}.{os.getpid()}.tmp.png"
     try:
         p.screenshot(tmp)
