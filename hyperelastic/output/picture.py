@@ -1,8 +1,9 @@
 """`hyperelastic plot`: a PNG of a frame of an output, rendered off-screen by pyvista (VTK) as ParaView would show it:
 the body deformed (by its displacement times a scale, automatic where the motion would not show), coloured by any of
 its fields (`--field von_mises`, a component `displacement:z`, `stress:xy`), over the reference shape's outline, with
-the rigid obstacles of the run drawn (issue 70 item 5). Reads the output file (either layout: its rows are one mesh);
-nothing else."""
+the rigid obstacles of the run drawn (issue 70 item 5); inside the part by a plane (`--slice`, `--clip`); frames as an
+animated GIF (`--frames A:B`, assembled by Pillow, matplotlib's dependency). Reads the output file (either layout: its
+rows are one mesh); nothing else."""
 import math
 import os
 
