@@ -64,10 +64,11 @@ def _petsc(argv):
 SETUP_SIGNALS = None
 
 
-def _hold_signals():
-    """Record SIGINT and SIGTERM in SETUP_SIGNALS (made a list here) instead of acting on them."""
+def _hold_signals(fresh=False):
+    """Record SIGINT and SIGTERM in SETUP_SIGNALS (a new list where fresh: a run's first line) instead of acting on
+    them."""
     global SETUP_SIGNALS
-    if SETUP_SIGNALS is None:
+    if SETUP_SIGNALS is None or fresh:
         SETUP_SIGNALS = []
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, lambda signum, frame: SETUP_SIGNALS.append(signum))
@@ -220,7 +221,7 @@ def run_cmd(argv):
     if argv and argv[0] in ("--help", "-help", "-h"):
         print(catalog_help())
         return 0
-    _hold_signals()
+    _hold_signals(fresh=True)
     if argv and argv[0] == "--restart":
         scene_arg, petsc_args, restart = _restart_args(argv)
     elif not argv or argv[0].startswith("-"):
@@ -463,6 +464,9 @@ def _alike_world():
     else None."""
     if int(os.environ.get("PMI_SIZE", "1") or 1) < 2:
         return None
+    if "mpi4py.MPI" not in sys.modules:
+        import mpi4py
+        mpi4py.rc.thread_level = "funneled"      # (PETSc's own MPI_Init_thread's level: not mpi4py's "multiple")
     from mpi4py import MPI
     return MPI.COMM_WORLD.Dup() if MPI.COMM_WORLD.size > 1 else None
 
