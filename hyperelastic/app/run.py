@@ -94,7 +94,7 @@ def _check_before_writing(scene):
     """What can still be refused once the model and its solvers are set up: an application option nothing read, an
     expression of t not finite at a step end."""
     check_application_used(PETSc.Options())
-    check_times([min(n * scene.dt, scene.final_time) for n in range(step_count(scene.final_time, scene.dt) + 1)])
+    check_times(np.minimum(np.arange(step_count(scene.final_time, scene.dt) + 1) * scene.dt, scene.final_time))
 
 
 def _integrator(scene, model, solver, writer, ts, restart, quiet):
