@@ -643,7 +643,7 @@ def test_a_triangulated_plate_presses_as_the_plane_does(tmp_path):
     plate (every frame, from the output alone), the end stops within dhat of it, and the contact force is the plane's
     within 0.1% (measured 0.02%; the two triangles' shared edge makes the pressure less even than the plane's). Newton
     converges as on the plane (a median of 3 iterations a step: the plate's pairs' tangent is exact in the body's
-    unknowns; projected pair by pair with the plate's vertices it took 38-55)."""
+    unknowns; projected pair by pair with the plate's vertices it took 38-55), and it takes the plane's steps."""
     plate = tmp_path / "plate.obj"
     plate.write_text("v 5.005 -3 -3\nv 5.005 3 -3\nv 5.005 3 3\nv 5.005 -3 3\nf 1 2 3\nf 1 3 4\n")
     p = run_ok(["run", "press", "-obstacle", f"mesh:{plate}", "-output", tmp_path / "m.h5"])
@@ -655,9 +655,12 @@ def test_a_triangulated_plate_presses_as_the_plane_does(tmp_path):
     q = run_ok(["run", "press", "-output", tmp_path / "p.h5"])
     f_mesh, f_plane = _forces(p.stderr, "load contact"), _forces(q.stderr, "load contact")
     assert abs(f_mesh[0] - f_plane[0]) < 1e-3 * abs(f_plane[0]), (f_mesh, f_plane)
-    its = [read_h5(tmp_path / f)["stats"] for f in ("m.h5", "p.h5")]
-    its = [np.median(st["newton_its"][st["rejected"] == 0]) for st in its]
+    stats = [read_h5(tmp_path / f)["stats"] for f in ("m.h5", "p.h5")]
+    its = [np.median(st["newton_its"][st["rejected"] == 0]) for st in stats]
     assert its[0] <= its[1], its
+    # and takes the plane's steps: its first step's start carries the end's nodes the plate reaches along with it
+    # (SelfContact.pushed; it rejected 6 steps, down to h/64, pushing nothing)
+    assert [int(st["rejected"].sum()) for st in stats] == [1, 1] and len(stats[0]["step"]) == len(stats[1]["step"])
 
 
 def test_hertz_contact_radius_and_peak_pressure(tmp_path):

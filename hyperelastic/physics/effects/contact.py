@@ -35,11 +35,9 @@ from ...core.expressions import TimeFunction
 from ...core.options import Row, facet_sets
 from .base import Energy, NodeBlocks, Spec, timed
 from .obstacles import KINDS, kinds_help, linear_motion, parse
-from .seams import AdaptiveStiffness, DomainCheck, Results, StepLimiter, StepStart
+from .seams import PUSH_LIMIT, AdaptiveStiffness, DomainCheck, Results, StepLimiter, StepStart
 
 CCD_MARGIN = 0.1            # a Newton update stops this fraction short of the first contact along it
-PUSH_LIMIT = 0.3            # a step's start pushes contact nodes ahead of a moving obstacle by at most this fraction
-                            # of their shortest surface edge (else the step is retried shorter)
 KAPPA_SCALE = 0.1           # kappa = KAPPA_SCALE E / dhat by default
 DHAT_SCALE = 1e-3           # dhat = DHAT_SCALE x the bounding-box diagonal by default
 DHAT_MAX = 0.1              # and at most DHAT_MAX x it (-contact_dhat 1e20 ran to a 587 km displacement: issue 73)

@@ -53,6 +53,11 @@ class DomainCheck:
         return ""
 
 
+# a step's start pushes contact nodes ahead of a moving obstacle by at most this fraction of their shortest surface edge
+# (else the step is retried shorter): StepStart.pushed of contact.py and self_contact.py
+PUSH_LIMIT = 0.3
+
+
 class StepStart:
     """A say in where a step starts. The solver tells the effect which nodes' paths the scene gives (`hold`), asks
     whether those paths run into something the effect cannot stop (`held_collision`), whether the effect moves the

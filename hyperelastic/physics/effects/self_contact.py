@@ -31,9 +31,33 @@ from mpi4py import MPI
 from ...core.errors import UserError
 from .base import NodeBlocks, timed
 from .obstacles import linear_motion
-from .seams import AdaptiveStiffness, Couplings, DomainCheck, StepLimiter, StepStart
+from .seams import PUSH_LIMIT, AdaptiveStiffness, Couplings, DomainCheck, StepLimiter, StepStart
 
 KAPPA_WEIGHT = 1.1           # W above: the area weights' sum per unit area of two facing faces (measured)
+
+
+def _reached(p, d, T, pad):
+    """Per point of p (n, 3): whether the segment p -> p + d crosses a triangle of T (m, 3, 3) (Moller and Trumbore,
+    J. Graphics Tools 2, 1997), the points tested only where near the triangles' box swept by d (pad: a margin)."""
+    lo = np.minimum(T.min(axis=(0, 1)), T.min(axis=(0, 1)) - d) - pad
+    hi = np.maximum(T.max(axis=(0, 1)), T.max(axis=(0, 1)) - d) + pad
+    near = np.flatnonzero(((p >= lo) & (p <= hi)).all(axis=1))
+    out = np.zeros(len(p), bool)
+    if not len(near) or not len(T):
+        return out
+    e1, e2 = T[:, 1] - T[:, 0], T[:, 2] - T[:, 0]                        # (m, 3)
+    h = np.cross(d, e2)                                                    # (m, 3)
+    a = (e1 * h).sum(axis=1)
+    ok = np.abs(a) > 1e-300
+    for i in near:
+        s = p[i] - T[:, 0]
+        with np.errstate(all="ignore"):
+            u = (s * h).sum(axis=1) / a
+            q = np.cross(s, e1)
+            v = (q @ d) / a
+            t = (e2 * q).sum(axis=1) / a
+        out[i] = bool((ok & (u >= 0) & (v >= 0) & (u + v <= 1) & (t >= 0) & (t <= 1)).any())
+    return out
 
 
 def _ipctk():
@@ -93,6 +117,12 @@ class SelfContact(NodeBlocks, StepLimiter, DomainCheck, StepStart, AdaptiveStiff
         self.fixed = self._obstacles_at(0.0)                     # the obstacles' vertices now (not unknowns)
         X = self._V(sp.X)
         self.mesh = ip.CollisionMesh(X, ip.edges(faces), faces)
+        E = self.mesh.edges[(self.mesh.edges < len(self.ids)).all(axis=1)]          # (the surface's own edges)
+        shortest = np.full(len(self.ids), np.inf)
+        for end in (0, 1):
+            np.minimum.at(shortest, E[:, end], np.linalg.norm(X[E[:, 0]] - X[E[:, 1]], axis=1))
+        self.edge = shortest[self.own_s]                     # this rank's nodes' shortest surface edge (pushed)
+        self.moves = [np.zeros(3) for _ in self.obstacles]   # each obstacle's translation over the step (begin_step)
         self.set_kappa(self.kappa)
         self.blocks = np.zeros((len(self.nodes), 3, 3))
         self.coupling = None                                 # csr (3 n_own, 3 n_surface): the off-diagonal blocks
@@ -310,6 +340,7 @@ class SelfContact(NodeBlocks, StepLimiter, DomainCheck, StepStart, AdaptiveStiff
     def begin_step(self, t, h, xn, vn):
         self.start = self.last = self._V(xn, self._obstacles_at(t - h)) if xn is not None else self.start
         self.fixed = self._obstacles_at(t)
+        self.moves = [o.shift(t) - o.shift(t - h) for o in self.obstacles]      # (each obstacle's over the step)
         if self.mu > 0 and xn is not None:
             # (lagged: the pairs, their normal forces and tangent bases at the step's start; the slip is the step's
             # displacement, smoothed below eps_v h)
@@ -322,9 +353,25 @@ class SelfContact(NodeBlocks, StepLimiter, DomainCheck, StepStart, AdaptiveStiff
         return self.tangential is not None and len(self.tangential) > 0
 
     def pushed(self, x):
-        """(x, False): a triangulated obstacle pushes nothing ahead of it (a step whose start it moved into is retried
-        shorter; quasi-static steps start from the last step's rate)."""
-        return x, False
+        """(x with this rank's surface nodes that a moving triangulated obstacle reaches within the step carried along
+        by its translation, whether every such push stays within PUSH_LIMIT of the node's shortest surface edge): the
+        integrator's start where the last step's rate does not carry the body along (the first step of a plate
+        pressing from rest: it was rejected 6 times, down to h/64, where the plate had moved less than its gap). A
+        node is reached where its straight path relative to the obstacle (x, back by the translation) crosses one of
+        the obstacle's triangles at the step's start; carried by the whole translation it keeps its distance to them."""
+        out = x.copy()
+        on = out.reshape(-1, 3)
+        ok = True
+        offset = len(self.ids)
+        for o, u in zip(self.obstacles, self.moves):
+            P = self.start[offset:offset + len(o.surface[0])]
+            offset += len(o.surface[0])
+            if not np.any(u):
+                continue
+            hit = _reached(on[self.nodes], -u, P[o.surface[1]], self.dhat)
+            ok = ok and bool((np.linalg.norm(u) <= PUSH_LIMIT * self.edge[hit]).all())
+            on[self.nodes[hit]] += u
+        return out, ok
 
     def linearize(self, x):
         V = self._V(x)
