@@ -415,15 +415,15 @@ def test_a_plate_pressing_the_bar_is_the_end_prescribed_there(tmp_path):
         assert img.shape[:2] == (700, 1000) and img[..., :3].std() > 0.05 and "field von_mises" in q.stdout, cut
     # frames as an animated GIF: one camera and colour range, each frame its own picture
     from PIL import Image
-    q = run_ok(["plot", tmp_path / "c.h5", "--frames", "0:3", "-o", tmp_path / "a.gif", "--field", "contact_pressure"])
-    assert f"4 frames 0..3, field contact_pressure from 0 to " in q.stdout, q.stdout
+    q = run_ok(["plot", tmp_path / "c.h5", "--frames", "9:10", "-o", tmp_path / "a.gif", "--field", "contact_pressure"])
+    assert f"2 frames 9..10, field contact_pressure from 0 to " in q.stdout, q.stdout
     with Image.open(tmp_path / "a.gif") as gif:
         shots = []
         for k in range(gif.n_frames):
             gif.seek(k)
             shots.append(np.asarray(gif.convert("RGB"), float))
-    assert len(shots) == 4 and shots[0].shape[:2] == (700, 1000)
-    assert all(np.abs(shots[k + 1] - shots[k]).mean() > 0.1 for k in range(3))      # the plate moves, frame by frame
+    assert len(shots) == 2 and shots[0].shape[:2] == (700, 1000)
+    assert np.abs(shots[1] - shots[0]).mean() > 0.1                                 # the plate moves, frame by frame
     for bad in (["--field", "nothing"], ["--field", "von_mises:x"], ["--view", "w"], ["--range", "2,1"],
                 ["--slice", "x=99"], ["--clip", "q=1"], ["--clip", "x=0", "--slice", "y=0"], ["--frames", "2:99"],
                 ["--frames", "3:1"]):
