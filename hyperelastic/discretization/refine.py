@@ -20,6 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 from mpi4py import MPI
 
+from ..core.errors import UserError
 from ..element.reference import EDGES, cell_edges
 from ..mesh.prepared import face_flags, face_mask
 from .exchange import Exchange, alltoallv, cell_edge_numbers
@@ -157,7 +158,6 @@ def check_room(mpi, name, nc, levels, index_bits):
     """Before refining: the fine mesh's size against this machine's memory (BYTES_PER_TET a tet, shared by the ranks)
     and its unknowns against PETSc's indices (3 per vertex, about nc / TETS_PER_VERTEX vertices), one line on every
     rank (collective): -refine 8 ran 30-58 s into a MemoryError (issue 73)."""
-    from ..core.errors import UserError
     fine = nc * 8 ** levels
     need = BYTES_PER_TET * fine / mpi.size
     have = available_bytes(mpi)

@@ -13,7 +13,7 @@ import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from ..core.errors import UserError
+from ..core.errors import UserError, raise_agreed
 from ..core.files import is_output, require_parts
 from ..core.libpetsc import plex_from_slices
 from ..mesh.prepared import add_group, face_mask, faces_of, is_prepared, open_prepared, read_groups
@@ -58,14 +58,6 @@ def _hash_sum(ids):
     return int(np.sum(z ^ (z >> np.uint64(31)), dtype=np.uint64))
 
 
-def _first_error(mpi, message):
-    """Raise on every rank the first (by rank) of the ranks' error lines, if any (collective)."""
-    lines = mpi.allgather(message)
-    first = next((m for m in lines if m is not None), None)
-    if first is not None:
-        raise UserError(first)
-
-
 def check_slice(mpi, path, points, cells, cell_ids, nv):
     """Each rank's checks of its own rows (collective; the first failing rank's line raised on all): finite
     coordinates, vertex indices in range, no repeated vertex (cells named by source index; check_volumes follows once
@@ -74,17 +66,17 @@ def check_slice(mpi, path, points, cells, cell_ids, nv):
     bad = np.flatnonzero(~np.isfinite(points).all(axis=1) | (np.abs(points) > 1e30).any(axis=1))
     if len(bad):
         msg = f"mesh '{path}': a vertex has a non-finite or huge coordinate {points[bad[0]].tolist()}"
-    _first_error(mpi, msg)
+    raise_agreed(mpi, msg)
     bad = np.flatnonzero(((cells < 0) | (cells >= nv)).any(axis=1))
     if len(bad):
         msg = (f"mesh '{path}': tetrahedron {cell_ids[bad[0]]} has a vertex index out of range "
                f"{cells[bad[0]].tolist()} (the mesh has {nv} vertices)")
-    _first_error(mpi, msg)
+    raise_agreed(mpi, msg)
     s = np.sort(cells, axis=1)
     bad = np.flatnonzero((s[:, 1:] == s[:, :-1]).any(axis=1))
     if len(bad):
         msg = f"mesh '{path}': tetrahedron {cell_ids[bad[0]]} repeats a vertex"
-    _first_error(mpi, msg)
+    raise_agreed(mpi, msg)
 
 
 def check_volumes(mpi, path, points, cells, cell_ids):
@@ -97,7 +89,7 @@ def check_volumes(mpi, path, points, cells, cell_ids):
         elif negative is not None:
             msg = (f"mesh '{path}': tetrahedron {cell_ids[negative]} is inverted (negative volume "
                    f"{V[negative]:.3g})")
-    _first_error(mpi, msg)
+    raise_agreed(mpi, msg)
 
 
 class PreparedSource:
@@ -141,13 +133,12 @@ class PreparedSource:
                 got = np.concatenate([d[len_ * rank // size:len_ * (rank + 1) // size].astype(np.int64)
                                       for d, len_ in parts[what]])
                 ok = not len(got) or (got.min() >= 0 and got.max() < n)
-                count, mine, expected = mpi.allreduce(np.array([len(got), 1 - ok], np.int64)), _hash_sum(got), \
-                    _hash_sum(np.arange(n * rank // size, n * (rank + 1) // size))
-                sums = mpi.allgather((mine, expected))
-                if count[0] != n or count[1] or sum(a for a, _ in sums) % 2**64 != sum(b for _, b in sums) % 2**64:
+                due = np.arange(n * rank // size, n * (rank + 1) // size)         # (this rank's share of 0..n-1)
+                counts, oks, mine, expected = zip(*mpi.allgather((len(got), bool(ok), _hash_sum(got), _hash_sum(due))))
+                if sum(counts) != n or not all(oks) or sum(mine) % 2**64 != sum(expected) % 2**64:
                     msg = msg or (f"mesh '{self.path}': its {what} indices are not a numbering of the source's {n} "
                                   f"{what}s (a damaged or hand-edited file: prepare it again)")
-        _first_error(mpi, msg)
+        raise_agreed(mpi, msg)
 
     def edges(self, mpi, f, lo, hi):
         """A quadratic mesh's edge nodes of cells lo:hi: (input ids (nc, 6), positions (nc, 6, 3)), every rank
@@ -242,10 +233,10 @@ def boundary_masks(mpi, path, cells, corners, ids, cell_ids, nv):
     n[order] = back
     n = n.reshape(-1, 4)
     bad = np.flatnonzero(((n & 7) >= 3).any(axis=1))
-    _first_error(mpi, f"mesh '{path}': tetrahedron {cell_ids[bad[0]]} shares a face with two others (duplicate or "
+    raise_agreed(mpi, f"mesh '{path}': tetrahedron {cell_ids[bad[0]]} shares a face with two others (duplicate or "
                       "overlapping tetrahedra)" if len(bad) else None)
     bad = np.flatnonzero((n >= 8).any(axis=1))
-    _first_error(mpi, f"mesh '{path}': tetrahedron {cell_ids[bad[0]]} and its neighbour across a face lie on the "
+    raise_agreed(mpi, f"mesh '{path}': tetrahedron {cell_ids[bad[0]]} and its neighbour across a face lie on the "
                       "same side of it (overlapping tetrahedra)" if len(bad) else None)
     return face_mask(ids, n == 1), int(mpi.allreduce(int((n == 1).sum()), op=MPI.SUM))
 
@@ -321,7 +312,7 @@ def _read_rows(path, mpi, src):
         err = None
     except UserError as e:
         err = str(e)
-    _first_error(mpi, err)
+    raise_agreed(mpi, err)
     off = cell_ranges(src.nc, size)
     lo, hi = int(off[rank]), int(off[rank + 1])
     with src.open() as f:
@@ -381,7 +372,7 @@ def read_slice(path, comm, frame=-1, source=None, refine_levels=0, check=None):
         err = None
     except UserError as e:
         err, src = str(e), None
-    _first_error(mpi, err)
+    raise_agreed(mpi, err)
     if source is None and isinstance(src, PreparedSource):        # (a MemorySource's rows are made here)
         src.check_numbering(mpi)
     rows = _read_rows(path, mpi, src)

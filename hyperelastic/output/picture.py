@@ -54,27 +54,55 @@ def _obstacles(attrs, t, lo, hi):
     return out
 
 
-def _read(path, frame, field):
-    """(points X, positions x, cells (n, 4), time, values, point field?, attrs) of frame `frame` of an output."""
+def _read(path, indices, field):
+    """(points X, cells (n, 4), attrs, point field?, [(frame, time, positions x, values)]) of the frames `indices(n)`
+    names of an output (n: its frame count; indices raises the line for frames it does not hold), read in one open."""
     name = field.partition(":")[0] if field else "displacement"
     with open_output(path, "plot") as f:
         n = completed_frames(f)
         if n == 0:
             raise UserError(f"plot: '{path}' has no frames")
-        i = frame if frame >= 0 else n + frame
-        if not 0 <= i < n:
-            raise UserError(f"plot: frame {frame} out of range (0..{n - 1})")
-        X, x = f["mesh/points"][:], f["x"][i]
-        cells = f["mesh/tetra"][:, :4]
-        g = f[f"frames/{i}"]
-        if name == "displacement":
-            values = x - X
-        elif name in g:
-            values = g[name][:]
-        else:
-            raise UserError(f"plot: --field {name}: frame {i} has no such field (it has {', '.join(sorted(g))}; "
-                            "-output_fields writes more)")
-        return X, x, cells, float(f["time"][i]), values, is_point_field(name), dict(f.attrs), i
+        X, cells, got = f["mesh/points"][:], f["mesh/tetra"][:, :4], []
+        for i in indices(n):
+            x, g = f["x"][i], f[f"frames/{i}"]
+            if name == "displacement":
+                values = x - X
+            elif name in g:
+                values = g[name][:]
+            else:
+                raise UserError(f"plot: --field {name}: frame {i} has no such field (it has {', '.join(sorted(g))}; "
+                                "-output_fields writes more)")
+            got.append((i, float(f["time"][i]), x, values))
+        return X, cells, dict(f.attrs), is_point_field(name), got
+
+
+def _shown(path, X, got, field, scale, cut, which):
+    """(title, each frame's scalars, the displacement's scale, each frame's drawn positions, their bounds (lo, hi))
+    of the frames `got` (_read's): one scale for all (given, else 1, or larger where the largest motion is under
+    VISIBLE of the part's size); one line where a frame's positions are not finite or the cut's plane misses the
+    part (`which`: the frames in words)."""
+    name, _, spec = (field or "displacement").partition(":")
+    scalars = [component(name, spec or None, values) for _, _, _, values in got]
+    for i, _, x, _ in got:
+        if not (np.isfinite(x).all() and np.isfinite(X).all()):
+            raise UserError(f"plot: frame {i} of '{path}' holds non-finite positions (choose others)")
+    size = float(np.linalg.norm(X.max(axis=0) - X.min(axis=0))) or 1.0
+    moved = max(float(np.linalg.norm(x - X, axis=1).max()) for _, _, x, _ in got)
+    if scale is None:
+        scale = AUTO_SHOW * size / moved if 0 < moved < VISIBLE * size else 1.0
+    shapes = [X + scale * (x - X) for _, _, x, _ in got]
+    lo, hi = np.min([x.min(axis=0) for x in shapes], axis=0), np.max([x.max(axis=0) for x in shapes], axis=0)
+    if cut is not None and not lo[cut[1]] < cut[2] < hi[cut[1]]:
+        raise UserError(f"plot: --{cut[0]} {'xyz'[cut[1]]}={cut[2]:g}: the plane misses the part (its {'xyz'[cut[1]]} "
+                        f"from {lo[cut[1]]:.6g} to {hi[cut[1]]:.6g} in {which})")
+    return f"{name}{':' + spec if spec else ''}", scalars, scale, shapes, (lo, hi)
+
+
+def _caption(attrs, t, i, scale, cut):
+    """The picture's caption: the scene, the frame's time and number, the displacement's scale, the cut."""
+    scaled = "" if scale == 1.0 else f"; displacement x {scale:.3g}"
+    return (f"{attrs.get('scene', '')}  t = {t:.6g}  (frame {i}{scaled}"
+            f"{'' if cut is None else f'; {cut[0]} {chr(120 + cut[1])} = {cut[2]:g}'})")
 
 
 def parse_cut(kind, text):
@@ -101,25 +129,18 @@ def picture(path, out, frame=-1, field=None, view="iso", scale=None, clim=None, 
         raise UserError(f"plot: -o '{out}' must be a .png file")
     if view not in VIEWS:
         raise UserError(f"plot: --view {view}: give one of {', '.join(VIEWS)}")
-    X, x, cells, t, values, at_points, attrs, i = _read(path, frame, field)
-    name, _, spec = (field or "displacement").partition(":")
-    scalars = component(name, spec or None, values)
-    if not (np.isfinite(x).all() and np.isfinite(X).all()):
-        raise UserError(f"plot: frame {i} of '{path}' holds non-finite positions (choose another with --frame)")
+
+    def one(n):
+        i = frame if frame >= 0 else n + frame
+        if not 0 <= i < n:
+            raise UserError(f"plot: frame {frame} out of range (0..{n - 1})")
+        return [i]
+    X, cells, attrs, at_points, got = _read(path, one, field)
+    (i, t, _, _), = got
+    title, (scalars,), scale, (xs,), _ = _shown(path, X, got, field, scale, cut, f"frame {i}")
     check_output_path(out, [path], suffixes=())
-    size = float(np.linalg.norm(X.max(axis=0) - X.min(axis=0))) or 1.0
-    moved = float(np.linalg.norm(x - X, axis=1).max())
-    if scale is None:
-        scale = AUTO_SHOW * size / moved if 0 < moved < VISIBLE * size else 1.0
-    title = f"{name}{':' + spec if spec else ''}"
-    xs = X + scale * (x - X)
-    if cut is not None and not xs[:, cut[1]].min() < cut[2] < xs[:, cut[1]].max():
-        raise UserError(f"plot: --{cut[0]} {'xyz'[cut[1]]}={cut[2]:g}: the plane misses the part (its {'xyz'[cut[1]]} "
-                        f"from {xs[:, cut[1]].min():.6g} to {xs[:, cut[1]].max():.6g} in frame {i})")
     _draw(out, X, xs, cells, scalars, at_points, title, view, clim, cut,
-          _obstacles(attrs, t, X.min(axis=0), X.max(axis=0)) if scale == 1.0 else [],
-          f"{attrs.get('scene', '')}  t = {t:.6g}  (frame {i}{'' if scale == 1.0 else f'; displacement x {scale:.3g}'}"
-          f"{'' if cut is None else f'; {cut[0]} {chr(120 + cut[1])} = {cut[2]:g}'})")
+          _obstacles(attrs, t, X.min(axis=0), X.max(axis=0)) if scale == 1.0 else [], _caption(attrs, t, i, scale, cut))
     lo, hi = (clim if clim is not None else (float(np.nanmin(scalars)), float(np.nanmax(scalars))))
     return f"wrote {out} (field {title} from {lo:.6g} to {hi:.6g}, displacement scale {scale:.3g})"
 
@@ -136,42 +157,26 @@ def animation(path, out, frames, field=None, view="iso", scale=None, clim=None, 
     if view not in VIEWS:
         raise UserError(f"plot: --view {view}: give one of {', '.join(VIEWS)}")
     a, b = frames
-    with open_output(path, "plot") as f:
-        n = completed_frames(f)
-    if b >= n:
-        raise UserError(f"plot: --frames {a}:{b}: '{path}' holds frames 0..{n - 1}")
-    got = [_read(path, k, field) for k in range(a, b + 1)]
-    X, cells, attrs = got[0][0], got[0][2], got[0][6]
-    name, _, spec = (field or "displacement").partition(":")
-    values = [component(name, spec or None, g[4]) for g in got]
-    if not all(np.isfinite(g[1]).all() for g in got):
-        raise UserError(f"plot: a frame of {a}..{b} of '{path}' holds non-finite positions")
+
+    def span(n):
+        if b >= n:
+            raise UserError(f"plot: --frames {a}:{b}: '{path}' holds frames 0..{n - 1}")
+        return range(a, b + 1)
+    X, cells, attrs, at_points, got = _read(path, span, field)
+    title, values, scale, shapes, (lo, hi) = _shown(path, X, got, field, scale, cut, f"frames {a}..{b}")
     check_output_path(out, [path], suffixes=())
-    size = float(np.linalg.norm(X.max(axis=0) - X.min(axis=0))) or 1.0
-    moved = max(float(np.linalg.norm(g[1] - X, axis=1).max()) for g in got)
-    if scale is None:
-        scale = AUTO_SHOW * size / moved if 0 < moved < VISIBLE * size else 1.0
     if clim is None:
         clim = [float(min(np.nanmin(v) for v in values)), float(max(np.nanmax(v) for v in values))]
         clim = clim if clim[0] < clim[1] else [clim[0] - 0.5, clim[0] + 0.5]
-    shapes = [X + scale * (g[1] - X) for g in got]
-    lo, hi = np.min([x.min(axis=0) for x in shapes], axis=0), np.max([x.max(axis=0) for x in shapes], axis=0)
-    if cut is not None and not lo[cut[1]] < cut[2] < hi[cut[1]]:
-        raise UserError(f"plot: --{cut[0]} {'xyz'[cut[1]]}={cut[2]:g}: the plane misses the part (its {'xyz'[cut[1]]} "
-                        f"from {lo[cut[1]]:.6g} to {hi[cut[1]]:.6g} in frames {a}..{b})")
-    title = f"{name}{':' + spec if spec else ''}"
     import tempfile
     from PIL import Image
     with tempfile.TemporaryDirectory() as d:
         pngs = []
-        for k, (g, xs, v) in enumerate(zip(got, shapes, values)):
-            t, i = g[3], g[7]
+        for k, ((i, t, _, _), xs, v) in enumerate(zip(got, shapes, values)):
             pngs.append(os.path.join(d, f"{k:06d}.png"))
-            _draw(pngs[-1], X, xs, cells, v, g[5], title, view, clim, cut,
+            _draw(pngs[-1], X, xs, cells, v, at_points, title, view, clim, cut,
                   _obstacles(attrs, t, X.min(axis=0), X.max(axis=0)) if scale == 1.0 else [],
-                  f"{attrs.get('scene', '')}  t = {t:.6g}  (frame {i}"
-                  f"{'' if scale == 1.0 else f'; displacement x {scale:.3g}'})",
-                  bounds=[lo[0], hi[0], lo[1], hi[1], lo[2], hi[2]])
+                  _caption(attrs, t, i, scale, cut), bounds=[lo[0], hi[0], lo[1], hi[1], lo[2], hi[2]])
         images = [Image.open(p).convert("RGB") for p in pngs]
         tmp = f"{out}.{os.getpid()}.tmp.gif"
         try:
