@@ -122,7 +122,6 @@ class SelfContact(NodeBlocks, StepLimiter, DomainCheck, StepStart, AdaptiveStiff
         for end in (0, 1):
             np.minimum.at(shortest, E[:, end], np.linalg.norm(X[E[:, 0]] - X[E[:, 1]], axis=1))
         self.edge = shortest[self.own_s]                     # this rank's nodes' shortest surface edge (pushed)
-        self.moves = [np.zeros(3) for _ in self.obstacles]   # each obstacle's translation over the step (begin_step)
         self.set_kappa(self.kappa)
         self.blocks = np.zeros((len(self.nodes), 3, 3))
         self.coupling = None                                 # csr (3 n_own, 3 n_surface): the off-diagonal blocks
@@ -340,7 +339,6 @@ class SelfContact(NodeBlocks, StepLimiter, DomainCheck, StepStart, AdaptiveStiff
     def begin_step(self, t, h, xn, vn):
         self.start = self.last = self._V(xn, self._obstacles_at(t - h)) if xn is not None else self.start
         self.fixed = self._obstacles_at(t)
-        self.moves = [o.shift(t) - o.shift(t - h) for o in self.obstacles]      # (each obstacle's over the step)
         if self.mu > 0 and xn is not None:
             # (lagged: the pairs, their normal forces and tangent bases at the step's start; the slip is the step's
             # displacement, smoothed below eps_v h)
@@ -362,10 +360,11 @@ class SelfContact(NodeBlocks, StepLimiter, DomainCheck, StepStart, AdaptiveStiff
         out = x.copy()
         on = out.reshape(-1, 3)
         ok = True
-        offset = len(self.ids)
-        for o, u in zip(self.obstacles, self.moves):
-            P = self.start[offset:offset + len(o.surface[0])]
-            offset += len(o.surface[0])
+        first = 0                                            # (each obstacle's first vertex among the obstacles')
+        for o in self.obstacles:
+            P = self.start[len(self.ids) + first:len(self.ids) + first + len(o.surface[0])]
+            u = self.fixed[first] - P[0]                     # (its translation over the step: begin_step's ends)
+            first += len(o.surface[0])
             if not np.any(u):
                 continue
             hit = _reached(on[self.nodes], -u, P[o.surface[1]], self.dhat)
