@@ -39,8 +39,8 @@ from dataclasses import dataclass, replace
 
 from ..core.data import OPTIONS_DIR
 from ..core.errors import UserError
-from .experiments.runner import last_line, run_hyperelastic
-from ..core.files import option_lines
+from .experiments.runner import GRACE_S, last_line, run_hyperelastic
+from ..core.files import option_lines, output_names
 from ..mesh.generate import generate
 from ..app.scene import Scene
 from .measure import read_cost
@@ -170,11 +170,11 @@ class Search:
             return self.by_key[s.key()][s]
         path = os.path.join(self.out, "runs", f"p{s.order}_r{s.level}_dt{s.dt}_{s.integrator}_t{s.tol}_{s.solver}.h5")
         args = self.args(s, path)
-        self.written += [path, path + ".partial", os.path.splitext(path)[0] + ".xdmf"]
+        self.written += output_names(path)
         remaining = max(1.0, self.budget - self.elapsed())
         capped = limit is not None and limit < remaining
         rc, err, wall = run_hyperelastic(args, path, nprocs=1, timeout=min(3600, limit if capped else remaining),
-                                         **({"grace": 0} if capped else {}))
+                                         grace=0 if capped else GRACE_S)
         stopped_at = None
         if rc == -1 and err.startswith("timed out") and capped:
             stopped_at, err = limit, f"stopped at {limit:.3g} s, the limit of this run ({why})"
