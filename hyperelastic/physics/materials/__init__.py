@@ -26,7 +26,8 @@ __all__ = ["COMMON", "MATERIALS", "PRESETS", "REGISTRY", "Solid", "check_paramet
 # E [Pa], nu [-], rho [kg/m^3]: every material's
 COMMON = ("E", "nu", "rho")
 
-REGISTRY = ("linear", "stvk", "neohookean", "snh", "corotational", "mooney_rivlin", "neohookean_split", "yeoh")
+REGISTRY = ("linear", "stvk", "neohookean", "snh", "corotational", "mooney_rivlin", "neohookean_split", "yeoh",
+            "gent", "arruda_boyce")
 MATERIALS = {n: importlib.import_module(f".{n}", __name__).MATERIAL for n in REGISTRY}
 
 # Preset values of the thesis framework (K. Erleben, hyper-sim, simulate/create_params.m, 2011);

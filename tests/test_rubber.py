@@ -1,0 +1,148 @@
+"""Issue 71: the rubbers of one invariant (Yeoh, Gent, Arruda-Boyce) against their closed forms, through the kernels
+and through the whole application, and the inverse Langevin function Arruda-Boyce's model needs."""
+import math
+
+import numpy as np
+import pytest
+from scipy.optimize import brentq
+
+from conftest import ROOT, read_h5, run_ok
+from hyperelastic.physics.materials import MATERIALS, default_solid
+from hyperelastic.physics.materials.arruda_boyce import inverse_langevin, langevin
+
+MU = 0.4e6
+# each model's constants, from the options a user gives, and W'(I1_bar) written out here from the papers' formulas
+MODELS = {
+    "yeoh": ({"C10": MU / 2, "C20": -MU / 20, "C30": MU / 100},
+             lambda I1, o: o["C10"] + 2 * o["C20"] * (I1 - 3) + 3 * o["C30"] * (I1 - 3) ** 2),
+    "gent": ({"mu": MU, "Jm": 12.0}, lambda I1, o: o["mu"] / 2 / (1 - (I1 - 3) / o["Jm"])),
+    # Arruda & Boyce 1993: the nominal uniaxial stress mu_n/3 lambda_m/lambda_c L^-1(lambda_c/lambda_m) (l - l^-2),
+    # i.e. W' = mu_n lambda_m beta / (6 lambda_c); mu_n from the small-strain modulus mu = mu_n lambda_m L^-1(1/lm)/3
+    "arruda_boyce": ({"mu": MU, "lambda_m": 3.0},
+                     lambda I1, o: (3 * o["mu"] / (o["lambda_m"] * _inv_langevin(1 / o["lambda_m"])))
+                     * o["lambda_m"] * _inv_langevin(math.sqrt(I1 / 3) / o["lambda_m"]) / (6 * math.sqrt(I1 / 3))),
+}
+
+
+def _bernoulli_series(terms=60):
+    """coth b - 1/b = sum_n 2^(2n) B_2n / (2n)! b^(2n-1), converging for |b| < pi: its coefficients from Bernoulli's
+    numbers, computed here exactly (B_m = -1/(m+1) sum_k<m C(m+1, k) B_k)."""
+    from fractions import Fraction
+    B = [Fraction(1)]
+    for m in range(1, 2 * terms + 1):
+        B.append(-sum(math.comb(m + 1, k) * B[k] for k in range(m)) / (m + 1))
+    return [float(Fraction(4) ** n * B[2 * n] / math.factorial(2 * n)) for n in range(1, terms + 1)]
+
+
+SERIES = _bernoulli_series()
+
+
+def _langevin(b):
+    """L(b) without cancellation: the 60-term series below b = 2 (error < (2/pi)^120), coth b - 1/b above."""
+    if b < 2:
+        return math.fsum(c * b ** (2 * n + 1) for n, c in enumerate(SERIES))
+    return 1 / math.tanh(b) - 1 / b
+
+
+def _inv_langevin(r):
+    """L^-1(r) by bisection (an independent evaluation: no Newton, no approximation to start from)."""
+    return brentq(lambda b: _langevin(b) - r, 1e-9, 1e10, xtol=1e-300, rtol=1e-15, maxiter=500)
+
+
+def _solid(name, E=1.2e6, nu=0.3):
+    s = default_solid(name, E=E, nu=nu)
+    s.values.update(MODELS[name][0])
+    return s
+
+
+def test_inverse_langevin_to_round_off():
+    """L^-1 (Newton from Cohen's Pade approximation) against bisection, from r = 1e-6 (the series' range) to r =
+    1 - 1e-9 (beta = 1e9): within round-off and r's own, L(beta) = r to 5e-15 relative; and L, L' continuous where
+    the series hands over to the closed forms (b = 0.3)."""
+    r = np.concatenate([np.geomspace(1e-6, 0.5, 40), 1 - np.geomspace(0.5, 1e-9, 40)])
+    got = inverse_langevin(r)
+    want = np.array([_inv_langevin(v) for v in r])
+    # (r itself is known to 1e-16: beta's relative condition number near r = 1 is ~beta)
+    assert (np.abs(got / want - 1) <= 5e-14 + 4e-16 * want).all()
+    assert max(abs(_langevin(b) - v) / v for b, v in zip(got, r)) <= 5e-15     # (coth b - 1/b: a digit lost at b < 2)
+    assert np.isnan(inverse_langevin(np.array([0.0, 1.0, 1.5]))).all()
+    lo, hi = langevin(np.array([0.3 * (1 - 1e-15)])), langevin(np.array([0.3 * (1 + 1e-15)]))
+    for a, b in zip(lo, hi):
+        assert abs(a[0] - b[0]) <= 1e-14 * abs(a[0])
+
+
+@pytest.mark.parametrize("name", sorted(MODELS))
+@pytest.mark.parametrize("stretch", [0.6, 1.3, 2.2])
+def test_incompressible_closed_forms_at_J_one(name, stretch):
+    """At J = 1 (the volumetric part's stress 0) the kernels' reference stress is the incompressible closed forms
+    (Ogden, Non-linear Elastic Deformations, 1984, sec. 7.2): uniaxial (sigma_11 - sigma_22)/l = 2 (l - l^-2) W',
+    equibiaxial (sigma_11 - sigma_33)/l = 2 (l - l^-5) W', planar (pure shear) 2 (l - l^-3) W', simple shear
+    sigma_12 = 2 gamma W' with I1 = 3 + gamma^2 (gamma = stretch - 1), to 1e-12."""
+    s = _solid(name)
+    m, c, w1 = s.material, s.constants, MODELS[name][1]
+    lam = stretch
+    cases = [(np.diag([lam, lam ** -0.5, lam ** -0.5]), (0, 0), (1, 1), lam ** 2 + 2 / lam, 2 * (lam - lam ** -2)),
+             (np.diag([lam, lam, lam ** -2]), (0, 0), (2, 2), 2 * lam ** 2 + lam ** -4, 2 * (lam - lam ** -5)),
+             (np.diag([lam, 1.0, 1 / lam]), (0, 0), (2, 2), lam ** 2 + 1 + lam ** -2, 2 * (lam - lam ** -3))]
+    for F, i, j, I1, k in cases:
+        sigma = m.P(F[None], c)[0] @ F.T
+        want = k * w1(I1, s.values)
+        assert abs((sigma[i] - sigma[j]) / lam - want) <= 1e-12 * abs(want)
+    g = lam - 1
+    F = np.eye(3)
+    F[0, 1] = g
+    sigma = m.P(F[None], c)[0] @ F.T
+    want = 2 * g * w1(3 + g * g, s.values)
+    assert abs(sigma[0, 1] - want) <= 1e-12 * abs(want)
+
+
+def _homogeneous(name, mode, lam, E, nu):
+    """The model's nominal stress P_11 of a compressible homogeneous test: F = diag(lam, l2, l3), the free lateral
+    stretches found by bisection on their nominal stress 0. Split material: sigma = 2/J W'(I1_bar) (b_bar - I1_bar/3
+    I) + U'(J) I, U'(J) = kappa/2 (J - 1/J), P_ii = J sigma_ii / l_i."""
+    s = _solid(name, E, nu)
+    o, w1, kappa = s.values, MODELS[name][1], s.values["kappa"]
+
+    def P(l):
+        J = l[0] * l[1] * l[2]
+        bb = J ** (-2 / 3) * np.square(l)
+        return (2 * w1(bb.sum(), o) * (bb - bb.sum() / 3) + 0.5 * kappa * (J * J - 1)) / np.asarray(l)
+
+    if mode == "uniaxial":
+        t = brentq(lambda t: P([lam, t, t])[1], 0.3, 1.2, xtol=1e-15)
+        l = [lam, t, t]
+    elif mode == "equibiaxial":
+        t = brentq(lambda t: P([lam, lam, t])[2], 0.3, 1.2, xtol=1e-15)
+        l = [lam, lam, t]
+    else:
+        t = brentq(lambda t: P([lam, 1.0, t])[2], 0.3, 1.2, xtol=1e-15)
+        l = [lam, 1.0, t]
+    return P(l)[0], l
+
+
+@pytest.mark.parametrize("name", sorted(MODELS))
+def test_homogeneous_tests_through_the_application(name, tmp_path):
+    """Issue 71's closed forms through the whole application: a unit cube (symmetry planes xmin, ymin, zmin) stretched
+    to lambda = 1.8 uniaxially (the other faces free), 1.4 equibiaxially (xmax and ymax moved, zmax free) and 1.8 in
+    planar tension (ymax held: pure shear), at nu = 0.45 (kappa/mu = 9.7: the lateral stretches far from
+    incompressible): the reaction on xmax per reference area is the model's P_11 (formula above) within 1e-8, and the
+    free faces' stretches are the formula's."""
+    msh = tmp_path / "cube.msh"
+    run_ok(["mesh", f"{ROOT}/examples/cube.geo", "--size", 0.5, "-o", msh])
+    opts = [a for k, v in MODELS[name][0].items() for a in (f"-{k}", repr(v))]
+    E, nu = 1.2e6, 0.45
+    for mode, lam, moved, held in (("uniaxial", 1.8, "xmax:x", ""), ("equibiaxial", 1.4, "xmax:x,ymax:y", ""),
+                                   ("planar", 1.8, "xmax:x", ",ymax:y")):
+        out = tmp_path / f"{mode}.h5"
+        run_ok(["run", "bend", "-mesh", msh, "-material", name, *opts, "-E", E, "-nu", nu,
+                "-effects", "elasticity,fixed,prescribed", "-fix", "xmin:x,ymin:y,zmin:z" + held,
+                "-prescribe_faces", moved, "-prescribe_x", f"X*(1+{lam - 1!r}*t)",
+                *(["-prescribe_y", f"Y*(1+{lam - 1!r}*t)"] if "ymax:y" in moved else []),
+                "-quasistatic", "-final_time", 1, "-dt", 0.5, "-snes_rtol", 1e-13, "-snes_atol", 1e-9,
+                "-output", out, "-quiet"])
+        h = read_h5(out)
+        want, l = _homogeneous(name, mode, lam, E, nu)
+        got = h["stats"]["reaction_xmax_Fx"][-1]
+        assert abs(got - want) <= 1e-8 * abs(want), (mode, got, want)
+        x, X = h["x"][-1].reshape(-1, 3), h["points"]
+        assert np.abs(x - X * l).max() <= 1e-9, mode
