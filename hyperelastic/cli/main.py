@@ -16,6 +16,9 @@
                                                  what accuracy costs in time: CSV, PNGs, markdown
   hyperelastic study price --part P --scene S --size H --watch Q --target ERR
                                                  the cheapest setting for a target error on your part
+  hyperelastic fit DATA.csv --model NAME [-o F.opts] [--plot F.png]
+                                                 a rubber model fitted to uniaxial, equibiaxial and planar
+                                                 tests, with Drucker's stability; F.opts for -options_file
 """
 import math
 import os
@@ -379,6 +382,11 @@ def study_cmd(argv):
     return study_main(argv)
 
 
+def fit_cmd(argv):
+    from ..studies.fit import main as fit_main
+    return fit_main(argv)
+
+
 def version_lines():
     """`hyperelastic --version`: this package's version, then the installed versions of what it runs on (read from
     the installed packages' metadata: nothing is imported or initialized)."""
@@ -394,7 +402,7 @@ def version_lines():
 
 
 COMMANDS = {"run": run_cmd, "mesh": mesh_cmd, "plot": plot_cmd, "report": report_cmd, "scenes": scenes_cmd,
-            "study": study_cmd}
+            "study": study_cmd, "fit": fit_cmd}
 
 
 def main(argv=None):

@@ -43,6 +43,12 @@ class IsochoricI1(Material):
         return float(2 * cls.w(np.array(3.0), cls.constants(v))[1])
 
     @classmethod
+    def principal_tau(cls, stretches, v):
+        """tau_i = 2 lambda_i^2 W'(I1) (dI1/dlambda_i = 2 lambda_i)."""
+        sq = np.square(stretches)
+        return 2 * sq * cls.w(sq.sum(axis=-1), cls.constants({**v, "kappa": 0.0}))[1][..., None]
+
+    @classmethod
     def psi(cls, F, c):
         J, I1, j23, _ = _scalars(F)
         return cls.w(j23 * I1, c)[0] + volumetric(J, c[-1])[0]

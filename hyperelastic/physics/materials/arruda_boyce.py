@@ -66,6 +66,7 @@ class ArrudaBoyce(IsochoricI1):
     name = "arruda_boyce"
     summary = "μ, λm, κ: eight-chain rubber network"
     references = "Arruda & Boyce, J. Mech. Phys. Solids 41, 1993"
+    fitted = ("mu", "lambda_m")
     parameters = (
         Parameter("mu", "Pa", "shear modulus", shear_modulus, "E/(2(1+ν))"),
         Parameter("lambda_m", "-", "the chains' locking stretch (sqrt of the segments per chain)",
@@ -95,6 +96,10 @@ class ArrudaBoyce(IsochoricI1):
         L, dL, lnb = langevin(b)
         return (mun * lm * lm * (r * b + lnb - w0), mun * lm * b / (2 * q),
                 mun / (4 * q * q) * (1 / dL - 3 * lm * b / q))
+
+    @classmethod
+    def fit_limits(cls, I1max):
+        return {"lambda_m": (I1max / 3) ** 0.5}
 
     @classmethod
     def check(cls, v, where):

@@ -60,3 +60,20 @@ class Material:
         """(the kernel's parameter block of the isochoric part alone, shear modulus mu, bulk modulus kappa):
         for the mixed formulation, of a material with `volumetric`."""
         raise NotImplementedError
+
+    # the parameters `hyperelastic fit` fits (the material's own, but for the bulk modulus), and the incompressible
+    # principal Kirchhoff stresses they give; none: the material is not fitted
+    fitted = ()
+
+    @classmethod
+    def principal_tau(cls, stretches, v):
+        """tau_i = lambda_i dW/dlambda_i of the isochoric energy at the principal stretches (..., 3) of an
+        incompressible state (lambda_1 lambda_2 lambda_3 = 1), v the parameter values: the principal Cauchy stresses
+        up to the pressure (Ogden, Non-linear Elastic Deformations, 1984, sec. 4.3.4). For `hyperelastic fit`."""
+        raise NotImplementedError
+
+    @classmethod
+    def fit_limits(cls, I1max):
+        """{parameter: the value it must exceed} for the fitted state of largest I1 to be within a locking model's
+        limit (`hyperelastic fit`'s bounds); none for a model without one."""
+        return {}

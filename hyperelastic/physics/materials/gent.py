@@ -4,9 +4,11 @@ from ...core.errors import UserError
 from ._i1 import IsochoricI1
 from .base import Parameter, bulk_modulus, shear_modulus
 
-# Jm's default, the one of Gent's own rubber (I1 - 3 <= Jm ~ 100 for a lightly cross-linked rubber, Gent 1996; a fit of
-# Treloar's curves gives a similar value: docs/guide/rubber.md)
-JM_DEFAULT = 100.0
+# Jm's default: the chains' extensibility of arruda_boyce's default (N = 26.5 segments, Arruda & Boyce's fit of
+# Treloar's rubber): the two models lock at the same I1 = 3 N where Jm = 3 (N - 1) (Horgan & Saccomandi, Rubber Chem.
+# Technol. 75, 2002). `hyperelastic fit` of the Treloar curves Ogden's 1972 constants give: Jm 102 (uniaxial alone),
+# 122 (all three modes); docs/guide/rubber.md
+JM_DEFAULT = 3 * (26.5 - 1)
 
 
 class Gent(IsochoricI1):
@@ -18,10 +20,11 @@ class Gent(IsochoricI1):
     name = "gent"
     summary = "μ, Jm, κ: rubber that stiffens up to a locking stretch"
     references = "Gent, Rubber Chem. Technol. 69, 1996"
+    fitted = ("mu", "Jm")
     parameters = (
         Parameter("mu", "Pa", "shear modulus", shear_modulus, "E/(2(1+ν))"),
         Parameter("Jm", "-", "the limit of I1 - 3 (the chains' extensibility)", lambda v: JM_DEFAULT,
-                  f"{JM_DEFAULT:g}"),
+                  f"{JM_DEFAULT:g} (3 (N − 1), N = 26.5: arruda_boyce's λm²)"),
         Parameter("kappa", "Pa", "bulk modulus", bulk_modulus, "E/(3(1−2ν))"),
     )
 
@@ -37,6 +40,10 @@ class Gent(IsochoricI1):
         with np.errstate(invalid="ignore", divide="ignore"):
             x = np.where(s < Jm, 1 - s / Jm, np.nan)
             return np.where(s < Jm, -0.5 * mu * Jm * np.log1p(-s / Jm), np.nan), 0.5 * mu / x, 0.5 * mu / (Jm * x * x)
+
+    @classmethod
+    def fit_limits(cls, I1max):
+        return {"Jm": I1max - 3}
 
     @classmethod
     def check(cls, v, where):

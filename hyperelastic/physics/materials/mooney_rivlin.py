@@ -25,9 +25,17 @@ class MooneyRivlin(Material):
         Parameter("kappa", "Pa", "bulk modulus", bulk_modulus, "E/(3(1−2ν))"),
     )
 
+    fitted = ("C10", "C01")
+
     @staticmethod
     def constants(v):
         return (v["C10"], v["C01"], v["kappa"])
+
+    @classmethod
+    def principal_tau(cls, stretches, v):
+        """tau_i = 2 lambda_i^2 (C10 + C01 (I1 - lambda_i^2)) (dI2/dlambda_i = 2 lambda_i (I1 - lambda_i^2))."""
+        sq = np.square(stretches)
+        return 2 * sq * (v["C10"] + v["C01"] * (sq.sum(axis=-1, keepdims=True) - sq))
 
     @staticmethod
     def split(v):

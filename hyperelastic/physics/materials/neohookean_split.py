@@ -26,9 +26,16 @@ class NeoHookeanSplit(Material):
         Parameter("kappa", "Pa", "bulk modulus", bulk_modulus, "E/(3(1−2ν))"),
     )
 
+    fitted = ("mu",)
+
     @staticmethod
     def constants(v):
         return (v["mu"], v["kappa"])
+
+    @classmethod
+    def principal_tau(cls, stretches, v):
+        """tau_i = mu lambda_i^2."""
+        return v["mu"] * np.square(stretches)
 
     @staticmethod
     def split(v):

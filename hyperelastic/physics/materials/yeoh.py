@@ -16,6 +16,7 @@ class Yeoh(IsochoricI1):
     name = "yeoh"
     summary = "C10, C20, C30, κ: filled rubber to large strains"
     references = "Yeoh, Rubber Chem. Technol. 66, 1993"
+    fitted = ("C10", "C20", "C30")
     parameters = (
         Parameter("C10", "Pa", "the first invariant's modulus", lambda v: shear_modulus(v) / 2,
                   "μ/2 (μ = E/(2(1+ν)))"),

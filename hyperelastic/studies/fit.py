@@ -1,0 +1,414 @@
+"""`hyperelastic fit DATA.csv --model NAME`: a rubber model's constants from a laboratory's homogeneous tests.
+
+The data: a CSV file with a header naming the columns `mode`, `stretch`, `stress` (and optionally `weight`), a row per
+measured point: the test mode (uniaxial, equibiaxial, planar: planar tension, i.e. pure shear), the stretch lambda of
+the loaded direction and the nominal stress (force per reference area) there. The tests are taken as incompressible
+(Ogden, Non-linear Elastic Deformations, 1984, sec. 7.2): with the material's principal Kirchhoff stresses tau_i =
+lambda_i dW/dlambda_i (`Material.principal_tau`) at lambda_1 = lambda and the mode's other stretches, the nominal stress
+is (tau_1 - tau_f) / lambda, tau_f that of the stress-free direction (uniaxial lambda^-1/2, lambda^-1/2; equibiaxial
+lambda, lambda^-2, planar 1, 1/lambda: the last one free).
+
+The fit: least squares (scipy's trust-region reflective method, the parameters within their declared ranges and a
+locking model's limit beyond the data) of the relative error P_model / P_data - 1 (Abaqus' choice: the small strains
+count as much as the large; `--error absolute` for P_model - P_data), each point's weighted by its `weight`.
+
+Drucker's stability (Abaqus, Analysis User's Guide, "Hyperelastic behavior of rubberlike materials"): the material is
+stable where the work of every stress increment on its strain increment is positive, d sigma : d epsilon > 0. For an
+incompressible isotropic material, with logarithmic strains e_1, e_2 (e_3 = -e_1 - e_2) and w(e_1, e_2) =
+W(exp e_1, exp e_2, exp(-e_1 - e_2)), the pressure does no work on the isochoric increments and sigma_i - sigma_3 =
+dw/de_i, so d sigma : d epsilon = de^T H de with H the Hessian of w: stable where H is positive definite. It is checked
+along each mode's path (the Hessian by central differences of tau_i - tau_3, step 1e-6 in e) over a range of stretch,
+and the first unstable stretch on each side of 1 is reported.
+
+Writes an options file that `hyperelastic run SCENE -options_file FIT.opts` takes (the material, its fitted constants,
+kappa = --bulk-ratio times the fitted small-strain shear modulus and the E and nu they give), and with --plot a PNG of
+the fitted curves against the data."""
+import csv
+import math
+import os
+import sys
+
+import numpy as np
+
+from ..core.errors import ArgParser, UserError
+from ..core.files import writable_dir
+from ..physics import materials
+
+MODES = {"uniaxial": "uniaxial", "equibiaxial": "equibiaxial", "biaxial": "equibiaxial", "planar": "planar",
+         "pure_shear": "planar", "planar_shear": "planar"}
+ORDER = ("uniaxial", "equibiaxial", "planar")
+UNITS = {"Pa": 1.0, "kPa": 1e3, "MPa": 1e6}
+ALIASES = {"neohookean": "neohookean_split"}     # (the fit is of incompressible tests: the split model)
+BULK_RATIO = 1000.0      # kappa / mu of a rubber (~2 GPa against ~1 MPa: Treloar 1975, ch. 1; the rubber preset's)
+STABILITY = (0.1, 10.0)  # the stretches the stability check covers by default (Abaqus': nominal strain -0.9 to 9)
+DE = 1e-6                # the logarithmic-strain step of the stability check's Hessian
+STABLE, UNSTABLE, LOCKED = 1, 0, -1
+
+
+def fitted_models():
+    """The materials `fit` takes: those declaring fitted parameters, in registry order."""
+    return [n for n, m in materials.MATERIALS.items() if m.fitted]
+
+
+def stretches(mode, lam):
+    """The principal stretches (..., 3) of an incompressible homogeneous test at loaded stretch lam, and the index
+    of its stress-free direction."""
+    lam = np.asarray(lam, dtype=float)
+    if mode == "uniaxial":
+        return np.stack([lam, lam ** -0.5, lam ** -0.5], axis=-1), 2
+    if mode == "equibiaxial":
+        return np.stack([lam, lam, lam ** -2.0], axis=-1), 2
+    return np.stack([lam, np.ones_like(lam), 1 / lam], axis=-1), 2
+
+
+def nominal(material, values, mode, lam):
+    """The nominal stress (force per reference area) of the test `mode` at stretch lam."""
+    ls, free = stretches(mode, lam)
+    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+        tau = material.principal_tau(ls, values)
+    return (tau[..., 0] - tau[..., free]) / np.asarray(lam, dtype=float)
+
+
+def read_data(path, unit="Pa"):
+    """{mode: (stretch, stress [Pa], weight)} of a CSV file; one UserError line for anything wrong in it."""
+    where = f"fit: data '{path}'"
+    try:
+        with open(path, newline="", encoding="utf-8") as fh:
+            rows = list(csv.reader(fh))
+    except FileNotFoundError:
+        raise UserError(f"{where}: no such file") from None
+    except IsADirectoryError:
+        raise UserError(f"{where}: is a directory") from None
+    except (OSError, UnicodeDecodeError, csv.Error) as e:
+        raise UserError(f"{where}: cannot be read as CSV text ({getattr(e, 'strerror', None) or e})") from None
+    rows = [r for r in rows if any(c.strip() for c in r) and not r[0].lstrip().startswith("#")]
+    if not rows:
+        raise UserError(f"{where}: is empty (a header 'mode,stretch,stress[,weight]' and a row per point)")
+    head = [c.strip().lower() for c in rows[0]]
+    for need in ("mode", "stretch", "stress"):
+        if need not in head:
+            raise UserError(f"{where}: its header has no column '{need}' (it needs mode, stretch, stress and may have "
+                            f"weight; got {','.join(head)[:80]})")
+    col = {c: head.index(c) for c in ("mode", "stretch", "stress", "weight") if c in head}
+    data = {}
+    for line, r in enumerate(rows[1:], start=2):
+        if len(r) < len(head):
+            raise UserError(f"{where}, row {line}: {len(r)} columns where the header has {len(head)}")
+        word = r[col["mode"]].strip().lower()
+        if word not in MODES:
+            raise UserError(f"{where}, row {line}: unknown mode '{word[:40]}' (choose from uniaxial, equibiaxial, "
+                            "planar)")
+        vals = []
+        for c in ("stretch", "stress", "weight"):
+            if c not in col:
+                vals.append(1.0)
+                continue
+            try:
+                v = float(r[col[c]])
+            except ValueError:
+                raise UserError(f"{where}, row {line}: {c} '{r[col[c]].strip()[:40]}' is not a number") from None
+            if not math.isfinite(v):
+                raise UserError(f"{where}, row {line}: {c} {v} is not a finite number")
+            vals.append(v)
+        lam, stress, weight = vals
+        if lam <= 0:
+            raise UserError(f"{where}, row {line}: stretch {lam:g} must be > 0")
+        if weight < 0:
+            raise UserError(f"{where}, row {line}: weight {weight:g} must be >= 0")
+        data.setdefault(MODES[word], []).append((lam, stress * UNITS[unit], weight))
+    if not data:
+        raise UserError(f"{where}: holds a header and no points")
+    out = {}
+    for mode in ORDER:
+        if mode not in data:
+            continue
+        a = np.array(data[mode])
+        d = np.diff(a[:, 0])
+        if len(a) < 2:
+            raise UserError(f"{where}: one {mode} point (a curve needs two or more)")
+        if not ((d > 0).all() or (d < 0).all()):
+            k = int(np.flatnonzero(np.sign(d) != np.sign(d[0]))[0]) if (d != 0).all() else int(np.flatnonzero(d == 0)[0])
+            raise UserError(f"{where}: the {mode} stretches are not monotone (stretch {a[k + 1, 0]:g} after "
+                            f"{a[k, 0]:g}): one loading curve per mode, in order")
+        out[mode] = (a[:, 0], a[:, 1], a[:, 2])
+    return out
+
+
+def _scale_of(data):
+    """A small-strain shear modulus from the data (the neo-Hookean one each point gives, their median): the scale of
+    the moduli, and the fit's start."""
+    est = []
+    for mode, (lam, P, _) in data.items():
+        k = nominal(materials.MATERIALS["neohookean_split"], {"mu": 1.0}, mode, lam)
+        ok = np.abs(k) > 1e-12
+        est += list(P[ok] / k[ok])
+    mu = float(np.median(est)) if est else 0.0
+    if not mu > 0:
+        raise UserError("fit: the data do not describe a solid (the stresses' signs against the stretches give no "
+                        "positive shear modulus)")
+    return mu
+
+
+class Fit:
+    """A model fitted to data: its values (all parameters, kappa included), the errors per mode, stability."""
+
+    def __init__(self, name, data, error="relative", bulk_ratio=BULK_RATIO):
+        name = ALIASES.get(name, name)
+        if name not in fitted_models():
+            raise UserError(f"fit: unknown model '{name}' (choose from {', '.join(fitted_models())})")
+        self.name, self.material, self.data, self.error = name, materials.MATERIALS[name], data, error
+        self.npoints = sum(len(v[0]) for v in data.values())
+        params = [p for p in self.material.parameters if p.name in self.material.fitted]
+        if self.npoints <= len(params):
+            raise UserError(f"fit: {self.npoints} points for {name}'s {len(params)} constants (it needs more points "
+                            "than constants)")
+        self.mu_data = _scale_of(data)
+        self.params = params
+        self.values = self._solve(bulk_ratio)
+
+    def _bounds(self):
+        I1max = max(float(np.square(stretches(m, lam)[0]).sum(axis=-1).max()) for m, (lam, _, _) in self.data.items())
+        lo, hi, start = [], [], []
+        limits = self.material.fit_limits(I1max)
+        for p in self.params:
+            scale = self.mu_data if p.unit == "Pa" else 1.0
+            low = max(p.minimum, limits.get(p.name, -math.inf))
+            if p.exclusive or p.name in limits:
+                low = low + max(abs(low), scale) * 1e-9 if math.isfinite(low) else low
+            lo.append(low / scale)
+            hi.append(math.inf)
+            start.append(self._start(p, limits, scale))
+        return np.array(lo), np.array(hi), np.array(start)
+
+    def _start(self, p, limits, scale):
+        """The start of parameter p: the data's modulus for a modulus (halved for an invariant's: W' = mu/2), zero for
+        higher terms, three times its limit for a locking stretch or extensibility."""
+        if p.name in limits:
+            return 3 * max(limits[p.name], 1.0)
+        if p.unit != "Pa":
+            return 1.0
+        return {"mu": 1.0, "C10": 0.5}.get(p.name, 0.0)
+
+    def _values(self, z):
+        v = {p.name: float(zi) * (self.mu_data if p.unit == "Pa" else 1.0) for p, zi in zip(self.params, z)}
+        return v
+
+    def model(self, mode, lam, values=None):
+        return nominal(self.material, self.values if values is None else values, mode, lam)
+
+    def residuals(self, values):
+        out = []
+        for mode, (lam, P, w) in self.data.items():
+            Pm = self.model(mode, lam, values)
+            if self.error == "relative":
+                ok = np.abs(P) > 1e-12 * max(abs(P).max(), self.mu_data)
+                r = np.where(ok, Pm / np.where(ok, P, 1.0) - 1, (Pm - P) / self.mu_data)
+            else:
+                r = (Pm - P) / self.mu_data
+            out.append(np.sqrt(w) * r)
+        r = np.concatenate(out)
+        return np.where(np.isfinite(r), r, 1e6)
+
+    def _solve(self, bulk_ratio):
+        from scipy.optimize import least_squares    # deferred: only `fit` needs scipy
+        lo, hi, start = self._bounds()
+        start = np.clip(start, lo, hi)
+        res = least_squares(lambda z: self.residuals(self._values(z)), start, bounds=(lo, hi), method="trf",
+                            x_scale="jac", ftol=1e-15, xtol=1e-15, gtol=1e-15, max_nfev=20000)
+        values = self._values(res.x)
+        values["kappa"] = 0.0
+        mu0 = self.material.split(values)[1] if self.material.volumetric else self.mu_data
+        if not mu0 > 0:
+            raise UserError(f"fit: {self.name} fitted to a small-strain shear modulus {mu0:g} <= 0: the data do not "
+                            "suit this model")
+        values["kappa"] = bulk_ratio * mu0
+        self.mu0 = mu0
+        self.cost = float(np.sqrt(np.mean(self.residuals(values) ** 2)))
+        return values
+
+    def mode_errors(self):
+        """{mode: (rms, max, stretch at max)} of the relative errors (absolute ones over the data's modulus with
+        --error absolute)."""
+        out = {}
+        for mode, (lam, P, _) in self.data.items():
+            Pm = self.model(mode, lam)
+            e = np.abs(Pm / P - 1) if self.error == "relative" and (P != 0).all() else np.abs(Pm - P) / self.mu_data
+            k = int(np.argmax(e))
+            out[mode] = (float(np.sqrt(np.mean(e ** 2))), float(e[k]), float(lam[k]))
+        return out
+
+    def hessian(self, mode, lam):
+        """The Hessian (..., 2, 2) of w(e_1, e_2) at the mode's state of stretch lam (central differences of
+        tau_i - tau_3 in the logarithmic strains)."""
+        ls = np.log(stretches(mode, lam)[0])
+        H = np.zeros(np.shape(lam) + (2, 2))
+        for j in range(2):
+            d = np.zeros(3)
+            d[j], d[2] = DE, -DE
+            gp = self._tau_diff(np.exp(ls + d))
+            gm = self._tau_diff(np.exp(ls - d))
+            H[..., :, j] = (gp - gm) / (2 * DE)
+        return 0.5 * (H + np.swapaxes(H, -1, -2))
+
+    def _tau_diff(self, ls):
+        with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+            t = self.material.principal_tau(ls, self.values)
+        return t[..., :2] - t[..., 2:3]
+
+    def state(self, mode, lam):
+        """Per stretch: STABLE (H positive definite), UNSTABLE, or LOCKED (beyond a locking model's limit: undefined)."""
+        H = self.hessian(mode, np.asarray(lam, dtype=float))
+        locked = ~np.isfinite(H).all(axis=(-1, -2))
+        ev = np.linalg.eigvalsh(np.where(locked[..., None, None], 0.0, H))[..., 0]
+        return np.where(locked, LOCKED, np.where(ev > 0, STABLE, UNSTABLE))
+
+    def stable(self, mode, lam):
+        return self.state(mode, lam) == STABLE
+
+    def stability(self, lo=STABILITY[0], hi=STABILITY[1], n=400):
+        """{mode: ((lowest stable stretch, why it ends), (highest, why))} of the interval around 1 where the mode's
+        states are stable, each end to 1e-4 relative; why: None where stable up to lo or hi, else UNSTABLE or
+        LOCKED (what the next stretch is)."""
+        out = {}
+        for mode in ORDER:
+            ends = []
+            for edge in (lo, hi):
+                grid = np.geomspace(1.0, edge, n)[1:]
+                st = self.state(mode, grid)
+                if (st == STABLE).all():
+                    ends.append((edge, None))
+                    continue
+                k = int(np.argmax(st != STABLE))
+                a, b = (1.0 if k == 0 else grid[k - 1]), grid[k]     # stable at a, not at b
+                while abs(b / a - 1) > 1e-4:
+                    m = math.sqrt(a * b)
+                    a, b = (m, b) if self.state(mode, m) == STABLE else (a, m)
+                ends.append((a, int(self.state(mode, b))))
+            out[mode] = tuple(ends)
+        return out
+
+    def option_lines(self):
+        """The options file's lines: the material, its fitted constants, kappa, and the E and nu they give."""
+        mu, kappa = self.mu0, self.values["kappa"]
+        E, nu = 9 * kappa * mu / (3 * kappa + mu), (3 * kappa - 2 * mu) / (2 * (3 * kappa + mu))
+        lines = [f"-material {self.name}"]
+        lines += [f"-{p.name} {float(self.values[p.name])!r}" for p in self.params]     # (every digit: the run's
+        lines += [f"-kappa {float(kappa)!r}", f"-E {float(E)!r}", f"-nu {float(nu)!r}"]  # constants are the fit's)
+        return lines
+
+
+def _describe(fit, stab, lo, hi):
+    unit = {p.name: p.unit for p in fit.params}
+    lines = [f"fit: {fit.name} to {fit.npoints} points (" + ", ".join(f"{len(v[0])} {m}" for m, v in fit.data.items())
+             + f"; {fit.error} error)"]
+    lines.append("  " + ", ".join(f"{p.name} {fit.values[p.name]:.6g}" + (" Pa" if unit[p.name] == "Pa" else "")
+                                  for p in fit.params) + f"; small-strain shear modulus {fit.mu0:.6g} Pa")
+    what = "relative error" if fit.error == "relative" else "error / modulus"
+    for mode, (rms, mx, at) in fit.mode_errors().items():
+        lines.append(f"  {mode:12s} {what}: rms {100 * rms:.3g}%, max {100 * mx:.3g}% (at stretch {at:.4g})")
+    lines.append(f"  Drucker stability, stretch {lo:g} to {hi:g}:")
+    why = {UNSTABLE: "unstable", LOCKED: "locked (the chains' limit)"}
+    for mode, ((a, wa), (b, wb)) in stab.items():
+        if wa is None and wb is None:
+            lines.append(f"    {mode:12s} stable throughout")
+            continue
+        lines.append(f"    {mode:12s} stable from {a:.4g} to {b:.4g}" + (f"; {why[wa]} below {a:.4g}" if wa is not None else "")
+                     + (f"; {why[wb]} above {b:.4g}" if wb is not None else ""))
+    return lines
+
+
+def _write_text(path, text):
+    """Write path whole or not at all (a temporary beside it, then renamed over it)."""
+    tmp = path + ".partial"
+    try:
+        with open(tmp, "w", encoding="utf-8") as fh:
+            fh.write(text)
+        os.replace(tmp, path)
+    except OSError as e:
+        raise UserError(f"fit: cannot write '{path}' ({e.strerror})") from None
+
+
+def _check_out(path, data_path, suffix, option):
+    if os.path.isdir(path):
+        raise UserError(f"fit: {option} '{path}' is a directory")
+    if os.path.realpath(path) == os.path.realpath(data_path):
+        raise UserError(f"fit: {option} '{path}' would overwrite the data")
+    if not path.lower().endswith(suffix):
+        raise UserError(f"fit: {option} '{path}' must end in {suffix}")
+    writable_dir(os.path.dirname(os.path.abspath(path)) or ".", f"fit: {option} '{path}'")
+
+
+def plot(fit, path, stab):
+    from ..output.figures import legend, pyplot
+    plt = pyplot()
+    fig, ax = plt.subplots(figsize=(6.4, 4.6))
+    for i, (mode, (lam, P, _)) in enumerate(fit.data.items()):
+        c = f"C{i}"
+        ax.plot(lam, P / 1e6, "o", color=c, ms=4, label=f"{mode} (data)")
+        grid = np.linspace(min(lam.min(), 1.0), lam.max(), 200)
+        ax.plot(grid, fit.model(mode, grid) / 1e6, "-", color=c, label=f"{mode} ({fit.name})")
+        ok = fit.stable(mode, grid)
+        if not ok.all():
+            ax.plot(grid[~ok], fit.model(mode, grid[~ok]) / 1e6, "x", color="k", ms=3)
+    ax.set_xlabel("stretch λ")
+    ax.set_ylabel("nominal stress [MPa]")
+    ax.set_title(f"{fit.name}: " + ", ".join(f"{p.name} {fit.values[p.name]:.4g}" for p in fit.params), fontsize=9)
+    ax.grid(alpha=0.3)
+    legend(ax, fontsize=8)
+    fig.tight_layout()
+    tmp = path + ".partial.png"
+    fig.savefig(tmp, dpi=120)
+    plt.close(fig)
+    os.replace(tmp, path)
+
+
+def _parser():
+    ap = ArgParser(prog="hyperelastic fit", description="A rubber model's constants fitted to homogeneous tests "
+                   "(uniaxial, equibiaxial, planar: nominal stress against stretch), with Drucker's stability.")
+    ap.add_argument("data", help="CSV with a header: mode,stretch,stress[,weight]")
+    ap.add_argument("--model", required=True, help="one of: " + ", ".join(fitted_models()) + " (neohookean: "
+                    "neohookean_split)")
+    ap.add_argument("-o", "--output", default=None, help="the options file to write (default: DATA_MODEL.opts)")
+    ap.add_argument("--plot", default=None, help="a PNG of the fit against the data")
+    ap.add_argument("--unit", choices=tuple(UNITS), default="Pa", help="the data's stress unit (default Pa)")
+    ap.add_argument("--error", choices=("relative", "absolute"), default="relative")
+    ap.add_argument("--bulk-ratio", type=float, default=BULK_RATIO, help="kappa / mu written to the options file "
+                    f"(default {BULK_RATIO:g}: a rubber's)")
+    ap.add_argument("--stability", default=f"{STABILITY[0]:g}:{STABILITY[1]:g}", help="the stretches LO:HI the "
+                    "stability check covers (default 0.1:10)")
+    return ap
+
+
+def _range(text):
+    try:
+        lo, hi = (float(v) for v in text.split(":"))
+    except ValueError:
+        raise UserError(f"fit: --stability '{text}': give LO:HI, two numbers (e.g. 0.1:10)") from None
+    if not (0 < lo < 1 < hi and math.isfinite(hi)):
+        raise UserError(f"fit: --stability '{text}': needs 0 < LO < 1 < HI")
+    return lo, hi
+
+
+def main(argv):
+    a = _parser().parse_args(argv)
+    lo, hi = _range(a.stability)
+    if not (math.isfinite(a.bulk_ratio) and a.bulk_ratio > 0):
+        raise UserError(f"fit: --bulk-ratio {a.bulk_ratio:g} must be a positive number")
+    model = ALIASES.get(a.model, a.model)
+    out = a.output or os.path.splitext(a.data)[0] + f"_{model}.opts"
+    _check_out(out, a.data, ".opts", "--output")
+    if a.plot:
+        _check_out(a.plot, a.data, ".png", "--plot")
+    fit = Fit(a.model, read_data(a.data, a.unit), a.error, a.bulk_ratio)
+    stab = fit.stability(lo, hi)
+    lines = _describe(fit, stab, lo, hi)
+    print("\n".join(lines))
+    head = ["# " + "hyperelastic fit " + " ".join(argv), *("# " + ln for ln in lines[1:]),
+            "# (kappa: --bulk-ratio times the small-strain shear modulus; E and nu: the ones mu and kappa give)"]
+    _write_text(out, "\n".join(head + fit.option_lines()) + "\n")
+    print(f"wrote {out} (hyperelastic run SCENE -options_file {out})")
+    if a.plot:
+        plot(fit, a.plot, stab)
+        print(f"wrote {a.plot}")
+    sys.stdout.flush()
+    return 0

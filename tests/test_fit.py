@@ -1,0 +1,181 @@
+"""`hyperelastic fit` (issue 71 item 4): a model's constants recovered from the curves it generates, the options file
+a run takes, Drucker's stability against the Hessian written out, and one line for bad data."""
+import math
+import os
+
+import numpy as np
+import pytest
+
+from conftest import hyperelastic, read_h5, run_ok
+from test_rubber import MODELS as RUBBER
+
+LAM = {"uniaxial": np.linspace(0.6, 5.0, 12), "equibiaxial": np.linspace(1.05, 2.5, 8),
+       "planar": np.linspace(1.05, 3.5, 8)}
+
+
+def _w1(name, I1, v):
+    """W'(I1) of each one-invariant model, written out from the papers' formulas."""
+    if name == "yeoh":
+        s = I1 - 3
+        return v["C10"] + 2 * v["C20"] * s + 3 * v["C30"] * s * s
+    if name == "gent":
+        return v["mu"] / 2 / (1 - (I1 - 3) / v["Jm"])
+    if name == "neohookean_split":
+        return v["mu"] / 2
+    return RUBBER[name][1](I1, v)          # (Arruda-Boyce's, through a bisection for the inverse Langevin function)
+
+
+def _nominal(name, mode, lam, v):
+    """Incompressible nominal stresses (Ogden 1984, sec. 7.2): 2 (l - l^-2)(W1 + W2/l), 2 (l - l^-5)(W1 + l^2 W2),
+    2 (l - l^-3)(W1 + W2); Mooney-Rivlin W1 = C10, W2 = C01."""
+    I1 = {"uniaxial": lam ** 2 + 2 / lam, "equibiaxial": 2 * lam ** 2 + lam ** -4,
+          "planar": lam ** 2 + 1 + lam ** -2}[mode]
+    W1, W2 = (v["C10"], v["C01"]) if name == "mooney_rivlin" else (_w1(name, I1, v), 0.0)
+    if mode == "uniaxial":
+        return 2 * (lam - lam ** -2) * (W1 + W2 / lam)
+    if mode == "equibiaxial":
+        return 2 * (lam - lam ** -5) * (W1 + lam ** 2 * W2)
+    return 2 * (lam - lam ** -3) * (W1 + W2)
+
+
+def _csv(path, rows):
+    path.write_text("mode,stretch,stress\n" + "".join(f"{m},{l!r},{p!r}\n" for m, l, p in rows))
+    return path
+
+
+CASES = {"neohookean_split": {"mu": 0.41e6}, "mooney_rivlin": {"C10": 0.16e6, "C01": 0.02e6},
+         "yeoh": {"C10": 0.3e6, "C20": -0.012e6, "C30": 0.0008e6}, "gent": {"mu": 0.35e6, "Jm": 40.0},
+         "arruda_boyce": {"mu": 0.3e6, "lambda_m": 4.0}}
+
+
+@pytest.mark.parametrize("name", sorted(CASES))
+def test_fit_recovers_the_constants_of_the_curves_a_model_gives(name, tmp_path):
+    """Uniaxial (compression included), equibiaxial and planar curves from a model's closed forms: `fit` recovers its
+    constants to 1e-6, reports errors below 1e-8, and writes an options file that a run takes (the run's material
+    and constants are the fitted ones)."""
+    v = CASES[name]
+    rows = [(m, float(l), float(_nominal(name, m, l, v))) for m, ls in LAM.items() for l in ls]
+    assert all(math.isfinite(r[2]) for r in rows)
+    data = _csv(tmp_path / "lab.csv", rows)
+    opts = tmp_path / "lab.opts"
+    p = run_ok(["fit", data, "--model", name, "-o", opts])
+    got = {}
+    for line in opts.read_text().splitlines():
+        if line.startswith("-"):
+            k, val = line[1:].split()
+            got[k] = val
+    assert got["material"] == name
+    for k, want in v.items():
+        assert abs(float(got[k]) - want) <= 1e-6 * abs(want), (k, got[k], want)
+    assert "rms 0%" in p.stdout or all(float(t.split("rms ")[1].split("%")[0]) < 1e-6
+                                       for t in p.stdout.splitlines() if "rms " in t), p.stdout
+    mu = float(got["mu"]) if "mu" in got else 2 * (float(got["C10"]) + float(got.get("C01", 0.0)))
+    assert abs(float(got["kappa"]) / mu - 1000) <= 1e-6
+    E, nu, kappa = float(got["E"]), float(got["nu"]), float(got["kappa"])
+    assert abs(E / (2 * (1 + nu)) / mu - 1) <= 1e-8 and abs(E / (3 * (1 - 2 * nu)) / kappa - 1) <= 1e-8
+    out = tmp_path / "o.h5"
+    run_ok(["run", "bend", "-options_file", opts, "-final_time", 0.01, "-output", out, "-quiet"])
+    import json
+    rec = json.loads(read_h5(out)["attrs"]["material_parameters"])
+    assert rec["material"] == name and all(abs(rec[k] / float(got[k]) - 1) <= 1e-9 for k in v)
+
+
+def test_fit_of_treloar_curves_and_the_plot(tmp_path):
+    """Ogden's three-term fit of Treloar's vulcanised rubber (Ogden, Proc. R. Soc. A 326, 1972: mu_p = 0.63, 0.0012,
+    -0.01 MPa, alpha_p = 1.3, 5.0, -2.0) generates the three curves (stretch to 7.5); Arruda-Boyce fitted to them finds
+    a locking stretch near Arruda and Boyce's own fit of Treloar's data (N = 26.5: lambda_m = 5.15; measured 5.54),
+    its uniaxial curve within 20% rms, and the PNG is an image of the fit."""
+    mu, al = (0.63e6, 0.0012e6, -0.01e6), (1.3, 5.0, -2.0)
+
+    def tau(x):
+        return sum(m * x ** a for m, a in zip(mu, al))
+    rows = [("uniaxial", l, (tau(l) - tau(l ** -0.5)) / l) for l in np.linspace(1.1, 7.5, 17)]
+    rows += [("equibiaxial", l, (tau(l) - tau(l ** -2)) / l) for l in np.linspace(1.1, 4.5, 10)]
+    rows += [("planar", l, (tau(l) - tau(1 / l)) / l) for l in np.linspace(1.1, 5.0, 10)]
+    data = _csv(tmp_path / "treloar.csv", [(m, float(l), float(p)) for m, l, p in rows])
+    png = tmp_path / "fit.png"
+    p = run_ok(["fit", data, "--model", "arruda_boyce", "--plot", png, "-o", tmp_path / "ab.opts"])
+    lm = float([ln for ln in (tmp_path / "ab.opts").read_text().splitlines() if ln.startswith("-lambda_m")][0].split()[1])
+    assert 5.0 < lm < 6.0, lm
+    rms = float([ln for ln in p.stdout.splitlines() if ln.strip().startswith("uniaxial ")][0].split("rms ")[1].split("%")[0])
+    assert rms < 20, p.stdout
+    from PIL import Image
+    with Image.open(png) as im:
+        assert im.format == "PNG" and im.size[0] > 300
+
+
+def _hessian_yeoh(v, ls):
+    """The Hessian of w(e1, e2) = W(I1) for W(I1) alone, written out: dI1/de_i = 2 (l_i^2 - l_3^2), d2I1/de_i de_j =
+    4 l_3^2 + 4 delta_ij l_i^2, H = W'' dI1 dI1^T + W' d2I1."""
+    I1 = (ls ** 2).sum()
+    s = I1 - 3
+    w1 = v["C10"] + 2 * v["C20"] * s + 3 * v["C30"] * s * s
+    w2 = 2 * v["C20"] + 6 * v["C30"] * s
+    g = 2 * (ls[:2] ** 2 - ls[2] ** 2)
+    return w2 * np.outer(g, g) + w1 * (4 * ls[2] ** 2 + 4 * np.diag(ls[:2] ** 2))
+
+
+def test_drucker_stability_against_the_hessian_written_out(tmp_path):
+    """A filled-rubber Yeoh with a strongly negative C20 (C10 = 0.5, C20 = -0.1, C30 = 0.008 MPa: W' > 0, its
+    stresses of the right sign, but W'' < 0 strong enough) is unstable over a
+    band of stretch: the stable ranges `fit` reports for each mode are those where the Hessian written out above is
+    positive definite (found here on a fine grid), to the grid's 0.2%."""
+    from hyperelastic.studies.fit import Fit, stretches
+    v = {"C10": 0.5e6, "C20": -0.1e6, "C30": 0.008e6}
+    data = {m: (LAM[m], _nominal("yeoh", m, LAM[m], v), np.ones(len(LAM[m]))) for m in LAM}
+    f = Fit("yeoh", data)
+    stab = f.stability(0.1, 10.0)
+    some_unstable = False
+    for mode in LAM:
+        for edge, (end, why) in zip((0.1, 10.0), stab[mode]):
+            grid = np.geomspace(1.0, edge, 3000)[1:]
+            pd = np.array([np.linalg.eigvalsh(_hessian_yeoh(v, stretches(mode, g)[0]))[0] > 0 for g in grid])
+            if pd.all():
+                assert why is None and end == edge
+                continue
+            some_unstable = True
+            first_bad = grid[int(np.argmin(pd))]
+            assert why == 0 and abs(math.log(end / first_bad)) <= 2e-3 + abs(math.log(grid[1] / grid[0])), \
+                (mode, end, first_bad)
+    assert some_unstable
+    p = run_ok(["fit", _csv(tmp_path / "y.csv", [(m, float(l), float(P)) for m, (ls, Ps, _) in data.items()
+                                                 for l, P in zip(ls, Ps)]), "--model", "yeoh",
+                "-o", tmp_path / "y.opts"])
+    assert "unstable above" in p.stdout or "unstable below" in p.stdout
+
+
+BAD = {
+    "non_monotone": ("mode,stretch,stress\nuniaxial,1.1,1\nuniaxial,1.3,2\nuniaxial,1.2,3\n", "not monotone"),
+    "nan": ("mode,stretch,stress\nuniaxial,1.1,1\nuniaxial,1.3,nan\n", "not a finite number"),
+    "one_point": ("mode,stretch,stress\nuniaxial,1.1,1\nequibiaxial,1.2,2\nequibiaxial,1.3,3\n", "one uniaxial point"),
+    "unknown_mode": ("mode,stretch,stress\ntorsion,1.1,1\n", "unknown mode 'torsion'"),
+    "no_column": ("mode,lambda,stress\nuniaxial,1.1,1\n", "no column 'stretch'"),
+    "text": ("mode,stretch,stress\nuniaxial,abc,1\n", "'abc' is not a number"),
+    "negative_stretch": ("mode,stretch,stress\nuniaxial,-1.1,1\n", "must be > 0"),
+    "few_points": ("mode,stretch,stress\nuniaxial,1.1,1\nuniaxial,1.3,2\n", "2 points for yeoh's 3 constants"),
+    "empty": ("", "is empty"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(BAD))
+def test_bad_data_gets_one_line_and_leaves_the_options_file(case, tmp_path):
+    text, want = BAD[case]
+    data = tmp_path / "d.csv"
+    data.write_text(text)
+    opts = tmp_path / "d.opts"
+    opts.write_text("-material yeoh\n")
+    p = hyperelastic(["fit", data, "--model", "yeoh", "-o", opts])
+    assert p.returncode == 2 and want in p.stderr and len(p.stderr.strip().splitlines()) == 1, p.stderr
+    assert opts.read_text() == "-material yeoh\n"
+
+
+def test_bad_arguments_get_one_line(tmp_path):
+    data = _csv(tmp_path / "d.csv", [("uniaxial", 1.1, 1e5), ("uniaxial", 1.5, 3e5), ("uniaxial", 2.0, 5e5)])
+    for args, want in ((["--model", "ogden9"], "unknown model 'ogden9'"),
+                       (["--model", "gent", "-o", data], "would overwrite the data"),
+                       (["--model", "gent", "--plot", tmp_path / "f.jpg"], "must end in .png"),
+                       (["--model", "gent", "--stability", "2:3"], "needs 0 < LO < 1 < HI"),
+                       (["--model", "gent", "--bulk-ratio", "-1"], "must be a positive number")):
+        p = hyperelastic(["fit", data, *args])
+        assert p.returncode == 2 and want in p.stderr and len(p.stderr.strip().splitlines()) == 1, (args, p.stderr)
+    assert not os.path.exists(tmp_path / "d_gent.opts")
