@@ -94,44 +94,47 @@ def read_data(path, unit="Pa"):
     for line, r in enumerate(rows[1:], start=2):
         if len(r) < len(head):
             raise UserError(f"{where}, row {line}: {len(r)} columns where the header has {len(head)}")
-        word = r[col["mode"]].strip().lower()
-        if word not in MODES:
-            raise UserError(f"{where}, row {line}: unknown mode '{word[:40]}' (choose from uniaxial, equibiaxial, "
-                            "planar)")
-        vals = []
-        for c in ("stretch", "stress", "weight"):
-            if c not in col:
-                vals.append(1.0)
-                continue
-            try:
-                v = float(r[col[c]])
-            except ValueError:
-                raise UserError(f"{where}, row {line}: {c} '{r[col[c]].strip()[:40]}' is not a number") from None
-            if not math.isfinite(v):
-                raise UserError(f"{where}, row {line}: {c} {v} is not a finite number")
-            vals.append(v)
-        lam, stress, weight = vals
-        if lam <= 0:
-            raise UserError(f"{where}, row {line}: stretch {lam:g} must be > 0")
-        if weight < 0:
-            raise UserError(f"{where}, row {line}: weight {weight:g} must be >= 0")
-        data.setdefault(MODES[word], []).append((lam, stress * UNITS[unit], weight))
+        mode, lam, stress, weight = _row(r, col, f"{where}, row {line}")
+        data.setdefault(mode, []).append((lam, stress * UNITS[unit], weight))
     if not data:
         raise UserError(f"{where}: holds a header and no points")
-    out = {}
-    for mode in ORDER:
-        if mode not in data:
+    return {mode: _curve(np.array(data[mode]), mode, where) for mode in ORDER if mode in data}
+
+
+def _row(r, col, where):
+    """(mode, stretch, stress, weight) of a data row."""
+    word = r[col["mode"]].strip().lower()
+    if word not in MODES:
+        raise UserError(f"{where}: unknown mode '{word[:40]}' (choose from uniaxial, equibiaxial, planar)")
+    vals = []
+    for c in ("stretch", "stress", "weight"):
+        if c not in col:
+            vals.append(1.0)
             continue
-        a = np.array(data[mode])
-        d = np.diff(a[:, 0])
-        if len(a) < 2:
-            raise UserError(f"{where}: one {mode} point (a curve needs two or more)")
-        if not ((d > 0).all() or (d < 0).all()):
-            k = int(np.flatnonzero(np.sign(d) != np.sign(d[0]))[0]) if (d != 0).all() else int(np.flatnonzero(d == 0)[0])
-            raise UserError(f"{where}: the {mode} stretches are not monotone (stretch {a[k + 1, 0]:g} after "
-                            f"{a[k, 0]:g}): one loading curve per mode, in order")
-        out[mode] = (a[:, 0], a[:, 1], a[:, 2])
-    return out
+        try:
+            v = float(r[col[c]])
+        except ValueError:
+            raise UserError(f"{where}: {c} '{r[col[c]].strip()[:40]}' is not a number") from None
+        if not math.isfinite(v):
+            raise UserError(f"{where}: {c} {v} is not a finite number")
+        vals.append(v)
+    if vals[0] <= 0:
+        raise UserError(f"{where}: stretch {vals[0]:g} must be > 0")
+    if vals[2] < 0:
+        raise UserError(f"{where}: weight {vals[2]:g} must be >= 0")
+    return (MODES[word], *vals)
+
+
+def _curve(a, mode, where):
+    """(stretch, stress, weight) of a mode's rows a (n, 3): two or more, the stretches monotone."""
+    if len(a) < 2:
+        raise UserError(f"{where}: one {mode} point (a curve needs two or more)")
+    d = np.diff(a[:, 0])
+    if not ((d > 0).all() or (d < 0).all()):
+        k = int(np.flatnonzero(np.sign(d) != np.sign(d[0]))[0]) if (d != 0).all() else int(np.flatnonzero(d == 0)[0])
+        raise UserError(f"{where}: the {mode} stretches are not monotone (stretch {a[k + 1, 0]:g} after "
+                        f"{a[k, 0]:g}): one loading curve per mode, in order")
+    return a[:, 0], a[:, 1], a[:, 2]
 
 
 def _scale_of(data):
