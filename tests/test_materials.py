@@ -27,6 +27,16 @@ C["yeoh"] = (MU / 2, -MU / 20, MU / 100, C["yeoh"][3])
 C["gent"] = default_solid("gent").material.constants({"mu": MU, "Jm": 10.0, "kappa": C["gent"][2]})
 C["arruda_boyce"] = default_solid("arruda_boyce").material.constants({"mu": MU, "lambda_m": 2.5,
                                                                      "kappa": C["arruda_boyce"][3]})
+# Ogden with the proportions of Ogden's 1972 fit of Treloar's rubber (three terms, a negative exponent), mu = MU
+_r = MU / 0.4225e6
+C["ogden"] = (0.63e6 * _r, 1.3, 0.0012e6 * _r, 5.0, -0.01e6 * _r, -2.0, C["ogden"][6])
+
+
+# the compiled kernels against the numpy reference, relative to the largest value: round-off; Ogden's goes through the
+# eigenvalues of C, each to round-off of |C| in LAPACK's (the reference) and in the kernel's closed-form solver alike, so
+# the two differ by ~1e-16 cond(C) in the smallest, amplified by its c^-2 term: 1.9e-12 of the cell's largest force at
+# cond(F) = 534, 8e-16 at the median of the random cells these tests draw (measured 2026-11-29)
+AGREE = {"ogden": 1e-11}
 
 
 def random_F(n, amp):
@@ -106,7 +116,7 @@ def test_kernels_match_reference(name):
     ref = np.einsum("n,nij,naj->nai", vol, P, G).reshape(-1)
     f = np.zeros_like(x)
     assert k.forces(x, f) == 0
-    assert np.abs(f - ref).max() <= 1e-12 * np.abs(ref).max()
+    assert np.abs(f - ref).max() <= AGREE.get(name, 1e-12) * np.abs(ref).max()
     # energy
     W, jmin, jmax, bad = k.energy(x)
     assert np.isclose(W, (vol * m.psi(F, C[name])).sum(), rtol=1e-12)
@@ -117,7 +127,7 @@ def test_kernels_match_reference(name):
     ref_kv = np.einsum("n,nij,naj->nai", vol, m.dP(F, dF, C[name]), G).reshape(-1)
     y = np.zeros_like(x)
     k.kv(x, v, y)
-    assert np.abs(y - ref_kv).max() <= 1e-12 * np.abs(ref_kv).max()
+    assert np.abs(y - ref_kv).max() <= AGREE.get(name, 1e-12) * np.abs(ref_kv).max()
     eps = 1e-6
     fp, fm = np.zeros_like(x), np.zeros_like(x)
     k.forces(x + eps * v, fp)
@@ -220,7 +230,7 @@ def test_kernels_cell_independent_of_block(name):
     G = np.concatenate([-Dminv.sum(axis=1, keepdims=True), Dminv], axis=1)
     ref = np.einsum("n,nij,naj->nai", vol[ok], m.P(F[ok], C[name]), G[ok])
     got = f_all.reshape(-1, 4, 3)[ok]
-    assert np.abs(got - ref).max() <= 1e-12 * np.abs(ref).max()
+    assert np.abs(got - ref).max() <= AGREE.get(name, 1e-12) * np.abs(ref).max()
     assert np.abs(f_all.reshape(-1, 4, 3)[~ok]).max(initial=0.0) == 0.0
     W, jmin, jmax, bad = k.energy(x)
     assert bad == bad_all and np.isclose(W, (vol[ok] * m.psi(F[ok], C[name])).sum(), rtol=1e-12)

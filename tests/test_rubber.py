@@ -1,5 +1,6 @@
-"""Issue 71: the rubbers of one invariant (Yeoh, Gent, Arruda-Boyce) against their closed forms, through the kernels
-and through the whole application, and the inverse Langevin function Arruda-Boyce's model needs."""
+"""Issue 71: the rubbers of one invariant (Yeoh, Gent, Arruda-Boyce) and Ogden's against their closed forms, through the
+kernels and through the whole application; the inverse Langevin function Arruda-Boyce's model needs, and Ogden's
+derivative where stretches are equal."""
 import math
 
 import numpy as np
@@ -44,6 +45,19 @@ def _langevin(b):
     return 1 / math.tanh(b) - 1 / b
 
 
+# Ogden's 1972 fit of Treloar's rubber (mu_p in Pa, alpha_p): Psi = sum mu_p/alpha_p (l1^a + l2^a + l3^a - 3)
+OGDEN = {"mu1": 0.63e6, "alpha1": 1.3, "mu2": 0.0012e6, "alpha2": 5.0, "mu3": -0.01e6, "alpha3": -2.0}
+
+
+def tau_bar(name, lb, o):
+    """The principal Kirchhoff stresses of the isochoric energy at the isochoric stretches lb: 2 W'(I1_bar) lb^2 for
+    the one-invariant models, sum_p mu_p lb^alpha_p for Ogden's."""
+    lb = np.asarray(lb, dtype=float)
+    if name == "ogden":
+        return sum(o[f"mu{p}"] * lb ** o[f"alpha{p}"] for p in (1, 2, 3))
+    return 2 * MODELS[name][1](float((lb ** 2).sum()), o) * lb ** 2
+
+
 def _inv_langevin(r):
     """L^-1(r) by bisection (an independent evaluation: no Newton, no approximation to start from)."""
     return brentq(lambda b: _langevin(b) - r, 1e-9, 1e10, xtol=1e-300, rtol=1e-15, maxiter=500)
@@ -51,7 +65,7 @@ def _inv_langevin(r):
 
 def _solid(name, E=1.2e6, nu=0.3):
     s = default_solid(name, E=E, nu=nu)
-    s.values.update(MODELS[name][0])
+    s.values.update(OGDEN if name == "ogden" else MODELS[name][0])
     return s
 
 
@@ -98,15 +112,16 @@ def test_incompressible_closed_forms_at_J_one(name, stretch):
 
 def _homogeneous(name, mode, lam, E, nu):
     """The model's nominal stress P_11 of a compressible homogeneous test: F = diag(lam, l2, l3), the free lateral
-    stretches found by bisection on their nominal stress 0. Split material: sigma = 2/J W'(I1_bar) (b_bar - I1_bar/3
-    I) + U'(J) I, U'(J) = kappa/2 (J - 1/J), P_ii = J sigma_ii / l_i."""
+    stretches found by bisection on their nominal stress 0. Split material: sigma_i = (tau_i - mean tau) / J + U'(J),
+    tau the isochoric energy's principal Kirchhoff stresses at lb = J^(-1/3) l, U'(J) = kappa/2 (J - 1/J),
+    P_ii = J sigma_ii / l_i."""
     s = _solid(name, E, nu)
-    o, w1, kappa = s.values, MODELS[name][1], s.values["kappa"]
+    o, kappa = s.values, s.values["kappa"]
 
     def P(l):
         J = l[0] * l[1] * l[2]
-        bb = J ** (-2 / 3) * np.square(l)
-        return (2 * w1(bb.sum(), o) * (bb - bb.sum() / 3) + 0.5 * kappa * (J * J - 1)) / np.asarray(l)
+        t = tau_bar(name, J ** (-1 / 3) * np.asarray(l), o)
+        return ((t - t.mean()) + 0.5 * kappa * (J * J - 1)) / np.asarray(l)
 
     if mode == "uniaxial":
         t = brentq(lambda t: P([lam, t, t])[1], 0.3, 1.2, xtol=1e-15)
@@ -120,7 +135,7 @@ def _homogeneous(name, mode, lam, E, nu):
     return P(l)[0], l
 
 
-@pytest.mark.parametrize("name", sorted(MODELS))
+@pytest.mark.parametrize("name", sorted(MODELS) + ["ogden"])
 def test_homogeneous_tests_through_the_application(name, tmp_path):
     """Issue 71's closed forms through the whole application: a unit cube (symmetry planes xmin, ymin, zmin) stretched
     to lambda = 1.8 uniaxially (the other faces free), 1.4 equibiaxially (xmax and ymax moved, zmax free) and 1.8 in
@@ -129,7 +144,7 @@ def test_homogeneous_tests_through_the_application(name, tmp_path):
     free faces' stretches are the formula's."""
     msh = tmp_path / "cube.msh"
     run_ok(["mesh", f"{ROOT}/examples/cube.geo", "--size", 0.5, "-o", msh])
-    opts = [a for k, v in MODELS[name][0].items() for a in (f"-{k}", repr(v))]
+    opts = [a for k, v in (OGDEN if name == "ogden" else MODELS[name][0]).items() for a in (f"-{k}", repr(v))]
     E, nu = 1.2e6, 0.45
     for mode, lam, moved, held in (("uniaxial", 1.8, "xmax:x", ""), ("equibiaxial", 1.4, "xmax:x,ymax:y", ""),
                                    ("planar", 1.8, "xmax:x", ",ymax:y")):
@@ -146,3 +161,63 @@ def test_homogeneous_tests_through_the_application(name, tmp_path):
         assert abs(got - want) <= 1e-8 * abs(want), (mode, got, want)
         x, X = h["x"][-1].reshape(-1, 3), h["points"]
         assert np.abs(x - X * l).max() <= 1e-9, mode
+
+
+@pytest.mark.parametrize("stretch", [0.6, 1.3, 2.2, 4.0])
+def test_ogden_closed_forms_at_J_one(stretch):
+    """Ogden's model at J = 1 against the incompressible closed forms in principal stretches (Ogden, Non-linear Elastic
+    Deformations, 1984, sec. 7.2; Ogden 1972's Treloar constants): sigma_i - sigma_j = sum_p mu_p (l_i^a_p - l_j^a_p)
+    in uniaxial, equibiaxial and planar tension, and in simple shear of amount g (principal stretches l, 1/l with
+    l - 1/l = g) sigma_12 = (tau_1 - tau_2) / (l + 1/l), to 1e-12; with one term (alpha 2) it is neohookean_split."""
+    s = _solid("ogden")
+    m, c = s.material, s.constants
+    lam = stretch
+    for ls, (i, j) in (([lam, lam ** -0.5, lam ** -0.5], (0, 1)), ([lam, lam, lam ** -2], (0, 2)),
+                       ([lam, 1.0, 1 / lam], (0, 2))):
+        F = np.diag(ls)
+        sigma = m.P(F[None], c)[0] @ F.T
+        t = tau_bar("ogden", ls, OGDEN)
+        assert abs((sigma[i, i] - sigma[j, j]) - (t[i] - t[j])) <= 1e-12 * abs(t[i] - t[j])
+    g = lam - 1
+    F = np.eye(3)
+    F[0, 1] = g
+    sigma = m.P(F[None], c)[0] @ F.T
+    lp = g / 2 + math.sqrt(1 + g * g / 4)
+    t = tau_bar("ogden", [lp, 1 / lp, 1.0], OGDEN)
+    want = (t[0] - t[1]) / (lp + 1 / lp)
+    assert abs(sigma[0, 1] - want) <= 1e-12 * abs(want)
+    nh = default_solid("neohookean_split")
+    one = default_solid("ogden")                       # (mu1 = mu, alpha1 = 2, the other terms off)
+    F = np.eye(3) + 0.3 * np.random.default_rng(3).standard_normal((20, 3, 3))
+    F = F[np.linalg.det(F) > 0.2]
+    assert np.allclose(one.material.P(F, one.constants), nh.material.P(F, nh.constants), rtol=1e-13, atol=1e-4)
+
+
+def test_ogden_tangent_exact_where_stretches_are_equal():
+    """Where two or three principal stretches are equal (the reference, a rotated uniaxial state diag(2, 0.7, 0.7), an
+    equal dilatation, and a pair that differs by 1e-9) the principal directions are not defined, yet the compiled
+    kernel's K v is finite and equals central differences of its forces (to 1e-7: their truncation), and the 12x12
+    tangent is symmetric."""
+    from hyperelastic.discretization.kernels import CellKernels
+    s = _solid("ogden")
+    rng = np.random.default_rng(7)
+    R = np.linalg.qr(rng.standard_normal((3, 3)))[0]
+    R *= np.sign(np.linalg.det(R))
+    states = [np.eye(3), R @ np.diag([2.0, 0.7, 0.7]) @ R.T, 1.3 * np.eye(3), R @ np.diag([1.2, 0.9, 0.9 + 1e-9]) @ R]
+    X = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1.0]])
+    D = np.stack([X[1] - X[0], X[2] - X[0], X[3] - X[0]], axis=-1)
+    for F in states:
+        x = (X @ F.T).reshape(-1).copy()
+        k = CellKernels(np.arange(4, dtype=np.int32)[None], np.linalg.inv(D)[None], np.array([1 / 6]), s.material,
+                        s.constants)
+        v = rng.standard_normal(12)
+        y = np.zeros(12)
+        k.kv(x, v, y)
+        eps = 1e-6
+        fp, fm = np.zeros(12), np.zeros(12)
+        k.forces(x + eps * v, fp)
+        k.forces(x - eps * v, fm)
+        assert np.isfinite(y).all()
+        assert np.abs(y - (fp - fm) / (2 * eps)).max() <= 1e-7 * np.abs(y).max()
+        K, bad = k.tangent(x)
+        assert bad == 0 and np.abs(K - K.transpose(0, 2, 1)).max() <= 1e-12 * np.abs(K).max()

@@ -445,6 +445,9 @@ def main(argv=None):
     except KeyboardInterrupt:
         _error("interrupted")
         return 130
+    except BrokenPipeError:          # (`hyperelastic report ... | head`: the reader left; as a shell's SIGPIPE)
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 128 + signal.SIGPIPE
     except Exception as e:
         if type(e).__name__ == "Error" and hasattr(e, "ierr"):   # petsc4py.PETSc.Error
             from ..core.libpetsc import error_message     # deferred: imports petsc4py (see run_cmd)

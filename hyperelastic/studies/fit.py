@@ -38,7 +38,17 @@ MODES = {"uniaxial": "uniaxial", "equibiaxial": "equibiaxial", "biaxial": "equib
          "pure_shear": "planar", "planar_shear": "planar"}
 ORDER = ("uniaxial", "equibiaxial", "planar")
 UNITS = {"Pa": 1.0, "kPa": 1e3, "MPa": 1e6}
-ALIASES = {"neohookean": "neohookean_split"}     # (the fit is of incompressible tests: the split model)
+# the names `fit --model` takes beyond the fitted materials': (material, the parameters fitted; None: all it declares)
+ALIASES = {"neohookean": ("neohookean_split", None),    # (the fit is of incompressible tests: the split model)
+           "ogden1": ("ogden", ("mu1", "alpha1")), "ogden2": ("ogden", ("mu1", "alpha1", "mu2", "alpha2")),
+           "ogden3": ("ogden", None)}
+# the fit's start: a modulus over the data's small-strain one (its 'mu' and an invariant's 'C10', W' = mu/2), an
+# exponent itself; Ogden's terms start from the shape of his fit of Treloar's rubber (Ogden 1972: mu_p = 0.63, 0.0012,
+# -0.01 MPa over its mu = 0.4225 MPa, alpha_p = 1.3, 5, -2), one term from the neo-Hookean (alpha 2). A parameter not
+# here starts at 0, a locking one at three times its limit.
+START = {"mu": 1.0, "C10": 0.5, "mu1": 1.49, "alpha1": 1.3, "mu2": 0.0028, "alpha2": 5.0, "mu3": -0.0237,
+         "alpha3": -2.0}
+START_ONE_TERM = {"mu1": 1.0, "alpha1": 2.0}
 BULK_RATIO = 1000.0      # kappa / mu of a rubber (~2 GPa against ~1 MPa: Treloar 1975, ch. 1; the rubber preset's)
 STABILITY = (0.1, 10.0)  # the stretches the stability check covers by default (Abaqus': nominal strain -0.9 to 9)
 DE = 1e-6                # the logarithmic-strain step of the stability check's Hessian
@@ -46,8 +56,16 @@ STABLE, UNSTABLE, LOCKED = 1, 0, -1
 
 
 def fitted_models():
-    """The materials `fit` takes: those declaring fitted parameters, in registry order."""
-    return [n for n, m in materials.MATERIALS.items() if m.fitted]
+    """The models `fit` takes: the materials declaring fitted parameters, in registry order, and the aliases."""
+    return [n for n, m in materials.MATERIALS.items() if m.fitted] + list(ALIASES)
+
+
+def resolve(name):
+    """(material name, the names of its fitted parameters) of a model name."""
+    if name not in fitted_models():
+        raise UserError(f"fit: unknown model '{name}' (choose from {', '.join(fitted_models())})")
+    material, names = ALIASES.get(name, (name, None))
+    return material, names or materials.MATERIALS[material].fitted
 
 
 def stretches(mode, lam):
@@ -156,17 +174,21 @@ class Fit:
     """A model fitted to data: its values (all parameters, kappa included), the errors per mode, stability."""
 
     def __init__(self, name, data, error="relative", bulk_ratio=BULK_RATIO):
-        name = ALIASES.get(name, name)
-        if name not in fitted_models():
-            raise UserError(f"fit: unknown model '{name}' (choose from {', '.join(fitted_models())})")
+        name, fitted = resolve(name)
         self.name, self.material, self.data, self.error = name, materials.MATERIALS[name], data, error
         self.npoints = sum(len(v[0]) for v in data.values())
-        params = [p for p in self.material.parameters if p.name in self.material.fitted]
+        params = [p for p in self.material.parameters if p.name in fitted]
         if self.npoints <= len(params):
             raise UserError(f"fit: {self.npoints} points for {name}'s {len(params)} constants (it needs more points "
                             "than constants)")
         self.mu_data = _scale_of(data)
         self.params = params
+        self.start = START_ONE_TERM if len(params) == 2 and name == "ogden" else START
+        # the parameters not fitted (but kappa): their defaults (Ogden's terms beyond those fitted: off)
+        self.fixed = {}
+        for p in self.material.parameters:
+            if p not in params and p.name != "kappa":
+                self.fixed[p.name] = p.default({"E": 3 * self.mu_data, "nu": 0.5 - 1e-9, **self.fixed})
         self.values = self._solve(bulk_ratio)
 
     def _bounds(self):
@@ -184,17 +206,14 @@ class Fit:
         return np.array(lo), np.array(hi), np.array(start)
 
     def _start(self, p, limits, scale):
-        """The start of parameter p: the data's modulus for a modulus (halved for an invariant's: W' = mu/2), zero for
-        higher terms, three times its limit for a locking stretch or extensibility."""
+        """The start of parameter p (START; three times its limit for a locking one)."""
         if p.name in limits:
             return 3 * max(limits[p.name], 1.0)
-        if p.unit != "Pa":
-            return 1.0
-        return {"mu": 1.0, "C10": 0.5}.get(p.name, 0.0)
+        return self.start.get(p.name, 0.0)
 
     def _values(self, z):
-        v = {p.name: float(zi) * (self.mu_data if p.unit == "Pa" else 1.0) for p, zi in zip(self.params, z)}
-        return v
+        return {**self.fixed, **{p.name: float(zi) * (self.mu_data if p.unit == "Pa" else 1.0)
+                                 for p, zi in zip(self.params, z)}}
 
     def model(self, mode, lam, values=None):
         return nominal(self.material, self.values if values is None else values, mode, lam)
@@ -295,8 +314,9 @@ class Fit:
         mu, kappa = self.mu0, self.values["kappa"]
         E, nu = 9 * kappa * mu / (3 * kappa + mu), (3 * kappa - 2 * mu) / (2 * (3 * kappa + mu))
         lines = [f"-material {self.name}"]
-        lines += [f"-{p.name} {float(self.values[p.name])!r}" for p in self.params]     # (every digit: the run's
-        lines += [f"-kappa {float(kappa)!r}", f"-E {float(E)!r}", f"-nu {float(nu)!r}"]  # constants are the fit's)
+        lines += [f"-{p.name} {float(self.values[p.name])!r}" for p in self.material.parameters   # (every digit:
+                  if p.name != "kappa"]                                                          # the run's
+        lines += [f"-kappa {float(kappa)!r}", f"-E {float(E)!r}", f"-nu {float(nu)!r}"]  # constants, the fit's)
         return lines
 
 
@@ -370,7 +390,7 @@ def _parser():
                    "(uniaxial, equibiaxial, planar: nominal stress against stretch), with Drucker's stability.")
     ap.add_argument("data", help="CSV with a header: mode,stretch,stress[,weight]")
     ap.add_argument("--model", required=True, help="one of: " + ", ".join(fitted_models()) + " (neohookean: "
-                    "neohookean_split)")
+                    "neohookean_split; ogdenN: ogden's first N terms, the others off)")
     ap.add_argument("-o", "--output", default=None, help="the options file to write (default: DATA_MODEL.opts)")
     ap.add_argument("--plot", default=None, help="a PNG of the fit against the data")
     ap.add_argument("--unit", choices=tuple(UNITS), default="Pa", help="the data's stress unit (default Pa)")
@@ -397,7 +417,7 @@ def main(argv):
     lo, hi = _range(a.stability)
     if not (math.isfinite(a.bulk_ratio) and a.bulk_ratio > 0):
         raise UserError(f"fit: --bulk-ratio {a.bulk_ratio:g} must be a positive number")
-    model = ALIASES.get(a.model, a.model)
+    model = resolve(a.model)[0]
     out = a.output or os.path.splitext(a.data)[0] + f"_{model}.opts"
     _check_out(out, a.data, ".opts", "--output")
     if a.plot:

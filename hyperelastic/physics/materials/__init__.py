@@ -16,7 +16,6 @@ import math
 from dataclasses import dataclass, field
 
 from ...core.errors import UserError
-from ...core.options import Row
 from .base import lame
 
 __all__ = ["COMMON", "MATERIALS", "PRESETS", "REGISTRY", "Solid", "check_parameters", "default_solid", "get",
@@ -27,7 +26,7 @@ __all__ = ["COMMON", "MATERIALS", "PRESETS", "REGISTRY", "Solid", "check_paramet
 COMMON = ("E", "nu", "rho")
 
 REGISTRY = ("linear", "stvk", "neohookean", "snh", "corotational", "mooney_rivlin", "neohookean_split", "yeoh",
-            "gent", "arruda_boyce")
+            "gent", "arruda_boyce", "ogden")
 MATERIALS = {n: importlib.import_module(f".{n}", __name__).MATERIAL for n in REGISTRY}
 
 # Preset values of the thesis framework (K. Erleben, hyper-sim, simulate/create_params.m, 2011);
@@ -149,6 +148,7 @@ def default_solid(name, E=1e6, nu=0.3, rho=1000.0):
 
 def rows():
     """The catalog rows of the materials' own parameters (one per material that has any)."""
+    from ...core.options import Row      # deferred: it imports petsc4py, which `hyperelastic fit` does without
     out = []
     for m in MATERIALS.values():
         if not m.parameters:

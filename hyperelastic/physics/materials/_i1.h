@@ -2,10 +2,10 @@
  * kappa/4 (J^2 - 1 - 2 ln J) of neohookean_split (yeoh.h, gent.h, arruda_boyce.h; numpy reference _i1.py):
  * P = a (F - I1/3 Q) + g Q, Q = F^-T, a = 2 W' J^(-2/3), g = kappa/2 (J^2 - 1), and dP = split_dstress (_tensor.h)
  * with b = 4 W'' J^(-4/3). HE_I1_MATERIAL(NAME, KAPPA) defines NAME_cache, NAME_stress, NAME_prepare and
- * NAME_dstress from the model's
+ * NAME_dstress (and the closed-form cell tangent, NAME_cell_tangent: _tensor.h's split_cell_tangent) from the model's
  *   int NAME_w(const double *prm, double s, double *w, double *w1, double *w2)
- * (W, W', W'' at s = I1_bar - 3; returns 1 where W is undefined: a locking model beyond its limit), the bulk modulus
- * being prm[KAPPA]. Stress and prepare return 1 where J <= 0 or W is undefined. */
+ * (W, W', W'' at s = I1_bar - 3, W only where w is not NULL; returns 1 where W is undefined: a locking model beyond
+ * its limit), the bulk modulus being prm[KAPPA]. Stress and prepare return 1 where J <= 0 or W is undefined. */
 #ifndef HE_I1_H
 #define HE_I1_H
 #include "_tensor.h"
@@ -47,19 +47,29 @@ HE_INLINE int i1_stress(int undefined, const i1_cache *d, double kappa, double J
   }                                                                                                                 \
   HE_INLINE int NAME##_stress(const double *prm, const double *F, double *P, double *psi) {                         \
     i1_cache d;                                                                                                     \
-    double J, w;                                                                                                    \
-    const int undefined = NAME##_scalars(prm, F, &d, &J, &w);                                                       \
+    double J, w = 0;                                                                                                \
+    const int undefined = NAME##_scalars(prm, F, &d, &J, psi ? &w : NULL);                                          \
     return i1_stress(undefined, &d, prm[KAPPA], J, w, F, P, psi);                                                   \
   }                                                                                                                 \
   HE_INLINE int NAME##_prepare(const double *prm, const double *F, i1_cache *d) {                                   \
-    double J, w;                                                                                                    \
-    if (NAME##_scalars(prm, F, d, &J, &w)) return 1;                                                                \
+    double J;                                                                                                       \
+    if (NAME##_scalars(prm, F, d, &J, NULL)) return 1;                                                              \
     memcpy(d->F, F, sizeof d->F);                                                                                   \
     return 0;                                                                                                       \
   }                                                                                                                 \
   HE_INLINE void NAME##_dstress(const double *prm, const i1_cache *d, const double *dF, double *dP) {               \
     (void)prm;                                                                                                      \
     split_dstress(d->a, d->b, d->I1, d->kJ2, d->g, d->F, d->Q, dF, dP);                                             \
+  }                                                                                                                 \
+  HE_INLINE void NAME##_cell_tangent(const double *prm, const i1_cache *d, double G[4][3], double V, double *K,      \
+                                     int accumulate) {                                                              \
+    (void)prm;                                                                                                      \
+    split_cell_tangent(d->a, d->b, d->I1, d->kJ2, d->g, d->F, d->Q, G, V, K, accumulate);                           \
+  }                                                                                                                 \
+  HE_INLINE void NAME##_cell_tangent_diag(const double *prm, const i1_cache *d, double G[4][3], double V,            \
+                                          double diag[12]) {                                                        \
+    (void)prm;                                                                                                      \
+    split_cell_tangent_diag(d->a, d->b, d->I1, d->kJ2, d->g, d->F, d->Q, G, V, diag);                               \
   }
 
 #endif

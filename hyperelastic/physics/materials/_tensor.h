@@ -87,4 +87,53 @@ HE_INLINE void split_dstress(double a, double b, double I1, double kJ2, double g
   for (int k = 0; k < 9; k++) dP[k] = a * dF[k] + cF * F[k] + cQ * Q[k] + cU * U[k];
 }
 
+/* The split's 12x12 cell tangent in closed form (the cell's K of split_dstress): along dF = e_k (x) G_b (Q:dF = h_b,k,
+ * F:dF = u_b,k, Q dF^T Q G_a = h_b h_a,k with u_a = F G_a, h_a = Q G_a):
+ *   K[(a,i),(b,k)] = V (a delta_ik G_a.G_b - 2/3 a (u_a,i h_b,k + h_a,i u_b,k) + c_hh h_a,i h_b,k + c_x h_b,i h_a,k
+ *                       + b r_a,i r_b,k),
+ * c_hh = 2/9 a I1 + kJ2, c_x = a I1/3 - g, r_a = u_a - I1/3 h_a (the W'' term's; none where b = 0). */
+HE_INLINE void split_cell_tangent(double a_, double b_, double I1, double kJ2, double g, const double *F,
+                                  const double *Q, double G[4][3], double V, double *K, int accumulate) {
+  double u[4][3], h[4][3], r[4][3];
+  m_grads(F, G, u);
+  m_grads(Q, G, h);
+  for (int a = 0; a < 4; a++)
+    for (int i = 0; i < 3; i++) r[a][i] = u[a][i] - I1 / 3.0 * h[a][i];
+  const double va = V * a_, c2 = -2.0 / 3.0 * va, chh = V * (2.0 / 9.0 * a_ * I1 + kJ2), cx = V * (a_ * I1 / 3.0 - g),
+               vb = V * b_;
+  for (int a = 0; a < 4; a++)
+    for (int b = 0; b < 4; b++) {
+      const double gg = va * (G[a][0] * G[b][0] + G[a][1] * G[b][1] + G[a][2] * G[b][2]);
+      for (int i = 0; i < 3; i++) {
+        double *row = K + 12 * (3 * a + i) + 3 * b;
+        for (int k = 0; k < 3; k++) {
+          double v = c2 * (u[a][i] * h[b][k] + h[a][i] * u[b][k]) + chh * h[a][i] * h[b][k] + cx * h[b][i] * h[a][k]
+                     + (i == k ? gg : 0.0);
+          if (b_ != 0) v += vb * r[a][i] * r[b][k];
+          if (accumulate) row[k] += v;
+          else row[k] = v;
+        }
+      }
+    }
+}
+
+/* Its diagonal. */
+HE_INLINE void split_cell_tangent_diag(double a_, double b_, double I1, double kJ2, double g, const double *F,
+                                       const double *Q, double G[4][3], double V, double diag[12]) {
+  double u[4][3], h[4][3];
+  m_grads(F, G, u);
+  m_grads(Q, G, h);
+  const double va = V * a_, c = V * (2.0 / 9.0 * a_ * I1 + kJ2 + a_ * I1 / 3.0 - g);
+  for (int a = 0; a < 4; a++) {
+    const double g2 = va * (G[a][0] * G[a][0] + G[a][1] * G[a][1] + G[a][2] * G[a][2]);
+    for (int i = 0; i < 3; i++) {
+      diag[3 * a + i] = g2 - 4.0 / 3.0 * va * u[a][i] * h[a][i] + c * h[a][i] * h[a][i];
+      if (b_ != 0) {
+        const double r = u[a][i] - I1 / 3.0 * h[a][i];
+        diag[3 * a + i] += V * b_ * r * r;
+      }
+    }
+  }
+}
+
 #endif

@@ -7,10 +7,11 @@ HE_INLINE int gent_w(const double *prm, double s, double *w, double *w1, double 
   const double mu = prm[0], Jm = prm[1];
   if (!(s < Jm)) return 1;
   const double x = 1 - s / Jm;
-  *w = -0.5 * mu * Jm * log1p(-s / Jm);
+  if (w) *w = -0.5 * mu * Jm * log1p(-s / Jm);
   *w1 = 0.5 * mu / x;
   *w2 = 0.5 * mu / (Jm * x * x);
   return 0;
 }
 
+#define gent_CELL_TANGENT 1
 HE_I1_MATERIAL(gent, 2)

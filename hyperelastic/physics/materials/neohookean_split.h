@@ -47,43 +47,16 @@ HE_INLINE void neohookean_split_dstress(const double *prm, const neohookean_spli
   split_dstress(d->a, 0.0, d->I1, d->kJ2, d->g, d->F, d->Q, dF, dP);
 }
 
-/* The 12x12 cell tangent in closed form: along dF = e_k (x) G_b (Q:dF = h_b,k, F:dF = u_b,k, Q dF^T Q G_a =
- * h_b h_a,k with u_a = F G_a, h_a = Q G_a):
- *   K[(a,i),(b,k)] = V (a delta_ik G_a.G_b - 2/3 a (u_a,i h_b,k + h_a,i u_b,k) + c_hh h_a,i h_b,k + c_x h_b,i h_a,k),
- * c_hh = 2/9 a I1 + kappa J^2, c_x = a I1/3 - g. */
+/* The 12x12 cell tangent in closed form (_tensor.h, split_cell_tangent with no W'' term). */
 #define neohookean_split_CELL_TANGENT 1
 HE_INLINE void neohookean_split_cell_tangent(const double *prm, const neohookean_split_cache *d, double G[4][3],
                                                  double V, double *K, int accumulate) {
   (void)prm;
-  double u[4][3], h[4][3];
-  m_grads(d->F, G, u);
-  m_grads(d->Q, G, h);
-  const double va = V * d->a, c2 = -2.0 / 3.0 * va, chh = V * (2.0 / 9.0 * d->a * d->I1 + d->kJ2),
-               cx = V * (d->a * d->I1 / 3.0 - d->g);
-  for (int a = 0; a < 4; a++)
-    for (int b = 0; b < 4; b++) {
-      const double gg = va * (G[a][0] * G[b][0] + G[a][1] * G[b][1] + G[a][2] * G[b][2]);
-      for (int i = 0; i < 3; i++) {
-        double *row = K + 12 * (3 * a + i) + 3 * b;
-        for (int k = 0; k < 3; k++) {
-          double v = c2 * (u[a][i] * h[b][k] + h[a][i] * u[b][k]) + chh * h[a][i] * h[b][k] + cx * h[b][i] * h[a][k]
-                     + (i == k ? gg : 0.0);
-          if (accumulate) row[k] += v;
-          else row[k] = v;
-        }
-      }
-    }
+  split_cell_tangent(d->a, 0.0, d->I1, d->kJ2, d->g, d->F, d->Q, G, V, K, accumulate);
 }
 
 HE_INLINE void neohookean_split_cell_tangent_diag(const double *prm, const neohookean_split_cache *d,
                                                       double G[4][3], double V, double diag[12]) {
   (void)prm;
-  double u[4][3], h[4][3];
-  m_grads(d->F, G, u);
-  m_grads(d->Q, G, h);
-  const double va = V * d->a, c = V * (2.0 / 9.0 * d->a * d->I1 + d->kJ2 + d->a * d->I1 / 3.0 - d->g);
-  for (int a = 0; a < 4; a++) {
-    const double g2 = va * (G[a][0] * G[a][0] + G[a][1] * G[a][1] + G[a][2] * G[a][2]);
-    for (int i = 0; i < 3; i++) diag[3 * a + i] = g2 - 4.0 / 3.0 * va * u[a][i] * h[a][i] + c * h[a][i] * h[a][i];
-  }
+  split_cell_tangent_diag(d->a, 0.0, d->I1, d->kJ2, d->g, d->F, d->Q, G, V, diag);
 }
