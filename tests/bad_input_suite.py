@@ -177,6 +177,8 @@ def option_value_cases(rng):
                   ["", "nonexistent", "left:w", ":x", "left:xx", "7", "left,", ",left", "left,,right", ","]),
         "names": (["regions", "loads", "effects", "body_force_regions"], ["", "nonexistent", "a b", "x,x", ",",
                                                                         "elasticity,", ",elasticity", "a,,b"]),
+        # the rubbers' constants (issue 71): an extensibility, a locking stretch, an Ogden term's modulus and exponent
+        "rubber": (["Jm", "lambda_m", "mu1", "alpha1"], real_bad + ["0", "-1", "1", "1e3"]),
     }
     context = {"pressure_faces": ["-pressure", "1e3"], "prescribe_faces": ["-prescribe_motion", "stretch_x"],
                "prescribe_motion": ["-prescribe_faces", "right"], "pressure": ["-pressure_faces", "right"],
@@ -184,11 +186,15 @@ def option_value_cases(rng):
                "mesh_frame": ["-mesh", "prev.h5"], "regions": [], "loads": [],
                "spring": ["-spring_faces", "right"], "spring_faces": ["-spring", "1e5"], "kappa": ["-material",
                "neohookean_split"], "mu": ["-material", "neohookean_split"], "C01": ["-material", "mooney_rivlin"],
+               "Jm": ["-material", "gent"], "lambda_m": ["-material", "arruda_boyce"], "mu1": ["-material", "ogden"],
+               "alpha1": ["-material", "ogden"],
                "quadrature_degree": ["-order", "2"], "force": ["-force_faces", "right"],
                "force_faces": ["-force", "1,0,0"], "body_force_regions": ["-body_force", "0,0,1"]}
     skip = {("mesh_frame", "-5"), ("initial_spin", "1e-320,0,0"), ("initial_rotation", "1e-320,0,0"),
             ("gravity", "1e-320,0,0"), ("traction", "1e-320,0,0"), ("force", "1e-320,0,0"),
-            ("body_force", "1e-320,0,0")}   # valid values (a tiny vector is a vector)
+            ("body_force", "1e-320,0,0"),   # valid values (a tiny vector is a vector)
+            ("Jm", "1"), ("Jm", "1e3"), ("lambda_m", "1e3"), ("mu1", "1"), ("mu1", "1e3"), ("alpha1", "1"),
+            ("alpha1", "-1"), ("mu1", "1e-320")}
     for kind, (names, values) in kinds.items():
         for name in names:
             for v in values:
@@ -223,7 +229,7 @@ def option_value_cases(rng):
 def unknown_option_cases(rng):
     from hyperelastic.app.catalog import COMMON_PETSC, option_names
     out = []
-    for name in option_names():
+    for name in dict.fromkeys(option_names()):     # (a name several materials declare is one option)
         if len(name) < 4:
             continue
         w = typo(rng, name)

@@ -34,6 +34,7 @@ OUT/stability.csv, OUT/stability.md (table, properties, locking) and OUT/stabili
     scripts/stability_matrix.py OUT --full     # the whole matrix (see hyperelastic/studies/stability.py)
     scripts/stability_matrix.py OUT --integrators   # the quick subset, backward Euler beside generalized-alpha
     scripts/stability_matrix.py OUT --from-csv --compare OLD/stability.csv   # report again, beside an older run
+    scripts/stability_matrix.py OUT --full --materials ogden   # one material's row of the whole matrix (a new one's)
 """
 MATERIALS = REGISTRY        # every registered material, in the registry's order
 # E axis [Pa]: named values of the thesis framework's presets (materials.PRESETS), nu and rho kept at
@@ -403,6 +404,8 @@ def main(argv=None):
     ap.add_argument("--full", action="store_true", help="the whole matrix instead of the quick subset")
     ap.add_argument("--integrators", action="store_true", help="the quick subset with backward Euler and with "
                     "generalized-alpha (-integrator ts) side by side")
+    ap.add_argument("--materials", default=None, help="only the cells of these materials (a comma list: a new "
+                    "material's row of the matrix)")
     ap.add_argument("--jobs", type=int, default=2, help="runs in parallel (default 2)")
     ap.add_argument("--from-csv", action="store_true", help="redo stability.md and .png from OUT/stability.csv")
     ap.add_argument("--compare", metavar="OLD_CSV", help="append a side-by-side comparison with an earlier "
@@ -420,6 +423,12 @@ def main(argv=None):
         print(f"rewrote {a.out}/stability.md, stability.png; {len(bad)} property violations")
         return 1 if bad else 0
     cells = full_matrix() if a.full else integrator_matrix() if a.integrators else quick_matrix()
+    if a.materials:
+        keep = a.materials.split(",")
+        unknown = [m for m in keep if m not in MATERIALS]
+        if unknown:
+            ap.error(f"--materials: unknown {', '.join(unknown)} (choose from {', '.join(MATERIALS)})")
+        cells = [c for c in cells if c.material in keep]
     print(f"{len(cells)} cells, {a.jobs} at a time", flush=True)
 
     def log(r):

@@ -6,6 +6,7 @@ from .base import Material, Parameter, bulk_modulus, shear_modulus
 from .neohookean_split import volumetric
 
 TERMS = 3
+MAX_ALPHA = 100.0      # an exponent's size (Ogden's fits: |alpha| <= ~10; 2^100 = 1e30, 10^100 still a double)
 
 
 def _terms(c):
@@ -80,6 +81,9 @@ class Ogden(Material):
             if mu != 0 and al == 0:
                 raise UserError(f"{where}: ogden's term {p} has mu{p} {mu:g} and alpha{p} 0 (an exponent of 0 is no "
                                 "term: give it mu 0)")
+            if mu != 0 and abs(al) > MAX_ALPHA:
+                raise UserError(f"{where}: ogden's alpha{p} {al:g} is beyond +-{MAX_ALPHA:g} (a rubber's exponents are "
+                                f"a few; lambda^alpha of a stretch of 2 overflows at |alpha| ~ 1000)")
         mu = cls.split(v)[1]
         if not mu > 0:
             raise UserError(f"{where}: ogden needs 1/2 sum mu_p alpha_p > 0 (its small-strain shear modulus); got "
