@@ -179,6 +179,9 @@ def option_value_cases(rng):
                                                                         "elasticity,", ",elasticity", "a,,b"]),
         # the rubbers' constants (issue 71): an extensibility, a locking stretch, an Ogden term's modulus and exponent
         "rubber": (["Jm", "lambda_m", "mu1", "alpha1"], real_bad + ["0", "-1", "1", "1e3"]),
+        # HGO's (issue 71): its fibres' dispersion and stiffening, a family's direction
+        "tissue": (["dispersion", "k2"], real_bad + ["-1", "0.5"]),
+        "fibre": (["fibre1", "fibre2"], ["0,0,0", "1,2", "a,b,c", "nan,0,0", "1e308,0,0", ""]),
     }
     context = {"pressure_faces": ["-pressure", "1e3"], "prescribe_faces": ["-prescribe_motion", "stretch_x"],
                "prescribe_motion": ["-prescribe_faces", "right"], "pressure": ["-pressure_faces", "right"],
@@ -187,14 +190,15 @@ def option_value_cases(rng):
                "spring": ["-spring_faces", "right"], "spring_faces": ["-spring", "1e5"], "kappa": ["-material",
                "neohookean_split"], "mu": ["-material", "neohookean_split"], "C01": ["-material", "mooney_rivlin"],
                "Jm": ["-material", "gent"], "lambda_m": ["-material", "arruda_boyce"], "mu1": ["-material", "ogden"],
-               "alpha1": ["-material", "ogden"],
+               "alpha1": ["-material", "ogden"], "dispersion": ["-material", "hgo"], "k2": ["-material", "hgo"],
+               "fibre1": ["-material", "hgo", "-k1", "1e5"], "fibre2": ["-material", "hgo", "-fibre1", "1,0,0"],
                "quadrature_degree": ["-order", "2"], "force": ["-force_faces", "right"],
                "force_faces": ["-force", "1,0,0"], "body_force_regions": ["-body_force", "0,0,1"]}
     skip = {("mesh_frame", "-5"), ("initial_spin", "1e-320,0,0"), ("initial_rotation", "1e-320,0,0"),
             ("gravity", "1e-320,0,0"), ("traction", "1e-320,0,0"), ("force", "1e-320,0,0"),
             ("body_force", "1e-320,0,0"),   # valid values (a tiny vector is a vector)
             ("Jm", "1"), ("Jm", "1e3"), ("lambda_m", "1e3"), ("mu1", "1"), ("mu1", "1e3"), ("alpha1", "1"),
-            ("alpha1", "-1"), ("mu1", "1e-320")}
+            ("alpha1", "-1"), ("mu1", "1e-320"), ("k2", "0.5")}
     for kind, (names, values) in kinds.items():
         for name in names:
             for v in values:

@@ -49,12 +49,23 @@ def _langevin(b):
 OGDEN = {"mu1": 0.63e6, "alpha1": 1.3, "mu2": 0.0012e6, "alpha2": 5.0, "mu3": -0.01e6, "alpha3": -2.0}
 
 
+# HGO with one family along x (a = e_1), or across the pull (along y): Gasser, Ogden & Holzapfel 2006
+HGO = {"mu": MU, "k1": 2 * MU, "k2": 2.0, "dispersion": 0.1}
+FIBRE = {"hgo": 0, "hgo_across": 1}
+
+
 def tau_bar(name, lb, o):
     """The principal Kirchhoff stresses of the isochoric energy at the isochoric stretches lb: 2 W'(I1_bar) lb^2 for
-    the one-invariant models, sum_p mu_p lb^alpha_p for Ogden's."""
+    the one-invariant models, sum_p mu_p lb^alpha_p for Ogden's; HGO's with its family along axis k: mu lb_i^2 +
+    2 f'(E) lb_i^2 (d + (1 - 3d) delta_ik), E = d (I1_bar - 3) + (1 - 3d)(lb_k^2 - 1), f' = k1 <E> exp(k2 <E>^2)."""
     lb = np.asarray(lb, dtype=float)
     if name == "ogden":
         return sum(o[f"mu{p}"] * lb ** o[f"alpha{p}"] for p in (1, 2, 3))
+    if name in FIBRE:
+        k, d = FIBRE[name], o["dispersion"]
+        E = max(d * ((lb ** 2).sum() - 3) + (1 - 3 * d) * (lb[k] ** 2 - 1), 0.0)
+        f1 = o["k1"] * E * math.exp(o["k2"] * E * E)
+        return o["mu"] * lb ** 2 + 2 * f1 * lb ** 2 * (d + (1 - 3 * d) * (np.arange(3) == k))
     return 2 * MODELS[name][1](float((lb ** 2).sum()), o) * lb ** 2
 
 
@@ -63,9 +74,16 @@ def _inv_langevin(r):
     return brentq(lambda b: _langevin(b) - r, 1e-9, 1e10, xtol=1e-300, rtol=1e-15, maxiter=500)
 
 
+def _options(name):
+    """A model's constants as the tests give them."""
+    if name in FIBRE:
+        return {**HGO, "fibre1": tuple(float(i == FIBRE[name]) for i in range(3))}
+    return OGDEN if name == "ogden" else MODELS[name][0]
+
+
 def _solid(name, E=1.2e6, nu=0.3):
-    s = default_solid(name, E=E, nu=nu)
-    s.values.update(OGDEN if name == "ogden" else MODELS[name][0])
+    s = default_solid("hgo" if name in FIBRE else name, E=E, nu=nu)
+    s.values.update(_options(name))
     return s
 
 
@@ -135,32 +153,39 @@ def _homogeneous(name, mode, lam, E, nu):
     return P(l)[0], l
 
 
-@pytest.mark.parametrize("name", sorted(MODELS) + ["ogden"])
+@pytest.mark.parametrize("name", sorted(MODELS) + ["ogden", "hgo", "hgo_across"])
 def test_homogeneous_tests_through_the_application(name, tmp_path):
     """Issue 71's closed forms through the whole application: a unit cube (symmetry planes xmin, ymin, zmin) stretched
     to lambda = 1.8 uniaxially (the other faces free), 1.4 equibiaxially (xmax and ymax moved, zmax free) and 1.8 in
     planar tension (ymax held: pure shear), at nu = 0.45 (kappa/mu = 9.7: the lateral stretches far from
     incompressible): the reaction on xmax per reference area is the model's P_11 (formula above) within 1e-8, and the
-    free faces' stretches are the formula's."""
+    free faces' stretches are the formula's. HGO with its fibres along the pull and across it (Gasser, Ogden & Holzapfel
+    2006: across, its fibres shorten and bear nothing) and the output's fibre stretch."""
     msh = tmp_path / "cube.msh"
     run_ok(["mesh", f"{ROOT}/examples/cube.geo", "--size", 0.5, "-o", msh])
-    opts = [a for k, v in (OGDEN if name == "ogden" else MODELS[name][0]).items() for a in (f"-{k}", repr(v))]
+    opts = [a for k, v in _options(name).items()
+            for a in (f"-{k}", ",".join(map(repr, v)) if isinstance(v, tuple) else repr(v))]
     E, nu = 1.2e6, 0.45
     for mode, lam, moved, held in (("uniaxial", 1.8, "xmax:x", ""), ("equibiaxial", 1.4, "xmax:x,ymax:y", ""),
                                    ("planar", 1.8, "xmax:x", ",ymax:y")):
         out = tmp_path / f"{mode}.h5"
-        run_ok(["run", "bend", "-mesh", msh, "-material", name, *opts, "-E", E, "-nu", nu,
+        run_ok(["run", "bend", "-mesh", msh, "-material", _solid(name).name, *opts, "-E", E, "-nu", nu,
                 "-effects", "elasticity,fixed,prescribed", "-fix", "xmin:x,ymin:y,zmin:z" + held,
                 "-prescribe_faces", moved, "-prescribe_x", f"X*(1+{lam - 1!r}*t)",
                 *(["-prescribe_y", f"Y*(1+{lam - 1!r}*t)"] if "ymax:y" in moved else []),
                 "-quasistatic", "-final_time", 1, "-dt", 0.5, "-snes_rtol", 1e-13, "-snes_atol", 1e-9,
+                *(["-output_fields", "default,fibre1_stretch,fibre2_stretch"] if name in FIBRE else []),
                 "-output", out, "-quiet"])
-        h = read_h5(out)
+        h = read_h5(out, frames=name in FIBRE)
         want, l = _homogeneous(name, mode, lam, E, nu)
         got = h["stats"]["reaction_xmax_Fx"][-1]
         assert abs(got - want) <= 1e-8 * abs(want), (mode, got, want)
         x, X = h["x"][-1].reshape(-1, 3), h["points"]
         assert np.abs(x - X * l).max() <= 1e-9, mode
+        if name in FIBRE:                 # the output's fibre stretch |F a| (one family: the second's NaN)
+            last = h["frames"][-1]
+            assert np.abs(last["fibre1_stretch"] - l[FIBRE[name]]).max() <= 1e-9
+            assert np.isnan(last["fibre2_stretch"]).all()
 
 
 @pytest.mark.parametrize("stretch", [0.6, 1.3, 2.2, 4.0])

@@ -138,7 +138,8 @@ TAIL = (
     Row(("output_fields",), "-output_fields LIST", "what each frame holds besides `x`: `displacement`, "
         "`velocity` (point); `J`, `energy_density`, `von_mises` (cell); on request `stress` (Cauchy, Tensor6: xx, "
         "xy, xz, yy, yz, zz), `principal_stress` (its eigenvalues, largest first), `strain` (Green–Lagrange, "
-        "Tensor6), `NAME_nodal` of any cell field (averaged at the nodes, weighted by the cells' volumes), "
+        "Tensor6), `fibre1_stretch`, `fibre2_stretch` (`hgo`'s fibre stretches |F a|; NaN in cells without the "
+        "family), `NAME_nodal` of any cell field (averaged at the nodes, weighted by the cells' volumes), "
         "`stress_recovered` (point, Tensor6: each cell's stress at its quadrature points fitted linearly, taken to "
         "its nodes and averaged there: h^2 accurate on quadratic tetrahedra, where cell values are h) and "
         "`von_mises_recovered`; `default`, `all`. With the mixed formulation the stress's mean is the pressure field's",

@@ -16,6 +16,7 @@ from .catalog import (check_application_used, check_solver_options, check_viewer
 from ..core.errors import Interrupted, UserError
 from ..core.expressions import TIME_EXPRESSIONS, check_times
 from ..core.files import StateRows, check_output_path, output_names
+from ..physics import materials
 from ..physics.effects.seams import Results, declaring
 from ..solving.forces import held_components, record, surface_forces, table
 from ..solving.integrators import BackwardEuler, step_count
@@ -132,7 +133,7 @@ def _help_values(scene, opts):
     why = f" (-preset {preset})" if preset else " (from E and nu)"
     for name, v in list(solid.values.items()) + [("rho", solid.rho)]:
         if name not in values:
-            values[name] = f"{v:g}" + (why if preset or name not in ("E", "nu", "rho") else "")
+            values[name] = materials.shown(v) + (why if preset or name not in ("E", "nu", "rho") else "")
     return values
 
 

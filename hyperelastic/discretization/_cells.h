@@ -111,7 +111,7 @@ HE_INLINE void he_jrange(double J, double *jmin, double *jmax) {
 /* A material's parameter block: at most HE_NPARAM constants (kernels.py pads it with zeros). The loops take
  * it as `const double *restrict prm` (_material_loops.h): it aliases no output array, so the constants stay
  * in registers (without restrict, linear's K v ran ~3% slower; a local copy of the block, 2%). */
-#define HE_NPARAM 8
+#define HE_NPARAM 12
 #define HE_PARAMS(p) const double *p = prm
 
 /* A material's loops are named he_KIND_NAME (MATERIAL is defined per instantiation by he_materials.h). */

@@ -42,7 +42,7 @@ _D = ctypes.c_double
 # parameter block (NPARAM doubles: its constants, zero-padded; see _kernels.c, HE_NPARAM)
 _MATERIAL_KERNELS = {"forces": [_P], "energy": [_P], "kv": [_P, _P], "tangent": [_P, ctypes.c_int],
                      "tangent_diag": [_P], "forces_dg": [_P, _P], "fields": [_P]}
-NPARAM = 8
+NPARAM = 12
 _lib.he_mass_apply.restype = None
 _lib.he_mass_apply.argtypes = [_I, _P, _P, _D, _P, _P]
 _lib.he_max_step.restype = _D

@@ -17,7 +17,8 @@ general Zienkiewicz & Zhu, IJNME 33, 1992). Its error at the nodes falls as h^2 
 `von_mises_recovered` is the von Mises stress of it. With the mixed formulation its mean is the pressure at the node.
 
 On request (-output_fields): `stress` the Cauchy stress tensor and `strain` the Green–Lagrange strain
-E = (F^T F - I)/2 (Bonet & Wood, eq. 3.15), each as XDMF's Tensor6 (xx, xy, xz, yy, yz, zz);
+E = (F^T F - I)/2 (Bonet & Wood, eq. 3.15), each as XDMF's Tensor6 (xx, xy, xz, yy, yz, zz); `fibre1_stretch`,
+`fibre2_stretch` a fibre-reinforced material's fibre stretches |F a| (NaN in cells of a material without the family);
 `principal_stress` the Cauchy stress's eigenvalues, largest first; `NAME_nodal` a cell field averaged at
 the nodes, each cell weighted by its reference volume (rank-count independent: done on rank 0 in the input
 numbering). With the mixed formulation the stress's mean is the pressure field's (p, the mean Cauchy stress,
@@ -36,7 +37,9 @@ POINT_FIELDS = ("displacement", "velocity")
 POINT_SCALARS = ("pressure", "contact_pressure", "contact_status")
 CELL_FIELDS = ("J", "energy_density", "von_mises")
 TENSOR_FIELDS = ("stress", "strain")              # Tensor6 cell fields, on request
-EXTRA_CELL_FIELDS = TENSOR_FIELDS + ("principal_stress",)
+# a fibre-reinforced material's fibre stretches |F a_i| (hgo), on request; NaN in a cell with no such family
+FIBRE_FIELDS = ("fibre1_stretch", "fibre2_stretch")
+EXTRA_CELL_FIELDS = TENSOR_FIELDS + ("principal_stress",) + FIBRE_FIELDS
 NODAL = "_nodal"
 NODAL_OF = CELL_FIELDS + EXTRA_CELL_FIELDS        # the cell fields that have a NAME_nodal
 RECOVERED = ("stress_recovered", "von_mises_recovered")    # point fields recovered from the quadrature points
@@ -78,7 +81,7 @@ def cell_quantities(fields):
         base.add("stress")
     if base & set(RECOVERED):
         base.add(AT_NODES)
-    return tuple(n for n in CELL_FIELDS + TENSOR_FIELDS + (AT_NODES,) if n in base)
+    return tuple(n for n in CELL_FIELDS + TENSOR_FIELDS + FIBRE_FIELDS + (AT_NODES,) if n in base)
 
 
 def needs_volumes(fields):
@@ -235,10 +238,23 @@ def _compiled_fields(k, x, lo, hi, names=CELL_FIELDS):
     numpy reference's speed, which _cell_fields keeps for the tests); AT_NODES: the cell's constant stress at its
     four nodes."""
     out = k.part(lo, hi).fields(x) if (lo, hi) != (0, k.nc) else k.fields(x)
-    res = {n: out[:, COMPILED[n]] for n in names if n != AT_NODES}
+    res = {n: out[:, COMPILED[n]] for n in names if n in COMPILED}
     if AT_NODES in names:
         res[AT_NODES] = np.tile(out[:, COMPILED["stress"]], (1, 4))
+    if set(names) & set(FIBRE_FIELDS):
+        res.update(_fibre_stretches(deformation_gradients(k.cells[lo:hi], k.Dminv[lo:hi], x), k, names))
     return res
+
+
+def _fibre_stretches(F, k, names):
+    """{fibreI_stretch: |F a_I|} of `names` for deformation gradients F (n, 3, 3) of kernels k's material (NaN where
+    it has no family I: Material.fibres)."""
+    dirs = k.material.fibres(k.constants)
+    out = {}
+    for i, name in enumerate(FIBRE_FIELDS):
+        if name in names:
+            out[name] = np.linalg.norm(F @ dirs[i], axis=-1) if i < len(dirs) else np.full(len(F), np.nan)
+    return out
 
 
 def extrapolation(element):
@@ -268,7 +284,7 @@ def _point_fields(F, kernels, names=CELL_FIELDS):
         vm = np.sqrt(1.5 * np.einsum("cij,cij->c", s, s))
     psi = np.where(np.isfinite(psi), psi, np.nan)
     vm = np.where(np.isfinite(vm), vm, np.nan)
-    out = {"J": J, "energy_density": psi, "von_mises": vm}
+    out = {"J": J, "energy_density": psi, "von_mises": vm, **_fibre_stretches(F, kernels, names)}
     if "stress" in names:
         out["stress"] = _tensor6(np.where(np.isfinite(sigma), sigma, np.nan))
     if "strain" in names:

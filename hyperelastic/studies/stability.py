@@ -75,7 +75,8 @@ class Cell:
 
     def args(self, out, sliver):
         base, extra = SCENES[self.scene]
-        return (["run", base, "-level", "1", "-material", self.material, "-E", repr(E_AXIS[self.E]),
+        level = [] if "-mesh" in extra else ["-level", "1"]     # (a scene with its own mesh: -level would refuse it)
+        return (["run", base, *level, "-material", self.material, "-E", repr(E_AXIS[self.E]),
                  "-nu", repr(self.nu), "-dt", repr(self.h), "-output", out, "-quiet"]
                 + [a.format(sliver=sliver) for a in extra] + MODES[self.mode])
 
@@ -204,14 +205,16 @@ def explained_by_physics(r):
     """Why a failed cell could not have finished with any solver ('' when nothing explains it): the
     motion it is asked to follow leaves the material's domain, or starts where its energy has no
     derivative. Every other failure is the solver's, and a violation."""
-    nh = r["material"] == "neohookean"
+    m = MATERIAL_CLASSES.get(r["material"])
+    nh = m is not None and not m.defined_when_inverted       # (Neo-Hookean and every material undefined at J <= 0)
+    what = "Neo-Hookean" if r["material"] == "neohookean" else r["material"]
     if nh and r["scene"] == "invert":
-        return "Neo-Hookean is undefined at J <= 0, and the prescribed ends reach each other at t = 0.5"
+        return f"{what} is undefined at J <= 0, and the prescribed ends reach each other at t = 0.5"
     if nh and r["scene"] == "unfold":
-        return "Neo-Hookean is undefined at J <= 0, and the start is mirrored (J = -1)"
+        return f"{what} is undefined at J <= 0, and the start is mirrored (J = -1)"
     if nh and r["E"] == "1e2" and r["scene"] in ("twist3", "squeeze"):
         return ("the prescribed ends move faster than the wave speed sqrt(E/rho) = 0.3 m/s: the cells next "
-                "to them must collapse, which Neo-Hookean cannot")
+                f"to them must collapse, which {what} cannot")
     if r["material"] == "corotational" and r["scene"] == "unfold":
         return ("the start is an exact reflection, where corotational's rotation R(F) jumps: its energy has "
                 "no derivative there")

@@ -19,14 +19,14 @@ from ...core.errors import UserError
 from .base import lame
 
 __all__ = ["COMMON", "MATERIALS", "PRESETS", "REGISTRY", "Solid", "check_parameters", "default_solid", "get",
-           "lame", "own_parameters", "read_solid", "rows"]
+           "lame", "own_parameters", "read_solid", "rows", "shown"]
 
 
 # E [Pa], nu [-], rho [kg/m^3]: every material's
 COMMON = ("E", "nu", "rho")
 
 REGISTRY = ("linear", "stvk", "neohookean", "snh", "corotational", "mooney_rivlin", "neohookean_split", "yeoh",
-            "gent", "arruda_boyce", "ogden")
+            "gent", "arruda_boyce", "ogden", "hgo")
 MATERIALS = {n: importlib.import_module(f".{n}", __name__).MATERIAL for n in REGISTRY}
 
 # Preset values of the thesis framework (K. Erleben, hyper-sim, simulate/create_params.m, 2011);
@@ -58,6 +58,11 @@ def check_parameters(E, nu, rho, where="material"):
         raise UserError(f"{where}: Poisson's ratio -nu {nu:g} must satisfy -1 < nu < 0.5")
     if rho <= 0:
         raise UserError(f"{where}: density -rho {rho:g} must be > 0")
+
+
+def shown(v):
+    """A parameter's value as the set report and -help show it: a number, or a vector's x,y,z."""
+    return ",".join(f"{x:g}" for x in v) if isinstance(v, (tuple, list)) else f"{v:g}"
 
 
 def get(name):
@@ -93,12 +98,13 @@ class Solid:
 
     def describe(self):
         """One line of the material and its parameters, as the set report prints it."""
-        own = "".join(f", {p.name} {self.values[p.name]:g}" for p in self.material.parameters)
+        own = "".join(f", {p.name} {shown(self.values[p.name])}" for p in self.material.parameters)
         return f"{self.material.name}, E {self.values['E']:g}, nu {self.values['nu']:g}{own}, rho {self.rho:g}"
 
     def record(self):
         """The parameters as the output records them (JSON-able)."""
-        return {"material": self.material.name, **{k: float(v) for k, v in self.values.items()}, "rho": self.rho}
+        return {"material": self.material.name, "rho": self.rho,
+                **{k: [float(x) for x in v] if isinstance(v, (tuple, list)) else float(v) for k, v in self.values.items()}}
 
 
 def read_solid(opts, prefix, default, where):
@@ -122,13 +128,15 @@ def read_solid(opts, prefix, default, where):
     values, keys = {"E": E, "nu": nu}, {}
     for p in mat.parameters:                           # the given ones first: defaults may follow from them
         keys[p.name] = f"{prefix}{p.name}" if opts.has(f"{prefix}{p.name}") or not opts.has(p.name) else p.name
-        v = opts.real(keys[p.name], None)              # a region's default: the un-prefixed option
-        if v is not None:
-            values[p.name] = v
+        v = opts.vector(keys[p.name], p.size) if p.size > 1 else opts.real(keys[p.name], None)   # (a region's default:
+        if v is not None:                                                                     # the un-prefixed option)
+            values[p.name] = tuple(v) if p.size > 1 else v
     for p in mat.parameters:
         given = p.name in values
         if not given:
             values[p.name] = p.default(values)
+        if p.size > 1:
+            continue
         if values[p.name] <= p.minimum if p.exclusive else values[p.name] < p.minimum:
             what = (f"-{keys[p.name]} {values[p.name]:g}" if given else
                     f"{p.name} = {values[p.name]:g} (from {p.default_text})")

@@ -30,6 +30,7 @@ class Parameter:
     default_text: str           # how the default follows, for -help
     minimum: float = 0.0        # the value must be > minimum (>= when not exclusive)
     exclusive: bool = True
+    size: int = 1               # a vector of `size` numbers (-NAME x,y,z): no range; the material's check judges it
 
 
 class Material:
@@ -77,3 +78,9 @@ class Material:
         """{parameter: the value it must exceed} for the fitted state of largest I1 to be within a locking model's
         limit (`hyperelastic fit`'s bounds); none for a model without one."""
         return {}
+
+    @staticmethod
+    def fibres(c):
+        """The unit reference directions (3,) of the material's fibre families for its constants c (the output's
+        fibreI_stretch); none for an isotropic material."""
+        return []
