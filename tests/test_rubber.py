@@ -8,7 +8,7 @@ import pytest
 from scipy.optimize import brentq
 
 from conftest import ROOT, read_h5, run_ok
-from hyperelastic.physics.materials import MATERIALS, default_solid
+from hyperelastic.physics.materials import default_solid
 from hyperelastic.physics.materials.arruda_boyce import inverse_langevin, langevin
 
 MU = 0.4e6

@@ -3,7 +3,7 @@ import numpy as np
 
 from ...core.errors import UserError
 from ._i1 import IsochoricI1
-from .base import Parameter, bulk_modulus, shear_modulus
+from .base import BULK, Parameter, SHEAR
 
 # L(x) = coth x - 1/x = sum_n C_n x^(2n-1), C_n = 2^(2n) B_2n / (2n)! (B_2n Bernoulli's numbers; Abramowitz & Stegun
 # 4.5.67): below SERIES the first eight terms (the next one is < 1e-17 relative there), where coth x - 1/x loses
@@ -68,10 +68,10 @@ class ArrudaBoyce(IsochoricI1):
     references = "Arruda & Boyce, J. Mech. Phys. Solids 41, 1993"
     fitted = ("mu", "lambda_m")
     parameters = (
-        Parameter("mu", "Pa", "shear modulus", shear_modulus, "E/(2(1+ν))"),
+        SHEAR,
         Parameter("lambda_m", "-", "the chains' locking stretch (sqrt of the segments per chain)",
                   lambda v: LAMBDA_M_DEFAULT, f"{LAMBDA_M_DEFAULT:.4g} (√26.5)", minimum=1.0),
-        Parameter("kappa", "Pa", "bulk modulus", bulk_modulus, "E/(3(1−2ν))"),
+        BULK,
     )
 
     @staticmethod

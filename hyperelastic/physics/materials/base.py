@@ -33,6 +33,11 @@ class Parameter:
     size: int = 1               # a vector of `size` numbers (-NAME x,y,z): no range; the material's check judges it
 
 
+# the two moduli several materials declare (the same option, -mu and -kappa, with the same meaning and default)
+SHEAR = Parameter("mu", "Pa", "shear modulus", shear_modulus, "E/(2(1+ν))")
+BULK = Parameter("kappa", "Pa", "bulk modulus", bulk_modulus, "E/(3(1−2ν))")
+
+
 class Material:
     """The declarations every material shares; a material subclasses it (materials/NAME.py)."""
     name = "material"

@@ -2,7 +2,7 @@ import numpy as np
 
 from ...core.errors import UserError
 from ._i1 import IsochoricI1
-from .base import Parameter, bulk_modulus, shear_modulus
+from .base import BULK, Parameter, SHEAR
 
 # Jm's default: the chains' extensibility of arruda_boyce's default (N = 26.5 segments, Arruda & Boyce's fit of
 # Treloar's rubber): the two models lock at the same I1 = 3 N where Jm = 3 (N - 1) (Horgan & Saccomandi, Rubber Chem.
@@ -22,10 +22,10 @@ class Gent(IsochoricI1):
     references = "Gent, Rubber Chem. Technol. 69, 1996"
     fitted = ("mu", "Jm")
     parameters = (
-        Parameter("mu", "Pa", "shear modulus", shear_modulus, "E/(2(1+ν))"),
+        SHEAR,
         Parameter("Jm", "-", "the limit of I1 - 3 (the chains' extensibility)", lambda v: JM_DEFAULT,
                   f"{JM_DEFAULT:g} (3 (N − 1), N = 26.5: arruda_boyce's λm²)"),
-        Parameter("kappa", "Pa", "bulk modulus", bulk_modulus, "E/(3(1−2ν))"),
+        BULK,
     )
 
     @staticmethod

@@ -4,7 +4,7 @@ import numpy as np
 
 from ...core.errors import UserError
 from ._tensor import T
-from .base import Material, Parameter, bulk_modulus, shear_modulus
+from .base import BULK, Material, Parameter, SHEAR
 from .neohookean_split import volumetric
 
 NONE = (math.nan, math.nan, math.nan)      # a fibre family's direction not given: the family is absent
@@ -40,7 +40,7 @@ class HGO(Material):
     references = "Gasser, Ogden & Holzapfel, J. R. Soc. Interface 3, 2006"
     volumetric = "J"
     parameters = (
-        Parameter("mu", "Pa", "shear modulus", shear_modulus, "E/(2(1+ν))"),
+        SHEAR,
         Parameter("k1", "Pa", "the fibres' stiffness (0: no fibres)", lambda v: 0.0, "0", exclusive=False),
         Parameter("k2", "-", "the fibres' exponential stiffening", lambda v: 1.0, "1"),
         Parameter("dispersion", "-", "the fibres' dispersion d, 0 (aligned) to 1/3 (isotropic)", lambda v: 0.0, "0",
@@ -49,7 +49,7 @@ class HGO(Material):
                   "none (needed where k1 > 0)", minimum=-math.inf, size=3),
         Parameter("fibre2", "-", "the second family's (none: one family)", lambda v: NONE, "none",
                   minimum=-math.inf, size=3),
-        Parameter("kappa", "Pa", "bulk modulus", bulk_modulus, "E/(3(1−2ν))"),
+        BULK,
     )
 
     @staticmethod

@@ -2,7 +2,7 @@ import numpy as np
 
 from ...core.errors import UserError
 from ._tensor import T
-from .base import Material, Parameter, bulk_modulus, shear_modulus
+from .base import BULK, Material, Parameter, shear_modulus
 from .neohookean_split import volumetric
 
 
@@ -22,7 +22,7 @@ class MooneyRivlin(Material):
         Parameter("C10", "Pa", "the first invariant's modulus", lambda v: shear_modulus(v) / 2 - v.get("C01", 0.0),
                   "μ/2 − C01 (μ = E/(2(1+ν)))", exclusive=False),
         Parameter("C01", "Pa", "the second invariant's modulus", lambda v: 0.0, "0", exclusive=False),
-        Parameter("kappa", "Pa", "bulk modulus", bulk_modulus, "E/(3(1−2ν))"),
+        BULK,
     )
 
     fitted = ("C10", "C01")

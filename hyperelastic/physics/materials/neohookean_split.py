@@ -1,7 +1,7 @@
 import numpy as np
 
 from ._tensor import T
-from .base import Material, Parameter, bulk_modulus, shear_modulus
+from .base import BULK, Material, SHEAR
 
 
 def volumetric(J, kappa):
@@ -22,8 +22,8 @@ class NeoHookeanSplit(Material):
     references = "Simo & Taylor, CMAME 85, 1991"
     volumetric = "J"
     parameters = (
-        Parameter("mu", "Pa", "shear modulus", shear_modulus, "E/(2(1+ν))"),
-        Parameter("kappa", "Pa", "bulk modulus", bulk_modulus, "E/(3(1−2ν))"),
+        SHEAR,
+        BULK,
     )
 
     fitted = ("mu",)

@@ -2,7 +2,7 @@ import numpy as np
 
 from ...core.errors import UserError
 from ._tensor import T
-from .base import Material, Parameter, bulk_modulus, shear_modulus
+from .base import BULK, Material, Parameter, shear_modulus
 from .neohookean_split import volumetric
 
 TERMS = 3
@@ -62,7 +62,7 @@ class Ogden(Material):
         Parameter("alpha2", "-", "its exponent", lambda v: 4.0, "4", minimum=-np.inf),
         Parameter("mu3", "Pa", "the third term's (0: off)", lambda v: 0.0, "0", minimum=-np.inf),
         Parameter("alpha3", "-", "its exponent", lambda v: -2.0, "−2", minimum=-np.inf),
-        Parameter("kappa", "Pa", "bulk modulus", bulk_modulus, "E/(3(1−2ν))"),
+        BULK,
     )
 
     @staticmethod

@@ -2,7 +2,7 @@ import math
 
 from ...core.errors import UserError
 from ._i1 import IsochoricI1
-from .base import Parameter, bulk_modulus, shear_modulus
+from .base import BULK, Parameter, shear_modulus
 
 
 class Yeoh(IsochoricI1):
@@ -22,7 +22,7 @@ class Yeoh(IsochoricI1):
                   "μ/2 (μ = E/(2(1+ν)))"),
         Parameter("C20", "Pa", "its square's", lambda v: 0.0, "0", minimum=-math.inf),
         Parameter("C30", "Pa", "its cube's", lambda v: 0.0, "0", minimum=-math.inf),
-        Parameter("kappa", "Pa", "bulk modulus", bulk_modulus, "E/(3(1−2ν))"),
+        BULK,
     )
 
     @staticmethod
