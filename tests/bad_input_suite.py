@@ -182,6 +182,8 @@ def option_value_cases(rng):
         # HGO's (issue 71): its fibres' dispersion and stiffening, a family's direction
         "tissue": (["dispersion", "k2"], real_bad + ["-1", "0.5"]),
         "fibre": (["fibre1", "fibre2"], ["0,0,0", "1,2", "a,b,c", "nan,0,0", "1e308,0,0", ""]),
+        # the viscoelastic effect's Prony series (issue 71)
+        "prony": (["prony_beta", "prony_tau"], ["", "abc", "nan", "inf", "-1", "1,2", "1,2,3,4,5", "0.1,,0.2"]),
     }
     context = {"pressure_faces": ["-pressure", "1e3"], "prescribe_faces": ["-prescribe_motion", "stretch_x"],
                "prescribe_motion": ["-prescribe_faces", "right"], "pressure": ["-pressure_faces", "right"],
@@ -192,6 +194,8 @@ def option_value_cases(rng):
                "Jm": ["-material", "gent"], "lambda_m": ["-material", "arruda_boyce"], "mu1": ["-material", "ogden"],
                "alpha1": ["-material", "ogden"], "dispersion": ["-material", "hgo"], "k2": ["-material", "hgo"],
                "fibre1": ["-material", "hgo", "-k1", "1e5"], "fibre2": ["-material", "hgo", "-fibre1", "1,0,0"],
+               "prony_beta": ["-material", "neohookean_split", "-prony_tau", "0.1"],
+               "prony_tau": ["-material", "neohookean_split", "-prony_beta", "0.3"],
                "quadrature_degree": ["-order", "2"], "force": ["-force_faces", "right"],
                "force_faces": ["-force", "1,0,0"], "body_force_regions": ["-body_force", "0,0,1"]}
     skip = {("mesh_frame", "-5"), ("initial_spin", "1e-320,0,0"), ("initial_rotation", "1e-320,0,0"),

@@ -420,7 +420,7 @@ def build_model(scene, comm):
     formulation, notes = choose(problem)
     k, density = cell_kernels(scene, space, formulation.cell_constants)
     ctx = effects_pkg.Context(space, k, k.geometry, density, scene.lumped, scene.hessian_projection,
-                              max(s.values["E"] for _, s in solids), scene.quasistatic)
+                              max(s.values["E"] for _, s in solids), scene.quasistatic, solids)
     effects, constraints = effects_pkg.build(scene, ctx)
     x0, v0 = initial_state(scene, space)
     system = formulation.system(problem, space, k, effects, constraints, x0, v0)

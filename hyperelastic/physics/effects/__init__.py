@@ -8,12 +8,13 @@ import numpy as np
 
 from ...core.errors import UserError
 from . import (body_force, contact, damping, dirichlet, elasticity, follower, force, gravity, inertia, loads, pressure,
-               rigid, spring, traction)
+               rigid, spring, traction, viscoelastic)
 
 # Every effect, in the order their options are listed and implied effects are added to a scene; -loads takes as its
 # kinds the effects before it that declare a LoadKind (traction, pressure, force, spring).
 _EFFECTS = (
     elasticity.SPEC,
+    viscoelastic.SPEC,
     inertia.SPEC,
     damping.SPEC,
     damping.RAYLEIGH,
@@ -61,6 +62,7 @@ class Context:
     projection: bool = False
     modulus: float = 1.0
     quasistatic: bool = False
+    solids: tuple = ()          # [(where, Solid)] of the solids some cell has (model.solids_in_use)
 
 
 def build(scene, ctx):

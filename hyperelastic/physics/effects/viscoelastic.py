@@ -1,0 +1,164 @@
+"""Finite-strain viscoelasticity: a Prony series on the isochoric stress (Simo, CMAME 60, 1987; Holzapfel, Nonlinear
+Solid Mechanics, 2000, sec. 6.10), beside the elastic force of a material with an isochoric/volumetric split.
+
+Each term i (-prony_beta b_i, -prony_tau tau_i) carries a non-equilibrium second Piola-Kirchhoff stress Q_i per cell,
+Q_i' + Q_i / tau_i = b_i d/dt S_iso, S_iso the material's isochoric stress (its kernel with kappa = 0), so the
+relaxation modulus of the isochoric part is mu (1 + sum_i b_i exp(-t/tau_i)). Over a step of h from t_n with S_iso
+linear in time the update is exact: Q_i^(n+1) = exp(-h/tau_i) Q_i^n + g_i (S_iso^(n+1) - S_iso^n), g_i = b_i (1 -
+exp(-h/tau_i)) tau_i/h (the exponential integrator). The effect adds P = F sum_i Q_i^(n+1) = F H + g P_iso(F), H =
+sum_i (exp(-h/tau_i) Q_i^n - g_i S_iso^n), g = sum g_i, to the residual; its tangent is g K_iso + (dF H). The Q_i and
+S_iso^n are taken forward once per accepted step: at the next step's begin_step (its start time past the last one's),
+from the accepted positions. Linear tetrahedra, one material (no -regions); a restart of such a run is refused for
+now (the Q_i are not in checkpoints)."""
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ...core.errors import UserError
+from ...core.options import Row
+from .base import Effect, Spec, timed
+
+MAX_TERMS = 4
+
+
+def _gammas(beta, tau, h):
+    """(exp(-h/tau_i), g_i = beta_i (1 - exp(-h/tau_i)) tau_i/h) of each term (g_i -> beta_i as h -> 0)."""
+    x = np.asarray(h) / np.asarray(tau)
+    return np.exp(-x), np.asarray(beta) * (-np.expm1(-x)) / x
+
+
+class Viscoelastic(Effect):
+    name = "viscoelastic"
+    linear = False
+    conservative = False
+    cell_blocks = True
+    symmetric = True
+    internal = True
+
+    def __init__(self, kernels, material, iso, beta, tau):
+        super().__init__()
+        self.iso = kernels.geometry.kernels(material, iso)    # the material's isochoric part on the same cells
+        self.material, self.iso_constants = material, iso
+        self.beta, self.tau = np.array(beta), np.array(tau)
+        g = kernels.geometry
+        self.cells, self.Dminv, self.vol = g.cells, g.Dminv.reshape(-1, 3, 3), g.vol
+        # shape-function gradients per cell (nc, 4, 3): grad N_0 = -sum of Dm^-1's rows, then its rows
+        self.G = np.concatenate([-self.Dminv.sum(axis=1, keepdims=True), self.Dminv], axis=1)
+        nc = len(self.vol)
+        self.Q = np.zeros((len(beta), nc, 3, 3))
+        self.S = None          # S_iso at the last accepted state
+        self.t0 = None         # the start time of the step being solved
+        self.h = None
+
+    def _F(self, x):
+        xs = x.reshape(-1, 3)[self.cells]                                   # (nc, 4, 3)
+        return np.einsum("cai,caj->cij", xs, self.G)
+
+    def _S_iso(self, x):
+        F = self._F(x)
+        with np.errstate(all="ignore"):
+            return np.linalg.solve(F, self.material.P(F, self.iso_constants))
+
+    def begin_step(self, t, h, xn, vn):
+        if self.S is None:
+            self.S = self._S_iso(xn)
+        elif t > self.t0:                       # the step from t0 was accepted: xn is its end
+            S = self._S_iso(xn)
+            e, g = _gammas(self.beta, self.tau, t - self.t0)
+            self.Q = e[:, None, None, None] * self.Q + g[:, None, None, None] * (S - self.S)
+            self.S = S
+        self.t0, self.h = t, h
+        e, g = _gammas(self.beta, self.tau, h)
+        self.g = float(g.sum())
+        self.H = np.einsum("i,icjk->cjk", e, self.Q) - self.g * self.S
+
+    def _forces(self, P, r):
+        """r += V P grad N_a for each cell's nodes (P (nc, 3, 3))."""
+        f = np.einsum("c,cij,caj->cai", self.vol, P, self.G)
+        np.add.at(r.reshape(-1, 3), self.cells, f)
+
+    @timed("evals")
+    def residual(self, x, r):
+        tmp = np.zeros_like(r)
+        self.iso.forces(x, tmp)
+        r += self.g * tmp
+        self._forces(self._F(x) @ self.H, r)
+
+    def linearize(self, x):
+        self.x = x.copy()
+
+    @timed("applies")
+    def apply(self, v, y):
+        tmp = np.zeros_like(y)
+        self.iso.kv(self.x, v, tmp)
+        y += self.g * tmp
+        self._forces(self._F(v) @ self.H, y)
+
+    @timed("applies")
+    def diag(self, d):
+        tmp = np.zeros_like(d)
+        self.iso.tangent_diag(self.x, tmp)
+        d += self.g * tmp
+        gg = np.einsum("c,cai,cij,caj->ca", self.vol, self.G, self.H, self.G)            # (nc, 4)
+        np.add.at(d.reshape(-1, 3), self.cells, np.repeat(gg[:, :, None], 3, axis=2))
+
+    @timed("applies")
+    def add_cell_blocks(self, vals, lo=0, hi=None):
+        hi = len(self.vol) if hi is None else hi
+        k = self.iso if (lo, hi) == (0, len(self.vol)) else self.iso.part(lo, hi)
+        K, _ = k.tangent(self.x)
+        vals += self.g * K
+        G, H, V = self.G[lo:hi], self.H[lo:hi], self.vol[lo:hi]
+        gg = np.einsum("c,cai,cij,cbj->cab", V, G, H, G)                                # (n, 4, 4)
+        vals += np.einsum("cab,ik->caibk", gg, np.eye(3)).reshape(len(V), 12, 12)
+
+
+@dataclass(frozen=True)
+class Prony:
+    beta: tuple       # each term's relative modulus b_i (>= 0)
+    tau: tuple        # its relaxation time [s] (> 0)
+
+
+def _read(opts, where):
+    def reals(name):
+        text = opts.string(name, None)
+        if text is None:
+            raise UserError(f"{where}: the viscoelastic effect needs -prony_beta and -prony_tau (lists of the same "
+                            "length: each term's relative modulus and relaxation time)")
+        try:
+            vals = [float(w) for w in text.split(",")]
+        except ValueError:
+            raise UserError(f"option -{name}: '{text[:60]}' is not a list of numbers (e.g. 0.3,0.1)") from None
+        if not vals or len(vals) > MAX_TERMS or not all(math.isfinite(v) for v in vals):
+            raise UserError(f"option -{name}: '{text[:60]}' must be 1 to {MAX_TERMS} finite numbers")
+        return tuple(vals)
+    beta, tau = reals("prony_beta"), reals("prony_tau")
+    if len(beta) != len(tau):
+        raise UserError(f"options -prony_beta and -prony_tau: {len(beta)} and {len(tau)} terms (give each term both)")
+    if min(beta) < 0:
+        raise UserError(f"option -prony_beta: {min(beta):g} must be >= 0 (a term's share of the modulus)")
+    if min(tau) <= 0:
+        raise UserError(f"option -prony_tau: {min(tau):g} must be > 0 (a relaxation time in seconds)")
+    return Prony(beta, tau)
+
+
+def _build(p, ctx):
+    k = ctx.kernels
+    solids = [s for _, s in ctx.solids]
+    if len(solids) != 1 or not hasattr(k, "geometry") or getattr(k, "nn", 4) != 4 or len(getattr(k, "parts", ())) > 1:
+        raise UserError("the viscoelastic effect (-prony_beta): one material on linear tetrahedra for now (not "
+                        "-regions, not -order 2)")
+    s = solids[0]
+    if not s.material.volumetric:
+        raise UserError(f"the viscoelastic effect (-prony_beta): material {s.name} has no isochoric/volumetric split "
+                        "(take neohookean_split, mooney_rivlin, yeoh, gent, arruda_boyce, ogden or hgo)")
+    return [Viscoelastic(k, s.material, s.material.split(s.values)[0], p.beta, p.tau)]
+
+
+SPEC = Spec(
+    "viscoelastic", "a Prony series on the isochoric stress (finite-strain viscoelasticity)",
+    implied_by=("prony_beta", "prony_tau"), read=_read, build=_build,
+    rows=(Row(("prony_beta", "prony_tau"), "-prony_beta b1,b2,… -prony_tau t1,t2,…",
+              "finite-strain viscoelasticity: the isochoric stress relaxes as mu (1 + Σ b_i exp(−t/τ_i)) (Simo 1987; "
+              "up to 4 terms; a material with an isochoric/volumetric split, linear tetrahedra)"),))

@@ -1,0 +1,127 @@
+"""Issue 71 item 3: finite-strain viscoelasticity, a Prony series on the isochoric stress (Simo 1987): a held stretch
+relaxes as the series' closed form, the effect's tangent is its residual's derivative, and what it cannot do yet is
+refused in one line."""
+import math
+
+import numpy as np
+import pytest
+
+from conftest import ROOT, hyperelastic, read_h5, run_ok
+
+
+def _confined(lam, mu, kappa):
+    """F = diag(lam, 1, 1) of the split Neo-Hookean solid (J = lam): the elastic nominal stress P_11 = mu J^(-2/3)
+    (lam - I1/(3 lam)) + kappa/2 (J^2 - 1)/lam and the isochoric second Piola-Kirchhoff stress S_11 = mu J^(-2/3)
+    (1 - I1/(3 lam^2)), I1 = lam^2 + 2 (Holzapfel 2000, sec. 6.5)."""
+    j23, I1 = lam ** (-2 / 3), lam * lam + 2
+    return mu * j23 * (lam - I1 / (3 * lam)) + 0.5 * kappa * (lam * lam - 1) / lam, mu * j23 * (1 - I1 / (3 * lam * lam))
+
+
+@pytest.fixture(scope="module")
+def cube(tmp_path_factory):
+    d = tmp_path_factory.mktemp("visco")
+    msh = d / "cube.msh"
+    run_ok(["mesh", f"{ROOT}/examples/cube.geo", "--size", 0.5, "-o", msh])
+    return msh
+
+
+CONFINED = ["-effects", "elasticity,fixed,prescribed,viscoelastic", "-fix", "xmin:x,ymin:y,ymax:y,zmin:z,zmax:z",
+            "-prescribe_faces", "xmax:x", "-quasistatic", "-snes_rtol", "1e-13", "-snes_atol", "1e-9"]
+
+
+def test_a_held_stretch_relaxes_as_the_prony_series(cube, tmp_path):
+    """A unit cube held on its sides (F = diag(lambda, 1, 1)) stretched to lambda = 1.5 in the first step of h = 0.05 s
+    and held: two Prony terms (b = 0.5, 0.3; tau = 0.2, 1 s). The reaction on xmax per reference area is the elastic
+    P_11 plus lambda sum_i g_i S_11 exp(-(t - h)/tau_i), g_i = b_i (1 - exp(-h/tau_i)) tau_i/h (the ramp's update
+    exact for a stress linear in the step, then the series' exponential decay), to 1e-9 at every frame; and it
+    relaxes to the elastic stress (the long-term modulus)."""
+    mu, nu, E, h = 1e6, 0.45, 2.9e6, 0.05
+    beta, tau = (0.5, 0.3), (0.2, 1.0)
+    out = tmp_path / "relax.h5"
+    run_ok(["run", "bend", "-mesh", cube, "-material", "neohookean_split", "-mu", mu, "-E", E, "-nu", nu, *CONFINED,
+            "-prescribe_x", "X*1.5", "-prony_beta", "0.5,0.3", "-prony_tau", "0.2,1", "-final_time", 3, "-dt", h,
+            "-output", out, "-quiet"])
+    st = read_h5(out)["stats"]
+    kappa = E / (3 * (1 - 2 * nu))
+    P_inf, S11 = _confined(1.5, mu, kappa)
+    t = st["time"]
+    visc = sum(b * (-math.expm1(-h / T)) * T / h * np.exp(-(t - h) / T) for b, T in zip(beta, tau))
+    want = P_inf + 1.5 * S11 * visc
+    got = st["reaction_xmax_Fx"]
+    assert np.abs(got / want - 1).max() <= 1e-9, np.abs(got / want - 1).max()
+    assert abs(got[-1] / P_inf - 1) < 0.002 and got[0] - P_inf > 0.05 * P_inf
+
+
+def test_the_tangent_is_the_residuals_derivative():
+    """The effect's K v, its diagonal and its 12x12 blocks against central differences of its residual, mid-way
+    through a relaxation (Q != 0), on random cells of the split Neo-Hookean and of Ogden's rubber."""
+    from hyperelastic.discretization.kernels import Cells
+    from hyperelastic.physics.effects.viscoelastic import Viscoelastic
+    from hyperelastic.physics.materials import default_solid
+    rng = np.random.default_rng(5)
+    X = rng.standard_normal((30, 4, 3))
+    D = np.stack([X[:, 1] - X[:, 0], X[:, 2] - X[:, 0], X[:, 3] - X[:, 0]], axis=-1)
+    keep = np.linalg.det(D) > 0.1
+    X, D = X[keep], D[keep]
+    n = len(X)
+    cells = Cells(np.arange(4 * n, dtype=np.int32).reshape(-1, 4), np.linalg.inv(D), np.linalg.det(D) / 6)
+    for name in ("neohookean_split", "ogden"):
+        s = default_solid(name)
+        k = cells.kernels(s.material, s.constants)
+        e = Viscoelastic(k, s.material, s.material.split(s.values)[0], (0.4, 0.2), (0.1, 0.5))
+        x0 = X.reshape(-1).copy()
+        x1 = x0 + 0.03 * rng.standard_normal(x0.shape)
+        e.begin_step(0.0, 0.05, x0, None)
+        e.begin_step(0.05, 0.05, x1, None)          # the first step accepted at x1: Q != 0
+        x = x1 + 0.02 * rng.standard_normal(x0.shape)
+        e.linearize(x)
+        v = rng.standard_normal(x.shape)
+        y = np.zeros_like(x)
+        e.apply(v, y)
+        eps = 1e-6
+        rp, rm = np.zeros_like(x), np.zeros_like(x)
+        e.residual(x + eps * v, rp)
+        e.residual(x - eps * v, rm)
+        assert np.abs(y - (rp - rm) / (2 * eps)).max() <= 1e-6 * np.abs(y).max(), name
+        K = np.zeros((n, 12, 12))
+        e.add_cell_blocks(K)
+        assert np.abs(np.einsum("crs,cs->cr", K, v.reshape(n, 12)).reshape(-1) - y).max() <= 1e-12 * np.abs(y).max()
+        d = np.zeros_like(x)
+        e.diag(d)
+        assert np.allclose(d, np.einsum("cii->ci", K).reshape(-1), rtol=1e-12, atol=0)
+
+
+@pytest.mark.parametrize("args,want", [
+    (["-material", "stvk"], "has no isochoric/volumetric split"),
+    (["-material", "neohookean_split", "-order", "2"], "linear tetrahedra for now"),
+    (["-material", "neohookean_split", "-prony_tau", "0.1,0.2"], "1 and 2 terms"),
+    (["-material", "neohookean_split", "-prony_tau", "-1"], "must be > 0"),
+])
+def test_what_it_cannot_do_is_one_line(args, want, cube, tmp_path):
+    base = ["run", "bend", "-mesh", cube, *CONFINED, "-prescribe_x", "X*1.2", "-prony_beta", "0.5", "-final_time",
+            0.1, "-dt", 0.05, "-output", tmp_path / "o.h5"]
+    if "-prony_tau" not in args:
+        base += ["-prony_tau", "0.1"]
+    p = hyperelastic(base + args)
+    assert p.returncode == 2 and want in p.stderr and len(p.stderr.strip().splitlines()) == 1, p.stderr
+
+
+def test_a_restart_is_refused_in_one_line(cube, tmp_path):
+    out = tmp_path / "v.h5"
+    run_ok(["run", "bend", "-mesh", cube, "-material", "neohookean_split", *CONFINED, "-prescribe_x", "X*1.2",
+            "-prony_beta", "0.5", "-prony_tau", "0.1", "-final_time", 0.1, "-dt", 0.05, "-checkpoint_every", 1,
+            "-output", out, "-quiet"])
+    p = hyperelastic(["run", "--restart", out, "-final_time", 0.2])
+    assert p.returncode == 2 and "cannot be restarted yet" in p.stderr, p.stderr
+
+
+def test_the_same_answer_on_two_ranks(tmp_path):
+    """The bend scene of Yeoh rubber with a Prony term on 1 and 2 ranks: the same trajectory (to 1e-10 of its size)."""
+    from conftest import read_h5 as read
+    out = {}
+    for n in (1, 2):
+        out[n] = tmp_path / f"r{n}.h5"
+        run_ok(["run", "bend", "-level", 2, "-material", "yeoh", "-prony_beta", "0.3", "-prony_tau", "0.05",
+                "-final_time", 0.1, "-output", out[n], "-quiet"], nprocs=n)
+    a, b = read(out[1])["x"], read(out[2])["x"]
+    assert np.abs(a - b).max() <= 1e-10 * np.abs(a).max()
