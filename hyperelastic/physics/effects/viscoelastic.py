@@ -50,10 +50,11 @@ class Viscoelastic(Effect):
         self.S = None          # S_iso at the last accepted state
         self.t0 = None         # the start time of the step being solved
         self.h = None
+        self.scatter = None    # cell forces -> the local vector (a sparse matrix, built at the first use)
 
     def _F(self, x):
         xs = x.reshape(-1, 3)[self.cells]                                   # (nc, 4, 3)
-        return np.einsum("cai,caj->cij", xs, self.G)
+        return np.matmul(np.swapaxes(xs, 1, 2), self.G)
 
     def _S_iso(self, x):
         F = self._F(x)
@@ -74,9 +75,16 @@ class Viscoelastic(Effect):
         self.H = np.einsum("i,icjk->cjk", e, self.Q) - self.g * self.S
 
     def _forces(self, P, r):
-        """r += V P grad N_a for each cell's nodes (P (nc, 3, 3))."""
-        f = np.einsum("c,cij,caj->cai", self.vol, P, self.G)
-        np.add.at(r.reshape(-1, 3), self.cells, f)
+        """r += V P grad N_a for each cell's nodes (P (nc, 3, 3)), scattered by a sparse matrix built once."""
+        self._forces_raw(np.matmul(self.G, np.swapaxes(P, 1, 2)) * self.vol[:, None, None], r)
+
+    def _forces_raw(self, f, r):
+        """r += the cells' nodal values f (nc, 4, 3), summed at the nodes."""
+        if self.scatter is None or self.scatter.shape[0] != r.size:
+            from scipy.sparse import csr_matrix      # deferred: only this effect (and self-contact) needs scipy
+            rows = (3 * self.cells[:, :, None] + np.arange(3)).ravel()
+            self.scatter = csr_matrix((np.ones(rows.size), (rows, np.arange(rows.size))), shape=(r.size, rows.size))
+        r += self.scatter @ f.ravel()
 
     @timed("evals")
     def residual(self, x, r):
@@ -100,18 +108,21 @@ class Viscoelastic(Effect):
         tmp = np.zeros_like(d)
         self.iso.tangent_diag(self.x, tmp)
         d += self.g * tmp
-        gg = np.einsum("c,cai,cij,caj->ca", self.vol, self.G, self.H, self.G)            # (nc, 4)
-        np.add.at(d.reshape(-1, 3), self.cells, np.repeat(gg[:, :, None], 3, axis=2))
+        gg = np.einsum("cai,cai->ca", np.matmul(self.G, self.H), self.G) * self.vol[:, None]     # (nc, 4)
+        self._forces_raw(np.repeat(gg[:, :, None], 3, axis=2), d)
 
     @timed("applies")
     def add_cell_blocks(self, vals, lo=0, hi=None):
         hi = len(self.vol) if hi is None else hi
         k = self.iso if (lo, hi) == (0, len(self.vol)) else self.iso.part(lo, hi)
         K, _ = k.tangent(self.x)
-        vals += self.g * K
+        K *= self.g
+        vals += K
         G, H, V = self.G[lo:hi], self.H[lo:hi], self.vol[lo:hi]
-        gg = np.einsum("c,cai,cij,cbj->cab", V, G, H, G)                                # (n, 4, 4)
-        vals += np.einsum("cab,ik->caibk", gg, np.eye(3)).reshape(len(V), 12, 12)
+        gg = np.matmul(np.matmul(G, H), np.swapaxes(G, 1, 2)) * V[:, None, None]        # (n, 4, 4)
+        v5 = vals.reshape(len(V), 4, 3, 4, 3)
+        for i in range(3):
+            v5[:, :, i, :, i] += gg
 
 
 @dataclass(frozen=True)

@@ -177,3 +177,60 @@ HE_INLINE void ogden_dstress(const double *prm, const ogden_cache *d, const doub
   (void)prm;
   for (int k = 0; k < 9; k++) dP[k] = a2 * W[k] + cF * d->FT[k] + cQ * d->Q[k] + cU * U[k];
 }
+
+/* dP along the rank-one dF = e_k (x) Gb (the cell tangent's columns): ogden_dstress with dF N = e_k (x) g, g = N^T Gb,
+ * so X = g (x) (F N)_k, Q:dF = (Q Gb)_k and Q dF^T Q = (Q Gb) (x) Q_k (outer products where the general path has
+ * matrix products). */
+HE_INLINE void ogden_rank_one(const double *prm, const ogden_cache *d, const double *Gb, int k, double *dP) {
+  double g[3], hq[3], D[9], H[9], W[9];
+  (void)prm;
+  for (int a = 0; a < 3; a++) g[a] = d->N[a] * Gb[0] + d->N[3 + a] * Gb[1] + d->N[6 + a] * Gb[2];
+  mv3(d->Q, Gb, hq);
+  const double qd = hq[k], *fk = d->FN + 3 * k;
+  double dtau = 0;
+  for (int a = 0; a < 3; a++)
+    for (int b = 0; b < 3; b++)
+      D[3 * a + b] = d->j23 * (g[a] * fk[b] + g[b] * fk[a]) - (a == b ? 2.0 / 3.0 * qd * d->c[a] : 0.0);
+  for (int a = 0; a < 3; a++) dtau += d->h[a] * D[4 * a];
+  for (int m = 0; m < 9; m++) D[m] *= d->dd[m];                 /* dT_hat */
+  mm(d->FN, D, H);                                              /* F N dT_hat + (dF N) diag(fp) */
+  for (int a = 0; a < 3; a++) H[3 * k + a] += g[a] * d->fp[a];
+  for (int i = 0; i < 3; i++)
+    for (int j = 0; j < 3; j++)
+      W[3 * i + j] = H[3 * i] * d->N[3 * j] + H[3 * i + 1] * d->N[3 * j + 1] + H[3 * i + 2] * d->N[3 * j + 2];
+  const double a2 = 2 * d->j23, cF = -2.0 / 3.0 * qd * a2, cQ = -2.0 / 3.0 * dtau + d->kJ2 * qd,
+               cU = 2.0 / 3.0 * d->tau - d->g;
+  for (int i = 0; i < 3; i++)
+    for (int j = 0; j < 3; j++) {
+      const int m = 3 * i + j;
+      dP[m] = a2 * W[m] + cF * d->FT[m] + cQ * d->Q[m] + cU * hq[i] * d->Q[3 * k + j];
+    }
+}
+
+/* The 12x12 cell tangent, column (b, k) = V dP[e_k (x) G_b] G_a (ogden_rank_one). */
+#define ogden_CELL_TANGENT 1
+HE_INLINE void ogden_cell_tangent(const double *prm, const ogden_cache *d, double G[4][3], double V, double *K,
+                                  int accumulate) {
+  for (int b = 0; b < 4; b++)
+    for (int k = 0; k < 3; k++) {
+      double dP[9];
+      ogden_rank_one(prm, d, G[b], k, dP);
+      for (int a = 0; a < 4; a++)
+        for (int i = 0; i < 3; i++) {
+          const double v = V * (dP[3 * i] * G[a][0] + dP[3 * i + 1] * G[a][1] + dP[3 * i + 2] * G[a][2]);
+          double *e = K + 12 * (3 * a + i) + 3 * b + k;
+          if (accumulate) *e += v;
+          else *e = v;
+        }
+    }
+}
+
+HE_INLINE void ogden_cell_tangent_diag(const double *prm, const ogden_cache *d, double G[4][3], double V,
+                                       double diag[12]) {
+  for (int b = 0; b < 4; b++)
+    for (int k = 0; k < 3; k++) {
+      double dP[9];
+      ogden_rank_one(prm, d, G[b], k, dP);
+      diag[3 * b + k] = V * (dP[3 * k] * G[b][0] + dP[3 * k + 1] * G[b][1] + dP[3 * k + 2] * G[b][2]);
+    }
+}
