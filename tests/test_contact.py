@@ -661,6 +661,30 @@ def test_a_triangulated_plate_presses_as_the_plane_does(tmp_path):
     # and takes the plane's steps: its first step's start carries the end's nodes the plate reaches along with it
     # (SelfContact.pushed; it rejected 6 steps, down to h/64, pushing nothing)
     assert [int(st["rejected"].sum()) for st in stats] == [1, 1] and len(stats[0]["step"]) == len(stats[1]["step"])
+    # the plate's results (issue 70 item 2, for triangulated obstacles): its force each accepted step is the forces
+    # table's `load contact` (the gradient over the plate's vertices: minus the body's share of its pairs), its contact
+    # area the plane's, and `report --contact` reads them with the contact pressure and status fields
+    m, ok = stats[0], stats[0]["rejected"] == 0
+    for c in "xyz":
+        assert np.allclose(m[f"obstacle1_F{c}"][ok], m[f"load_contact_F{c}"][ok], rtol=1e-9, atol=1e-9 * abs(f_plane[0]))
+    assert abs(m["obstacle1_area"][-1] - stats[1]["obstacle1_area"][-1]) <= 1e-12 * stats[1]["obstacle1_area"][-1]
+    lines = [run_ok(["report", tmp_path / f, "--contact"]).stdout.splitlines()[-1] for f in ("m.h5", "p.h5")]
+    assert "obstacle1 mesh:" in lines[0] and lines[0].split("nodes in contact")[0].split()[-1] == \
+        lines[1].split("nodes in contact")[0].split()[-1], lines
+
+
+def test_obstacles_are_numbered_in_the_order_given(tmp_path):
+    """-obstacle lists a triangulated plate far from the bar before the press's plane: the statistics name the plate
+    obstacle1 (no force: it touches nothing) and the plane obstacle2 (the press's force), whichever effect computes
+    each (the analytic obstacles' and the triangles' were each numbered from 1)."""
+    plate = tmp_path / "far.obj"
+    plate.write_text("v -20 -3 -3\nv -20 3 -3\nv -20 3 3\nv -20 -3 3\nf 1 2 3\nf 1 3 4\n")
+    run_ok(["run", "press", "-obstacle", f"mesh:{plate};plane:-1,0,0,-5.005", "-obstacle_motion", "0,0,0;-2*t,0,0",
+            "-final_time", 0.3, "-output", tmp_path / "o.h5", "-quiet"])
+    st = read_h5(tmp_path / "o.h5")["stats"]
+    ok = st["rejected"] == 0
+    assert (st["obstacle1_Fx"][ok] == 0).all() and (st["obstacle2_Fx"][ok][-1] < 0)
+    assert np.allclose(st["obstacle2_Fx"][ok], st["load_contact_Fx"][ok], rtol=1e-9)
 
 
 def test_hertz_contact_radius_and_peak_pressure(tmp_path):

@@ -51,9 +51,15 @@ def surface_forces(scene, system, x):
     if len(holds) > 1:                  # every held component once: what the loads balance
         f = np.where(held, r, 0.0)
         rows.append(("reaction", TOTAL, f.sum(axis=0), np.cross(X, f).sum(axis=0)))
+    loads = {}                # (effects of one name add up: contact with analytic obstacles and with triangles)
     for e, re in each:
         if not e.internal:
-            rows.append(("load", e.name, -re.sum(axis=0), -np.cross(X, re).sum(axis=0)))
+            F, M = -re.sum(axis=0), -np.cross(X, re).sum(axis=0)
+            if e.name in loads:
+                loads[e.name] = (loads[e.name][0] + F, loads[e.name][1] + M)
+            else:
+                loads[e.name] = (F, M)
+    rows += [("load", name, F, M) for name, (F, M) in loads.items()]
     local = np.array([np.concatenate([F, M]) for _, _, F, M in rows]).reshape(-1, 6)
     total = np.empty_like(local)
     mpi.Allreduce(local, total, op=MPI.SUM)

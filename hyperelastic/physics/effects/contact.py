@@ -84,7 +84,7 @@ class Contact(NodeBlocks, StepLimiter, DomainCheck, StepStart, AdaptiveStiffness
     discrete_gradient = True  # (-energy_momentum: residual_discrete_gradient)
 
     def __init__(self, nodes, area, X, input_ids, obstacles, dhat, kappa, edge=None, mu=0.0, eps_v=EPS_V, eps_d=None,
-                 mpi=None):
+                 mpi=None, numbers=None):
         """mu: Coulomb's friction coefficient (0: frictionless); eps_v [m/s]: the slip speed below which friction is
         smoothed (IPC's epsilon_v; a slip length of eps_v h a step); eps_d [m]: in a quasi-static run, the slip a step
         below which it is smoothed instead (time there is a load parameter: a speed in it means nothing). mpi: the
@@ -95,6 +95,7 @@ class Contact(NodeBlocks, StepLimiter, DomainCheck, StepStart, AdaptiveStiffness
         self.nodes, self.area = np.asarray(nodes, np.int64), np.asarray(area, float)
         self.edge = np.full(len(self.nodes), np.inf) if edge is None else np.asarray(edge, float)
         self.obstacles, self.dhat, self.kappa = tuple(obstacles), float(dhat), float(kappa)
+        self.numbers = tuple(numbers or range(1, len(self.obstacles) + 1))     # (each one's place in -obstacle)
         self.input_ids = np.asarray(input_ids, np.int64)
         self.now = self.before = [o.at(0.0) for o in self.obstacles]
         self.moving = any(o.motion is not None for o in self.obstacles)
@@ -299,7 +300,7 @@ class Contact(NodeBlocks, StepLimiter, DomainCheck, StepStart, AdaptiveStiffness
             if slip is not None:
                 lam, _, u, y = slip
                 force = force - ((self.mu * lam * mollifier(y, self.slip_eps)[1])[:, None] * u).sum(axis=0)
-            rows.append((f"obstacle{k + 1}", force, float(self.area[d < self.dhat].sum()), o.shift(t)))
+            rows.append((f"obstacle{self.numbers[k]}", force, float(self.area[d < self.dhat].sum()), o.shift(t)))
         return rows
 
     def energy(self, x, v):
@@ -402,12 +403,14 @@ def build_contact(p, ctx):
     kappa = p.kappa if p.kappa is not None else KAPPA_SCALE * ctx.modulus / dhat
     analytic = tuple(o for o in p.obstacles if o.form.analytic)
     meshes = tuple(o for o in p.obstacles if not o.form.analytic)
+    number = {id(o): i + 1 for i, o in enumerate(p.obstacles)}          # (each one's place in -obstacle: its rows)
     eps_v, eps_d = friction_smoothing(p, ctx.quasistatic, dhat)
     out = [Contact(nodes, owned_share[owned_share > 0], X, sp.orig[nodes], analytic, dhat, kappa, edge[nodes],
-                   p.mu, eps_v, eps_d, sp.mpi)] if analytic else []
+                   p.mu, eps_v, eps_d, sp.mpi, [number[id(o)] for o in analytic])] if analytic else []
     if p.self_contact or meshes:
         from .self_contact import SelfContact
-        out.append(SelfContact(sp, tris, dhat, kappa, meshes, p.mu, eps_v, eps_d, ctx.projection))
+        out.append(SelfContact(sp, tris, dhat, kappa, meshes, p.mu, eps_v, eps_d, ctx.projection,
+                               [number[id(o)] for o in meshes]))
     for o in p.obstacles:
         points, every = o.inside_test(0.0)
         inside = _inside_part(sp, points)

@@ -31,7 +31,7 @@ from mpi4py import MPI
 from ...core.errors import UserError
 from .base import NodeBlocks, timed
 from .obstacles import linear_motion
-from .seams import PUSH_LIMIT, AdaptiveStiffness, Couplings, DomainCheck, StepLimiter, StepStart
+from .seams import PUSH_LIMIT, AdaptiveStiffness, Couplings, DomainCheck, Results, StepLimiter, StepStart
 
 KAPPA_WEIGHT = 1.1           # W above: the area weights' sum per unit area of two facing faces (measured)
 
@@ -77,7 +77,7 @@ def linear_triangles(tris):
     return np.concatenate([np.c_[a, ab, ac], np.c_[ab, b, bc], np.c_[ac, bc, c], np.c_[ab, bc, ac]])
 
 
-class SelfContact(NodeBlocks, StepLimiter, DomainCheck, StepStart, AdaptiveStiffness, Couplings):
+class SelfContact(NodeBlocks, StepLimiter, DomainCheck, StepStart, AdaptiveStiffness, Couplings, Results):
     """The barrier between all pairs of the contact surface's primitives within dhat (the whole surface on every
     rank, this rank's owned rows)."""
     name = "contact"
@@ -87,7 +87,8 @@ class SelfContact(NodeBlocks, StepLimiter, DomainCheck, StepStart, AdaptiveStiff
     domain = True
     end_state = True          # (generalized-alpha: acts at the step's end, System._end_state)
 
-    def __init__(self, space, tris, dhat, kappa, obstacles=(), mu=0.0, eps_v=1e-3, eps_d=None, projection=False):
+    def __init__(self, space, tris, dhat, kappa, obstacles=(), mu=0.0, eps_v=1e-3, eps_d=None, projection=False,
+                 numbers=None):
         """obstacles: triangulated rigid obstacles (obstacles.Obstacle of kind mesh): their triangles join the collision
         mesh as vertices that are not unknowns, placed by their translation at each step's end. mu, eps_v: Coulomb
         friction (IPC's smoothed, lagged: ipctk's TangentialCollisions and FrictionPotential on the step's
@@ -109,6 +110,7 @@ class SelfContact(NodeBlocks, StepLimiter, DomainCheck, StepStart, AdaptiveStiff
         self.ccd = ip.AdditiveCCD()
         faces = self._number_surface(tris)
         self.obstacles = tuple(obstacles)
+        self.numbers = tuple(numbers or range(1, len(self.obstacles) + 1))     # (each one's place in -obstacle)
         self.moving = any(o.motion is not None for o in self.obstacles)
         offset = len(self.ids)                               # (obstacle vertices follow the surface's)
         for o in self.obstacles:
@@ -321,6 +323,76 @@ class SelfContact(NodeBlocks, StepLimiter, DomainCheck, StepStart, AdaptiveStiff
             g = f if g is None else g + f
         if g is not None:
             r.reshape(-1, 3)[self.nodes] += g[self.own_dofs].reshape(-1, 3)
+
+    def result_rows(self, x, t):
+        """Per triangulated obstacle: its force on the body, the barrier's and friction's (the sum of the potential's
+        gradient over the obstacle's vertices: each pair's is translation invariant, so it is minus the body's part
+        from the pairs with that obstacle), the reference area of the body's surface nodes in a pair with it, its
+        translation at t. On rank 0 alone (the collision mesh is the whole surface on every rank); zeros elsewhere."""
+        if not self.obstacles:
+            return []
+        V = self._V(x)
+        first = self.mpi.rank == 0
+        c = self._collisions(V) if first else []
+        g = np.zeros_like(V)
+        if len(c):
+            g += self.potential_fn.gradient(c, self.mesh, V).reshape(-1, 3)
+        if first and self._has_friction():
+            g += self.friction.gradient(self.tangential, self.mesh, V - self.start).reshape(-1, 3)
+        near = self._pressed_nodes(c)
+        rows, lo = [], len(self.ids)
+        for o, number, touched in zip(self.obstacles, self.numbers, near):
+            hi = lo + len(o.surface[0])
+            force = g[lo:hi].sum(axis=0) if first else np.zeros(3)
+            area = float(self._node_area()[sorted(touched)].sum()) if first else 0.0
+            rows.append((f"obstacle{number}", force, area, o.shift(t)))
+            lo = hi
+        return rows
+
+    def point_values(self, x):
+        """contact_pressure: the barrier's force at each surface node in a pair with a triangulated obstacle, over the
+        node's reference area (Abaqus' CPRESS; pairs of the surface with itself are left out); contact_status: the
+        number (in -obstacle's order) of the first obstacle it is in a pair with, 0 where none. Every rank its own
+        nodes (the collision set is every rank's)."""
+        n = len(x) // 3
+        pressure, status = np.zeros(n), np.zeros(n)
+        if not self.obstacles:
+            return {}
+        V = self._V(x)
+        c = self._collisions(V)
+        near = self._pressed_nodes(c)
+        for number, touched in reversed(list(zip(self.numbers, near))):
+            hit = np.isin(self.own_s, sorted(touched))
+            status[self.nodes[hit]] = number
+        if len(c):
+            g = self.potential_fn.gradient(c, self.mesh, V).reshape(-1, 3)
+            pressed = np.zeros(len(self.ids), bool)
+            pressed[sorted(set().union(*near))] = True
+            own = pressed[self.own_s]
+            pressure[self.nodes[own]] = np.linalg.norm(g[self.own_s[own]], axis=1) / self._node_area()[self.own_s[own]]
+        return {"contact_pressure": pressure, "contact_status": status}
+
+    def _pressed_nodes(self, c):
+        """Per obstacle: the set of the surface's nodes (collision-mesh ids) in a pair with one of its vertices."""
+        bounds = np.cumsum([len(self.ids)] + [len(o.surface[0]) for o in self.obstacles])
+        out = [set() for _ in self.obstacles]
+        for i in range(len(c)):
+            ids = np.asarray(c[i].vertex_ids(self.mesh.edges, self.mesh.faces))
+            ids = ids[ids >= 0]
+            body = ids[ids < bounds[0]]
+            for k in set(np.searchsorted(bounds, ids[ids >= bounds[0]], side="right") - 1):
+                out[k].update(int(b) for b in body)
+        return out
+
+    def _node_area(self):
+        """The reference area of each surface node (a third of its triangles'), cached."""
+        if getattr(self, "_areas", None) is None:
+            X, F = self.mesh.rest_positions, self.mesh.faces
+            F = F[(F < len(self.ids)).all(axis=1)]
+            a = 0.5 * np.linalg.norm(np.cross(X[F[:, 1]] - X[F[:, 0]], X[F[:, 2]] - X[F[:, 0]]), axis=1)
+            self._areas = np.zeros(len(self.ids))
+            np.add.at(self._areas, F, np.repeat(a[:, None] / 3, 3, axis=1))
+        return self._areas
 
     def undefined_at(self, x):
         """1 where the straight move from the step's start to x passes the surface through itself (or touches)."""
