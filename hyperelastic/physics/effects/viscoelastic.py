@@ -17,7 +17,7 @@ import numpy as np
 
 from ...core.errors import UserError
 from ...core.options import Row
-from .base import Effect, Spec, timed
+from .base import Effect, Energy, Spec, timed
 
 MAX_TERMS = 4
 
@@ -51,6 +51,8 @@ class Viscoelastic(Effect):
         self.t0 = None         # the start time of the step being solved
         self.h = None
         self.scatter = None    # cell forces -> the local vector (a sparse matrix, built at the first use)
+        self.C = None          # C = F^T F at the last accepted state
+        self.work = 0.0        # the non-equilibrium stresses' work up to the last accepted state
 
     def _F(self, x):
         xs = x.reshape(-1, 3)[self.cells]                                   # (nc, 4, 3)
@@ -61,14 +63,24 @@ class Viscoelastic(Effect):
         with np.errstate(all="ignore"):
             return np.linalg.solve(F, self.material.P(F, self.iso_constants))
 
+    def _advance(self, x, dt):
+        """(Q, S_iso, C, the viscous work) at the end of a step of dt from the committed state to positions x."""
+        F = self._F(x)
+        C = np.matmul(np.swapaxes(F, 1, 2), F)
+        S = self._S_iso(x)
+        e, g = _gammas(self.beta, self.tau, dt)
+        Q = e[:, None, None, None] * self.Q + g[:, None, None, None] * (S - self.S)
+        # the work of the non-equilibrium stresses over the step, sum_c V int sum_i Q_i : dC/2 (trapezoid in time)
+        work = 0.25 * float(np.einsum("c,icjk,cjk->", self.vol, self.Q + Q, C - self.C))
+        return Q, S, C, self.work + work
+
     def begin_step(self, t, h, xn, vn):
         if self.S is None:
             self.S = self._S_iso(xn)
+            F = self._F(xn)
+            self.C = np.matmul(np.swapaxes(F, 1, 2), F)
         elif t > self.t0:                       # the step from t0 was accepted: xn is its end
-            S = self._S_iso(xn)
-            e, g = _gammas(self.beta, self.tau, t - self.t0)
-            self.Q = e[:, None, None, None] * self.Q + g[:, None, None, None] * (S - self.S)
-            self.S = S
+            self.Q, self.S, self.C, self.work = self._advance(xn, t - self.t0)
         self.t0, self.h = t, h
         e, g = _gammas(self.beta, self.tau, h)
         self.g = float(g.sum())
@@ -125,6 +137,11 @@ class Viscoelastic(Effect):
             v5[:, :, i, :, i] += gg
 
 
+    def energy(self, x, v):
+        """viscous_work up to the end of the step just taken (x its end state; committed at the next begin_step)."""
+        return {"viscous_work": self._advance(x, self.h)[3]}
+
+
 @dataclass(frozen=True)
 class Prony:
     beta: tuple       # each term's relative modulus b_i (>= 0)
@@ -170,6 +187,9 @@ def _build(p, ctx):
 SPEC = Spec(
     "viscoelastic", "a Prony series on the isochoric stress (finite-strain viscoelasticity)",
     implied_by=("prony_beta", "prony_tau"), read=_read, build=_build,
+    energies=(Energy("viscous_work", 0, "the work of the viscoelastic effect's non-equilibrium stresses since the start "
+                     "[J]: over a closed cycle of deformation, the energy the cycle dissipates (its hysteresis loop's "
+                     "area)"),),
     rows=(Row(("prony_beta", "prony_tau"), "-prony_beta b1,b2,… -prony_tau t1,t2,…",
               "finite-strain viscoelasticity: the isochoric stress relaxes as mu (1 + Σ b_i exp(−t/τ_i)) (Simo 1987; "
               "up to 4 terms; a material with an isochoric/volumetric split, linear tetrahedra)"),))
