@@ -15,7 +15,7 @@ from .catalog import (check_application_used, check_solver_options, check_viewer
                       scene_option_names, unused_petsc_options)
 from ..core.errors import Interrupted, UserError
 from ..core.expressions import TIME_EXPRESSIONS, check_times
-from ..core.files import StateRows, check_output_path, output_names
+from ..core.files import CHECKPOINT_CELLS, StateRows, check_output_path, output_names
 from ..physics import materials
 from ..physics.effects.seams import Results, declaring
 from ..solving.forces import held_components, record, surface_forces, table
@@ -69,8 +69,8 @@ def run_scene(scene_arg, options_files, restart=None, restart_path=None, signals
     if comm.getRank() == 0:
         _start_lines(scene, model, solver, quiet)
     if restart is not None:      # the state read (collective) before anything is written: a bad row is one line
-        restart = dict(restart, **{k: model.space.read_state(v) for k, v in restart.items()
-                                   if isinstance(v, StateRows)})
+        restart = dict(restart, **{k: model.space.read_cell_state(v) if k in CHECKPOINT_CELLS else
+                                   model.space.read_state(v) for k, v in restart.items() if isinstance(v, StateRows)})
     attrs = run_attributes(model, scene_file, solver)
     stage.pop()
     writer = open_writer(_layout(scene, comm, restart, out), out, model, attrs, restart, scene.output_fields)
@@ -242,9 +242,6 @@ def open_writer(layout, out, model, attrs, restart, fields):
 def _check_restart(state, model, scene, path):
     """The checkpoint fits the run it continues: the same element order and mesh, and time left before
     -final_time."""
-    if "viscoelastic" in scene.effects:
-        raise UserError(f"--restart '{path}': a run with the viscoelastic effect (-prony_beta) cannot be restarted yet "
-                        "(its non-equilibrium stresses are not in checkpoints): run it again from the start")
     nodes = 4 if model.element.order == 1 else 10
     if state.get("cell_nodes") in (4, 10) and state["cell_nodes"] != nodes:
         kind = {4: "linear (order 1)", 10: "quadratic (order 2)"}

@@ -286,6 +286,8 @@ CHECKPOINT_OPTIONAL = ("t_end", "regrow_wait", "regrown")      # (step control's
 # optional state of fixed length: a rigid face's reference point (its accepted motion and rate, physics/effects/rigid.py)
 CHECKPOINT_VECTORS = {"rigid": 12}
 CHECKPOINT_NODAL = ("pressure",)     # optional scalar state per node (the mixed formulation's pressure)
+# optional state per cell, rows of any width (the viscoelastic effect's non-equilibrium stresses: Effect.cell_state)
+CHECKPOINT_CELLS = ("viscoelastic",)
 
 
 def read_checkpoint(path):
@@ -326,6 +328,14 @@ def read_checkpoint(path):
                 if a.shape != (nv,) or a.dtype.kind != "f":
                     raise UserError(f"--restart '{path}': checkpoint {k} is not {nv} numbers")
                 state[k] = StateRows(path, a.name, nv, 1, keys)
+        ckeys = "mesh/cell_input_index" if "mesh/cell_input_index" in f else None
+        nc = f["mesh/tetra"].shape[0] if "mesh/tetra" in f else 0
+        for k in CHECKPOINT_CELLS:
+            if k in g:
+                a = g[k]
+                if a.ndim != 2 or a.shape[0] != nc or a.dtype.kind != "f":
+                    raise UserError(f"--restart '{path}': checkpoint {k} is not a row of numbers per cell ({nc})")
+                state[k] = StateRows(path, a.name, nc, a.shape[1], ckeys)
         _checkpoint_numbers(f, g, path, state)
         attrs = {k: (v.item() if hasattr(v, "item") and getattr(v, "shape", None) == () else v)
                  for k, v in f.attrs.items()}

@@ -336,7 +336,14 @@ class Space:
         """The owned part of a local array, in global-vector order."""
         return local_array.reshape(-1, 3)[self.lvid_of_owned].reshape(-1)
 
-    def read_state(self, rows):
+    def read_cell_state(self, rows):
+        """(nc, width) array of a checkpoint's rows per cell (core.files.StateRows) for the local cells, whatever the
+        rank count that wrote it (as read_state does for nodes)."""
+        if isinstance(rows, np.ndarray):      # (read already: this rank's rows)
+            return rows
+        return self.read_state(rows, cells=True).reshape(len(self.cell_orig), -1)
+
+    def read_state(self, rows, cells=False):
         """Local array (nlv*3, or nlv of a scalar) of a checkpoint array (core.files.StateRows) in any output file,
         whatever the rank count that wrote it: every rank reads one contiguous slice of the file's rows with their
         input indices, and the rows travel to the ranks whose nodes they are (exchange.Exchange: no rank reads or
@@ -351,9 +358,9 @@ class Space:
         what = f"--restart '{rows.path}': checkpoint {rows.name.rsplit('/', 1)[-1]}"
         if bad:
             raise UserError(f"{what} holds non-finite values")
-        ex = Exchange(self.mpi, keys, self.orig, n)
+        ex = Exchange(self.mpi, keys, self.cell_orig if cells else self.orig, n)
         if ex.missing:
-            raise UserError(f"{what}: {ex.missing} nodes of this mesh have no row in it")
+            raise UserError(f"{what}: {ex.missing} {'cells' if cells else 'nodes'} of this mesh have no row in it")
         return np.ascontiguousarray(ex.move(vals), np.float64).reshape(-1)
 
     def input_cells(self):

@@ -364,12 +364,13 @@ class RankWriter(Writer):
             n = {"node": self.nv, "cell": self.nc}
             self._append_xdmf(i, t, sorted((k, (n[c],) + tuple(tail)) for k, tail, c in shapes))
 
-    def checkpoint(self, x_local, v_local, nodal=None, **state):
+    def checkpoint(self, x_local, v_local, nodal=None, cells=None, **state):
         """The full state into checkpoint/<slot> of every rank's file, then (rank 0) the slot's virtual datasets
         and attributes, and last the root attribute checkpoint_slot that names it. Collective."""
         slot = 1 if self._slot == 0 else 0
         arrays = {"x": self._node_rows(self._owned(x_local)), "v": self._node_rows(self._owned(v_local))}
         arrays.update({k: self._node_rows(self._owned(a, 1)) for k, a in (nodal or {}).items()})
+        arrays.update({k: self._cell_rows(a) for k, a in (cells or {}).items()})
         nbytes = sum(a.nbytes for a in arrays.values()) + 16384
         self._ensure_room(lambda: nbytes, "a checkpoint")
         self._write_rows({f"checkpoint/{slot}/{k}": a for k, a in arrays.items()})
@@ -377,7 +378,8 @@ class RankWriter(Writer):
         if self.root:
             EVENTS.Rank0.begin()
             self._reserve(8192 + 64 * self.mpi.size * len(arrays))
-            self._write_checkpoint(slot, state, [(k, a.shape[1:]) for k, a in arrays.items()])
+            self._write_checkpoint(slot, state, [(k, a.shape[1:], "cell" if k in (cells or {}) else "node")
+                                                 for k, a in arrays.items()])
             EVENTS.Rank0.end()
         self._slot = slot
         self._leave_together()
@@ -387,9 +389,9 @@ class RankWriter(Writer):
         f = self.f
         self._flush_stats()
         g = f[f"checkpoint/{slot}"]
-        for name, tail in arrays:
+        for name, tail, center in arrays:
             if name not in g or g[name].attrs.get("part") != self.tag:     # (made once per part and slot)
-                virtual(g, name, self._pieces(f"checkpoint/{slot}/{name}", "node"), tail, part=self.tag)
+                virtual(g, name, self._pieces(f"checkpoint/{slot}/{name}", center), tail, part=self.tag)
         self._complete_checkpoint(g, slot, state)
 
     def _ensure_room(self, nbytes, what):

@@ -332,15 +332,17 @@ class Writer:
         f.attrs.modify("checkpoint_slot", slot)
         return f
 
-    def checkpoint(self, x_local, v_local, nodal=None, **state):
+    def checkpoint(self, x_local, v_local, nodal=None, cells=None, **state):
         """The full state into checkpoint/<slot>, alternating two slots; the root attribute
         checkpoint_slot names the complete one and is written after its data is flushed, so a kill at
         any moment leaves the previous checkpoint intact; nodal: {name: local scalar per node} of the state
-        beyond x and v (the mixed formulation's pressure). Collective."""
+        beyond x and v (the mixed formulation's pressure); cells: {name: local rows per cell} (the viscoelastic
+        effect's stresses), in the input cells' order. Collective."""
         x, v = self.space.gather(x_local), self.space.gather(v_local)
         extra = {k: self.space.gather_nodal(a) for k, a in (nodal or {}).items()}
+        extra.update({k: self.space.gather_cells(a) for k, a in (cells or {}).items()})
         if self.root:
-            nbytes = 8 * (6 * len(x) + sum(len(a) for a in extra.values())) + 16384
+            nbytes = 8 * (6 * len(x) + sum(a.size for a in extra.values())) + 16384
         self._ensure_room(lambda: nbytes, "a checkpoint")
         if self.root:
             EVENTS.Rank0.begin()

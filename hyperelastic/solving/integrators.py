@@ -218,7 +218,8 @@ class Integrator:
         there the uninterrupted run restarts at the checkpoints too); t_end: the nominal step's end, where the
         checkpoint is written inside one."""
         self.solver.rebuild_preconditioner()     # where a restart begins: the same set-ups in both runs
-        self.writer.checkpoint(self.x, self.carried_v(), nodal=self.system.nodal_state(), t=self.t, step=self.step, n=n,
+        self.writer.checkpoint(self.x, self.carried_v(), nodal=self.system.nodal_state(),
+                               cells=self.system.cell_state(self.x, self.t), t=self.t, step=self.step, n=n,
                                h_try=self.h_try, streak=self.streak, rejections=self.rejections,
                                nframes=self.writer.nframes, nstats=self.writer.nstats, t_end=t_end,
                                regrow_wait=self.regrow_wait, regrown=int(self.regrown),

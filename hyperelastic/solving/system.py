@@ -62,8 +62,18 @@ class System(Elimination, Objective):
         """{name: local scalar per node} of the state beyond positions and velocities (for checkpoints)."""
         return {}
 
+    def cell_state(self, x, t):
+        """{name: local rows per cell} of the effects' state carried by checkpoints (Effect.cell_state), at the
+        accepted state x at time t."""
+        out = {}
+        for e in self.effects:
+            out.update(e.cell_state(x, t))
+        return out
+
     def resume(self, state):
         """Continue from a checkpoint's state (files.read_checkpoint) beyond x and v."""
+        for e in self.effects:
+            e.resume_cells(state, self.space)
 
     def solved(self, X):
         """X is a solve's result: what follows (energies, forces) is evaluated there (MixedSystem: its pressure)."""

@@ -176,6 +176,7 @@ class MixedSystem(System):
         return {"pressure": self.pressure_nodal()}
 
     def resume(self, state):
+        super().resume(state)
         if "pressure" in state:
             p = self.space.read_state(state["pressure"])[:self.pspace.nlp]
             self.p_owned = p[self.pspace.owned_idx].copy()

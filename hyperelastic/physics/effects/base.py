@@ -198,6 +198,14 @@ class Effect:
         """Contribution to the step's statistics: dict of name -> value (summed over ranks)."""
         return {}
 
+    def cell_state(self, x, t):
+        """{name (core.files.CHECKPOINT_CELLS): local rows per cell} of its state beyond the positions, at the accepted
+        state x at time t, for a checkpoint."""
+        return {}
+
+    def resume_cells(self, state, space):
+        """Continue from a checkpoint's state (files.read_checkpoint; space.read_cell_state reads its rows)."""
+
 
 class QuadraticEffect(Effect):
     """An effect whose energy is quadratic about an origin x0 with a constant symmetric operator A: residual

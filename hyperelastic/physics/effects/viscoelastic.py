@@ -8,8 +8,8 @@ linear in time the update is exact: Q_i^(n+1) = exp(-h/tau_i) Q_i^n + g_i (S_iso
 exp(-h/tau_i)) tau_i/h (the exponential integrator). The effect adds P = F sum_i Q_i^(n+1) = F H + g P_iso(F), H =
 sum_i (exp(-h/tau_i) Q_i^n - g_i S_iso^n), g = sum g_i, to the residual; its tangent is g K_iso + (dF H). The Q_i and
 S_iso^n are taken forward once per accepted step: at the next step's begin_step (its start time past the last one's),
-from the accepted positions. Linear tetrahedra, one material (no -regions); a restart of such a run is refused for
-now (the Q_i are not in checkpoints)."""
+from the accepted positions. Checkpoints carry them per cell (core.files.CHECKPOINT_CELLS), in the input cells' order:
+a restart continues on any rank count. Linear tetrahedra, one material (no -regions)."""
 import math
 from dataclasses import dataclass
 
@@ -52,7 +52,7 @@ class Viscoelastic(Effect):
         self.h = None
         self.scatter = None    # cell forces -> the local vector (a sparse matrix, built at the first use)
         self.C = None          # C = F^T F at the last accepted state
-        self.work = 0.0        # the non-equilibrium stresses' work up to the last accepted state
+        self.work = np.zeros(len(self.vol))   # each cell's non-equilibrium stresses' work up to the last accepted state
 
     def _F(self, x):
         xs = x.reshape(-1, 3)[self.cells]                                   # (nc, 4, 3)
@@ -71,7 +71,7 @@ class Viscoelastic(Effect):
         e, g = _gammas(self.beta, self.tau, dt)
         Q = e[:, None, None, None] * self.Q + g[:, None, None, None] * (S - self.S)
         # the work of the non-equilibrium stresses over the step, sum_c V int sum_i Q_i : dC/2 (trapezoid in time)
-        work = 0.25 * float(np.einsum("c,icjk,cjk->", self.vol, self.Q + Q, C - self.C))
+        work = 0.25 * self.vol * np.einsum("icjk,cjk->c", self.Q + Q, C - self.C)
         return Q, S, C, self.work + work
 
     def begin_step(self, t, h, xn, vn):
@@ -139,7 +139,35 @@ class Viscoelastic(Effect):
 
     def energy(self, x, v):
         """viscous_work up to the end of the step just taken (x its end state; committed at the next begin_step)."""
-        return {"viscous_work": self._advance(x, self.h)[3]}
+        return {"viscous_work": float(self._advance(x, self.h)[3].sum())}
+
+    def cell_state(self, x, t):
+        """The checkpoint's rows per cell: Q_i (9 each), S_iso, C (9 each), the work (1), at the accepted state x at
+        time t (the step that ends there is committed only at the next begin_step: advanced here where t is past
+        its start; a checkpoint between a step's attempts finds it committed)."""
+        if self.S is None:
+            return {}
+        Q, S, C, work = self._advance(x, t - self.t0) if t > self.t0 else (self.Q, self.S, self.C, self.work)
+        nc = len(self.vol)
+        return {"viscoelastic": np.concatenate([np.moveaxis(Q, 0, 1).reshape(nc, -1), S.reshape(nc, 9),
+                                                C.reshape(nc, 9), work[:, None]], axis=1)}
+
+    def resume_cells(self, state, space):
+        """The checkpoint's stresses per cell (any rank count wrote them), committed at its time t (the next
+        begin_step, at t, takes nothing forward). Without them (a checkpoint of a run without this effect) the
+        effect starts at the restart's state."""
+        if "viscoelastic" not in state:
+            return
+        rows = space.read_cell_state(state["viscoelastic"])
+        nt, nc = len(self.beta), len(self.vol)
+        if rows.shape[1] != 9 * nt + 19:
+            raise UserError(f"--restart: the checkpoint's viscoelastic state has {(rows.shape[1] - 19) // 9} Prony "
+                            f"terms, this run {nt} (a restart continues with the series it was written with)")
+        self.Q = np.moveaxis(rows[:, :9 * nt].reshape(nc, nt, 3, 3), 1, 0).copy()
+        self.S = rows[:, 9 * nt:9 * nt + 9].reshape(nc, 3, 3).copy()
+        self.C = rows[:, 9 * nt + 9:9 * nt + 18].reshape(nc, 3, 3).copy()
+        self.work = rows[:, -1].copy()
+        self.t0 = float(state["t"])
 
 
 @dataclass(frozen=True)
