@@ -161,3 +161,15 @@ def test_a_cycles_hysteresis_loop_is_the_viscous_work(cube, tmp_path):
     i0, i1 = int(np.argmin(abs(t - 2))), len(t) - 1
     area = float(np.sum(0.5 * (P[i0 + 1:i1 + 1] + P[i0:i1]) * np.diff(lam[i0:i1 + 1])))
     assert area > 0 and abs((w[i1] - w[i0]) / area - 1) <= 1e-3, (area, w[i1] - w[i0])
+
+
+def test_a_restart_with_another_series_is_one_line(cube, tmp_path):
+    """A checkpoint of two Prony terms restarted with one (-prony_beta given again): one line, exit 2."""
+    out = tmp_path / "v.h5"
+    run_ok(["run", "bend", "-mesh", cube, "-material", "neohookean_split", *CONFINED, "-prescribe_x", "X*1.2",
+            "-prony_beta", "0.5,0.1", "-prony_tau", "0.1,1", "-final_time", 0.1, "-dt", 0.05, "-checkpoint_every", 1,
+            "-output", out, "-quiet"])
+    p = hyperelastic(["run", "--restart", out, "-final_time", 0.2, "-prony_beta", "0.5", "-prony_tau", "0.1"])
+    errors = [ln for ln in p.stderr.splitlines() if ln.startswith("hyperelastic: error")]
+    assert p.returncode == 2 and len(errors) == 1 and "2 Prony terms, this run 1" in errors[0], p.stderr
+    assert "viscoelastic has no potential" not in p.stderr          # (refused before the solver is set up)
