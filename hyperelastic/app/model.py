@@ -394,19 +394,20 @@ def solids_in_use(scene, space):
 
 
 def cell_kernels(scene, space, constants):
-    """(elastic cell kernels, density: a scalar, or per local cell with -regions) of the scene's material(s) on the
-    space's cells (its cell_geometry: the element's); constants: solid -> its parameter block (the formulation's:
-    the mixed formulation's isochoric parts)."""
+    """(elastic cell kernels, density: a scalar, or per local cell with -regions, the solid of each of the kernels'
+    parts: (its local cells, None for all; Solid)) of the scene's material(s) on the space's cells (its
+    cell_geometry: the element's); constants: solid -> its parameter block (the formulation's: the mixed
+    formulation's isochoric parts)."""
     sc = scene
     cells = space.cell_geometry()
     if not sc.regions:
-        return cells.kernels(sc.solid.material, constants(sc.solid)), sc.solid.rho
+        return cells.kernels(sc.solid.material, constants(sc.solid)), sc.solid.rho, ((None, sc.solid),)
     which = space.cell_values(MATERIAL_LABEL)
     solids = [sc.solid] + [r.solid for r in sc.regions]
     unused = space.mpi.allreduce(int((which == 0).sum())) == 0     # every cell is in a listed region
-    parts = [(np.flatnonzero(which == i), m.material, constants(m)) for i, m in enumerate(solids) if i or not unused]
+    used = [(np.flatnonzero(which == i), m) for i, m in enumerate(solids) if i or not unused]
     density = np.array([m.rho for m in solids])[which]
-    return RegionKernels(cells, parts), density
+    return RegionKernels(cells, [(idx, m.material, constants(m)) for idx, m in used]), density, tuple(used)
 
 
 def build_model(scene, comm):
@@ -418,9 +419,9 @@ def build_model(scene, comm):
     solids = solids_in_use(scene, space)
     problem = Problem(scene, element, solids)
     formulation, notes = choose(problem)
-    k, density = cell_kernels(scene, space, formulation.cell_constants)
+    k, density, part_solids = cell_kernels(scene, space, formulation.cell_constants)
     ctx = effects_pkg.Context(space, k, k.geometry, density, scene.lumped, scene.hessian_projection,
-                              max(s.values["E"] for _, s in solids), scene.quasistatic, solids)
+                              max(s.values["E"] for _, s in solids), scene.quasistatic, part_solids)
     effects, constraints = effects_pkg.build(scene, ctx)
     x0, v0 = initial_state(scene, space)
     system = formulation.system(problem, space, k, effects, constraints, x0, v0)

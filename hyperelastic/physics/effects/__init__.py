@@ -62,7 +62,7 @@ class Context:
     projection: bool = False
     modulus: float = 1.0
     quasistatic: bool = False
-    solids: tuple = ()          # [(where, Solid)] of the solids some cell has (model.solids_in_use)
+    part_solids: tuple = ()     # [(local cell indices, or None: all; Solid)] of the kernels' parts (model.cell_kernels)
 
 
 def build(scene, ctx):

@@ -9,7 +9,8 @@ exp(-h/tau_i)) tau_i/h (the exponential integrator). The effect adds P = F sum_i
 sum_i (exp(-h/tau_i) Q_i^n - g_i S_iso^n), g = sum g_i, to the residual; its tangent is g K_iso + (dF H). The Q_i and
 S_iso^n are taken forward once per accepted step: at the next step's begin_step (its start time past the last one's),
 from the accepted positions. Checkpoints carry them per cell (core.files.CHECKPOINT_CELLS), in the input cells' order:
-a restart continues on any rank count. Linear tetrahedra, one material (no -regions)."""
+a restart continues on any rank count. Linear tetrahedra; with -regions, the regions of a material with a split (a
+region of another material, a steel insert, takes no part)."""
 import math
 from dataclasses import dataclass
 
@@ -36,12 +37,16 @@ class Viscoelastic(Effect):
     symmetric = True
     internal = True
 
-    def __init__(self, kernels, material, iso, beta, tau):
+    def __init__(self, kernels, parts, beta, tau):
+        """parts: [(the local cells (indices, ascending; None: all), Material, its isochoric constants)] of the
+        materials with a split (the cells of any other material take no part)."""
         super().__init__()
-        self.iso = kernels.geometry.kernels(material, iso)    # the material's isochoric part on the same cells
-        self.material, self.iso_constants = material, iso
-        self.beta, self.tau = np.array(beta), np.array(tau)
         g = kernels.geometry
+        every = np.arange(g.nc)
+        self.parts = [(every if idx is None else np.asarray(idx, np.int64), m, c) for idx, m, c in parts]
+        # each part's isochoric kernels on its cells
+        self.iso = [(idx, (g if len(idx) == g.nc else g.subset(idx)).kernels(m, c)) for idx, m, c in self.parts]
+        self.beta, self.tau = np.array(beta), np.array(tau)
         self.cells, self.Dminv, self.vol = g.cells, g.Dminv.reshape(-1, 3, 3), g.vol
         # shape-function gradients per cell (nc, 4, 3): grad N_0 = -sum of Dm^-1's rows, then its rows
         self.G = np.concatenate([-self.Dminv.sum(axis=1, keepdims=True), self.Dminv], axis=1)
@@ -59,9 +64,20 @@ class Viscoelastic(Effect):
         return np.matmul(np.swapaxes(xs, 1, 2), self.G)
 
     def _S_iso(self, x):
+        """S_iso per cell (0 in the cells of a material without a split)."""
         F = self._F(x)
+        S = np.zeros_like(F)
         with np.errstate(all="ignore"):
-            return np.linalg.solve(F, self.material.P(F, self.iso_constants))
+            for idx, m, c in self.parts:
+                S[idx] = np.linalg.solve(F[idx], m.P(F[idx], c))
+        return S
+
+    def _iso_sum(self, fn, out):
+        """out += g x the isochoric kernels' fn(k, tmp) (forces, K v, diagonal) over the parts."""
+        tmp = np.zeros_like(out)
+        for _, k in self.iso:
+            fn(k, tmp)
+        out += self.g * tmp
 
     def _advance(self, x, dt):
         """(Q, S_iso, C, the viscous work) at the end of a step of dt from the committed state to positions x."""
@@ -100,9 +116,7 @@ class Viscoelastic(Effect):
 
     @timed("evals")
     def residual(self, x, r):
-        tmp = np.zeros_like(r)
-        self.iso.forces(x, tmp)
-        r += self.g * tmp
+        self._iso_sum(lambda k, t: k.forces(x, t), r)
         self._forces(self._F(x) @ self.H, r)
 
     def linearize(self, x):
@@ -110,26 +124,25 @@ class Viscoelastic(Effect):
 
     @timed("applies")
     def apply(self, v, y):
-        tmp = np.zeros_like(y)
-        self.iso.kv(self.x, v, tmp)
-        y += self.g * tmp
+        self._iso_sum(lambda k, t: k.kv(self.x, v, t), y)
         self._forces(self._F(v) @ self.H, y)
 
     @timed("applies")
     def diag(self, d):
-        tmp = np.zeros_like(d)
-        self.iso.tangent_diag(self.x, tmp)
-        d += self.g * tmp
+        self._iso_sum(lambda k, t: k.tangent_diag(self.x, t), d)
         gg = np.einsum("cai,cai->ca", np.matmul(self.G, self.H), self.G) * self.vol[:, None]     # (nc, 4)
         self._forces_raw(np.repeat(gg[:, :, None], 3, axis=2), d)
 
     @timed("applies")
     def add_cell_blocks(self, vals, lo=0, hi=None):
         hi = len(self.vol) if hi is None else hi
-        k = self.iso if (lo, hi) == (0, len(self.vol)) else self.iso.part(lo, hi)
-        K, _ = k.tangent(self.x)
-        K *= self.g
-        vals += K
+        for idx, k in self.iso:                     # (each part's cells lo..hi-1: a contiguous run of its own)
+            a, b = np.searchsorted(idx, lo), np.searchsorted(idx, hi)
+            if a == b:
+                continue
+            K, _ = (k if (a, b) == (0, k.nc) else k.part(int(a), int(b))).tangent(self.x)
+            K *= self.g
+            vals[idx[a:b] - lo] += K
         G, H, V = self.G[lo:hi], self.H[lo:hi], self.vol[lo:hi]
         gg = np.matmul(np.matmul(G, H), np.swapaxes(G, 1, 2)) * V[:, None, None]        # (n, 4, 4)
         v5 = vals.reshape(len(V), 4, 3, 4, 3)
@@ -201,15 +214,15 @@ def _read(opts, where):
 
 def _build(p, ctx):
     k = ctx.kernels
-    solids = [s for _, s in ctx.solids]
-    if len(solids) != 1 or not hasattr(k, "geometry") or getattr(k, "nn", 4) != 4 or len(getattr(k, "parts", ())) > 1:
-        raise UserError("the viscoelastic effect (-prony_beta): one material on linear tetrahedra for now (not "
-                        "-regions, not -order 2)")
-    s = solids[0]
-    if not s.material.volumetric:
-        raise UserError(f"the viscoelastic effect (-prony_beta): material {s.name} has no isochoric/volumetric split "
-                        "(take neohookean_split, mooney_rivlin, yeoh, gent, arruda_boyce, ogden or hgo)")
-    return [Viscoelastic(k, s.material, s.material.split(s.values)[0], p.beta, p.tau)]
+    if k.nn != 4:
+        raise UserError("the viscoelastic effect (-prony_beta): linear tetrahedra for now (not -order 2)")
+    parts = [(idx, s.material, s.material.split(s.values)[0]) for idx, s in ctx.part_solids if s.material.volumetric]
+    if not any(s.material.volumetric for _, s in ctx.part_solids):
+        names = ", ".join(dict.fromkeys(s.name for _, s in ctx.part_solids))
+        raise UserError(f"the viscoelastic effect (-prony_beta): no material of the run ({names}) has an "
+                        "isochoric/volumetric split (take neohookean_split, mooney_rivlin, yeoh, gent, arruda_boyce, "
+                        "ogden or hgo)")
+    return [Viscoelastic(k, parts, p.beta, p.tau)]
 
 
 SPEC = Spec(
