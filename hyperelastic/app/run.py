@@ -242,11 +242,12 @@ def open_writer(layout, out, model, attrs, restart, fields):
 def _check_restart(state, model, scene, path):
     """The checkpoint fits the run it continues: the same element order and mesh, and time left before
     -final_time."""
-    visco = scene.effects.get("viscoelastic")
-    if visco is not None and "viscoelastic" in state and state["viscoelastic"].width != 9 * len(visco.beta) + 19:
-        raise UserError(f"--restart '{path}': the checkpoint's viscoelastic state has "
-                        f"{(state['viscoelastic'].width - 19) // 9} Prony terms, this run {len(visco.beta)} (a restart "
-                        "continues with the series it was written with)")
+    for e in model.system.effects:
+        width = e.row_width() if "viscoelastic" in state and e.name == "viscoelastic" else None
+        if width is not None and state["viscoelastic"].width != width:
+            raise UserError(f"--restart '{path}': the checkpoint's viscoelastic state is not this run's "
+                            f"({state['viscoelastic'].width} numbers a cell, where its Prony series takes {width}): a "
+                            "restart continues with the series it was written with")
     nodes = 4 if model.element.order == 1 else 10
     if state.get("cell_nodes") in (4, 10) and state["cell_nodes"] != nodes:
         kind = {4: "linear (order 1)", 10: "quadratic (order 2)"}

@@ -9,8 +9,9 @@ exp(-h/tau_i)) tau_i/h (the exponential integrator). The effect adds P = F sum_i
 sum_i (exp(-h/tau_i) Q_i^n - g_i S_iso^n), g = sum g_i, to the residual; its tangent is g K_iso + (dF H). The Q_i and
 S_iso^n are taken forward once per accepted step: at the next step's begin_step (its start time past the last one's),
 from the accepted positions. Checkpoints carry them per cell (core.files.CHECKPOINT_CELLS), in the input cells' order:
-a restart continues on any rank count. Linear tetrahedra; with -regions, the regions of a material with a split (a
-region of another material, a steel insert, takes no part)."""
+a restart continues on any rank count. On quadratic tetrahedra the Q_i live at each quadrature point of the stiffness
+rule. With -regions, the regions of a material with a split (a region of another material, a steel insert, takes no
+part)."""
 import math
 from dataclasses import dataclass
 
@@ -47,29 +48,37 @@ class Viscoelastic(Effect):
         # each part's isochoric kernels on its cells
         self.iso = [(idx, (g if len(idx) == g.nc else g.subset(idx)).kernels(m, c)) for idx, m, c in self.parts]
         self.beta, self.tau = np.array(beta), np.array(tau)
-        self.cells, self.Dminv, self.vol = g.cells, g.Dminv.reshape(-1, 3, 3), g.vol
-        # shape-function gradients per cell (nc, 4, 3): grad N_0 = -sum of Dm^-1's rows, then its rows
-        self.G = np.concatenate([-self.Dminv.sum(axis=1, keepdims=True), self.Dminv], axis=1)
-        nc = len(self.vol)
-        self.Q = np.zeros((len(beta), nc, 3, 3))
-        self.S = None          # S_iso at the last accepted state
+        self.cells = g.cells
+        if hasattr(g, "geo"):           # quadrature cells (P2: ElementCells): G_cqa = dN_qa J_cq^-1, weights |det J| w_q
+            nq = g.geo.shape[1]
+            self.G = np.matmul(g.dN[None], g.geo[:, :, :9].reshape(-1, nq, 3, 3))      # (nc, nq, nn, 3)
+            self.w = g.geo[:, :, 9].copy()                                             # (nc, nq)
+        else:                           # linear cells (Cells): one point, grad N_0 = -sum of Dm^-1's rows, then its rows
+            Dminv = g.Dminv.reshape(-1, 3, 3)
+            self.G = np.concatenate([-Dminv.sum(axis=1, keepdims=True), Dminv], axis=1)[:, None]
+            self.w = g.vol[:, None].copy()
+        nc, nq = self.w.shape
+        self.vol = self.w.sum(axis=1)
+        self.Q = np.zeros((len(beta), nc, nq, 3, 3))
+        self.S = None          # S_iso at the last accepted state, per cell and point
         self.t0 = None         # the start time of the step being solved
         self.h = None
         self.scatter = None    # cell forces -> the local vector (a sparse matrix, built at the first use)
         self.C = None          # C = F^T F at the last accepted state
-        self.work = np.zeros(len(self.vol))   # each cell's non-equilibrium stresses' work up to the last accepted state
+        self.work = np.zeros(nc)   # each cell's non-equilibrium stresses' work up to the last accepted state
 
     def _F(self, x):
-        xs = x.reshape(-1, 3)[self.cells]                                   # (nc, 4, 3)
-        return np.matmul(np.swapaxes(xs, 1, 2), self.G)
+        xs = x.reshape(-1, 3)[self.cells]                                   # (nc, nn, 3)
+        return np.matmul(np.swapaxes(xs, 1, 2)[:, None], self.G)            # (nc, nq, 3, 3)
 
     def _S_iso(self, x):
-        """S_iso per cell (0 in the cells of a material without a split)."""
+        """S_iso per cell and point (0 in the cells of a material without a split)."""
         F = self._F(x)
         S = np.zeros_like(F)
         with np.errstate(all="ignore"):
             for idx, m, c in self.parts:
-                S[idx] = np.linalg.solve(F[idx], m.P(F[idx], c))
+                f = F[idx].reshape(-1, 3, 3)
+                S[idx] = np.linalg.solve(f, m.P(f, c)).reshape(F[idx].shape)
         return S
 
     def _iso_sum(self, fn, out):
@@ -82,32 +91,33 @@ class Viscoelastic(Effect):
     def _advance(self, x, dt):
         """(Q, S_iso, C, the viscous work) at the end of a step of dt from the committed state to positions x."""
         F = self._F(x)
-        C = np.matmul(np.swapaxes(F, 1, 2), F)
+        C = np.matmul(np.swapaxes(F, -1, -2), F)
         S = self._S_iso(x)
         e, g = _gammas(self.beta, self.tau, dt)
-        Q = e[:, None, None, None] * self.Q + g[:, None, None, None] * (S - self.S)
-        # the work of the non-equilibrium stresses over the step, sum_c V int sum_i Q_i : dC/2 (trapezoid in time)
-        work = 0.25 * self.vol * np.einsum("icjk,cjk->c", self.Q + Q, C - self.C)
+        Q = e[:, None, None, None, None] * self.Q + g[:, None, None, None, None] * (S - self.S)
+        # the work of the non-equilibrium stresses over the step, sum_c int sum_i Q_i : dC/2 (trapezoid in time)
+        work = 0.25 * np.einsum("cq,icqjk,cqjk->c", self.w, self.Q + Q, C - self.C)
         return Q, S, C, self.work + work
 
     def begin_step(self, t, h, xn, vn):
         if self.S is None:
             self.S = self._S_iso(xn)
             F = self._F(xn)
-            self.C = np.matmul(np.swapaxes(F, 1, 2), F)
+            self.C = np.matmul(np.swapaxes(F, -1, -2), F)
         elif t > self.t0:                       # the step from t0 was accepted: xn is its end
             self.Q, self.S, self.C, self.work = self._advance(xn, t - self.t0)
         self.t0, self.h = t, h
         e, g = _gammas(self.beta, self.tau, h)
         self.g = float(g.sum())
-        self.H = np.einsum("i,icjk->cjk", e, self.Q) - self.g * self.S
+        self.H = np.einsum("i,icqjk->cqjk", e, self.Q) - self.g * self.S
 
     def _forces(self, P, r):
-        """r += V P grad N_a for each cell's nodes (P (nc, 3, 3)), scattered by a sparse matrix built once."""
-        self._forces_raw(np.matmul(self.G, np.swapaxes(P, 1, 2)) * self.vol[:, None, None], r)
+        """r += sum_q w_q P_q grad N_a(q) for each cell's nodes (P (nc, nq, 3, 3)), scattered by a sparse matrix."""
+        f = np.matmul(self.G, np.swapaxes(P, -1, -2)) * self.w[:, :, None, None]         # (nc, nq, nn, 3)
+        self._forces_raw(f.sum(axis=1), r)
 
     def _forces_raw(self, f, r):
-        """r += the cells' nodal values f (nc, 4, 3), summed at the nodes."""
+        """r += the cells' nodal values f (nc, nn, 3), summed at the nodes."""
         if self.scatter is None or self.scatter.shape[0] != r.size:
             from scipy.sparse import csr_matrix      # deferred: only this effect (and self-contact) needs scipy
             rows = (3 * self.cells[:, :, None] + np.arange(3)).ravel()
@@ -130,7 +140,7 @@ class Viscoelastic(Effect):
     @timed("applies")
     def diag(self, d):
         self._iso_sum(lambda k, t: k.tangent_diag(self.x, t), d)
-        gg = np.einsum("cai,cai->ca", np.matmul(self.G, self.H), self.G) * self.vol[:, None]     # (nc, 4)
+        gg = np.einsum("cqai,cqai,cq->ca", np.matmul(self.G, self.H), self.G, self.w)           # (nc, nn)
         self._forces_raw(np.repeat(gg[:, :, None], 3, axis=2), d)
 
     @timed("applies")
@@ -143,9 +153,10 @@ class Viscoelastic(Effect):
             K, _ = (k if (a, b) == (0, k.nc) else k.part(int(a), int(b))).tangent(self.x)
             K *= self.g
             vals[idx[a:b] - lo] += K
-        G, H, V = self.G[lo:hi], self.H[lo:hi], self.vol[lo:hi]
-        gg = np.matmul(np.matmul(G, H), np.swapaxes(G, 1, 2)) * V[:, None, None]        # (n, 4, 4)
-        v5 = vals.reshape(len(V), 4, 3, 4, 3)
+        G, H, w = self.G[lo:hi], self.H[lo:hi], self.w[lo:hi]
+        gg = np.einsum("cqab,cq->cab", np.matmul(np.matmul(G, H), np.swapaxes(G, -1, -2)), w)  # (n, nn, nn)
+        nn = G.shape[2]
+        v5 = vals.reshape(len(w), nn, 3, nn, 3)
         for i in range(3):
             v5[:, :, i, :, i] += gg
 
@@ -162,8 +173,12 @@ class Viscoelastic(Effect):
             return {}
         Q, S, C, work = self._advance(x, t - self.t0) if t > self.t0 else (self.Q, self.S, self.C, self.work)
         nc = len(self.vol)
-        return {"viscoelastic": np.concatenate([np.moveaxis(Q, 0, 1).reshape(nc, -1), S.reshape(nc, 9),
-                                                C.reshape(nc, 9), work[:, None]], axis=1)}
+        return {"viscoelastic": np.concatenate([np.moveaxis(Q, 0, 1).reshape(nc, -1), S.reshape(nc, -1),
+                                                C.reshape(nc, -1), work[:, None]], axis=1)}
+
+    def row_width(self):
+        """The width of a checkpoint's row per cell: Q_i, S_iso and C (9 each) at each point, and the work."""
+        return 9 * self.w.shape[1] * (len(self.beta) + 2) + 1
 
     def resume_cells(self, state, space):
         """The checkpoint's stresses per cell (any rank count wrote them), committed at its time t (the next
@@ -172,13 +187,14 @@ class Viscoelastic(Effect):
         if "viscoelastic" not in state:
             return
         rows = space.read_cell_state(state["viscoelastic"])
-        nt, nc = len(self.beta), len(self.vol)
-        if rows.shape[1] != 9 * nt + 19:
-            raise UserError(f"--restart: the checkpoint's viscoelastic state has {(rows.shape[1] - 19) // 9} Prony "
-                            f"terms, this run {nt} (a restart continues with the series it was written with)")
-        self.Q = np.moveaxis(rows[:, :9 * nt].reshape(nc, nt, 3, 3), 1, 0).copy()
-        self.S = rows[:, 9 * nt:9 * nt + 9].reshape(nc, 3, 3).copy()
-        self.C = rows[:, 9 * nt + 9:9 * nt + 18].reshape(nc, 3, 3).copy()
+        (nc, nq), nt = self.w.shape, len(self.beta)
+        if rows.shape[1] != self.row_width():
+            raise UserError(f"--restart: the checkpoint's viscoelastic state is not this run's ({rows.shape[1]} numbers "
+                            f"a cell, where {nt} Prony terms at {nq} points take {self.row_width()})")
+        k = 9 * nq * nt
+        self.Q = np.moveaxis(rows[:, :k].reshape(nc, nt, nq, 3, 3), 1, 0).copy()
+        self.S = rows[:, k:k + 9 * nq].reshape(nc, nq, 3, 3).copy()
+        self.C = rows[:, k + 9 * nq:k + 18 * nq].reshape(nc, nq, 3, 3).copy()
         self.work = rows[:, -1].copy()
         self.t0 = float(state["t"])
 
@@ -214,8 +230,6 @@ def _read(opts, where):
 
 def _build(p, ctx):
     k = ctx.kernels
-    if k.nn != 4:
-        raise UserError("the viscoelastic effect (-prony_beta): linear tetrahedra for now (not -order 2)")
     parts = [(idx, s.material, s.material.split(s.values)[0]) for idx, s in ctx.part_solids if s.material.volumetric]
     if not any(s.material.volumetric for _, s in ctx.part_solids):
         names = ", ".join(dict.fromkeys(s.name for _, s in ctx.part_solids))
