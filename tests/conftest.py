@@ -3,6 +3,7 @@ import shutil
 import subprocess
 import sys
 
+import numpy as np
 import pytest
 
 import warmrun
@@ -36,6 +37,16 @@ def hyperelastic(args, nprocs=1, timeout=600, cwd=None):
     # (os.environ given, not inherited: gmsh.initialize() in this process appends to PATH and sets PYTHONPATH in the
     # C environment, which children inherit and os.environ does not show; the warm ranks' server would refuse them)
     return subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, cwd=cwd, env=dict(os.environ))
+
+
+def tangent_and_fd(effect, x, v, eps):
+    """(an effect's tangent applied to v at x, central differences of its residual along v with step eps)."""
+    effect.linearize(x)
+    y, rp, rm = np.zeros_like(x), np.zeros_like(x), np.zeros_like(x)
+    effect.apply(v, y)
+    effect.residual(x + eps * v, rp)
+    effect.residual(x - eps * v, rm)
+    return y, (rp - rm) / (2 * eps)
 
 
 def run_mpi_script(name, args, nprocs=2, timeout=300):

@@ -6,7 +6,7 @@ import math
 import numpy as np
 import pytest
 
-from conftest import ROOT, hyperelastic, make_model, read_h5, run_ok
+from conftest import ROOT, hyperelastic, make_model, read_h5, run_ok, tangent_and_fd
 
 
 def _confined(lam, mu, kappa):
@@ -54,6 +54,29 @@ def test_a_held_stretch_relaxes_as_the_prony_series(order, cube, tmp_path):
     assert abs(got[-1] / P_inf - 1) < 0.002 and got[0] - P_inf > 0.05 * P_inf
 
 
+def _tangent_checks(e, x0, rng, a, b):
+    """Mid-way through a relaxation (a step from x0 accepted at x0 + a r1: Q != 0; linearized at x1 + b r2): the
+    effect's K v against central differences of its residual, its cell blocks (scattered) against K v, and its
+    diagonal against the blocks'."""
+    x1 = x0 + a * rng.standard_normal(x0.shape)
+    e.begin_step(0.0, 0.05, x0, None)
+    e.begin_step(0.05, 0.05, x1, None)
+    x = x1 + b * rng.standard_normal(x0.shape)
+    v = rng.standard_normal(x.shape)
+    y, fd = tangent_and_fd(e, x, v, 1e-6)
+    assert np.abs(y - fd).max() <= 1e-6 * np.abs(y).max()
+    nc, nn = e.cells.shape
+    K = np.zeros((nc, 3 * nn, 3 * nn))
+    e.add_cell_blocks(K)
+    dofs = (3 * e.cells[:, :, None] + np.arange(3)).reshape(nc, -1)
+    yk, dk, d = np.zeros_like(x), np.zeros_like(x), np.zeros_like(x)
+    np.add.at(yk, dofs, np.einsum("crs,cs->cr", K, v[dofs]))
+    assert np.abs(yk - y).max() <= 1e-12 * np.abs(y).max()
+    e.diag(d)
+    np.add.at(dk, dofs, np.einsum("cii->ci", K))
+    assert np.allclose(d, dk, rtol=1e-12, atol=1e-12 * np.abs(dk).max())
+
+
 def test_the_tangent_is_the_residuals_derivative():
     """The effect's K v, its diagonal and its 12x12 blocks against central differences of its residual, mid-way
     through a relaxation (Q != 0), on random cells of the split Neo-Hookean and of Ogden's rubber."""
@@ -71,26 +94,7 @@ def test_the_tangent_is_the_residuals_derivative():
         s = default_solid(name)
         k = cells.kernels(s.material, s.constants)
         e = Viscoelastic(k, [(None, s.material, s.material.split(s.values)[0])], (0.4, 0.2), (0.1, 0.5))
-        x0 = X.reshape(-1).copy()
-        x1 = x0 + 0.03 * rng.standard_normal(x0.shape)
-        e.begin_step(0.0, 0.05, x0, None)
-        e.begin_step(0.05, 0.05, x1, None)          # the first step accepted at x1: Q != 0
-        x = x1 + 0.02 * rng.standard_normal(x0.shape)
-        e.linearize(x)
-        v = rng.standard_normal(x.shape)
-        y = np.zeros_like(x)
-        e.apply(v, y)
-        eps = 1e-6
-        rp, rm = np.zeros_like(x), np.zeros_like(x)
-        e.residual(x + eps * v, rp)
-        e.residual(x - eps * v, rm)
-        assert np.abs(y - (rp - rm) / (2 * eps)).max() <= 1e-6 * np.abs(y).max(), name
-        K = np.zeros((n, 12, 12))
-        e.add_cell_blocks(K)
-        assert np.abs(np.einsum("crs,cs->cr", K, v.reshape(n, 12)).reshape(-1) - y).max() <= 1e-12 * np.abs(y).max()
-        d = np.zeros_like(x)
-        e.diag(d)
-        assert np.allclose(d, np.einsum("cii->ci", K).reshape(-1), rtol=1e-12, atol=0)
+        _tangent_checks(e, X.reshape(-1).copy(), rng, 0.03, 0.02)
 
 
 @pytest.mark.parametrize("args,want", [
@@ -204,33 +208,7 @@ def test_the_quadratic_tangent_is_the_residuals_derivative(petsc):
     m = make_model(petsc, "bend", [("level", "1"), ("order", "2"), ("material", "yeoh"), ("prony_beta", "0.4,0.2"),
                                    ("prony_tau", "0.1,0.5")])
     e = next(x for x in m.system.effects if isinstance(x, Viscoelastic))
-    rng = np.random.default_rng(11)
-    x0 = m.x0.copy()
-    x1 = x0 + 0.01 * rng.standard_normal(x0.shape)
-    e.begin_step(0.0, 0.05, x0, None)
-    e.begin_step(0.05, 0.05, x1, None)
-    x = x1 + 0.005 * rng.standard_normal(x0.shape)
-    e.linearize(x)
-    v = rng.standard_normal(x.shape)
-    y = np.zeros_like(x)
-    e.apply(v, y)
-    eps = 1e-6
-    rp, rm = np.zeros_like(x), np.zeros_like(x)
-    e.residual(x + eps * v, rp)
-    e.residual(x - eps * v, rm)
-    assert np.abs(y - (rp - rm) / (2 * eps)).max() <= 1e-6 * np.abs(y).max()
-    nc, nn = e.cells.shape
-    K = np.zeros((nc, 3 * nn, 3 * nn))
-    e.add_cell_blocks(K)
-    dofs = (3 * e.cells[:, :, None] + np.arange(3)).reshape(nc, -1)
-    yk = np.zeros_like(x)
-    np.add.at(yk, dofs, np.einsum("crs,cs->cr", K, v[dofs]))
-    assert np.abs(yk - y).max() <= 1e-12 * np.abs(y).max()
-    d = np.zeros_like(x)
-    e.diag(d)
-    dk = np.zeros_like(x)
-    np.add.at(dk, dofs, np.einsum("cii->ci", K))
-    assert np.allclose(d, dk, rtol=1e-12, atol=1e-12 * np.abs(dk).max())
+    _tangent_checks(e, m.x0.copy(), np.random.default_rng(11), 0.01, 0.005)
 
 
 def test_nearly_incompressible_rubber_relaxes_in_the_mixed_formulation(cube, tmp_path):
