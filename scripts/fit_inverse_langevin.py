@@ -31,7 +31,8 @@ def main():
     print("static const double INVLANGEVIN_EDGES[%d] = {%s};" % (len(EDGES), ", ".join(f"{e!r}" for e in EDGES)))
     print("static const double INVLANGEVIN_CHEB[%d][%d] = {" % (len(rows), DEGREE + 1))
     for c in rows:
-        print("  {" + ", ".join(f"{v:.17g}" for v in c) + "},")
+        vals = [f"{v:.17g}" for v in c]
+        print("  {" + ",\n   ".join(", ".join(vals[i:i + 4]) for i in range(0, len(vals), 4)) + "},")
     print("};")
     print("/* largest relative error of beta per piece: " + ", ".join(f"{e:.1e}" for e in errs) + " */")
 

@@ -8,7 +8,9 @@
  * dtau = sum_a (c f')'(cb_a) D_aa, f'[1] the divided differences of f' (f'' on the diagonal and at equal eigenvalues,
  * without cancellation: ogden_divided). Undefined for J <= 0. Numpy reference: ogden.py. */
 #include "_tensor.h"
-typedef struct { double F[9], Q[9], FN[9], N[9], c[3], lc[3], ck[9], fp[3], h[3], dd[9], FT[9], j23, tau, kJ2, g; } ogden_cache;
+typedef struct {
+  double F[9], Q[9], FN[9], N[9], c[3], lc[3], ck[9], fp[3], h[3], dd[9], FT[9], j23, tau, kJ2, g;
+} ogden_cache;
 
 /* The unit eigenvector v of symmetric A for its eigenvalue l: the longest of the cross products of the rows of A - lI
  * (each is along v where l is a simple eigenvalue; the longest the best conditioned). */
@@ -29,8 +31,8 @@ HE_INLINE void sym3_vector(const double *A, double l, double *v) {
 
 /* The eigenvalues c and orthonormal eigenvectors (V's columns) of a symmetric 3x3 S, without iterating (after Eberly,
  * "A robust eigensolver for 3x3 symmetric matrices", 2014): the eigenvalues of B = (S - qI)/p, q = tr S/3, p^2 =
- * |S - qI|^2/6, are 2 cos(phi + 2 pi k/3), phi = acos(det B / 2)/3 (Smith, Comm. ACM 4, 1961); the one farthest from the
- * other two (the largest where det B >= 0, else the smallest: accurate to round-off, as are its vector's directions)
+ * |S - qI|^2/6, are 2 cos(phi + 2 pi k/3), phi = acos(det B / 2)/3 (Smith, Comm. ACM 4, 1961); the one farthest from
+ * the other two (the largest where det B >= 0, else the smallest: accurate to round-off, as are its vector's directions)
  * gives the first vector (sym3_vector), and the other two diagonalize S on the plane normal to it by one exact
  * rotation. So V^T S V is diagonal to round-off of |S| however close the eigenvalues (where they are equal, any
  * orthonormal basis of their space is one); the eigenvalues are the Rayleigh quotients. */
