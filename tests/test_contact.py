@@ -416,7 +416,7 @@ def test_a_plate_pressing_the_bar_is_the_end_prescribed_there(tmp_path):
     # frames as an animated GIF: one camera and colour range, each frame its own picture
     from PIL import Image
     q = run_ok(["plot", tmp_path / "c.h5", "--frames", "9:10", "-o", tmp_path / "a.gif", "--field", "contact_pressure"])
-    assert f"2 frames 9..10, field contact_pressure from 0 to " in q.stdout, q.stdout
+    assert "2 frames 9..10, field contact_pressure from 0 to " in q.stdout, q.stdout
     with Image.open(tmp_path / "a.gif") as gif:
         shots = []
         for k in range(gif.n_frames):

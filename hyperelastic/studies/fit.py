@@ -361,7 +361,8 @@ def _check_out(path, data_path, suffix, option):
     writable_dir(os.path.dirname(os.path.abspath(path)) or ".", f"fit: {option} '{path}'")
 
 
-def plot(fit, path, stab):
+def plot(fit, path):
+    """A PNG of the fitted curves against the data, the unstable stretches of each curve crossed."""
     from ..output.figures import legend, pyplot
     plt = pyplot()
     fig, ax = plt.subplots(figsize=(6.4, 4.6))
@@ -431,7 +432,7 @@ def main(argv):
     _write_text(out, "\n".join(head + fit.option_lines()) + "\n")
     print(f"wrote {out} (hyperelastic run SCENE -options_file {out})")
     if a.plot:
-        plot(fit, a.plot, stab)
+        plot(fit, a.plot)
         print(f"wrote {a.plot}")
     sys.stdout.flush()
     return 0
