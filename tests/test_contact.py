@@ -424,6 +424,16 @@ def test_a_plate_pressing_the_bar_is_the_end_prescribed_there(tmp_path):
             shots.append(np.asarray(gif.convert("RGB"), float))
     assert len(shots) == 2 and shots[0].shape[:2] == (700, 1000)
     assert np.abs(shots[1] - shots[0]).mean() > 0.1                                 # the plate moves, frame by frame
+    # and as an MP4 video (H.264), read back by ffmpeg's own decoder: the same frames, not blank, moving
+    import imageio_ffmpeg
+    run_ok(["plot", tmp_path / "c.h5", "--frames", "8:10", "-o", tmp_path / "a.mp4", "--field", "contact_pressure"])
+    reader = imageio_ffmpeg.read_frames(str(tmp_path / "a.mp4"))
+    meta = next(reader)
+    video = [np.frombuffer(f, np.uint8).reshape(700, 1000, 3).astype(float) for f in reader]
+    assert meta["codec"] == "h264" and meta["size"] == (1000, 700) and len(video) == 3
+    assert video[0].std() > 5 and np.abs(video[2] - video[0]).mean() > 0.1
+    q = hyperelastic(["plot", tmp_path / "c.h5", "--frames", "8:10", "-o", tmp_path / "a.avi"])
+    assert q.returncode == 2 and "must be a .gif or .mp4 file" in q.stderr and not (tmp_path / "a.avi").exists()
     for bad in (["--field", "nothing"], ["--field", "von_mises:x"], ["--view", "w"], ["--range", "2,1"],
                 ["--slice", "x=99"], ["--clip", "q=1"], ["--clip", "x=0", "--slice", "y=0"], ["--frames", "2:99"],
                 ["--frames", "3:1"]):

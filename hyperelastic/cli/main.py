@@ -331,7 +331,7 @@ def plot_cmd(argv):
     ap.add_argument("--slice", default=None, metavar="AXIS=VALUE", help="show the field on the plane x, y or z = "
                     "VALUE alone (as drawn), with the part's outline")
     ap.add_argument("--frames", default=None, metavar="A:B", help="frames A to B (both included) as an animated GIF "
-                    "(-o FILE.gif), one camera, colour range and scale for all")
+                    "(-o FILE.gif) or an MP4 video (-o FILE.mp4), one camera, colour range and scale for all")
     a = ap.parse_args(argv)
     out = a.output if a.output is not None else os.path.splitext(a.file)[0] + (".gif" if a.frames else ".png")
     frames = None

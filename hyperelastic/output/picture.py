@@ -149,11 +149,12 @@ FRAME_SECONDS = 0.1          # an animation's frame on screen
 
 
 def animation(path, out, frames, field=None, view="iso", scale=None, clim=None, cut=None):
-    """Frames a..b (frames = (a, b), both included) of the output `path` as an animated GIF `out`, one camera, one
-    colour range (--range, else the frames' least and largest) and one displacement scale (as picture's, from the
-    frames' largest motion) for all; returns the line to print. UserError (one line) for what cannot be drawn."""
-    if not out.lower().endswith(".gif") or os.path.isdir(out):
-        raise UserError(f"plot: -o '{out}' must be a .gif file with --frames")
+    """Frames a..b (frames = (a, b), both included) of the output `path` as an animated GIF or an MP4 video (H.264,
+    by the ffmpeg that the imageio-ffmpeg wheel carries) `out`, one camera, one colour range (--range, else the
+    frames' least and largest) and one displacement scale (as picture's, from the frames' largest motion) for all;
+    returns the line to print. UserError (one line) for what cannot be drawn."""
+    if not out.lower().endswith((".gif", ".mp4")) or os.path.isdir(out):
+        raise UserError(f"plot: -o '{out}' must be a .gif or .mp4 file with --frames")
     if view not in VIEWS:
         raise UserError(f"plot: --view {view}: give one of {', '.join(VIEWS)}")
     a, b = frames
@@ -178,17 +179,38 @@ def animation(path, out, frames, field=None, view="iso", scale=None, clim=None, 
                   _obstacles(attrs, t, X.min(axis=0), X.max(axis=0)) if scale == 1.0 else [],
                   _caption(attrs, t, i, scale, cut), bounds=[lo[0], hi[0], lo[1], hi[1], lo[2], hi[2]])
         images = [Image.open(p).convert("RGB") for p in pngs]
-        tmp = f"{out}.{os.getpid()}.tmp.gif"
+        video = out.lower().endswith(".mp4")
+        tmp = f"{out}.{os.getpid()}.tmp" + (".mp4" if video else ".gif")
         try:
-            images[0].save(tmp, save_all=True, append_images=images[1:], duration=int(1000 * FRAME_SECONDS), loop=0)
+            if video:
+                _write_mp4(tmp, images)
+            else:
+                images[0].save(tmp, save_all=True, append_images=images[1:], duration=int(1000 * FRAME_SECONDS),
+                               loop=0)
             os.replace(tmp, out)
         except OSError as e:
-            raise UserError(f"plot: cannot write '{out}' ({e.strerror})") from None
+            raise UserError(f"plot: cannot write '{out}' ({e.strerror or e})") from None
         finally:
             if os.path.exists(tmp):
                 os.remove(tmp)
     return (f"wrote {out} ({len(got)} frames {a}..{b}, field {title} from {clim[0]:.6g} to {clim[1]:.6g}, "
             f"displacement scale {scale:.3g})")
+
+
+def _write_mp4(path, images):
+    """The RGB images as an H.264 video at 1/FRAME_SECONDS frames a second (yuv420p, what players take: even sizes, the
+    images padded by a row or column where odd), through the ffmpeg of the imageio-ffmpeg wheel."""
+    import imageio_ffmpeg        # deferred on purpose: only a video needs it
+    w, h = images[0].size
+    W, H = w + w % 2, h + h % 2
+    gen = imageio_ffmpeg.write_frames(path, (W, H), fps=1 / FRAME_SECONDS, codec="libx264", macro_block_size=2,
+                                      ffmpeg_log_level="error")
+    gen.send(None)
+    for im in images:
+        a = np.zeros((H, W, 3), np.uint8)
+        a[:h, :w] = np.asarray(im, np.uint8)
+        gen.send(a.tobytes())
+    gen.close()
 
 
 def _draw(out, X, xs, cells, scalars, at_points, title, view, clim, cut, obstacles, caption, bounds=None):
