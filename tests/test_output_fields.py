@@ -55,6 +55,16 @@ def test_uniaxial_stress_strain_exact_and_balanced_by_the_reaction(cube, tmp_pat
         assert abs(szz.mean() * area / abs(Fz) - 1) < 1e-9, (szz.mean() * area, Fz)
         ps = g["principal_stress"][:]
         assert np.abs(ps - [szz.mean(), 0, 0]).max() < 1e-9 * szz.max()
+    # plot names principal values 1, 2, 3 (largest first; the largest by default: their magnitude would mean nothing)
+    for spec, want in (("", szz.mean()), (":1", szz.mean()), (":3", 0.0)):
+        p = run_ok(["plot", tmp_path / "u.h5", "--field", f"principal_stress{spec}", "-o", tmp_path / "p.png"])
+        lo, hi = (float(v.rstrip(",")) for v in p.stdout.split(" from ")[1].split(",")[0].split(" to "))
+        assert f"field principal_stress:{spec[1:] or '1'} " in p.stdout, p.stdout
+        assert abs(hi - want) <= 1e-5 * szz.max(), p.stdout                  # (the line prints 6 digits)
+    q = hyperelastic(["plot", tmp_path / "u.h5", "--field", "principal_stress:x", "-o", tmp_path / "q.png"])
+    assert q.returncode == 2 and "are 1, 2, 3" in q.stderr
+    with h5py.File(tmp_path / "u.h5", "r") as f:
+        g = f["frames"][str(len(f["time"]) - 1)]
         assert np.abs(g["von_mises"][:] - szz).max() < 1e-9 * szz.max()
         nodal = g["stress_nodal"][:]
         assert nodal.shape == (len(X), 6) and np.abs(nodal - s[0]).max() < 1e-9 * szz.max()

@@ -321,7 +321,7 @@ def plot_cmd(argv):
     ap.add_argument("--frame", type=int, default=-1)
     ap.add_argument("--field", default=None, metavar="NAME[:C]", help="the field to colour by (default |displacement|): "
                     "any field of the frame (von_mises, J, pressure, contact_pressure, stress, ...), a component "
-                    "x|y|z of a vector or xx..zz of a tensor")
+                    "x|y|z of a vector, xx..zz of a tensor, 1|2|3 of principal_stress (largest first; default 1)")
     ap.add_argument("--view", default="iso", help="the camera: iso (default), x, y or z")
     ap.add_argument("--scale", type=float, default=None, help="the displacement's scale (default: 1, or larger where "
                     "the motion is under 2%% of the part's size, so that it shows)")

@@ -19,24 +19,34 @@ from .fields import is_point_field
 # the direction the camera looks from, and which way is up in the picture
 VIEWS = {"iso": None, "x": ((1, 0, 0), (0, 0, 1)), "y": ((0, -1, 0), (0, 0, 1)), "z": ((0, 0, 1), (0, 1, 0))}
 TENSOR = ("xx", "xy", "xz", "yy", "yz", "zz")              # (Tensor6, as the output stores it)
+PRINCIPAL = ("1", "2", "3")    # a principal field's components: the largest, the middle, the smallest (as stored)
 VISIBLE = 0.02        # a displacement below this fraction of the part's size is scaled up to AUTO_SHOW of it
 AUTO_SHOW = 0.1
 
 
 def component(name, spec, values):
     """The scalar per row of field `name` (values: (n,), (n, 3) or (n, 6)) for `spec` (None: its magnitude, or the
-    scalar itself; x|y|z of a vector; xx..zz of a tensor); UserError where the field has no such component."""
+    scalar itself; x|y|z of a vector; xx..zz of a tensor; 1|2|3 of principal values, largest first, the largest by
+    default: principal_spec); UserError where the field has no such component."""
     v = np.asarray(values, float)
     if v.ndim == 1:
         if spec:
             raise UserError(f"plot: --field {name}:{spec}: '{name}' is a scalar field (no components)")
         return v
-    names = "xyz" if v.shape[1] == 3 else TENSOR if v.shape[1] == 6 else ()
+    names = PRINCIPAL if name.startswith("principal_") else "xyz" if v.shape[1] == 3 else TENSOR if v.shape[1] == 6 \
+        else ()
+    spec = principal_spec(name, spec)
     if spec is None:
         return np.linalg.norm(v, axis=1) if v.shape[1] == 3 else v[:, 0]
     if spec not in names:
         raise UserError(f"plot: --field {name}:{spec}: the components of '{name}' are {', '.join(names)}")
     return v[:, names.index(spec)]
+
+
+def principal_spec(name, spec):
+    """The component shown of field `name`: spec, or for principal values without one the largest ('1': a magnitude of
+    principal values means nothing)."""
+    return "1" if spec is None and name.startswith("principal_") else spec
 
 
 def _obstacles(attrs, t, lo, hi):
@@ -95,6 +105,7 @@ def _shown(path, X, got, field, scale, cut, which):
     if cut is not None and not lo[cut[1]] < cut[2] < hi[cut[1]]:
         raise UserError(f"plot: --{cut[0]} {'xyz'[cut[1]]}={cut[2]:g}: the plane misses the part (its {'xyz'[cut[1]]} "
                         f"from {lo[cut[1]]:.6g} to {hi[cut[1]]:.6g} in {which})")
+    spec = principal_spec(name, spec or None)
     return f"{name}{':' + spec if spec else ''}", scalars, scale, shapes, (lo, hi)
 
 
