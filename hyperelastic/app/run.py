@@ -243,11 +243,7 @@ def _check_restart(state, model, scene, path):
     """The checkpoint fits the run it continues: the same element order and mesh, and time left before
     -final_time."""
     for e in model.system.effects:
-        width = e.row_width() if "viscoelastic" in state and e.name == "viscoelastic" else None
-        if width is not None and state["viscoelastic"].width != width:
-            raise UserError(f"--restart '{path}': the checkpoint's viscoelastic state is not this run's "
-                            f"({state['viscoelastic'].width} numbers a cell, where its Prony series takes {width}): a "
-                            "restart continues with the series it was written with")
+        e.check_resume(state, path)
     nodes = 4 if model.element.order == 1 else 10
     if state.get("cell_nodes") in (4, 10) and state["cell_nodes"] != nodes:
         kind = {4: "linear (order 1)", 10: "quadratic (order 2)"}

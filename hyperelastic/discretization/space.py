@@ -339,8 +339,6 @@ class Space:
     def read_cell_state(self, rows):
         """(nc, width) array of a checkpoint's rows per cell (core.files.StateRows) for the local cells, whatever the
         rank count that wrote it (as read_state does for nodes)."""
-        if isinstance(rows, np.ndarray):      # (read already: this rank's rows)
-            return rows
         return self.read_state(rows, cells=True).reshape(len(self.cell_orig), -1)
 
     def read_state(self, rows, cells=False):

@@ -56,9 +56,8 @@ def surface_forces(scene, system, x):
         if not e.internal:
             F, M = -re.sum(axis=0), -np.cross(X, re).sum(axis=0)
             if e.name in loads:
-                loads[e.name] = (loads[e.name][0] + F, loads[e.name][1] + M)
-            else:
-                loads[e.name] = (F, M)
+                F, M = loads[e.name][0] + F, loads[e.name][1] + M
+            loads[e.name] = (F, M)
     rows += [("load", name, F, M) for name, (F, M) in loads.items()]
     local = np.array([np.concatenate([F, M]) for _, _, F, M in rows]).reshape(-1, 6)
     total = np.empty_like(local)

@@ -69,22 +69,22 @@ def resolve(name):
 
 
 def stretches(mode, lam):
-    """The principal stretches (..., 3) of an incompressible homogeneous test at loaded stretch lam, and the index
-    of its stress-free direction."""
+    """The principal stretches (..., 3) of an incompressible homogeneous test at loaded stretch lam, the loaded
+    direction first and a stress-free one last."""
     lam = np.asarray(lam, dtype=float)
     if mode == "uniaxial":
-        return np.stack([lam, lam ** -0.5, lam ** -0.5], axis=-1), 2
+        return np.stack([lam, lam ** -0.5, lam ** -0.5], axis=-1)
     if mode == "equibiaxial":
-        return np.stack([lam, lam, lam ** -2.0], axis=-1), 2
-    return np.stack([lam, np.ones_like(lam), 1 / lam], axis=-1), 2
+        return np.stack([lam, lam, lam ** -2.0], axis=-1)
+    return np.stack([lam, np.ones_like(lam), 1 / lam], axis=-1)
 
 
 def nominal(material, values, mode, lam):
-    """The nominal stress (force per reference area) of the test `mode` at stretch lam."""
-    ls, free = stretches(mode, lam)
+    """The nominal stress (force per reference area) of the test `mode` at stretch lam: (tau_1 - tau_3) / lam, the
+    pressure being the free direction's tau_3."""
     with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
-        tau = material.principal_tau(ls, values)
-    return (tau[..., 0] - tau[..., free]) / np.asarray(lam, dtype=float)
+        tau = material.principal_tau(stretches(mode, lam), values)
+    return (tau[..., 0] - tau[..., 2]) / np.asarray(lam, dtype=float)
 
 
 def read_data(path, unit="Pa"):
@@ -192,11 +192,11 @@ class Fit:
         self.values = self._solve(bulk_ratio)
 
     def _bounds(self):
-        I1max = max(float(np.square(stretches(m, lam)[0]).sum(axis=-1).max()) for m, (lam, _, _) in self.data.items())
+        I1max = max(float(np.square(stretches(m, lam)).sum(axis=-1).max()) for m, (lam, _, _) in self.data.items())
         lo, hi, start = [], [], []
         limits = self.material.fit_limits(I1max)
         for p in self.params:
-            scale = self.mu_data if p.unit == "Pa" else 1.0
+            scale = self._scale(p)
             low = max(p.minimum, limits.get(p.name, -math.inf))
             if p.exclusive or p.name in limits:
                 low = low + max(abs(low), scale) * 1e-9 if math.isfinite(low) else low
@@ -211,9 +211,13 @@ class Fit:
             return 3 * max(limits[p.name], 1.0)
         return self.start.get(p.name, 0.0)
 
+    def _scale(self, p):
+        """The unit the fit takes parameter p in: the data's modulus for a modulus (the least squares' variables of
+        order 1), else 1."""
+        return self.mu_data if p.unit == "Pa" else 1.0
+
     def _values(self, z):
-        return {**self.fixed, **{p.name: float(zi) * (self.mu_data if p.unit == "Pa" else 1.0)
-                                 for p, zi in zip(self.params, z)}}
+        return {**self.fixed, **{p.name: float(zi) * self._scale(p) for p, zi in zip(self.params, z)}}
 
     def model(self, mode, lam, values=None):
         return nominal(self.material, self.values if values is None else values, mode, lam)
@@ -239,13 +243,12 @@ class Fit:
                             x_scale="jac", ftol=1e-15, xtol=1e-15, gtol=1e-15, max_nfev=20000)
         values = self._values(res.x)
         values["kappa"] = 0.0
-        mu0 = self.material.split(values)[1] if self.material.volumetric else self.mu_data
+        mu0 = self.material.split(values)[1]           # (every fitted material has the split)
         if not mu0 > 0:
             raise UserError(f"fit: {self.name} fitted to a small-strain shear modulus {mu0:g} <= 0: the data do not "
                             "suit this model")
         values["kappa"] = bulk_ratio * mu0
         self.mu0 = mu0
-        self.cost = float(np.sqrt(np.mean(self.residuals(values) ** 2)))
         return values
 
     def mode_errors(self):
@@ -262,7 +265,7 @@ class Fit:
     def hessian(self, mode, lam):
         """The Hessian (..., 2, 2) of w(e_1, e_2) at the mode's state of stretch lam (central differences of
         tau_i - tau_3 in the logarithmic strains)."""
-        ls = np.log(stretches(mode, lam)[0])
+        ls = np.log(stretches(mode, lam))
         H = np.zeros(np.shape(lam) + (2, 2))
         for j in range(2):
             d = np.zeros(3)

@@ -203,6 +203,10 @@ class Effect:
         state x at time t, for a checkpoint."""
         return {}
 
+    def check_resume(self, state, path):
+        """UserError where a checkpoint's state (files.read_checkpoint) cannot continue in this effect: checked before
+        the run is set up."""
+
     def resume_cells(self, state, space):
         """Continue from a checkpoint's state (files.read_checkpoint; space.read_cell_state reads its rows)."""
 

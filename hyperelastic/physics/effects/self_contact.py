@@ -124,6 +124,12 @@ class SelfContact(NodeBlocks, StepLimiter, DomainCheck, StepStart, AdaptiveStiff
         for end in (0, 1):
             np.minimum.at(shortest, E[:, end], np.linalg.norm(X[E[:, 0]] - X[E[:, 1]], axis=1))
         self.edge = shortest[self.own_s]                     # this rank's nodes' shortest surface edge (pushed)
+        # each surface node's reference area, a third of its triangles' (the obstacles' results)
+        F = faces[(faces < len(self.ids)).all(axis=1)]
+        a = 0.5 * np.linalg.norm(np.cross(X[F[:, 1]] - X[F[:, 0]], X[F[:, 2]] - X[F[:, 0]]), axis=1)
+        self.node_area = np.zeros(len(self.ids))
+        np.add.at(self.node_area, F, np.repeat(a[:, None] / 3, 3, axis=1))
+        self._pairs = None                                   # (the last _obstacle_pairs)
         self.set_kappa(self.kappa)
         self.blocks = np.zeros((len(self.nodes), 3, 3))
         self.coupling = None                                 # csr (3 n_own, 3 n_surface): the off-diagonal blocks
@@ -331,20 +337,15 @@ class SelfContact(NodeBlocks, StepLimiter, DomainCheck, StepStart, AdaptiveStiff
         translation at t. On rank 0 alone (the collision mesh is the whole surface on every rank); zeros elsewhere."""
         if not self.obstacles:
             return []
-        V = self._V(x)
         first = self.mpi.rank == 0
-        c = self._collisions(V) if first else []
-        g = np.zeros_like(V)
-        if len(c):
-            g += self.potential_fn.gradient(c, self.mesh, V).reshape(-1, 3)
+        V, g, near = self._obstacle_pairs(x) if first else (None, None, [set()] * len(self.obstacles))
         if first and self._has_friction():
-            g += self.friction.gradient(self.tangential, self.mesh, V - self.start).reshape(-1, 3)
-        near = self._pressed_nodes(c)
+            g = g + self.friction.gradient(self.tangential, self.mesh, V - self.start).reshape(-1, 3)
         rows, lo = [], len(self.ids)
         for o, number, touched in zip(self.obstacles, self.numbers, near):
             hi = lo + len(o.surface[0])
             force = g[lo:hi].sum(axis=0) if first else np.zeros(3)
-            area = float(self._node_area()[sorted(touched)].sum()) if first else 0.0
+            area = float(self.node_area[sorted(touched)].sum()) if first else 0.0
             rows.append((f"obstacle{number}", force, area, o.shift(t)))
             lo = hi
         return rows
@@ -358,19 +359,27 @@ class SelfContact(NodeBlocks, StepLimiter, DomainCheck, StepStart, AdaptiveStiff
         pressure, status = np.zeros(n), np.zeros(n)
         if not self.obstacles:
             return {}
-        V = self._V(x)
-        c = self._collisions(V)
-        near = self._pressed_nodes(c)
+        _, g, near = self._obstacle_pairs(x)
         for number, touched in reversed(list(zip(self.numbers, near))):
             hit = np.isin(self.own_s, sorted(touched))
             status[self.nodes[hit]] = number
-        if len(c):
-            g = self.potential_fn.gradient(c, self.mesh, V).reshape(-1, 3)
-            pressed = np.zeros(len(self.ids), bool)
-            pressed[sorted(set().union(*near))] = True
-            own = pressed[self.own_s]
-            pressure[self.nodes[own]] = np.linalg.norm(g[self.own_s[own]], axis=1) / self._node_area()[self.own_s[own]]
+        pressed = np.zeros(len(self.ids), bool)
+        pressed[sorted(set().union(*near))] = True
+        own = pressed[self.own_s]
+        pressure[self.nodes[own]] = np.linalg.norm(g[self.own_s[own]], axis=1) / self.node_area[self.own_s[own]]
         return {"contact_pressure": pressure, "contact_status": status}
+
+    def _obstacle_pairs(self, x):
+        """(V, the barrier's gradient over the collision mesh's vertices (n, 3), per obstacle the surface nodes in a
+        pair with it) at local positions x: a frame's point_values and the step's result_rows ask at the same state,
+        so the last one is kept."""
+        V = self._V(x)
+        if self._pairs is not None and np.array_equal(self._pairs[0], V):
+            return self._pairs
+        c = self._collisions(V)
+        g = self.potential_fn.gradient(c, self.mesh, V).reshape(-1, 3) if len(c) else np.zeros_like(V)
+        self._pairs = (V, g, self._pressed_nodes(c))
+        return self._pairs
 
     def _pressed_nodes(self, c):
         """Per obstacle: the set of the surface's nodes (collision-mesh ids) in a pair with one of its vertices."""
@@ -383,16 +392,6 @@ class SelfContact(NodeBlocks, StepLimiter, DomainCheck, StepStart, AdaptiveStiff
             for k in set(np.searchsorted(bounds, ids[ids >= bounds[0]], side="right") - 1):
                 out[k].update(int(b) for b in body)
         return out
-
-    def _node_area(self):
-        """The reference area of each surface node (a third of its triangles'), cached."""
-        if getattr(self, "_areas", None) is None:
-            X, F = self.mesh.rest_positions, self.mesh.faces
-            F = F[(F < len(self.ids)).all(axis=1)]
-            a = 0.5 * np.linalg.norm(np.cross(X[F[:, 1]] - X[F[:, 0]], X[F[:, 2]] - X[F[:, 0]]), axis=1)
-            self._areas = np.zeros(len(self.ids))
-            np.add.at(self._areas, F, np.repeat(a[:, None] / 3, 3, axis=1))
-        return self._areas
 
     def undefined_at(self, x):
         """1 where the straight move from the step's start to x passes the surface through itself (or touches)."""

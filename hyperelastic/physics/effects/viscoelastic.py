@@ -58,7 +58,6 @@ class Viscoelastic(Effect):
             self.G = np.concatenate([-Dminv.sum(axis=1, keepdims=True), Dminv], axis=1)[:, None]
             self.w = g.vol[:, None].copy()
         nc, nq = self.w.shape
-        self.vol = self.w.sum(axis=1)
         self.Q = np.zeros((len(beta), nc, nq, 3, 3))
         self.S = None          # S_iso at the last accepted state, per cell and point
         self.t0 = None         # the start time of the step being solved
@@ -66,14 +65,14 @@ class Viscoelastic(Effect):
         self.scatter = None    # cell forces -> the local vector (a sparse matrix, built at the first use)
         self.C = None          # C = F^T F at the last accepted state
         self.work = np.zeros(nc)   # each cell's non-equilibrium stresses' work up to the last accepted state
+        self.memo = None       # the last _advanced (dt, x, its result): energy's, then begin_step's or a checkpoint's
 
     def _F(self, x):
         xs = x.reshape(-1, 3)[self.cells]                                   # (nc, nn, 3)
         return np.matmul(np.swapaxes(xs, 1, 2)[:, None], self.G)            # (nc, nq, 3, 3)
 
-    def _S_iso(self, x):
-        """S_iso per cell and point (0 in the cells of a material without a split)."""
-        F = self._F(x)
+    def _S_iso(self, F):
+        """S_iso per cell and point of the deformation gradients F (0 in the cells of a material without a split)."""
         S = np.zeros_like(F)
         with np.errstate(all="ignore"):
             for idx, m, c in self.parts:
@@ -88,24 +87,29 @@ class Viscoelastic(Effect):
             fn(k, tmp)
         out += self.g * tmp
 
-    def _advance(self, x, dt):
-        """(Q, S_iso, C, the viscous work) at the end of a step of dt from the committed state to positions x."""
+    def _advanced(self, x, dt):
+        """(Q, S_iso, C, the viscous work) at the end of a step of dt from the committed state to positions x. The
+        statistics ask for it after a step, then the next begin_step (or a checkpoint) at the same state: the last one
+        is kept (memo: its material stresses are a numpy evaluation of every cell's)."""
+        if self.memo is not None and self.memo[0] == dt and np.array_equal(self.memo[1], x):
+            return self.memo[2]
         F = self._F(x)
         C = np.matmul(np.swapaxes(F, -1, -2), F)
-        S = self._S_iso(x)
+        S = self._S_iso(F)
         e, g = _gammas(self.beta, self.tau, dt)
         Q = e[:, None, None, None, None] * self.Q + g[:, None, None, None, None] * (S - self.S)
         # the work of the non-equilibrium stresses over the step, sum_c int sum_i Q_i : dC/2 (trapezoid in time)
         work = 0.25 * np.einsum("cq,icqjk,cqjk->c", self.w, self.Q + Q, C - self.C)
-        return Q, S, C, self.work + work
+        self.memo = (dt, x.copy(), (Q, S, C, self.work + work))
+        return self.memo[2]
 
     def begin_step(self, t, h, xn, vn):
         if self.S is None:
-            self.S = self._S_iso(xn)
             F = self._F(xn)
-            self.C = np.matmul(np.swapaxes(F, -1, -2), F)
+            self.S, self.C = self._S_iso(F), np.matmul(np.swapaxes(F, -1, -2), F)
         elif t > self.t0:                       # the step from t0 was accepted: xn is its end
-            self.Q, self.S, self.C, self.work = self._advance(xn, t - self.t0)
+            self.Q, self.S, self.C, self.work = self._advanced(xn, t - self.t0)
+            self.memo = None                    # (the committed state changed)
         self.t0, self.h = t, h
         e, g = _gammas(self.beta, self.tau, h)
         self.g = float(g.sum())
@@ -145,7 +149,7 @@ class Viscoelastic(Effect):
 
     @timed("applies")
     def add_cell_blocks(self, vals, lo=0, hi=None):
-        hi = len(self.vol) if hi is None else hi
+        hi = len(self.w) if hi is None else hi
         for idx, k in self.iso:                     # (each part's cells lo..hi-1: a contiguous run of its own)
             a, b = np.searchsorted(idx, lo), np.searchsorted(idx, hi)
             if a == b:
@@ -160,10 +164,9 @@ class Viscoelastic(Effect):
         for i in range(3):
             v5[:, :, i, :, i] += gg
 
-
     def energy(self, x, v):
         """viscous_work up to the end of the step just taken (x its end state; committed at the next begin_step)."""
-        return {"viscous_work": float(self._advance(x, self.h)[3].sum())}
+        return {"viscous_work": float(self._advanced(x, self.h)[3].sum())}
 
     def cell_state(self, x, t):
         """The checkpoint's rows per cell: Q_i (9 each), S_iso, C (9 each), the work (1), at the accepted state x at
@@ -171,8 +174,8 @@ class Viscoelastic(Effect):
         its start; a checkpoint between a step's attempts finds it committed)."""
         if self.S is None:
             return {}
-        Q, S, C, work = self._advance(x, t - self.t0) if t > self.t0 else (self.Q, self.S, self.C, self.work)
-        nc = len(self.vol)
+        Q, S, C, work = self._advanced(x, t - self.t0) if t > self.t0 else (self.Q, self.S, self.C, self.work)
+        nc = len(self.w)
         return {"viscoelastic": np.concatenate([np.moveaxis(Q, 0, 1).reshape(nc, -1), S.reshape(nc, -1),
                                                 C.reshape(nc, -1), work[:, None]], axis=1)}
 
@@ -180,23 +183,28 @@ class Viscoelastic(Effect):
         """The width of a checkpoint's row per cell: Q_i, S_iso and C (9 each) at each point, and the work."""
         return 9 * self.w.shape[1] * (len(self.beta) + 2) + 1
 
+    def check_resume(self, state, path):
+        """UserError where the checkpoint's rows per cell are not this run's series' (a restart continues with the
+        series it was written with): before anything is set up."""
+        if "viscoelastic" in state and state["viscoelastic"].width != self.row_width():
+            raise UserError(f"--restart '{path}': the checkpoint's viscoelastic state is not this run's "
+                            f"({state['viscoelastic'].width} numbers a cell, where its Prony series takes "
+                            f"{self.row_width()}): a restart continues with the series it was written with")
+
     def resume_cells(self, state, space):
-        """The checkpoint's stresses per cell (any rank count wrote them), committed at its time t (the next
-        begin_step, at t, takes nothing forward). Without them (a checkpoint of a run without this effect) the
-        effect starts at the restart's state."""
+        """The checkpoint's stresses per cell (any rank count wrote them; check_resume checked their width),
+        committed at its time t (the next begin_step, at t, takes nothing forward). Without them (a checkpoint of a
+        run without this effect) the effect starts at the restart's state."""
         if "viscoelastic" not in state:
             return
         rows = space.read_cell_state(state["viscoelastic"])
         (nc, nq), nt = self.w.shape, len(self.beta)
-        if rows.shape[1] != self.row_width():
-            raise UserError(f"--restart: the checkpoint's viscoelastic state is not this run's ({rows.shape[1]} numbers "
-                            f"a cell, where {nt} Prony terms at {nq} points take {self.row_width()})")
         k = 9 * nq * nt
         self.Q = np.moveaxis(rows[:, :k].reshape(nc, nt, nq, 3, 3), 1, 0).copy()
         self.S = rows[:, k:k + 9 * nq].reshape(nc, nq, 3, 3).copy()
         self.C = rows[:, k + 9 * nq:k + 18 * nq].reshape(nc, nq, 3, 3).copy()
         self.work = rows[:, -1].copy()
-        self.t0 = float(state["t"])
+        self.t0, self.memo = float(state["t"]), None
 
 
 @dataclass(frozen=True)
@@ -229,14 +237,13 @@ def _read(opts, where):
 
 
 def _build(p, ctx):
-    k = ctx.kernels
     parts = [(idx, s.material, s.material.split(s.values)[0]) for idx, s in ctx.part_solids if s.material.volumetric]
-    if not any(s.material.volumetric for _, s in ctx.part_solids):
+    if not parts:
         names = ", ".join(dict.fromkeys(s.name for _, s in ctx.part_solids))
         raise UserError(f"the viscoelastic effect (-prony_beta): no material of the run ({names}) has an "
                         "isochoric/volumetric split (take neohookean_split, mooney_rivlin, yeoh, gent, arruda_boyce, "
                         "ogden or hgo)")
-    return [Viscoelastic(k, parts, p.beta, p.tau)]
+    return [Viscoelastic(ctx.kernels, parts, p.beta, p.tau)]
 
 
 SPEC = Spec(
@@ -247,4 +254,4 @@ SPEC = Spec(
                      "area)"),),
     rows=(Row(("prony_beta", "prony_tau"), "-prony_beta b1,b2,… -prony_tau t1,t2,…",
               "finite-strain viscoelasticity: the isochoric stress relaxes as mu (1 + Σ b_i exp(−t/τ_i)) (Simo 1987; "
-              "up to 4 terms; a material with an isochoric/volumetric split, linear tetrahedra)"),))
+              "up to 4 terms; the regions of a material with an isochoric/volumetric split)"),))

@@ -1,7 +1,6 @@
 """Arruda and Boyce's eight-chain model and the inverse Langevin function it needs."""
 import numpy as np
 
-from ...core.errors import UserError
 from ._i1 import IsochoricI1
 from .base import BULK, Parameter, SHEAR
 
@@ -75,16 +74,12 @@ class ArrudaBoyce(IsochoricI1):
     )
 
     @staticmethod
-    def network_modulus(mu, lambda_m):
-        """mu_n of the small-strain shear modulus mu: mu = mu_n lambda_m L^-1(1/lambda_m) / 3."""
-        return 3 * mu / (lambda_m * float(inverse_langevin(1 / lambda_m)))
-
-    @classmethod
-    def constants(cls, v):
-        """(mu_n, lambda_m, the energy's reference value w(1/lambda_m), kappa)."""
+    def constants(v):
+        """(mu_n, lambda_m, the energy's reference value w(1/lambda_m), kappa): mu_n of the small-strain shear modulus
+        mu = mu_n lambda_m L^-1(1/lambda_m) / 3."""
         lm = v["lambda_m"]
-        b0 = inverse_langevin(1 / lm)
-        return (cls.network_modulus(v["mu"], lm), lm, float(b0 / lm + langevin(b0)[2]), v["kappa"])
+        b0 = float(inverse_langevin(1 / lm))
+        return (3 * v["mu"] / (lm * b0), lm, float(b0 / lm + langevin(b0)[2]), v["kappa"])
 
     @staticmethod
     def w(I1b, c):
@@ -100,11 +95,6 @@ class ArrudaBoyce(IsochoricI1):
     @classmethod
     def fit_limits(cls, I1max):
         return {"lambda_m": (I1max / 3) ** 0.5}
-
-    @classmethod
-    def check(cls, v, where):
-        if not v["mu"] > 0:
-            raise UserError(f"{where}: arruda_boyce needs mu > 0 (its small-strain shear modulus); mu {v['mu']:g}")
 
 
 MATERIAL = ArrudaBoyce

@@ -1,6 +1,5 @@
 import numpy as np
 
-from ...core.errors import UserError
 from ._i1 import IsochoricI1
 from .base import BULK, Parameter, SHEAR
 
@@ -44,11 +43,6 @@ class Gent(IsochoricI1):
     @classmethod
     def fit_limits(cls, I1max):
         return {"Jm": I1max - 3}
-
-    @classmethod
-    def check(cls, v, where):
-        if not v["mu"] > 0:
-            raise UserError(f"{where}: gent needs mu > 0 (its small-strain shear modulus); mu {v['mu']:g}")
 
 
 MATERIAL = Gent

@@ -71,8 +71,6 @@ class HGO(Material):
 
     @classmethod
     def check(cls, v, where):
-        if not v["mu"] > 0:
-            raise UserError(f"{where}: hgo needs mu > 0 (its ground matrix's shear modulus); mu {v['mu']:g}")
         if not v["dispersion"] <= 1 / 3:
             raise UserError(f"{where}: hgo's -dispersion {v['dispersion']:g} must be <= 1/3 (1/3: fibres in every "
                             "direction)")

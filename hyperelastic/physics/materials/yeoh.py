@@ -1,6 +1,5 @@
 import math
 
-from ...core.errors import UserError
 from ._i1 import IsochoricI1
 from .base import BULK, Parameter, shear_modulus
 
@@ -35,11 +34,6 @@ class Yeoh(IsochoricI1):
         C10, C20, C30 = c[:3]
         s = I1b - 3
         return (C10 * s + C20 * s ** 2 + C30 * s ** 3, C10 + 2 * C20 * s + 3 * C30 * s ** 2, 2 * C20 + 6 * C30 * s)
-
-    @classmethod
-    def check(cls, v, where):
-        if not v["C10"] > 0:
-            raise UserError(f"{where}: yeoh needs C10 > 0 (the small-strain shear modulus is 2 C10); C10 {v['C10']:g}")
 
 
 MATERIAL = Yeoh
