@@ -59,8 +59,9 @@ def _tangent_checks(e, x0, rng, a, b):
     effect's K v against central differences of its residual, its cell blocks (scattered) against K v, and its
     diagonal against the blocks'."""
     x1 = x0 + a * rng.standard_normal(x0.shape)
-    e.begin_step(0.0, 0.05, x0, None)
-    e.begin_step(0.05, 0.05, x1, None)
+    e.begin_step(0.05, 0.05, x0, None)
+    e.accept_step(x1, 0.05)                             # (the step accepted at x1: Q != 0)
+    e.begin_step(0.1, 0.05, x1, None)
     x = x1 + b * rng.standard_normal(x0.shape)
     v = rng.standard_normal(x.shape)
     y, fd = tangent_and_fd(e, x, v, 1e-6)
@@ -232,3 +233,29 @@ def test_nearly_incompressible_rubber_relaxes_in_the_mixed_formulation(cube, tmp
     want = 2 * (lam - lam ** -2) * w1 + (lam ** 2 * g * S11 - g * S22 / lam) / lam
     got = st["reaction_xmax_Fx"]
     assert np.abs(got / want - 1).max() <= 2e-4, np.abs(got / want - 1).max()
+
+
+def test_each_accepted_step_is_taken_forward_by_its_own_size():
+    """Steps of unequal size (step control halves and regrows them): each accepted step takes the stresses forward by
+    its own h, Q^(n+1) = exp(-h_n/tau) Q^n + g(h_n) (S^(n+1) - S^n), whatever the next step's size (one cell of the
+    split Neo-Hookean, one term; S_iso by the numpy reference)."""
+    from hyperelastic.discretization.kernels import Cells
+    from hyperelastic.physics.effects.viscoelastic import Viscoelastic
+    from hyperelastic.physics.materials import default_solid
+    s = default_solid("neohookean_split")
+    iso = s.material.split(s.values)[0]
+    X = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1.0]])
+    cells = Cells(np.arange(4, dtype=np.int32)[None], np.eye(3)[None], np.array([1 / 6]))
+    e = Viscoelastic(cells.kernels(s.material, s.constants), [(None, s.material, iso)], (0.5,), (0.1,))
+    Fs = [np.eye(3), np.diag([1.2, 0.95, 0.95]), np.diag([1.3, 0.9, 0.92])]
+    xs = [(X @ F.T).reshape(-1).copy() for F in Fs]
+    S = [np.linalg.solve(F, s.material.P(F[None], iso)[0]) for F in Fs]
+    Q, t = np.zeros((3, 3)), 0.0
+    e.begin_step(0.0, 0.04, xs[0], None)
+    for n, h in ((1, 0.04), (2, 0.01)):
+        e.begin_step(t + h, 0.02 if n == 1 else 0.08, xs[n - 1], None)      # (a rejected attempt of another size)
+        e.begin_step(t + h, h, xs[n - 1], None)
+        e.accept_step(xs[n], h)
+        t += h
+        Q = np.exp(-h / 0.1) * Q + 0.5 * (-math.expm1(-h / 0.1)) * 0.1 / h * (S[n] - S[n - 1])
+        assert np.abs(e.Q[0, 0, 0] - Q).max() <= 1e-12 * np.abs(Q).max()

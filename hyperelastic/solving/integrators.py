@@ -219,7 +219,7 @@ class Integrator:
         checkpoint is written inside one."""
         self.solver.rebuild_preconditioner()     # where a restart begins: the same set-ups in both runs
         self.writer.checkpoint(self.x, self.carried_v(), nodal=self.system.nodal_state(),
-                               cells=self.system.cell_state(self.x, self.t), t=self.t, step=self.step, n=n,
+                               cells=self.system.cell_state(), t=self.t, step=self.step, n=n,
                                h_try=self.h_try, streak=self.streak, rejections=self.rejections,
                                nframes=self.writer.nframes, nstats=self.writer.nstats, t_end=t_end,
                                regrow_wait=self.regrow_wait, regrown=int(self.regrown),
@@ -409,6 +409,7 @@ class BackwardEuler(Integrator):
             self.rate = (x1 - self.x) / h
         self.x, self.v, self.t = x1, v1, t1
         sysm.accept(self.X)
+        sysm.accept_step(x1, h)
         if self.rigid is not None:
             self.rigid.accept(h)
             stats.update(rigid.columns(sysm, self.rigid, self.X))

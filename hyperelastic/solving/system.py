@@ -62,13 +62,18 @@ class System(Elimination, Objective):
         """{name: local scalar per node} of the state beyond positions and velocities (for checkpoints)."""
         return {}
 
-    def cell_state(self, x, t):
-        """{name: local rows per cell} of the effects' state carried by checkpoints (Effect.cell_state), at the
-        accepted state x at time t."""
+    def cell_state(self):
+        """{name: local rows per cell} of the effects' state carried by checkpoints (Effect.cell_state)."""
         out = {}
         for e in self.effects:
-            out.update(e.cell_state(x, t))
+            out.update(e.cell_state())
         return out
+
+    def accept_step(self, x, h):
+        """The step of size h that ends at local positions x was accepted: the effects with a state of their own take
+        it forward (Effect.accept_step)."""
+        for e in self.effects:
+            e.accept_step(x, h)
 
     def resume(self, state):
         """Continue from a checkpoint's state (files.read_checkpoint) beyond x and v."""

@@ -234,6 +234,7 @@ class GeneralizedAlpha(Integrator):
                        "non-finite positions or energies after a converged solve")
         row["dt_next"] = ts.getTimeStep()
         self._write_stats(row)
+        sysm.accept_step(x1, row["dt"])
         self.x, self.v = x_raw, v1
         self.x_out = x1
         self.step += 1

@@ -198,9 +198,13 @@ class Effect:
         """Contribution to the step's statistics: dict of name -> value (summed over ranks)."""
         return {}
 
-    def cell_state(self, x, t):
-        """{name (core.files.CHECKPOINT_CELLS): local rows per cell} of its state beyond the positions, at the accepted
-        state x at time t, for a checkpoint."""
+    def accept_step(self, x, h):
+        """The step of size h that ends at local positions x was accepted (an effect with a state of its own: the
+        viscoelastic stresses)."""
+
+    def cell_state(self):
+        """{name (core.files.CHECKPOINT_CELLS): local rows per cell} of its state beyond the positions at the last
+        accepted step, for a checkpoint."""
         return {}
 
     def check_resume(self, state, path):

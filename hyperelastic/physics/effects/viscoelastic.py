@@ -7,8 +7,7 @@ relaxation modulus of the isochoric part is mu (1 + sum_i b_i exp(-t/tau_i)). Ov
 linear in time the update is exact: Q_i^(n+1) = exp(-h/tau_i) Q_i^n + g_i (S_iso^(n+1) - S_iso^n), g_i = b_i (1 -
 exp(-h/tau_i)) tau_i/h (the exponential integrator). The effect adds P = F sum_i Q_i^(n+1) = F H + g P_iso(F), H =
 sum_i (exp(-h/tau_i) Q_i^n - g_i S_iso^n), g = sum g_i, to the residual; its tangent is g K_iso + (dF H). The Q_i and
-S_iso^n are taken forward once per accepted step: at the next step's begin_step (its start time past the last one's),
-from the accepted positions. Checkpoints carry them per cell (core.files.CHECKPOINT_CELLS), in the input cells' order:
+S_iso^n are taken forward once per accepted step, by its size and its end state (accept_step). Checkpoints carry them per cell (core.files.CHECKPOINT_CELLS), in the input cells' order:
 a restart continues on any rank count. On quadratic tetrahedra the Q_i live at each quadrature point of the stiffness
 rule. With -regions, the regions of a material with a split (a region of another material, a steel insert, takes no
 part)."""
@@ -60,12 +59,11 @@ class Viscoelastic(Effect):
         nc, nq = self.w.shape
         self.Q = np.zeros((len(beta), nc, nq, 3, 3))
         self.S = None          # S_iso at the last accepted state, per cell and point
-        self.t0 = None         # the start time of the step being solved
-        self.h = None
+        self.h = None          # the size of the step being solved
         self.scatter = None    # cell forces -> the local vector (a sparse matrix, built at the first use)
         self.C = None          # C = F^T F at the last accepted state
         self.work = np.zeros(nc)   # each cell's non-equilibrium stresses' work up to the last accepted state
-        self.memo = None       # the last _advanced (dt, x, its result): energy's, then begin_step's or a checkpoint's
+        self.memo = None       # the last _advanced (dt, x, its result): energy's, then accept_step's
 
     def _F(self, x):
         xs = x.reshape(-1, 3)[self.cells]                                   # (nc, nn, 3)
@@ -89,8 +87,8 @@ class Viscoelastic(Effect):
 
     def _advanced(self, x, dt):
         """(Q, S_iso, C, the viscous work) at the end of a step of dt from the committed state to positions x. The
-        statistics ask for it after a step, then the next begin_step (or a checkpoint) at the same state: the last one
-        is kept (memo: its material stresses are a numpy evaluation of every cell's)."""
+        statistics ask for it after a step, then accept_step at the same state: the last one is kept (memo: its
+        material stresses are a numpy evaluation of every cell's)."""
         if self.memo is not None and self.memo[0] == dt and np.array_equal(self.memo[1], x):
             return self.memo[2]
         F = self._F(x)
@@ -107,10 +105,7 @@ class Viscoelastic(Effect):
         if self.S is None:
             F = self._F(xn)
             self.S, self.C = self._S_iso(F), np.matmul(np.swapaxes(F, -1, -2), F)
-        elif t > self.t0:                       # the step from t0 was accepted: xn is its end
-            self.Q, self.S, self.C, self.work = self._advanced(xn, t - self.t0)
-            self.memo = None                    # (the committed state changed)
-        self.t0, self.h = t, h
+        self.h = h
         e, g = _gammas(self.beta, self.tau, h)
         self.g = float(g.sum())
         self.H = np.einsum("i,icqjk->cqjk", e, self.Q) - self.g * self.S
@@ -164,17 +159,20 @@ class Viscoelastic(Effect):
         for i in range(3):
             v5[:, :, i, :, i] += gg
 
+    def accept_step(self, x, h):
+        """The step of h that ends at positions x was accepted: its stresses and work are committed."""
+        self.Q, self.S, self.C, self.work = self._advanced(x, h)
+        self.memo = None
+
     def energy(self, x, v):
-        """viscous_work up to the end of the step just taken (x its end state; committed at the next begin_step)."""
+        """viscous_work up to the end of the step just taken (x its end state; committed by accept_step)."""
         return {"viscous_work": float(self._advanced(x, self.h)[3].sum())}
 
-    def cell_state(self, x, t):
-        """The checkpoint's rows per cell: Q_i (9 each), S_iso, C (9 each), the work (1), at the accepted state x at
-        time t (the step that ends there is committed only at the next begin_step: advanced here where t is past
-        its start; a checkpoint between a step's attempts finds it committed)."""
+    def cell_state(self):
+        """The checkpoint's rows per cell: Q_i (9 each), S_iso, C (9 each), the work (1), of the last accepted state."""
         if self.S is None:
             return {}
-        Q, S, C, work = self._advanced(x, t - self.t0) if t > self.t0 else (self.Q, self.S, self.C, self.work)
+        Q, S, C, work = self.Q, self.S, self.C, self.work
         nc = len(self.w)
         return {"viscoelastic": np.concatenate([np.moveaxis(Q, 0, 1).reshape(nc, -1), S.reshape(nc, -1),
                                                 C.reshape(nc, -1), work[:, None]], axis=1)}
@@ -192,9 +190,9 @@ class Viscoelastic(Effect):
                             f"{self.row_width()}): a restart continues with the series it was written with")
 
     def resume_cells(self, state, space):
-        """The checkpoint's stresses per cell (any rank count wrote them; check_resume checked their width),
-        committed at its time t (the next begin_step, at t, takes nothing forward). Without them (a checkpoint of a
-        run without this effect) the effect starts at the restart's state."""
+        """The checkpoint's stresses per cell (any rank count wrote them; check_resume checked their width): the last
+        accepted state's. Without them (a checkpoint of a run without this effect) the effect starts at the restart's
+        state."""
         if "viscoelastic" not in state:
             return
         rows = space.read_cell_state(state["viscoelastic"])
@@ -204,7 +202,7 @@ class Viscoelastic(Effect):
         self.S = rows[:, k:k + 9 * nq].reshape(nc, nq, 3, 3).copy()
         self.C = rows[:, k + 9 * nq:k + 18 * nq].reshape(nc, nq, 3, 3).copy()
         self.work = rows[:, -1].copy()
-        self.t0, self.memo = float(state["t"]), None
+        self.memo = None
 
 
 @dataclass(frozen=True)
