@@ -885,7 +885,37 @@ def error_contract_cases(rng):
         ("triangles_inside_the_part", BEND + ["-obstacle", "mesh:inner.obj"], ("-obstacle", "inside the part"),
          lambda d: _write(d, "inner.obj", b"v 0.4 0.4 0.5\nv 0.6 0.4 0.5\nv 0.5 0.6 0.5\nf 1 2 3\n"), 1),
     ]
-    return [Case(f"contract73:{n}", "contracts", a, setup=setup, nprocs=r, words=w) for n, a, w, setup, r in C]
+    out = [Case(f"contract73:{n}", "contracts", a, setup=setup, nprocs=r, words=w) for n, a, w, setup, r in C]
+    # item 10: a run that fails after its first step (a load that jumps past what 3 Newton iterations solve, no
+    # halving) puts the earlier output back as it was and leaves its own frames beside it, FILE.failed.h5
+    late = ["-final_time", "0.05", "-traction_time", "1+1e4*max(t-0.015,0)", "-snes_max_it", "3", "-dt_min", "0.01"]
+    out += [Case("contract73:solve_fails_after_first_step", "contracts", BEND + late, rcs=(3,), after=_failed_beside,
+                 words=("step 2", "'prev.h5' is kept as it was", "'prev.failed.h5'")),
+            Case("contract73:solve_fails_after_first_step_two_ranks", "contracts",
+                 ["run", "scene.opts", "-quiet", "-output", "ranks.h5"] + late, nprocs=2, rcs=(3,),
+                 after=_failed_beside, words=("step 2", "'ranks.h5' is kept as it was", "'ranks.failed.h5'"))]
+    return out
+
+
+def _failed_beside(d):
+    """After a run that failed past its first step: its output FILE.failed.h5 (and .xdmf) beside the earlier one,
+    holding its frames and the failure; nothing else new but its per-rank files."""
+    import h5py
+    new = sorted(n for n in os.listdir(d) if ".failed." in n)
+    if len(new) != 2 or not new[0].endswith(".failed.h5") or not new[1].endswith(".failed.xdmf"):
+        return f"expected FILE.failed.h5 and FILE.failed.xdmf, found {new}"
+    try:
+        with h5py.File(os.path.join(d, new[0]), "r") as f:
+            n, failure = f["x"].shape[0], f.attrs.get("failure", "")
+            x = f["x"][:]
+    except Exception as e:
+        return f"{new[0]} unreadable: {e}"
+    if n < 1 or "step 2" not in failure or not np.isfinite(x).all():
+        return f"{new[0]}: {n} frames, failure {failure!r}"
+    with open(os.path.join(d, new[1])) as fh:
+        if new[0] not in fh.read():
+            return f"{new[1]} does not name {new[0]}"
+    return None
 
 
 MPI_CATEGORIES = ("option values", "unknown options", "conflicting combinations", "scene and options files",

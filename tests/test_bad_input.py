@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from bad_input_suite import cube
-from conftest import hyperelastic, run_ok
+from conftest import hyperelastic, read_h5, run_ok
 
 
 def one_line_error(p, *words):
@@ -268,6 +268,54 @@ def test_failed_run_keeps_the_previous_result(tmp_path):
         assert sorted(os.listdir(tmp_path)) == ["out.h5", "out.xdmf"]
     assert hyperelastic(["run", "--restart", out, "-final_time", 0.1, "-quiet"]).returncode == 0
     assert _digest(out, xdmf) != before
+
+
+LATE_FAILURE = ["-traction_time", "1+1e4*max(t-0.035,0)", "-snes_max_it", 3, "-dt_min", 0.01]   # fails at step 4
+
+
+def test_a_run_failing_after_its_first_step_puts_the_earlier_output_back(tmp_path):
+    """Issue 73 item 10: a run (or a restart) that fails after completing steps leaves the earlier FILE.h5 and its
+    XDMF byte-identical; its own frames are in FILE.failed.h5 with an XDMF of that name (readable, saying it failed),
+    and the error line says so. A run that ends replaces the earlier output, with nothing left aside."""
+    import meshio
+    out, xdmf = tmp_path / "out.h5", tmp_path / "out.xdmf"
+    base = ["run", "bend", "-final_time", 0.05, "-checkpoint_every", 2, "-quiet", "-output", out]
+    run_ok(base)
+    before = _digest(out, xdmf)
+    for args, frames in ((base + LATE_FAILURE, "frames 0..1"),
+                         (["run", "--restart", out, "-final_time", 0.08] + LATE_FAILURE[:1] + ["1+1e4*max(t-0.065,0)"]
+                          + LATE_FAILURE[2:], "frames 0..2")):
+        p = hyperelastic(args)
+        line = one_line_error(p, "'out.h5' is kept as it was", f"this run's {frames} are in", "out.failed.h5")
+        assert p.returncode == 3 and "did not converge" in line
+        assert _digest(out, xdmf) == before, args
+        assert sorted(os.listdir(tmp_path)) == ["out.failed.h5", "out.failed.xdmf", "out.h5", "out.xdmf"]
+        failed = read_h5(tmp_path / "out.failed.h5")
+        assert "did not converge" in failed["attrs"]["failure"] and len(failed["time"]) == int(frames[-1]) + 1
+        r = meshio.xdmf.TimeSeriesReader(str(tmp_path / "out.failed.xdmf"))
+        points, _ = r.read_points_cells()
+        assert r.num_steps == len(failed["time"]) and np.array_equal(points, failed["points"])
+        assert "failed:" in hyperelastic(["report", tmp_path / "out.failed.h5"]).stdout
+    run_ok(base)                       # one that ends replaces the earlier output; nothing is left aside
+    assert _digest(out, xdmf) != before
+    assert sorted(os.listdir(tmp_path)) == ["out.failed.h5", "out.failed.xdmf", "out.h5", "out.xdmf"]
+
+
+def test_a_reader_that_leaves_ends_the_command_as_a_pipeline_expects(tmp_path):
+    """`hyperelastic report FILE | head -1`: the reader gone, the command exits 141 (128 + SIGPIPE) with nothing on
+    stderr (PETSc's signal handler had printed its crash banner and aborted, exit 15)."""
+    import subprocess
+    import sys
+    out = tmp_path / "o.h5"
+    run_ok(["run", "bend", "-final_time", 0.02, "-quiet", "-output", out])
+    r, w = os.pipe()
+    os.close(r)
+    try:
+        p = subprocess.run([os.path.join(os.path.dirname(sys.executable), "hyperelastic"), "report", str(out)],
+                           stdout=w, stderr=subprocess.PIPE, text=True, timeout=60)
+    finally:
+        os.close(w)
+    assert p.returncode == 141 and p.stderr == ""
 
 
 def test_output_never_overwrites_an_input(tmp_path):

@@ -120,9 +120,20 @@ def test_a_new_run_replaces_the_files_only_when_it_commits(tmp_path):
     assert p.returncode != 0
     assert out.read_bytes() == main
     assert {q: (tmp_path / "o.h5.d" / q).read_bytes() for q in os.listdir(tmp_path / "o.h5.d")} == files
+    # failing after its first step (issue 73 item 10): the earlier output and its rank files as they were, the run's
+    # own output o.failed.h5 beside it, its rank files in o.h5.d/ too; the next run that ends keeps those
+    p = hyperelastic([*RUN, "-output", out, "-traction_time", "1+1e4*max(t-0.015,0)", "-snes_max_it", 3,
+                      "-dt_min", 0.01], nprocs=2)
+    assert p.returncode == 3 and "o.failed.h5'" in p.stderr
+    assert out.read_bytes() == main
+    assert {q: (tmp_path / "o.h5.d" / q).read_bytes() for q in files} == files
+    failed = set(os.listdir(tmp_path / "o.h5.d")) - set(files)
+    assert len(failed) == 2 and read_h5(tmp_path / "o.failed.h5")["x"].shape[0] == 1
     run_ok([*RUN, "-output", out], nprocs=2)
-    now = os.listdir(tmp_path / "o.h5.d")
-    assert len(now) == 2 and not set(now) & set(files)
+    now = set(os.listdir(tmp_path / "o.h5.d")) - failed
+    assert len(now) == 2 and not now & set(files) and failed < set(os.listdir(tmp_path / "o.h5.d"))
+    assert np.isfinite(read_h5(tmp_path / "o.failed.h5")["x"]).all()
+    (tmp_path / "o.failed.h5").unlink()
     run_ok([*RUN, "-output", out])                          # one rank, gathered: the ranks' directory goes too
     assert not (tmp_path / "o.h5.d").exists() and read_h5(out)["attrs"]["output_layout"] == "gather"
 

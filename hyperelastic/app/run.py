@@ -13,7 +13,7 @@ from petsc4py import PETSc
 
 from .catalog import (check_application_used, check_solver_options, check_viewer_files, help_text, load_scene,
                       scene_option_names, unused_petsc_options)
-from ..core.errors import Interrupted, UserError
+from ..core.errors import Interrupted, SolveError, UserError
 from ..core.expressions import TIME_EXPRESSIONS, check_times
 from ..core.files import CHECKPOINT_CELLS, StateRows, check_output_path, output_names
 from ..physics import materials
@@ -194,7 +194,7 @@ def _integrate(integ, writer, comm, scene, signals=None):
         signal.signal(sig, lambda signum, frame: integ.request_stop(signum))
     if signals:                  # (one that came while the run was set up: before its first step)
         integ.request_stop(signals[0])
-    ended = False
+    ended, failed = False, None
     forces, lines = None, []
     try:
         integ.run()
@@ -212,12 +212,18 @@ def _integrate(integ, writer, comm, scene, signals=None):
         raise
     except UserError as e:    # (an input that fails only now, inside a step: the file says so, not "finished")
         writer.set_attr("failure", str(e))
+        failed = e
+        raise
+    except SolveError as e:   # (the integrator has recorded it in the file)
+        failed = e
         raise
     finally:
         writer.set_attr("steps_completed", integ.step)
         writer.set_attr("peak_rss_mb", peak_rss_mb(comm))
         writer.set_attr("peak_rss_mb_per_rank", peak_rss_mb(comm, every=True))
         writer.close(keep=ended)
+        if failed is not None and writer.moved:     # (the earlier output put back: the line says where this run's is)
+            failed.args = (f"{failed}; {writer.moved}",)
 
 
 def _layout(scene, comm, restart, out):

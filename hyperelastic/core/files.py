@@ -73,6 +73,16 @@ def replayed(recorded, given):
 
 
 PARTIAL = ".partial"      # a run writes FILE.h5.partial until it has completed a step (Writer._commit)
+# an earlier output of the run's name (FILE.h5 and FILE.xdmf), moved aside to FILE.h5.earlier and FILE.xdmf.earlier
+# when the run completes its first step: removed when the run ends, put back when it fails (Writer.close)
+EARLIER = ".earlier"
+
+
+def failed_path(path):
+    """Where a run that fails after its first step leaves its own output when it puts an earlier one back:
+    FILE.failed.h5 (its XDMF beside it, FILE.failed.xdmf)."""
+    stem, ext = os.path.splitext(path)
+    return stem + ".failed" + ext
 
 
 RANKS = ".d"            # FILE.h5.d/: the per-rank files of a run written with -output_layout ranks (output/ranks.py)
@@ -91,8 +101,20 @@ def parts(f):
 
 
 def output_names(path):
-    """The files an output path stands for: the HDF5 file, the XDMF beside it and the partial file."""
-    return [path, os.path.splitext(path)[0] + ".xdmf", path + PARTIAL]
+    """The files an output path stands for: the HDF5 file, the XDMF beside it, the partial file, the earlier
+    output's while it is aside and a failed run's pair."""
+    xdmf, failed = os.path.splitext(path)[0] + ".xdmf", failed_path(path)
+    return [path, xdmf, path + PARTIAL, path + EARLIER, xdmf + EARLIER, failed, os.path.splitext(failed)[0] + ".xdmf"]
+
+
+def named_rank_files(path):
+    """The names of the per-rank files (in its FILE.h5.d/) that the output at `path` names: none where it is a
+    gathered output, or not there, or not readable."""
+    try:
+        with h5py.File(path, "r") as f:
+            return {os.path.basename(p) for part in parts(f) or [] for p in part["files"]}
+    except (OSError, ValueError, KeyError, TypeError):
+        return set()
 
 
 class StateRows:

@@ -26,7 +26,8 @@ from .. import __version__
 from ..core.errors import UserError
 from .fields import (AT_NODES, DEFAULT_FIELDS, cell_fields, cell_quantities, finish, is_point_field,
                      needs_volumes, recover, reference_volumes)
-from ..core.files import CHECKPOINT_ATTRS, CHECKPOINT_OPTIONAL, CHECKPOINT_VECTORS, PARTIAL, RANK_FILE, RANKS
+from ..core.files import (CHECKPOINT_ATTRS, CHECKPOINT_OPTIONAL, CHECKPOINT_VECTORS, EARLIER, PARTIAL, RANK_FILE, RANKS,
+                          failed_path, named_rank_files)
 from ..core.options import all_options
 from ..physics.effects import built as effects_built
 from ..solving.stats import column_type
@@ -230,11 +231,13 @@ class Writer:
         self.f = None            # the HDF5 file (rank 0, once opened)
         self.h5 = None           # the file's end-of-file reserve (Guard; rank 0, once opened)
         self.root = space.mpi.rank == 0
-        # written under FILE.h5.partial until a step is complete (see _commit): a run that fails before
-        # leaves an earlier FILE.h5 (and its XDMF) byte-identical
+        # written under FILE.h5.partial until a step is complete (see _commit), the earlier FILE.h5 (and its XDMF)
+        # aside from then until the run ends (close): a run that fails leaves them byte-identical
         self.final = path
         self.path = path + PARTIAL
         self.committed = False
+        self.aside = []          # (rank 0) the earlier output's files this run moved aside (_commit)
+        self.moved = None        # (after close) where a failed run left its own output, as a clause of its error line
         self.xdmf = os.path.splitext(path)[0] + ".xdmf"
         self.nframes = 0
         self.nstats = 0
@@ -468,13 +471,46 @@ class Writer:
             self._commit()
 
     def _commit(self):
-        """The first completed step: FILE.h5.partial becomes FILE.h5 (an atomic rename of the open file)
-        and the XDMF is written; from here on the run writes into FILE.h5."""
+        """The first completed step: the earlier FILE.h5 and FILE.xdmf go aside (FILE.h5.earlier, FILE.xdmf.earlier),
+        FILE.h5.partial becomes FILE.h5 (an atomic rename of the open file) and the XDMF is written; from here on the
+        run writes into FILE.h5 (a kill leaves it readable, its checkpoint usable). close() removes what is aside
+        when the run ends, or puts it back when the run fails."""
         self._flush_stats()
         self.f.flush()
+        self.aside = [p for p in (self.final, self.xdmf) if os.path.exists(p)]
+        for p in self.aside:
+            os.replace(p, p + EARLIER)
         os.replace(self.path, self.final)
         self.path, self.committed = self.final, True
         self._write_xdmf()
+
+    def _set_failed_aside(self):
+        """(rank 0, the file open) A run that failed after its first step, where it had moved an earlier output
+        aside: its own FILE.h5 becomes FILE.failed.h5 with an XDMF of that name (its per-rank files stay in
+        FILE.h5.d/, named from there as before), and the earlier output is put back. Returns the error line's clause."""
+        own, xdmf = self.final, self.xdmf
+        self.final = failed_path(own)
+        self.xdmf = os.path.splitext(self.final)[0] + ".xdmf"
+        os.replace(own, self.final)
+        self.path, self._mesh_text = self.final, None       # (the XDMF's mesh block names the file)
+        try:
+            self._write_xdmf()
+        except OSError:          # (a full disk: the HDF5 file holds the frames; the renames below need no room)
+            if os.path.exists(self.xdmf + ".tmp"):
+                os.remove(self.xdmf + ".tmp")
+        if os.path.exists(xdmf):
+            os.remove(xdmf)
+        for p in self.aside:
+            os.replace(p + EARLIER, p)
+        frames = {0: "no frame is", 1: "frame 0 is"}.get(self.nframes, f"frames 0..{self.nframes - 1} are")
+        return f"the earlier '{os.path.basename(own)}' is kept as it was; this run's {frames} in '{self.final}'"
+
+    def _drop_earlier(self):
+        """(rank 0) The run ended (or stopped with a checkpoint): the earlier output that was aside, and the per-rank
+        files no output of this name refers to, are removed."""
+        for p in (self.final, self.xdmf):
+            if os.path.exists(p + EARLIER):
+                os.remove(p + EARLIER)
         self._clean()
 
     def _rank_files(self):
@@ -482,12 +518,12 @@ class Writer:
         return set()
 
     def _clean(self):
-        """(rank 0, once FILE.h5 is this run's) The per-rank files in FILE.h5.d/ that FILE.h5 does not name: an earlier
-        run's, replaced now (a run that fails before its first step leaves them); the directory too once empty."""
+        """(rank 0, once this run has ended) The per-rank files in FILE.h5.d/ that neither FILE.h5 nor FILE.failed.h5
+        names: an earlier run's, replaced now (a run that fails leaves them); the directory too once empty."""
         d = self.final + RANKS
         if not os.path.isdir(d):
             return
-        keep = self._rank_files()
+        keep = self._rank_files() | named_rank_files(failed_path(self.final))
         for name in os.listdir(d):
             if name not in keep and RANK_FILE.search(name):
                 try:
@@ -551,20 +587,28 @@ class Writer:
             self.h5.reserve(nbytes)
 
     def close(self, keep=True):
-        """Flush and close. A run that completed no step replaces an earlier FILE.h5 only when `keep`
-        (it ended normally or was interrupted with a checkpoint); else its partial file is removed."""
+        """Flush and close (collective). `keep`: the run ended normally or was interrupted with a checkpoint; it then
+        replaces an earlier FILE.h5 for good. A run that fails (not `keep`) leaves an earlier FILE.h5 and XDMF as they
+        were: before its first step its partial file is removed (kept as FILE.h5 where there was none), after it its
+        own output becomes FILE.failed.h5 (self.moved then says so, for the error line)."""
+        moved = None
         if self.root and self.f is not None:
             self._reserve(65536)
             self._flush_stats()
             self.f.flush()
             if not self.committed and (keep or not os.path.exists(self.final)):
                 self._commit()
+            if self.committed and not keep and self.aside:
+                moved = self._set_failed_aside()
             self.f.close()
             self.f = None
             if not self.committed and os.path.exists(self.path):
                 os.remove(self.path)
             elif self.h5.on:
                 trim(self.path)
+            if self.committed and keep:
+                self._drop_earlier()
+        self.moved = self.space.mpi.bcast(moved, root=0)
 
     def _mesh_xml(self):
         h5 = os.path.basename(self.final)
