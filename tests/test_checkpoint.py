@@ -471,6 +471,8 @@ def test_an_input_that_fails_inside_a_step_is_the_files_failure(petsc):
     from hyperelastic.core.errors import UserError
 
     class Writer:
+        moved = None        # (no earlier output put back)
+
         def __init__(self):
             self.attrs, self.kept = {}, None
 
