@@ -578,6 +578,27 @@ def test_blocks_pressed_together_carry_one_blocks_homogeneous_compression(tmp_pa
     assert 0 < gap < 0.0025 and st["contact_pairs"][ok][-1] > 0 and st["contact_energy"][ok][-1] > 0
     f_lid = _forces(p.stderr, "reaction lid")
     assert np.abs(_forces(p.stderr, "load contact")).max() < 1e-9 * abs(f_lid[2])
+    # self-contact's results (issue 70): the pairs carry the lid's force across the unit face (measured 0.03%: the
+    # pairs' forces are not all along z), their forces balance, and the output's pressure field integrates to it
+    # over the nodes of status -1 with areas computed here from the output's own surface (its facing faces, z = 1, 1.05)
+    last = np.flatnonzero(ok)[-1]
+    assert abs(st["self_carried"][last] - abs(f_lid[2])) < 1e-3 * abs(f_lid[2])
+    assert st["self_area"][last] == pytest.approx(1.0, abs=1e-12)
+    assert np.abs([st[f"self_F{c}"][last] for c in "xyz"]).max() < 1e-12 * abs(f_lid[2])
+    fields = read_h5(tmp_path / "s.h5", frames=True)["frames"][-1]
+    pressed = fields["contact_status"] == -1
+    facing = surface[np.ptp(X[surface][:, :, 2], axis=1) < 1e-12]
+    facing = facing[np.isclose(X[facing[:, 0], 2], 1.0) | np.isclose(X[facing[:, 0], 2], 1.05)]
+    corners = X[facing]
+    node_area = np.zeros(len(X))
+    np.add.at(node_area, facing, np.repeat(0.5 * np.linalg.norm(np.cross(corners[:, 1] - corners[:, 0], corners[:, 2]
+                                                                          - corners[:, 0]), axis=1)[:, None] / 3, 3, 1))
+    assert pressed.sum() == 62 and np.isclose(0.5 * node_area[pressed].sum(), 1.0, rtol=1e-12)
+    carried = 0.5 * (fields["contact_pressure"][pressed] * node_area[pressed]).sum()
+    assert carried == pytest.approx(st["self_carried"][last], rel=1e-10)
+    text = hyperelastic(["report", tmp_path / "s.h5", "--contact"]).stdout
+    assert f"self-contact (the surface against itself): carries {st['self_carried'][last]:.6g}, area 1, " in text, text
+    assert "62 nodes in contact" in text
     cube = tmp_path / "cube.msh"
     run_ok(["mesh", os.path.join(EXAMPLES, "cube.geo"), "--size", 0.25, "-o", cube])
     q = run_ok(["run", "bend", "-mesh", cube, "-quasistatic", "-effects", "elasticity,fixed,prescribed",
@@ -678,9 +699,17 @@ def test_a_triangulated_plate_presses_as_the_plane_does(tmp_path):
     for c in "xyz":
         assert np.allclose(m[f"obstacle1_F{c}"][ok], m[f"load_contact_F{c}"][ok], rtol=1e-9, atol=1e-9 * abs(f_plane[0]))
     assert abs(m["obstacle1_area"][-1] - stats[1]["obstacle1_area"][-1]) <= 1e-12 * stats[1]["obstacle1_area"][-1]
-    lines = [run_ok(["report", tmp_path / f, "--contact"]).stdout.splitlines()[-1] for f in ("m.h5", "p.h5")]
+    lines = [next(ln for ln in run_ok(["report", tmp_path / f, "--contact"]).stdout.splitlines() if "obstacle1" in ln)
+             for f in ("m.h5", "p.h5")]
     assert "obstacle1 mesh:" in lines[0] and lines[0].split("nodes in contact")[0].split()[-1] == \
         lines[1].split("nodes in contact")[0].split()[-1], lines
+    # on 2 ranks the same (the results gather the positions on every rank: rank 0 alone had left the other waiting)
+    run_ok(["run", "press", "-obstacle", f"mesh:{plate}", "-final_time", 0.4, "-output", tmp_path / "two.h5"], nprocs=2)
+    two = read_h5(tmp_path / "two.h5")["stats"]
+    n = len(two["step"])
+    assert n > 3 and np.nanmax(np.abs(m["obstacle1_Fx"][:n])) > 0
+    for col in ("obstacle1_Fx", "obstacle1_area", "self_carried"):
+        assert np.allclose(two[col], m[col][:n], rtol=1e-8, atol=1e-12 * abs(f_plane[0]), equal_nan=True), col
 
 
 def test_obstacles_are_numbered_in_the_order_given(tmp_path):

@@ -32,8 +32,8 @@ from ..element.reference import REFERENCE_NODES
 
 POINT_FIELDS = ("displacement", "velocity")
 # scalar point fields: the mixed formulation's pressure (the mean Cauchy stress); contact's pressure (the barrier's force
-# per unit reference area at a contact node) and status (the number of the nearest obstacle within dhat, 0: none),
-# seams.Results
+# per unit reference area at a contact node) and status (the number of the nearest obstacle within dhat, -1 where the
+# node is in a self-contact pair only, 0: none), seams.Results
 POINT_SCALARS = ("pressure", "contact_pressure", "contact_status")
 CELL_FIELDS = ("J", "energy_density", "von_mises")
 TENSOR_FIELDS = ("stress", "strain")              # Tensor6 cell fields, on request

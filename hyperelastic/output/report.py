@@ -12,6 +12,7 @@ from ..core.errors import ArgParser, UserError
 from ..core.files import cell_blocks, completed_frames, open_output, read_rows
 from ..solving.forces import table
 from ..mesh.read import deepest, interpolate
+from ..physics.effects.seams import SELF_STATUS
 from .curves import curves, list_lines
 from .watch import HELP as WATCH_HELP, parse_watch, point3, watched
 
@@ -116,31 +117,43 @@ def holds(f):
 def contact_lines(f, i):
     """Per obstacle at frame i: its force on the body and contact area (the statistics of the accepted step that ends
     at the frame's time; 0 at the start), the peak contact pressure and the contact patch's extent along x, y, z (the
-    frame's positions of the nodes whose contact_status is that obstacle: within dhat of it), and its translation."""
+    frame's positions of the nodes whose contact_status is that obstacle: within dhat of it), and its translation.
+    Then self-contact (a run with -self_contact or a triangulated obstacle), where its pairs carried force at some
+    step: the force they carry, their area, the peak pressure and extent of the nodes in such a pair alone, and the
+    sum of their forces (it balances: a check)."""
     st = stats.read(f)
     names = sorted({k[:-len("_area")] for k in st if k.startswith("obstacle") and k.endswith("_area")},
                    key=lambda s: int(s[len("obstacle"):] or 0))
+    own = "self_carried" in st and bool(np.nan_to_num(st["self_carried"]).any())
     g = f[f"frames/{i}"]
-    if not names or "contact_status" not in g:
-        raise UserError("report: --contact: the run wrote no contact results (no -obstacle among its effects, or an "
-                        "output of a version before 0.2.0)")
+    if not (names or own) or "contact_status" not in g:
+        raise UserError("report: --contact: the run wrote no contact results (no -obstacle or self-contact pairs among "
+                        "its effects, or an output of a version before 0.2.0)")
     t = float(f["time"][i])
     acc = stats.accepted_at(st, t)
     texts = _obstacle_texts(f)
     status, pressure, x = g["contact_status"][:], g["contact_pressure"][:], f["x"][i]
     lines = [f"contact at t = {t:.12g} (frame {i}; forces in N, areas in m^2 of the reference surface, pressures in "
              "Pa, lengths in m):"]
-    for k, name in enumerate(names, 1):
-        def col(q):
-            return float(st[f"{name}_{q}"][acc[-1]]) if len(acc) else 0.0
-        on = status == k
+
+    def col(name, q):
+        return float(st[f"{name}_{q}"][acc[-1]]) if len(acc) else 0.0
+
+    def patch(on):
         peak = float(pressure[on].max()) if on.any() else 0.0
         ext = x[on].max(axis=0) - x[on].min(axis=0) if on.any() else np.zeros(3)
+        return (f"peak pressure {peak:.6g}, {int(on.sum())} nodes in contact, patch extent "
+                f"({ext[0]:.6g}, {ext[1]:.6g}, {ext[2]:.6g})")
+    for name in names:
+        k = int(name[len("obstacle"):])
         text = f" {texts[k - 1]}" if k <= len(texts) else ""
-        lines.append(f"  {name}{text}: F = ({col('Fx'):.6g}, {col('Fy'):.6g}, {col('Fz'):.6g}), area {col('area'):.6g}, "
-                     f"peak pressure {peak:.6g}, {int(on.sum())} nodes in contact, patch extent "
-                     f"({ext[0]:.6g}, {ext[1]:.6g}, {ext[2]:.6g}), moved by ({col('ux'):.6g}, {col('uy'):.6g}, "
-                     f"{col('uz'):.6g})")
+        lines.append(f"  {name}{text}: F = ({col(name, 'Fx'):.6g}, {col(name, 'Fy'):.6g}, {col(name, 'Fz'):.6g}), "
+                     f"area {col(name, 'area'):.6g}, {patch(status == k)}, moved by ({col(name, 'ux'):.6g}, "
+                     f"{col(name, 'uy'):.6g}, {col(name, 'uz'):.6g})")
+    if own:
+        lines.append(f"  self-contact (the surface against itself): carries {col('self', 'carried'):.6g}, area "
+                     f"{col('self', 'area'):.6g}, {patch(status == SELF_STATUS)}; its forces sum to "
+                     f"({col('self', 'Fx'):.3g}, {col('self', 'Fy'):.3g}, {col('self', 'Fz'):.3g})")
     return lines
 
 

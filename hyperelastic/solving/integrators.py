@@ -163,9 +163,10 @@ class Integrator:
         if not effects:
             return {}
         rows = [r for e in effects for r in e.result_rows(x, t)]
-        summed = np.array([np.append(F, area) for _, F, area, _ in rows], float).reshape(-1, 4)
+        summed = np.array([np.append(r.force, [r.area, r.carried or 0.0]) for r in rows], float).reshape(-1, 5)
         self.sp.mpi.Allreduce(MPI.IN_PLACE, summed, op=MPI.SUM)
-        return result_columns([(name, s[:3], s[3], u) for (name, _, _, u), s in zip(rows, summed)])
+        return result_columns([r._replace(force=s[:3], area=s[3], carried=None if r.carried is None else s[4])
+                               for r, s in zip(rows, summed)])
 
     def _output(self, n_done, framed, last, x_frame=None):
         """After a completed step: the frame (x_frame, default the state's x), a checkpoint every

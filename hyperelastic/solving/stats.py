@@ -4,6 +4,8 @@ and the studies, the hard-case matrix, the reproduction scripts and the tests re
 energies are the effects' own (effects.energies(): each effect declares the columns it reports and their
 part in energy_total).
 """
+import re
+
 import numpy as np
 from mpi4py import MPI
 
@@ -61,19 +63,25 @@ def force_columns(rows):
 
 
 # <name>_<quantity>: each obstacle's results (seams.Results.result_rows) after each accepted step: its force on the
-# body, its contact area and its translation, NaN in rejected attempts' rows
+# body, its contact area and its translation, NaN in rejected attempts' rows; `self` (self-contact: the surface's pairs
+# with itself) the same, its force the sum of balanced pairs, and the force they carry
 RESULT_QUANTITIES = {"Fx": "force on the body [N], x", "Fy": "force on the body [N], y", "Fz": "force on the body "
                      "[N], z", "area": "reference area of the contact nodes within dhat [m^2]",
-                     "ux": "translation [m], x", "uy": "translation [m], y", "uz": "translation [m], z"}
+                     "ux": "translation [m], x", "uy": "translation [m], y", "uz": "translation [m], z",
+                     "carried": "force carried by the pairs (self-contact: half the sum of its nodal forces' "
+                                "magnitudes) [N]"}
+RESULT_NAMES = re.compile(r"(obstacle\d+|self)_")       # the rows' names: obstacle1, obstacle2, ..., self
 
 
 def result_columns(rows):
-    """{column: value} of the Results rows (name, force, area, translation), summed over the ranks already."""
+    """{column: value} of the Results rows (seams.ResultRow), summed over the ranks already."""
     out = {}
-    for name, F, area, u in rows:
+    for name, F, area, u, carried in rows:
         out.update({f"{name}_F{c}": float(v) for c, v in zip("xyz", F)})
         out[f"{name}_area"] = float(area)
         out.update({f"{name}_u{c}": float(v) for c, v in zip("xyz", u)})
+        if carried is not None:
+            out[f"{name}_carried"] = float(carried)
     return out
 
 
@@ -102,7 +110,7 @@ def column_type(name):
             return EFFECT_COLUMNS[kind][0]
     if name.partition("_")[0] in FORCE_KINDS and name.rpartition("_")[2] in FORCE_COMPONENTS:
         return float
-    if name.startswith("obstacle") and name.rpartition("_")[2] in RESULT_QUANTITIES:
+    if RESULT_NAMES.match(name) and name.rpartition("_")[2] in RESULT_QUANTITIES:
         return float
     raise KeyError(f"'{name}' is not a declared statistics column (hyperelastic/stats.py)")
 

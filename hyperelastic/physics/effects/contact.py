@@ -35,7 +35,7 @@ from ...core.expressions import TimeFunction
 from ...core.options import Row, facet_sets
 from .base import Energy, NodeBlocks, Spec, timed
 from .obstacles import KINDS, kinds_help, linear_motion, parse
-from .seams import PUSH_LIMIT, AdaptiveStiffness, DomainCheck, Results, StepLimiter, StepStart
+from .seams import PUSH_LIMIT, AdaptiveStiffness, DomainCheck, Results, ResultRow, StepLimiter, StepStart
 
 CCD_MARGIN = 0.1            # a Newton update stops this fraction short of the first contact along it
 KAPPA_SCALE = 0.1           # kappa = KAPPA_SCALE E / dhat by default
@@ -300,7 +300,8 @@ class Contact(NodeBlocks, StepLimiter, DomainCheck, StepStart, AdaptiveStiffness
             if slip is not None:
                 lam, _, u, y = slip
                 force = force - ((self.mu * lam * mollifier(y, self.slip_eps)[1])[:, None] * u).sum(axis=0)
-            rows.append((f"obstacle{self.numbers[k]}", force, float(self.area[d < self.dhat].sum()), o.shift(t)))
+            rows.append(ResultRow(f"obstacle{self.numbers[k]}", force, float(self.area[d < self.dhat].sum()),
+                                  o.shift(t)))
         return rows
 
     def energy(self, x, v):
@@ -434,7 +435,11 @@ def _inside_part(space, points, tol=1e-12):
             if np.all(p >= lo) and np.all(p <= hi):
                 lam = np.einsum("cij,cj->ci", space.Dminv, p - X0)
                 hit[i] = bool(((lam >= -tol).all(axis=1) & (lam.sum(axis=1) <= 1 + tol)).any())
-    return space.mpi.allreduce(hit.astype(np.int8), op=MPI.MAX).astype(bool) if len(points) else hit
+    if len(points) and space.mpi.size > 1:      # (the buffer form: the pickled allreduce's MAX of arrays is refused)
+        flags = hit.astype(np.int8)
+        space.mpi.Allreduce(MPI.IN_PLACE, flags, op=MPI.MAX)
+        hit = flags.astype(bool)
+    return hit
 
 
 def friction_smoothing(p, quasistatic, dhat):

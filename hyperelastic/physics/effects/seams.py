@@ -15,12 +15,14 @@ default or a comparison of its name (tests/test_layers.py walks their syntax tre
 | `StepStart` | before a step is solved: which nodes' paths the scene gives (`hold`), whether those paths collide (`held_collision`), where a moving surrounding pushes the body (`pushed`), whether the surroundings move linearly in t (`moves_linearly`) | `Contact`, `SelfContact` |
 | `AdaptiveStiffness` | at each step's start, the stiffness balanced against the other forces within `kappa_range` (`set_kappa`, `barrier_gradient`) | `Contact`, `SelfContact` (with `-contact_kappa adaptive`) |
 | `Couplings` | a matrix of entries between nodes that the cell pattern does not join, multiplied beside the assembled operator (`jacobians.Coupled`) | `SelfContact` |
-| `Results` | the pressure and status at the contact nodes in every frame, each obstacle's force, area and translation in every accepted step's statistics | `Contact` |
+| `Results` | the pressure and status at the contact nodes in every frame, each obstacle's force, area and translation in every accepted step's statistics (self-contact's too) | `Contact`, `SelfContact` |
 | `dirichlet.HeldBody` | held dofs whose targets follow a body of their own (a reference point balanced around each step's solve, its reaction and state its own) | `rigid.Rigid` |
 
 A new friction law, limiter or kind of held constraint subclasses the capability and fills in its methods; nothing in
 `solving/` changes (docs/design.md, "Seams").
 """
+from typing import NamedTuple, Optional
+
 import numpy as np
 
 
@@ -108,12 +110,25 @@ class Couplings:
         return np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0)
 
 
+SELF_STATUS = -1      # contact_status (Results.point_values) of a node in a pair with the surface itself and no obstacle
+
+
+class ResultRow(NamedTuple):
+    """One contact's results at a state (Results.result_rows): its force on the body (3,) and contact area, this rank's
+    part (summed over the ranks), its translation (3,) (the same on every rank), and the force it carries where the
+    force on the body says nothing of it (self-contact's pairs balance: None elsewhere; summed over the ranks)."""
+    name: str
+    force: np.ndarray
+    area: float
+    translation: np.ndarray
+    carried: Optional[float] = None
+
+
 class Results:
     """What an effect reports of a state beyond its energies (contact: the pressure and status at its nodes, and per
     obstacle its force on the body, its contact area and its translation). `point_values(x)`: {field name: local array
     per node} for every frame (names of output/fields.py's POINT_SCALARS; several effects' arrays of one name are
-    added); `result_rows(x, t)`: [(name, force (3,), area, translation (3,))] of this rank's part (force and area are
-    summed over the ranks, the translation is the same on every rank), each a statistics row of every accepted step
+    added); `result_rows(x, t)`: [ResultRow] of this rank's part, each a statistics row of every accepted step
     (stats.py: result_columns)."""
 
     def point_values(self, x):

@@ -25,15 +25,27 @@ way to the first collision; the same pre-check as the obstacles' and the inversi
 move from the step's start to it is collision-free (`undefined_at`); a start state whose surface intersects itself or
 touches (distance 0) is refused in one line. ipctk runs on one thread (MPI ranks are the parallelism; one thread also
 fixes the order of its sums)."""
+from typing import NamedTuple
+
 import numpy as np
 from mpi4py import MPI
 
 from ...core.errors import UserError
 from .base import NodeBlocks, timed
 from .obstacles import linear_motion
-from .seams import PUSH_LIMIT, AdaptiveStiffness, Couplings, DomainCheck, Results, StepLimiter, StepStart
+from .seams import (PUSH_LIMIT, SELF_STATUS, AdaptiveStiffness, Couplings, DomainCheck, Results, ResultRow, StepLimiter,
+                    StepStart)
 
 KAPPA_WEIGHT = 1.1           # W above: the area weights' sum per unit area of two facing faces (measured)
+
+
+class Pairs(NamedTuple):
+    """The contact pairs at a state (SelfContact._pairs_of)."""
+    V: np.ndarray
+    g: np.ndarray
+    near: list
+    g_self: np.ndarray
+    selfed: set
 
 
 def _reached(p, d, T, pad):
@@ -129,7 +141,7 @@ class SelfContact(NodeBlocks, StepLimiter, DomainCheck, StepStart, AdaptiveStiff
         a = 0.5 * np.linalg.norm(np.cross(X[F[:, 1]] - X[F[:, 0]], X[F[:, 2]] - X[F[:, 0]]), axis=1)
         self.node_area = np.zeros(len(self.ids))
         np.add.at(self.node_area, F, np.repeat(a[:, None] / 3, 3, axis=1))
-        self._pairs = None                                   # (the last _obstacle_pairs)
+        self._pairs = None                                   # (the last _pairs_of)
         self.set_kappa(self.kappa)
         self.blocks = np.zeros((len(self.nodes), 3, 3))
         self.coupling = None                                 # csr (3 n_own, 3 n_surface): the off-diagonal blocks
@@ -334,64 +346,83 @@ class SelfContact(NodeBlocks, StepLimiter, DomainCheck, StepStart, AdaptiveStiff
         """Per triangulated obstacle: its force on the body, the barrier's and friction's (the sum of the potential's
         gradient over the obstacle's vertices: each pair's is translation invariant, so it is minus the body's part
         from the pairs with that obstacle), the reference area of the body's surface nodes in a pair with it, its
-        translation at t. On rank 0 alone (the collision mesh is the whole surface on every rank); zeros elsewhere."""
-        if not self.obstacles:
-            return []
+        translation at t. Then the surface's pairs with itself, as `self`: the sum of their barrier forces over the
+        surface (zero but for round-off: they balance), half the reference area of the surface nodes in such a pair
+        (the patch has two sides, each counted), no
+        translation, and the force they carry, half the sum of the magnitudes of those nodal forces (each pair pushes
+        its two sides apart with equal and opposite forces, shared by its nodes with weights of one sign). On rank 0
+        alone (the collision mesh is the whole surface on every rank); zeros elsewhere. Collective (the positions are
+        gathered)."""
         first = self.mpi.rank == 0
-        V, g, near = self._obstacle_pairs(x) if first else (None, None, [set()] * len(self.obstacles))
+        pairs = self._pairs_of(x)
+        g = pairs.g
         if first and self._has_friction():
-            g = g + self.friction.gradient(self.tangential, self.mesh, V - self.start).reshape(-1, 3)
+            g = g + self.friction.gradient(self.tangential, self.mesh, pairs.V - self.start).reshape(-1, 3)
         rows, lo = [], len(self.ids)
-        for o, number, touched in zip(self.obstacles, self.numbers, near):
+        for k, (o, number) in enumerate(zip(self.obstacles, self.numbers)):
             hi = lo + len(o.surface[0])
             force = g[lo:hi].sum(axis=0) if first else np.zeros(3)
-            area = float(self.node_area[sorted(touched)].sum()) if first else 0.0
-            rows.append((f"obstacle{number}", force, area, o.shift(t)))
+            area = float(self.node_area[sorted(pairs.near[k])].sum()) if first else 0.0
+            rows.append(ResultRow(f"obstacle{number}", force, area, o.shift(t)))
             lo = hi
+        own = pairs.g_self if first else np.zeros((0, 3))
+        area = 0.5 * float(self.node_area[sorted(pairs.selfed)].sum()) if first else 0.0     # (both sides' nodes)
+        carried = 0.5 * float(np.linalg.norm(own, axis=1).sum()) if first else 0.0
+        rows.append(ResultRow("self", own.sum(axis=0) if first else np.zeros(3), area, np.zeros(3), carried))
         return rows
 
     def point_values(self, x):
-        """contact_pressure: the barrier's force at each surface node in a pair with a triangulated obstacle, over the
-        node's reference area (Abaqus' CPRESS; pairs of the surface with itself are left out); contact_status: the
-        number (in -obstacle's order) of the first obstacle it is in a pair with, 0 where none. Every rank its own
-        nodes (the collision set is every rank's)."""
+        """contact_pressure: the barrier's force at each surface node in a pair with a triangulated obstacle or with the
+        surface itself, over the node's reference area (Abaqus' CPRESS); contact_status: the number (in -obstacle's
+        order) of the first obstacle it is in a pair with, else SELF_STATUS where it is in a pair with the surface
+        itself, 0 where none. Every rank its own nodes (the collision set is every rank's)."""
         n = len(x) // 3
         pressure, status = np.zeros(n), np.zeros(n)
-        if not self.obstacles:
-            return {}
-        _, g, near = self._obstacle_pairs(x)
-        for number, touched in reversed(list(zip(self.numbers, near))):
+        pairs = self._pairs_of(x)
+        hit = np.isin(self.own_s, sorted(pairs.selfed))
+        status[self.nodes[hit]] = SELF_STATUS
+        for number, touched in reversed(list(zip(self.numbers, pairs.near))):
             hit = np.isin(self.own_s, sorted(touched))
             status[self.nodes[hit]] = number
         pressed = np.zeros(len(self.ids), bool)
-        pressed[sorted(set().union(*near))] = True
+        pressed[sorted(set().union(pairs.selfed, *pairs.near))] = True
         own = pressed[self.own_s]
-        pressure[self.nodes[own]] = np.linalg.norm(g[self.own_s[own]], axis=1) / self.node_area[self.own_s[own]]
+        pressure[self.nodes[own]] = np.linalg.norm(pairs.g[self.own_s[own]], axis=1) / self.node_area[self.own_s[own]]
         return {"contact_pressure": pressure, "contact_status": status}
 
-    def _obstacle_pairs(self, x):
-        """(V, the barrier's gradient over the collision mesh's vertices (n, 3), per obstacle the surface nodes in a
-        pair with it) at local positions x: a frame's point_values and the step's result_rows ask at the same state,
-        so the last one is kept."""
+    def _pairs_of(self, x):
+        """Pairs(V, the barrier's gradient over the collision mesh's vertices (n, 3), per obstacle the surface nodes in
+        a pair with it, the gradient of the surface's pairs with itself over the surface (n_surface, 3), the surface
+        nodes in such a pair) at local positions x: a frame's point_values and the step's result_rows ask at the same
+        state, so the last one is kept."""
         V = self._V(x)
-        if self._pairs is not None and np.array_equal(self._pairs[0], V):
+        if self._pairs is not None and np.array_equal(self._pairs.V, V):
             return self._pairs
         c = self._collisions(V)
         g = self.potential_fn.gradient(c, self.mesh, V).reshape(-1, 3) if len(c) else np.zeros_like(V)
-        self._pairs = (V, g, self._pressed_nodes(c))
+        self._pairs = Pairs(V, g, *self._sorted_pairs(c, V))
         return self._pairs
 
-    def _pressed_nodes(self, c):
-        """Per obstacle: the set of the surface's nodes (collision-mesh ids) in a pair with one of its vertices."""
-        bounds = np.cumsum([len(self.ids)] + [len(o.surface[0]) for o in self.obstacles])
+    def _sorted_pairs(self, c, V):
+        """(per obstacle the set of the surface's nodes (collision-mesh ids) in a pair with one of its vertices, the
+        gradient of the surface's pairs with itself (n_surface, 3), the set of nodes in such a pair)."""
+        n = len(self.ids)
+        bounds = np.cumsum([n] + [len(o.surface[0]) for o in self.obstacles])
         out = [set() for _ in self.obstacles]
+        g_self, selfed = np.zeros((n, 3)), set()
+        E, F = self.mesh.edges, self.mesh.faces
         for i in range(len(c)):
-            ids = np.asarray(c[i].vertex_ids(self.mesh.edges, self.mesh.faces))
-            ids = ids[ids >= 0]
-            body = ids[ids < bounds[0]]
-            for k in set(np.searchsorted(bounds, ids[ids >= bounds[0]], side="right") - 1):
+            pair = c[i]
+            ids = np.asarray(pair.vertex_ids(E, F))
+            ids = ids[ids >= 0]                   # (the stencil's vertices first, in its dof order; -1 after them)
+            body = ids[ids < n]
+            if len(body) == len(ids):
+                g_self[ids] += self.potential_fn.gradient(pair, pair.dof(V, E, F)).reshape(-1, 3)
+                selfed.update(int(b) for b in ids)
+                continue
+            for k in set(np.searchsorted(bounds, ids[ids >= n], side="right") - 1):
                 out[k].update(int(b) for b in body)
-        return out
+        return out, g_self, selfed
 
     def undefined_at(self, x):
         """1 where the straight move from the step's start to x passes the surface through itself (or touches)."""
