@@ -22,7 +22,9 @@ LONG = {"examples/coil.opts": ("test_contact.py::test_a_twisted_rod_coils_onto_i
         "study price": ("test_price.py::test_price_answers_first_and_its_answer_meets_the_target", "another part"),
         "examples/stack.opts": ("test_contact.py::test_blocks_pressed_together_carry_one_blocks_homogeneous_compression",
                                 "as written"),
-        "examples/slot.opts": ("test_contact.py::test_a_slot_pressed_shut_never_passes_through_itself", "as written")}
+        "examples/slot.opts": ("test_contact.py::test_a_slot_pressed_shut_never_passes_through_itself", "as written"),
+        "examples/tube.opts": ("test_contact.py::test_a_flattened_rubber_tube_closes_on_itself_with_the_mixed_formulation",
+                               "as written")}
 
 
 def commands(path):

@@ -351,8 +351,10 @@ class Coupled:
     need travel. (Multiplied in Python at every Krylov iteration, with the whole surface
     gathered to every rank, they took a third of a self-contact run's time: BENCHMARKS.md.)"""
 
-    def __init__(self, inner, system, effects):
-        self.inner, self.effects = inner, effects
+    def __init__(self, inner, system, effects, numbering=None):
+        """numbering: where `inner` is not a matrix of the displacement dofs alone (the mixed formulation's one AIJ of
+        displacements and pressures), the map of global displacement dof numbers to its global numbers."""
+        self.inner, self.effects, self.numbering = inner, effects, numbering
         sp = system.space
         self.constrained = system.cmask.reshape(-1, 3)[sp.lvid_of_owned].ravel()
         self.coupling = PETSc.Mat().createAIJ(inner.getSizes(), comm=sp.comm)
@@ -361,12 +363,12 @@ class Coupled:
         self.mat = PETSc.Mat().createComposite([inner, self.coupling], comm=sp.comm)
 
     @classmethod
-    def around(cls, op, system):
+    def around(cls, op, system, numbering=None):
         """op with its `operator` wrapped where some effect couples distant nodes and op multiplies by a matrix (and
-        its `update` refreshing the couplings too)."""
+        its `update` refreshing the couplings too); numbering as in the constructor."""
         effects = declaring(system.effects, Couplings)
         if effects and op.operator.getType() != PETSc.Mat.Type.PYTHON:
-            coupled = cls(op.operator, system, effects)
+            coupled = cls(op.operator, system, effects, numbering)
             op.operator, update = coupled.mat, op.update
 
             def update_both():
@@ -386,6 +388,8 @@ class Coupled:
         else:
             rows = cols = np.zeros(0, np.int64)
             vals = np.zeros(0)
+        if self.numbering is not None:
+            rows, cols = self.numbering(rows), self.numbering(cols)
         self.coupling.setPreallocationCOO(rows.astype(PETSc.IntType), cols.astype(PETSc.IntType))
         self.coupling.setValuesCOO(vals)
         self.entries = self.coupling.getComm().tompi4py().allreduce(len(vals))

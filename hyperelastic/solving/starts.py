@@ -84,7 +84,8 @@ class Starts:
     def crossing(self, x):
         """In words, the first place (the lowest rank's) where the local positions x leave a check's domain; "" where
         none does. Collective."""
-        mine = next((w for w in (e.crossing(x) for e in self.checks) if w), "")
+        said = [e.crossing(x) for e in self.checks]       # (every check on every rank: self-contact's gathers)
+        mine = next((w for w in said if w), "")
         return next((w for w in self.system.space.mpi.allgather(mine) if w), "")
 
     def free(self, x):

@@ -38,7 +38,7 @@ import numpy as np
 from ...core.errors import UserError
 from ...core.options import Row
 from ...mesh.sets import MATERIAL_LABEL
-from ...physics import effects as effects_pkg, materials
+from ...physics import materials
 from ..base import Formulation
 from .fields import PressureCoupling, PressureSpace, Volumetric
 from .solver import FieldSplitPlan
@@ -130,10 +130,6 @@ class Mixed(Formulation):
                     "-snes_mf_operator keeps the field split")
         if sc.integrator != "beuler":
             return f"{what}: quasi-static and backward Euler runs (-integrator beuler), not -integrator {sc.integrator}"
-        coupling = [n for n, p in sc.effects.items() if effects_pkg.SPECS[n].couples_nodes(p)]
-        if coupling:
-            return (f"{what}: {coupling[0]} couples distant nodes (self-contact), which the mixed operators do not "
-                    "take; -formulation displacement")
         if not any(sol.material.volumetric for _, sol in problem.solids):
             where = ", ".join(f"{w} {sol.name}" for w, sol in problem.solids)
             return (f"{what}: no isochoric/volumetric split in the cells' materials ({where}); use "

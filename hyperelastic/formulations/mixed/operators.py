@@ -1,6 +1,7 @@
 """The mixed formulation's tangent: one AIJ matrix filled by COO (MixedAssembled: any preconditioner of the whole), or
 by blocks under the field split (MixedNest: K_uu the displacement formulation's assembled tangent, K_up, K_pu, K_pp
-by COO)."""
+by COO). Self-contact's pairs between distant surface nodes act on the displacements alone: they are multiplied
+beside the matrix (jacobians.Coupled), in K_uu's block or in the whole's numbering."""
 import numpy as np
 from petsc4py import PETSc
 
@@ -49,6 +50,8 @@ class MixedAssembled:
         self.mat = self.operator = coo_aij(sp.comm, nloc, nloc, lg, lg, rows, cols)
         self.nullspace = rigid_body_nullspace(sp)
         s.is_u.compose("nearnullspace", self.nullspace)
+        # (self-contact's pairs between surface nodes: multiplied beside the matrix, in the unknowns' numbering)
+        jacobians.Coupled.around(self, s, numbering=s.unknown_numbers)
 
     def update(self):
         s, n = self.system, self.nc
@@ -86,7 +89,9 @@ class MixedNest:
     def __init__(self, system, storage="sbaij", augment=0.0):
         self.system = s = system
         sp, ps = s.space, s.pspace
-        self.uu = jacobians.AssembledChunked(s, storage=storage)
+        # K_uu with self-contact's pairs between surface nodes beside it (jacobians.Coupled: in `operator`, what the
+        # Krylov method multiplies by; the preconditioner is built from the cells' blocks)
+        self.uu = jacobians.Coupled.around(jacobians.AssembledChunked(s, storage=storage), s)
         _, patterns = coupling_patterns(s)
         dead = s.dead_local.astype(np.int64)
         up_r, up_c = (np.concatenate(x) for x in zip(*(up for up, _ in patterns)))
@@ -134,7 +139,7 @@ class MixedNest:
             A.assemble()
 
     def update(self):
-        self.uu.assemble()
+        self.uu.update()
         self._fill_coupling()
         if self.augmented is not None:
             self.augmented.update()

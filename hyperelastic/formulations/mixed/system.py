@@ -232,15 +232,21 @@ class MixedSystem(System):
         W.destroy()
         return Gamma, S
 
+    def unknown_numbers(self, g):
+        """The unknowns' global numbers (displacements and pressures, rank by rank) of global displacement dof numbers
+        g (the displacement formulation's numbering)."""
+        g = np.asarray(g, np.int64)
+        r = np.searchsorted(self.u_off, g, side="right") - 1
+        return self.c_off[r] + g - self.u_off[r]
+
     def combined_lgmap(self):
         """The LGMap of the local numbering (displacement dofs 0..3 nlv-1, then the local pressures) into the
         unknown's global numbering."""
         sp, ps = self.space, self.pspace
         gu = np.asarray(sp.lgmap.getIndices(), np.int64)
         gp = np.asarray(ps.lgmap.getIndices(), np.int64)
-        ru = np.searchsorted(self.u_off, gu, side="right") - 1
         rp = np.searchsorted(self.p_off, gp, side="right") - 1
-        cu = self.c_off[ru] + gu - self.u_off[ru]
+        cu = self.unknown_numbers(gu)
         cp = self.c_off[rp] + (self.u_off[rp + 1] - self.u_off[rp]) + gp - self.p_off[rp]
         idx = np.concatenate([cu, cp]).astype(PETSc.IntType)
         return PETSc.LGMap().create(idx, comm=sp.comm)

@@ -65,9 +65,7 @@ class Spec:
       build      (parameters, effects.Context) -> [Effect or dirichlet.Constraint]
       dynamic    left out of -quasistatic runs (inertia, damping)
       energies   the Energy columns its instances report
-      load       LoadKind: it is also a kind of named load (-loads), or None
-      couples    parameters -> whether its tangent couples nodes that the cell pattern does not join (self-contact:
-                 seams.Couplings), which a formulation whose operators take only the cell pattern refuses"""
+      load       LoadKind: it is also a kind of named load (-loads), or None"""
     name: str
     summary: str
     build: Callable
@@ -80,16 +78,12 @@ class Spec:
     dynamic: bool = False
     energies: tuple = ()
     load: LoadKind = None
-    couples: Callable = None
 
     def parameters(self, opts, where):
         return None if self.read is None else self.read(opts, where)
 
     def is_active(self, params):
         return True if self.active is None else bool(self.active(params))
-
-    def couples_nodes(self, params):
-        return False if self.couples is None else bool(self.couples(params))
 
     def set_uses(self, params):
         return [] if self.sets is None else list(self.sets(params))

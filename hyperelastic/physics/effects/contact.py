@@ -466,7 +466,7 @@ SPEC = Spec(
     "(IPC barrier)",
     implied_by=("obstacle", "contact_self", "contact_dhat", "contact_kappa", "contact_faces", "contact_friction"),
     read=_read, sets=_uses,
-    build=build_contact, couples=lambda p: p.self_contact,
+    build=build_contact,
     energies=(Energy("contact_energy", 1, "the contact barrier's energy"),
               Energy("contact_nodes", 0, "contact nodes within dhat of an obstacle"),
               Energy("contact_pairs", 0, "self-contact pairs (point-triangle, edge-edge, ...) within dhat"),
@@ -486,7 +486,7 @@ SPEC = Spec(
               "self-contact: the contact surfaces touch themselves and each other (a body folding onto itself, "
               "separate pieces of the mesh) but never pass through (IPC's barrier over point-triangle and edge-edge "
               "pairs, each Newton update stopped short of the first collision: the IPC Toolkit); the surface is "
-              "gathered to every rank; not with -formulation mixed"),
+              "gathered to every rank; with -formulation mixed too (on the displacements)"),
           Row(("contact_faces",), "-contact_faces S1,S2,…", "the surfaces that touch the obstacles", "boundary"),
           Row(("contact_friction", "contact_friction_eps", "contact_friction_slip"),
               "-contact_friction μ -contact_friction_eps v -contact_friction_slip d",
