@@ -408,7 +408,7 @@ COMMANDS = {"run": run_cmd, "mesh": mesh_cmd, "plot": plot_cmd, "report": report
 def main(argv=None):
     argv = list(sys.argv[1:] if argv is None else argv)
     # SIGPIPE blocked: PETSc's initialization (wherever `from petsc4py import PETSc` first runs: `report` too) puts its
-    # handler on SIGPIPE, which printed PETSc's crash banner and aborted (exit 59) when the reader of the output left
+    # handler on SIGPIPE, which printed its crash banner and aborted (exit 15 here) when the reader of the output left
     # (`hyperelastic report FILE | head -1`); a blocked signal is never delivered, whoever handles it: the write
     # fails with EPIPE, Python raises BrokenPipeError and the command exits 141 as a shell's pipeline expects (below)
     signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGPIPE})

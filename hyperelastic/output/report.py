@@ -118,7 +118,7 @@ def contact_lines(f, i):
     """Per obstacle at frame i: its force on the body and contact area (the statistics of the accepted step that ends
     at the frame's time; 0 at the start), the peak contact pressure and the contact patch's extent along x, y, z (the
     frame's positions of the nodes whose contact_status is that obstacle: within dhat of it), and its translation.
-    Then self-contact (a run with -self_contact or a triangulated obstacle), where its pairs carried force at some
+    Then self-contact (a run with -contact_self or a triangulated obstacle), where its pairs carried force at some
     step: the force they carry, their area, the peak pressure and extent of the nodes in such a pair alone, and the
     sum of their forces (it balances: a check)."""
     st = stats.read(f)

@@ -348,9 +348,9 @@ class SelfContact(NodeBlocks, StepLimiter, DomainCheck, StepStart, AdaptiveStiff
         from the pairs with that obstacle), the reference area of the body's surface nodes in a pair with it, its
         translation at t. Then the surface's pairs with itself, as `self`: the sum of their barrier forces over the
         surface (zero but for round-off: they balance), half the reference area of the surface nodes in such a pair
-        (the patch has two sides, each counted), no
-        translation, and the force they carry, half the sum of the magnitudes of those nodal forces (each pair pushes
-        its two sides apart with equal and opposite forces, shared by its nodes with weights of one sign). On rank 0
+        (the patch has two sides, each counted), no translation, and the force they carry, half the sum of the
+        magnitudes of those nodal forces (each pair pushes its two sides apart with equal and opposite forces, shared
+        by its nodes with weights of one sign). On rank 0
         alone (the collision mesh is the whole surface on every rank); zeros elsewhere. Collective (the positions are
         gathered)."""
         first = self.mpi.rank == 0
