@@ -107,12 +107,17 @@ def output_names(path):
     return [path, xdmf, path + PARTIAL, path + EARLIER, xdmf + EARLIER, failed, os.path.splitext(failed)[0] + ".xdmf"]
 
 
+def rank_file_names(parts_list):
+    """The names of the per-rank files (in FILE.h5.d/) of an output's parts (`parts`)."""
+    return {os.path.basename(p) for part in parts_list for p in part["files"]}
+
+
 def named_rank_files(path):
     """The names of the per-rank files (in its FILE.h5.d/) that the output at `path` names: none where it is a
     gathered output, or not there, or not readable."""
     try:
         with h5py.File(path, "r") as f:
-            return {os.path.basename(p) for part in parts(f) or [] for p in part["files"]}
+            return rank_file_names(parts(f) or [])
     except (OSError, ValueError, KeyError, TypeError):
         return set()
 

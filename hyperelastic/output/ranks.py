@@ -26,7 +26,7 @@ import numpy as np
 from h5py import h5d, h5p, h5s, h5t
 
 from ..core.errors import UserError
-from ..core.files import RANKS, parts, rank_file
+from ..core.files import RANKS, parts, rank_file, rank_file_names
 from ..discretization.exchange import Exchange
 from .fields import cell_fields, cell_quantities, finish, is_point_field, needs_volumes, reference_volumes
 from .writer import (EVENTS, FIELD_LINKS, FRAME_LINKS, ROOM_ATTR, ROOM_ATTR_BYTES, STATS_EVERY_S, Guard, Writer,
@@ -409,7 +409,7 @@ class RankWriter(Writer):
 
     # --- the end -----------------------------------------------------------------------------
     def _rank_files(self):
-        return {os.path.basename(p) for part in self.parts for p in part["files"]}
+        return rank_file_names(self.parts)
 
     def close(self, keep=True):
         """Flush and close every file (collective). A run that completed no step and is not kept leaves no file of

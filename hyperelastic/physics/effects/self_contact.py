@@ -400,16 +400,18 @@ class SelfContact(NodeBlocks, StepLimiter, DomainCheck, StepStart, AdaptiveStiff
             return self._pairs
         c = self._collisions(V)
         g = self.potential_fn.gradient(c, self.mesh, V).reshape(-1, 3) if len(c) else np.zeros_like(V)
-        self._pairs = Pairs(V, g, *self._sorted_pairs(c, V))
+        self._pairs = Pairs(V, g, *self._sorted_pairs(c, V, g))
         return self._pairs
 
-    def _sorted_pairs(self, c, V):
+    def _sorted_pairs(self, c, V, g):
         """(per obstacle the set of the surface's nodes (collision-mesh ids) in a pair with one of its vertices, the
-        gradient of the surface's pairs with itself (n_surface, 3), the set of nodes in such a pair)."""
+        gradient of the surface's pairs with itself (n_surface, 3), the set of nodes in such a pair); g: the gradient
+        of all the pairs, which is the surface's own where there is no obstacle (else each of its own pairs' gradient
+        is summed apart)."""
         n = len(self.ids)
         bounds = np.cumsum([n] + [len(o.surface[0]) for o in self.obstacles])
         out = [set() for _ in self.obstacles]
-        g_self, selfed = np.zeros((n, 3)), set()
+        g_self, selfed = (np.zeros((n, 3)) if self.obstacles else g[:n]), set()
         E, F = self.mesh.edges, self.mesh.faces
         for i in range(len(c)):
             pair = c[i]
@@ -417,7 +419,8 @@ class SelfContact(NodeBlocks, StepLimiter, DomainCheck, StepStart, AdaptiveStiff
             ids = ids[ids >= 0]                   # (the stencil's vertices first, in its dof order; -1 after them)
             body = ids[ids < n]
             if len(body) == len(ids):
-                g_self[ids] += self.potential_fn.gradient(pair, pair.dof(V, E, F)).reshape(-1, 3)
+                if self.obstacles:
+                    g_self[ids] += self.potential_fn.gradient(pair, pair.dof(V, E, F)).reshape(-1, 3)
                 selfed.update(int(b) for b in ids)
                 continue
             for k in set(np.searchsorted(bounds, ids[ids >= n], side="right") - 1):
