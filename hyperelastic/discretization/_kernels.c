@@ -16,6 +16,8 @@
 #include "_cells.h"
 #include "he_materials.h"
 
+#include <stdlib.h>
+
 /* y += coef * M_e v over cells, with the consistent P1 matrix int N_a N_b dV = V (1 + delta_ab) / 20
  * (thesis eq. 4.39/4.40), applied per vector component. */
 void he_mass_apply(int64_t nc, const idx_t *cells, const double *vol, double coef, const double *v, double *y) {
@@ -404,3 +406,184 @@ void he_p1_galerkin(int64_t nc, const int32_t *edges, const double *vals, double
     }
   }
 }
+
+/* ---- the set-up's integer work: the tangent's exact pattern and where each cell's blocks go in it ----
+ * (aij.vertex_pairs, aij.exact_pattern, aij.CellMap, sbaij.UpperFill: one pass over the cells in place of numpy sorts
+ * of mesh-sized key arrays). PETSc's index arrays are read and written through PI/PW below: 32- or 64-bit (idx64). */
+#define PI(p, k) (idx64 ? ((const int64_t *)(p))[k] : (int64_t)((const int32_t *)(p))[k])
+#define PW(p, k, v) do { if (idx64) ((int64_t *)(p))[k] = (v); else ((int32_t *)(p))[k] = (int32_t)(v); } while (0)
+
+static int cmp_i64(const void *a, const void *b) {
+  int64_t x = *(const int64_t *)a, y = *(const int64_t *)b;
+  return (x > y) - (x < y);
+}
+
+static void sort_i64(int64_t *a, int64_t n) {
+  if (n > 48) { qsort(a, (size_t)n, sizeof(int64_t), cmp_i64); return; }
+  for (int64_t i = 1; i < n; i++) {                /* insertion sort: rows are short (P2: ~30-70 vertices) */
+    int64_t v = a[i], j = i - 1;
+    while (j >= 0 && a[j] > v) { a[j + 1] = a[j]; j--; }
+    a[j + 1] = v;
+  }
+}
+
+/* The cells of each local vertex (nlv vertices; cells nc x nn, local indices): ptr (nlv + 1), list (nc nn), in cell
+ * order. Returns 0, or -1 where memory ran out (nothing allocated then). */
+static int vertex_cells(int64_t nc, int nn, const idx_t *cells, int64_t nlv, int64_t **ptr_out, int64_t **list_out) {
+  int64_t *ptr = calloc((size_t)nlv + 1, sizeof(int64_t)), *list = malloc(sizeof(int64_t) * (size_t)(nc * nn + 1));
+  if (!ptr || !list) { free(ptr); free(list); return -1; }
+  for (int64_t k = 0; k < nc * nn; k++) ptr[cells[k] + 1]++;
+  for (int64_t v = 0; v < nlv; v++) ptr[v + 1] += ptr[v];
+  int64_t *fill = malloc(sizeof(int64_t) * (size_t)(nlv + 1));
+  if (!fill) { free(ptr); free(list); return -1; }
+  memcpy(fill, ptr, sizeof(int64_t) * (size_t)(nlv + 1));
+  for (int64_t e = 0; e < nc; e++)
+    for (int a = 0; a < nn; a++) list[fill[cells[nn * e + a]]++] = e;
+  free(fill);
+  *ptr_out = ptr;
+  *list_out = list;
+  return 0;
+}
+
+/* For each row vertex rows[k] (local index; nr of them), the distinct global numbers g[w] of the local vertices w
+ * sharing a cell with it, sorted; with upper, only those >= the row's own g[rows[k]] (the upper block triangle).
+ * Called twice: with cols NULL it writes the row pointers ptr (nr + 1, ptr[0] = 0); then, cols sized ptr[nr], the
+ * columns. Returns 0, or -1 where memory ran out. */
+int he_adjacency(int64_t nc, int nn, const idx_t *cells, int64_t nlv, const int64_t *g, int64_t nr,
+                 const int64_t *rows, int upper, int64_t *ptr, int64_t *cols) {
+  int64_t *vptr, *vlist, *mark = malloc(sizeof(int64_t) * (size_t)(nlv + 1));
+  if (!mark || vertex_cells(nc, nn, cells, nlv, &vptr, &vlist)) { free(mark); return -1; }
+  for (int64_t v = 0; v < nlv; v++) mark[v] = -1;
+  if (!cols) ptr[0] = 0;
+  for (int64_t k = 0; k < nr; k++) {
+    const int64_t r = rows[k], gr = g[r];
+    int64_t n = 0, *out = cols ? cols + ptr[k] : NULL;
+    for (int64_t q = vptr[r]; q < vptr[r + 1]; q++) {
+      const idx_t *c = cells + (int64_t)nn * vlist[q];
+      for (int a = 0; a < nn; a++) {
+        const int64_t w = c[a];
+        if (mark[w] == k) continue;
+        mark[w] = k;
+        if (upper && g[w] < gr) continue;
+        if (out) out[n] = g[w];
+        n++;
+      }
+    }
+    if (out) sort_i64(out, n);
+    else ptr[k + 1] = ptr[k] + n;
+  }
+  free(mark);
+  free(vptr);
+  free(vlist);
+  return 0;
+}
+
+/* The union of two CSR patterns with sorted distinct columns per row (n rows: ia/ja and ib/jb, int64): called with
+ * jc NULL it writes the row pointers ic (n + 1); then, jc sized ic[n], the columns. */
+void he_csr_union(int64_t n, const int64_t *ia, const int64_t *ja, const int64_t *ib, const int64_t *jb, int64_t *ic,
+                  int64_t *jc) {
+  if (!jc) ic[0] = 0;
+  for (int64_t r = 0; r < n; r++) {
+    int64_t p = ia[r], pe = ia[r + 1], q = ib[r], qe = ib[r + 1], m = 0, *out = jc ? jc + ic[r] : NULL;
+    while (p < pe || q < qe) {
+      int64_t v;
+      if (q >= qe || (p < pe && ja[p] < jb[q])) v = ja[p++];
+      else if (p >= pe || jb[q] < ja[p]) v = jb[q++];
+      else { v = ja[p++]; q++; }
+      if (out) out[m] = v;
+      m++;
+    }
+    if (!jc) ic[r + 1] = ic[r] + m;
+  }
+}
+
+/* The scalar pattern (3 dofs a vertex) of a vertex pattern (n rows; vptr, vcols int64 global vertex numbers): dof
+ * row 3v + a has the columns 3w + b of every w in v's row, in order. ia (3n + 1), ja (9 vptr[n]): PETSc's index type
+ * (idx64). */
+void he_expand_pattern(int64_t n, const int64_t *vptr, const int64_t *vcols, int idx64, void *ia, void *ja) {
+  PW(ia, 0, 0);
+  for (int64_t v = 0; v < n; v++) {
+    const int64_t d = vptr[v + 1] - vptr[v];
+    for (int a = 0; a < 3; a++) {
+      const int64_t r = 3 * v + a, start = 9 * vptr[v] + 3 * d * a;
+      PW(ia, r + 1, start + 3 * d);
+      for (int64_t k = 0; k < d; k++)
+        for (int b = 0; b < 3; b++) PW(ja, start + 3 * k + b, 3 * vcols[vptr[v] + k] + b);
+    }
+  }
+}
+
+/* The position of column col in row r of a CSR pattern with sorted columns (ia, ja: PETSc's index type), or -1. */
+static int64_t csr_find(const void *ia, const void *ja, int idx64, int64_t r, int64_t col) {
+  int64_t lo = PI(ia, r), hi = PI(ia, r + 1);
+  while (lo < hi) {
+    const int64_t mid = lo + (hi - lo) / 2, c = PI(ja, mid);
+    if (c == col) return mid;
+    if (c < col) lo = mid + 1; else hi = mid;
+  }
+  return -1;
+}
+
+/* aij.CellMap: for each cell whose nodes this rank all owns (own[w] >= 0: the node's index among the owned ones;
+ * cells nc x nn, local), where its node pair (a, b)'s 3x3 block starts in the values of the scalar CSR ia/ja (owned
+ * rows and columns 3 own + i) — base[nn^2 e + nn a + b] — and the length of node a's rows, rowlen[nn e + a]; the
+ * other cells get base -1 and rowlen 0. Every entry of every block is checked: returns the number of cells with an
+ * entry missing from the pattern (0: the map is complete). */
+int64_t he_cell_map(int64_t nc, int nn, const idx_t *cells, const int64_t *own, const void *ia, const void *ja,
+                    int idx64, int32_t *base, int32_t *rowlen) {
+  int64_t missing = 0;
+  for (int64_t e = 0; e < nc; e++) {
+    const idx_t *c = cells + (int64_t)nn * e;
+    int32_t *B = base + (int64_t)nn * nn * e, *L = rowlen + (int64_t)nn * e;
+    int interior = 1, bad = 0;
+    for (int a = 0; a < nn; a++) interior &= own[c[a]] >= 0;
+    if (!interior) {
+      for (int k = 0; k < nn * nn; k++) B[k] = -1;
+      for (int a = 0; a < nn; a++) L[a] = 0;
+      continue;
+    }
+    for (int a = 0; a < nn && !bad; a++) {
+      const int64_t r = 3 * own[c[a]], len = PI(ia, r + 1) - PI(ia, r);
+      L[a] = (int32_t)len;
+      for (int b = 0; b < nn && !bad; b++) {
+        const int64_t col = 3 * own[c[b]], p = csr_find(ia, ja, idx64, r, col);
+        if (p < 0) { bad = 1; break; }
+        for (int i = 0; i < 3 && !bad; i++) {
+          if (PI(ia, r + i + 1) - PI(ia, r + i) != len || PI(ia, r + i) != PI(ia, r) + i * len) bad = 1;
+          for (int j = 0; j < 3 && !bad; j++)
+            if (PI(ja, p + i * len + j) != col + j) bad = 1;
+        }
+        B[nn * a + b] = (int32_t)p;
+      }
+    }
+    missing += bad;
+  }
+  return missing;
+}
+
+/* sbaij.UpperFill: for each cell whose nodes this rank all owns, the block index in the block CSR si/sj (upper block
+ * triangle, owned block rows and columns) of its node pair (a, b) where own[a] <= own[b] — pos[nn^2 e + nn a + b] —
+ * and -1 elsewhere (the lower pairs, and every pair of the other cells). Returns the number of pairs missing. */
+int64_t he_upper_map(int64_t nc, int nn, const idx_t *cells, const int64_t *own, const void *si, const void *sj,
+                     int idx64, int32_t *pos) {
+  int64_t missing = 0;
+  for (int64_t e = 0; e < nc; e++) {
+    const idx_t *c = cells + (int64_t)nn * e;
+    int32_t *P = pos + (int64_t)nn * nn * e;
+    int interior = 1;
+    for (int a = 0; a < nn; a++) interior &= own[c[a]] >= 0;
+    for (int a = 0; a < nn; a++)
+      for (int b = 0; b < nn; b++) {
+        const int64_t oa = own[c[a]], ob = own[c[b]];
+        int64_t p = -1;
+        if (interior && oa <= ob) {
+          p = csr_find(si, sj, idx64, oa, ob);
+          missing += p < 0;
+        }
+        P[nn * a + b] = (int32_t)p;
+      }
+  }
+  return missing;
+}
+#undef PI
+#undef PW

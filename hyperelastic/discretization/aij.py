@@ -6,7 +6,7 @@ is symmetric (SBAIJCopy). docs/design.md ("The assembled tangent's fill") has th
 import numpy as np
 from petsc4py import PETSc
 
-from .kernels import add_blocks, gather_blocks, scatter_blocks
+from .kernels import add_blocks, adjacency, cell_map, csr_union, expand_pattern, gather_blocks, scatter_blocks
 from ..core.arrays import unique
 from ..core.libpetsc import SeqAIJRowIJ, SeqAIJValues, mpiaij_off_diagonal
 
@@ -34,69 +34,55 @@ def owned_index(sp):
     return own
 
 
-# cells per piece where a whole-mesh intermediate would otherwise be made at once (the pattern's vertex pairs)
-CHUNK = 8192
-
-
-def vertex_pairs(sp, upper=False):
-    """(row, col): the distinct pairs of vertices v, w sharing a cell with v owned by this rank, sorted by row then
-    column; row by index among this rank's owned vertices, col global. upper: only the pairs with col >= the row's
-    global number (the upper block triangle). On several ranks a vertex at a partition boundary also has pairs from
-    cells another rank holds: each rank sends the pairs of its cells whose row vertex another rank owns to that rank
-    (one alltoall of sorted int64 keys), so every rank's pairs are complete. The keys are made a chunk of cells at a
-    time (no array of all the cells' pairs)."""
+def vertex_pattern(sp, upper=False):
+    """(ptr, cols): per vertex this rank owns (by index among its owned vertices), the sorted global numbers of the
+    vertices sharing a cell with it — its columns cols[ptr[v]:ptr[v + 1]] (int64). upper: only the columns >= the
+    row's own global number (the upper block triangle). Built in C from each vertex's cells (kernels.adjacency). On
+    several ranks a vertex at a partition boundary also has neighbours in cells another rank holds: each rank sends
+    the rows of its local vertices another rank owns to that rank (one alltoall of (row, column) pairs), and the
+    owner adds them to its rows (kernels.csr_union), so every rank's rows are complete."""
     mpi = sp.mpi
     g = sp.lgmap.getBlockIndices().astype(np.int64)       # global vertex of each local vertex
-    N = int(sp.nv_total)
-    parts = []
-    for lo in range(0, len(sp.cells), CHUNK):
-        c = g[sp.cells[lo:lo + CHUNK].astype(np.int64)]
-        k = (c[:, :, None] * N + c[:, None, :]).ravel()
-        parts.append(unique(k[k // N <= k % N] if upper else k))
-    keys = unique(np.concatenate(parts)) if parts else np.zeros(0, np.int64)
-    del parts
+    own = owned_index(sp)
+    if mpi.size == 1:
+        return adjacency(sp.cells, g, sp.lvid_of_owned, upper)
+    others = np.flatnonzero(own < 0)
+    ptr, cols = adjacency(sp.cells, g, np.concatenate([sp.lvid_of_owned, others]), upper)
+    n = sp.n_owned
+    mine = (ptr[:n + 1], cols[:ptr[n]])
     starts = np.zeros(mpi.size + 1, np.int64)
-    starts[1:] = np.cumsum(mpi.allgather(sp.n_owned))
-    if mpi.size > 1:
-        cut = np.searchsorted(keys, starts * N)                          # the rows' owners, in rank order
-        recv = mpi.alltoall([keys[cut[r]:cut[r + 1]] for r in range(mpi.size)])
-        keys = unique(np.concatenate(recv))
-        del recv
-    return keys // N - starts[mpi.rank], keys % N
+    starts[1:] = np.cumsum(mpi.allgather(n))
+    deg = np.diff(ptr[n:])
+    rows = np.repeat(g[others], deg)                                       # the other rows' pairs, by global row
+    ocols = cols[ptr[n]:]
+    del cols
+    owner = np.searchsorted(starts, rows, side="right") - 1
+    order = np.argsort(owner, kind="stable")
+    cut = np.searchsorted(owner[order], np.arange(mpi.size + 1))
+    recv = mpi.alltoall([np.stack([rows[order[cut[r]:cut[r + 1]]], ocols[order[cut[r]:cut[r + 1]]]])
+                         for r in range(mpi.size)])
+    del rows, ocols, owner, order
+    N = int(sp.nv_total)
+    keys = unique(np.concatenate([x[0] * N + x[1] for x in recv]))       # (received rows, sorted, distinct)
+    del recv
+    r, c = keys // N - starts[mpi.rank], keys % N
+    extra = np.zeros(n + 1, np.int64)
+    extra[1:] = np.cumsum(np.bincount(r, minlength=n))
+    return csr_union(mine, (extra, c))
 
 
 def exact_pattern(sp):
     """(row pointers, global columns) of the tangent's exact pattern in this rank's owned rows: dof
-    (3v + a, 3w + b) for every pair of vertices v, w sharing a cell (vertex_pairs), columns sorted in each row.
-    The columns are written a piece of rows at a time (int32 where PETSc's indices are: no whole-pattern int64
-    index arrays, which were the set-up's peak, 2.3 KB per P2 dof)."""
-    row, col = vertex_pairs(sp)
-    n = sp.n_owned
-    deg = np.bincount(row, minlength=n)                                  # neighbour vertices per vertex
-    del row
-    ia = np.zeros(3 * n + 1, np.int64)
-    ia[1:] = np.cumsum(np.repeat(3 * deg, 3))
-    ja = np.empty(ia[-1], PETSc.IntType)
-    vstart = np.concatenate([[0], np.cumsum(deg)])                      # vertex v's pairs: vstart[v]..vstart[v+1]
-    per = max(1, 300 * CHUNK // (9 * max(1, int(deg.mean()) if n else 1)))   # vertices per piece (~2.5M entries)
-    for v0 in range(0, n, per):
-        v1 = min(v0 + per, n)
-        cols_v = (3 * col[vstart[v0]:vstart[v1], None] + np.arange(3)).ravel()   # the piece's 3 deg columns per v
-        d = deg[v0:v1]
-        lens = np.repeat(3 * d, 3)                                       # each of v's 3 rows has them all
-        first = np.repeat(3 * (vstart[v0:v1] - vstart[v0]), 3)
-        lo, hi = ia[3 * v0], ia[3 * v1]
-        ja[lo:hi] = cols_v[np.repeat(first - (ia[3 * v0:3 * v1] - lo), lens) + np.arange(hi - lo)]
-    return ia.astype(PETSc.IntType), ja
+    (3v + a, 3w + b) for every pair of vertices v, w sharing a cell (vertex_pattern), columns sorted in each row, in
+    PETSc's index type (written in C straight from the vertices' pattern: no whole-pattern int64 index arrays)."""
+    return expand_pattern(*vertex_pattern(sp), PETSc.IntType)
 
 
 def upper_block_pattern(sp):
     """(block row pointers, global block columns) of the tangent's upper block triangle in this rank's owned rows
     (the SBAIJ pattern: vertex pairs v <= w, global numbers, sharing a cell)."""
-    row, col = vertex_pairs(sp, upper=True)
-    bi = np.zeros(sp.n_owned + 1, np.int64)
-    bi[1:] = np.cumsum(np.bincount(row, minlength=sp.n_owned))
-    return bi.astype(PETSc.IntType), col.astype(PETSc.IntType)
+    ptr, cols = vertex_pattern(sp, upper=True)
+    return ptr.astype(PETSc.IntType), cols.astype(PETSc.IntType)
 
 
 class CellMap:
@@ -106,36 +92,18 @@ class CellMap:
     the length of each of its vertices' rows (`rowlen`): the three rows of a vertex have the same columns,
     and a vertex's three columns are consecutive, so entry (3a+i, 3b+j) is at base[4a+b] + i rowlen[a] + j.
     A Newton step adds the cell blocks straight into the values (kernels.scatter_blocks) instead of
-    searching each row per block: 80 bytes per tet. Every entry's column is checked when the map is made (a
-    missing one is an error, not a drop)."""
+    searching each row per block: 80 bytes per tet. The map is made in C (kernels.cell_map: a bisection per
+    block), every entry's column checked (a missing one is an error, not a drop)."""
 
-    def __init__(self, sp, blocks, ia, ja, chunk):
+    def __init__(self, sp, blocks, ia, ja):
         if len(ja) >= 2 ** 31:
             raise RuntimeError(f"the tangent's diagonal block has {len(ja)} entries on one rank (the direct map "
                                "holds int32 positions): use more ranks or -assembly coo")
-        own = owned_index(sp)
-        nc, nn = blocks.shape
-        base = np.full((nc, nn * nn), -1, np.int32)
-        rowlen = np.zeros((nc, nn), np.int32)
-        interior = (own[blocks] >= 0).all(axis=1)
-        ia64 = ia.astype(np.int64)
-        i3, j3 = np.arange(3)[:, None], np.arange(3)[None, :]
-        for lo in range(0, nc, chunk):
-            hi = min(lo + chunk, nc)
-            sel = np.flatnonzero(interior[lo:hi])
-            r = 3 * own[blocks[lo:hi][sel]]                           # first dof row of each node (m, nn)
-            L = ia64[r + 1] - ia64[r]
-            # each (a, b): the position of column 3 w_b in row 3 v_a
-            p = _row_search(ia64, ja, np.repeat(r, nn, axis=1).ravel(), np.tile(r, (1, nn)).ravel())
-            pos = (p.reshape(-1, nn, nn)[:, :, :, None, None] + i3[None, None, None] * L[:, :, None, None, None]
-                   + j3[None, None, None])                                   # (m, a, b, i, j)
-            cols = r[:, None, :, None, None] + j3[None, None, None]     # column 3 w_b + j
-            if not np.array_equal(ja[pos], np.broadcast_to(cols, pos.shape)):
-                raise RuntimeError("a cell entry is missing from the assembled pattern")
-            base[lo + sel] = p.reshape(-1, nn * nn)
-            rowlen[lo + sel] = L
+        base, rowlen, missing = cell_map(blocks, owned_index(sp), ia, ja)
+        if missing:
+            raise RuntimeError("a cell entry is missing from the assembled pattern")
         self.nnz, self.base, self.rowlen = len(ja), base, rowlen
-        self.boundary = np.flatnonzero(~interior)
+        self.boundary = np.flatnonzero(base[:, 0] < 0)
 
     def scatter(self, vals, lo, hi, arr):
         """arr (the diagonal part's values) += the interior cells' blocks of cells lo..hi-1 (vals)."""
@@ -157,7 +125,7 @@ class CellFill:
     Alltoallv, BoundaryExchange). The tangent's fill (jacobians.AssembledChunked) and p-multigrid's P1 operator
     (pmg.GalerkinCells, on the vertices' space) are both this; the caller adds single entries and assembles."""
 
-    def __init__(self, sp, blocks, chunk):
+    def __init__(self, sp, blocks):
         A = self.A = PETSc.Mat().create(comm=sp.comm)
         n = 3 * sp.n_owned
         A.setSizes(((n, PETSc.DETERMINE), (n, PETSc.DETERMINE)), bsize=3)
@@ -168,7 +136,7 @@ class CellFill:
         self.row0 = A.getOwnershipRange()[0] // 3         # this rank's first vertex (block row), global
         self.Ad = A.getDiagonalBlock() if sp.mpi.size > 1 else A
         with SeqAIJRowIJ(self.Ad) as (ia, ja):
-            self.map = CellMap(sp, blocks, ia, ja, chunk)
+            self.map = CellMap(sp, blocks, ia, ja)
             self.exchange = (BoundaryExchange(sp, A, blocks, self.map.boundary, self.row0, ia, ja)
                              if sp.mpi.size > 1 else None)
         self.n3 = 3 * blocks.shape[1]

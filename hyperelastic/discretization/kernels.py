@@ -63,6 +63,16 @@ _lib.he_scatter_upper.restype = None
 _lib.he_scatter_upper.argtypes = [_I, ctypes.c_int, _P, _P, _P]
 _lib.he_p1_galerkin.restype = None
 _lib.he_p1_galerkin.argtypes = [_I, _P, _P, _P]
+_lib.he_adjacency.restype = ctypes.c_int
+_lib.he_adjacency.argtypes = [_I, ctypes.c_int, _P, _I, _P, _I, _P, ctypes.c_int, _P, _P]
+_lib.he_csr_union.restype = None
+_lib.he_csr_union.argtypes = [_I, _P, _P, _P, _P, _P, _P]
+_lib.he_expand_pattern.restype = None
+_lib.he_expand_pattern.argtypes = [_I, _P, _P, ctypes.c_int, _P, _P]
+_lib.he_cell_map.restype = _I
+_lib.he_cell_map.argtypes = [_I, ctypes.c_int, _P, _P, _P, _P, ctypes.c_int, _P, _P]
+_lib.he_upper_map.restype = _I
+_lib.he_upper_map.argtypes = [_I, ctypes.c_int, _P, _P, _P, _P, ctypes.c_int, _P]
 _lib.he_pressure_terms.restype = None
 _lib.he_pressure_terms.argtypes = [_I, ctypes.c_int, ctypes.c_int, _P, _P, _P, _P, _P, _P, _P, _P, _P, _P]
 
@@ -144,6 +154,81 @@ def p1_galerkin(edges, vals, out):
     assert e.shape == (6, 2) and vals.shape == (nc, 30, 30) and out.shape == (nc, 12, 12)
     assert vals.dtype == out.dtype == np.float64 and vals.flags.c_contiguous and out.flags.c_contiguous
     _lib.he_p1_galerkin(nc, e.ctypes.data, vals.ctypes.data, out.ctypes.data)
+
+
+def _index_args(*arrays):
+    """PETSc's index arrays for the set-up's C functions: (is it 64-bit, their pointers)."""
+    idx64 = arrays[0].dtype == np.int64
+    assert all(a.dtype == arrays[0].dtype and a.dtype in (np.int32, np.int64) and a.flags.c_contiguous for a in arrays)
+    return int(idx64), [a.ctypes.data for a in arrays]
+
+
+def adjacency(cells, g, rows, upper=False):
+    """(ptr (nr + 1), cols): for each row vertex rows[k] (local index), the sorted distinct global numbers g[w] of
+    the local vertices sharing a cell with it (cells (nc, nn), local indices), only those >= g[rows[k]] when upper;
+    its columns are cols[ptr[k]:ptr[k + 1]]. One pass over each vertex's cells (no key arrays of all the pairs)."""
+    cells = np.ascontiguousarray(cells, dtype=IDX)
+    g, rows = (np.ascontiguousarray(a, dtype=np.int64) for a in (g, rows))
+    nc, nn = cells.shape if cells.ndim == 2 else (0, 4)
+    ptr = np.empty(len(rows) + 1, np.int64)
+    args = (nc, nn, cells.ctypes.data, len(g), g.ctypes.data, len(rows), rows.ctypes.data, int(upper), ptr.ctypes.data)
+    if _lib.he_adjacency(*args, None):
+        raise MemoryError("the tangent's pattern: out of memory")
+    cols = np.empty(ptr[-1], np.int64)
+    if _lib.he_adjacency(*args, cols.ctypes.data):
+        raise MemoryError("the tangent's pattern: out of memory")
+    return ptr, cols
+
+
+def csr_union(a, b):
+    """The union (ptr, cols) of two patterns (ptr, cols) of the same rows, each row's columns sorted and distinct."""
+    (ia, ja), (ib, jb) = ((np.ascontiguousarray(p, np.int64), np.ascontiguousarray(c, np.int64)) for p, c in (a, b))
+    n = len(ia) - 1
+    ic = np.empty(n + 1, np.int64)
+    _lib.he_csr_union(n, ia.ctypes.data, ja.ctypes.data, ib.ctypes.data, jb.ctypes.data, ic.ctypes.data, None)
+    jc = np.empty(ic[-1], np.int64)
+    _lib.he_csr_union(n, ia.ctypes.data, ja.ctypes.data, ib.ctypes.data, jb.ctypes.data, ic.ctypes.data,
+                      jc.ctypes.data)
+    return ic, jc
+
+
+def expand_pattern(vptr, vcols, index_type):
+    """(ia, ja) in index_type (PETSc's): the scalar pattern, 3 dofs a vertex, of a vertex pattern (vptr, vcols:
+    global vertex numbers) — dof row 3v + a has the columns 3w + b of every w in v's row, in order."""
+    vptr, vcols = np.ascontiguousarray(vptr, np.int64), np.ascontiguousarray(vcols, np.int64)
+    n = len(vptr) - 1
+    ia, ja = np.empty(3 * n + 1, index_type), np.empty(9 * len(vcols), index_type)
+    idx64, (pi, pj) = _index_args(ia, ja)
+    _lib.he_expand_pattern(n, vptr.ctypes.data, vcols.ctypes.data, idx64, pi, pj)
+    return ia, ja
+
+
+def cell_map(cells, own, ia, ja):
+    """(base (nc, nn^2), rowlen (nc, nn), int32, the number of cells with an entry missing): for each cell whose
+    nodes this rank all owns (own: per local node its index among the owned ones, -1 elsewhere), where its node
+    pair (a, b)'s 3x3 block starts in the values of the scalar CSR pattern ia/ja (owned rows and columns 3 own + i)
+    and the length of node a's rows; -1 and 0 for the other cells."""
+    cells = np.ascontiguousarray(cells, dtype=IDX)
+    own = np.ascontiguousarray(own, np.int64)
+    nc, nn = cells.shape
+    base, rowlen = np.empty((nc, nn * nn), np.int32), np.empty((nc, nn), np.int32)
+    idx64, (pi, pj) = _index_args(ia, ja)
+    missing = _lib.he_cell_map(nc, nn, cells.ctypes.data, own.ctypes.data, pi, pj, idx64, base.ctypes.data,
+                               rowlen.ctypes.data)
+    return base, rowlen, missing
+
+
+def upper_map(cells, own, si, sj):
+    """(pos (nc, nn^2) int32, the number of pairs missing): for each cell whose nodes this rank all owns, the block
+    index in the block CSR si/sj (the upper block triangle, owned indices) of its node pair (a, b) where own[a] <=
+    own[b], -1 elsewhere."""
+    cells = np.ascontiguousarray(cells, dtype=IDX)
+    own = np.ascontiguousarray(own, np.int64)
+    nc, nn = cells.shape
+    pos = np.empty((nc, nn * nn), np.int32)
+    idx64, (pi, pj) = _index_args(si, sj)
+    missing = _lib.he_upper_map(nc, nn, cells.ctypes.data, own.ctypes.data, pi, pj, idx64, pos.ctypes.data)
+    return pos, missing
 
 
 _bound = {}

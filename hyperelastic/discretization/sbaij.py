@@ -5,8 +5,8 @@ thirds of the tangent's memory — is not made. docs/design.md ("The assembled t
 import numpy as np
 from petsc4py import PETSc
 
-from .aij import _row_search, keep_boundary, owned_index, upper_block_pattern
-from .kernels import scatter_upper
+from .aij import keep_boundary, owned_index, upper_block_pattern
+from .kernels import scatter_upper, upper_map
 from ..core.libpetsc import SeqAIJRowIJ, SeqAIJValues
 
 
@@ -20,7 +20,7 @@ class UpperFill:
     in rows another rank owns). Single entries (effects' own, the constrained diagonal) go through MatSetValues:
     their lower-triangle halves are ignored (MAT_IGNORE_LOWER_TRIANGULAR; the tangent is symmetric)."""
 
-    def __init__(self, sp, blocks, chunk):
+    def __init__(self, sp, blocks):
         several = sp.mpi.size > 1
         S = self.S = PETSc.Mat().create(comm=sp.comm)
         n = 3 * sp.n_owned
@@ -31,27 +31,14 @@ class UpperFill:
         S.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, True)    # the pattern must be complete
         S.setOption(PETSc.Mat.Option.IGNORE_LOWER_TRIANGULAR, True)
         self.Sd = S.getDiagonalBlock() if several else S
-        own = owned_index(sp)
-        nc, nn = blocks.shape
-        interior = (own[blocks] >= 0).all(axis=1)
-        pos = np.full((nc, nn * nn), -1, np.int32)
+        nn = blocks.shape[1]
         with SeqAIJRowIJ(self.Sd, blocks=True) as (si, sj):
-            si64 = si.astype(np.int64)
             self.nblocks = len(sj)
-            for lo in range(0, nc, chunk):
-                hi = min(lo + chunk, nc)
-                sel = np.flatnonzero(interior[lo:hi])
-                o = own[blocks[lo:hi][sel]].astype(np.int64)                  # (m, nn) owned indices
-                r, c = np.repeat(o, nn, axis=1), np.tile(o, (1, nn))           # node pair (a, b) at nn a + b
-                up = r <= c
-                p = _row_search(si64, sj, r[up], c[up])
-                if not np.array_equal(sj[p], c[up]):
-                    raise RuntimeError("a cell block is missing from the SBAIJ pattern")
-                q = np.full(r.shape, -1, np.int32)
-                q[up] = p
-                pos[lo + sel] = q
+            pos, missing = upper_map(blocks, owned_index(sp), si, sj)
+        if missing:
+            raise RuntimeError("a cell block is missing from the SBAIJ pattern")
         self.pos = pos
-        self.boundary = np.flatnonzero(~interior)
+        self.boundary = np.flatnonzero(pos[:, 0] < 0)           # (an owned cell's pair (0, 0) is upper)
         g = sp.lgmap.getBlockIndices().astype(np.int64)
         cb = g[blocks[self.boundary].astype(np.int64)]
         r, c = np.repeat(cb, nn, axis=1).ravel(), np.tile(cb, (1, nn)).ravel()

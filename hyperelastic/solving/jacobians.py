@@ -201,7 +201,7 @@ class AssembledChunked(_CellFill):
         action per quadrature point), the preconditioner is built from the AIJ."""
         super().__init__(system)
         sp = system.space
-        self.fill = aij.CellFill(sp, self.blocks, self.CHUNK)
+        self.fill = aij.CellFill(sp, self.blocks)
         A = self.mat = self.fill.A
         self.Ad, self.map, self.exchange = self.fill.Ad, self.fill.map, self.fill.exchange
         # PETSc's stash is then only for effects with their own entries (face blocks): skip its communication
@@ -233,7 +233,7 @@ class AssembledSBAIJ(_CellFill):
     def __init__(self, system):
         super().__init__(system)
         sp = system.space
-        self.fill = sbaij.UpperFill(sp, self.blocks, self.CHUNK)
+        self.fill = sbaij.UpperFill(sp, self.blocks)
         self.mat = self.operator = self.fill.S
         self.nullspace = rigid_body_modes(sp, self.mat)
         self.coarse = None

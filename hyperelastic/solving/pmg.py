@@ -176,7 +176,7 @@ class GalerkinCells:
 
     def __init__(self, space, chunk, numbers):
         vs = self.vs = VertexSpace(space, numbers)
-        self.fill = aij.CellFill(vs, vs.cells, chunk)
+        self.fill = aij.CellFill(vs, vs.cells)
         self.mat = self.fill.A
         self.buf = np.empty((min(chunk, max(len(vs.cells), 1)), 12, 12))
         self.wanted = False

@@ -223,7 +223,7 @@ class Augmented:
             vs = pmg.VertexSpace(sp, pmg.coarse_numbers(sp))
             idx = np.concatenate([c.idx for c in s.couplings])
             chunk = self.nest.uu.CHUNK
-            fill = aij.CellFill(vs, np.ascontiguousarray(vs.cells[idx]), chunk)
+            fill = aij.CellFill(vs, np.ascontiguousarray(vs.cells[idx]))
             cd = (3 * sp.cells[:, :, None].astype(np.int64) + np.arange(3)).reshape(-1, 30)
             self.p0 = (fill, Pc, [s.cmask[cd[c.idx]] for c in s.couplings], chunk)
         fill, Pc, held, chunk = self.p0
