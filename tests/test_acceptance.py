@@ -114,3 +114,29 @@ def test_an_indefinite_tangent_switches_on_the_projection(tmp_path):
     assert np.abs(a["x"][-1] - b["x"][-1]).max() < 1e-7 * 0.01
     q = run_ok(base + ["-output", off, "-hessian_projection", 0])
     assert "projected" not in q.stderr and read_h5(off)["stats"]["dt"][-1] < 0.5
+
+
+def test_peak_memory_is_the_runs_own_not_its_parents(tmp_path):
+    """The output's peak_rss_mb is the run's own high-water mark (VmHWM), not getrusage's ru_maxrss, which Linux
+    keeps across fork and exec: started from a process holding 600 MB, a small run read ~650 MB before. Checked
+    against GNU time's figure for the same command where the machine has /usr/bin/time (its own fork is small)."""
+    import shutil
+    import subprocess
+    import sys
+    import h5py
+    big = np.ones(600 * 2 ** 20 // 8)                       # 600 MB, touched: resident in this process
+    out = tmp_path / "m.h5"
+    cmd = [sys.executable, "-m", "hyperelastic", "run", "bend", "-level", "1", "-final_time", "0", "-quiet",
+           "-output", str(out)]
+    p = subprocess.run(cmd, capture_output=True, text=True)
+    assert p.returncode == 0, p.stderr
+    with h5py.File(out) as f:
+        mb = float(f.attrs["peak_rss_mb"])
+    assert 20 < mb < 400, mb
+    timer = shutil.which("time", path="/usr/bin")
+    if timer:
+        p = subprocess.run([timer, "-f", "maxrss %M"] + cmd, capture_output=True, text=True)
+        assert p.returncode == 0, p.stderr
+        kib = float(p.stderr.split("maxrss")[-1].split()[0])
+        assert abs(mb - kib / 1024) < 0.15 * mb, (mb, kib / 1024)
+    assert big[-1] == 1.0

@@ -1,5 +1,6 @@
 """The Jacobian modes apply the same operator: shell and assembled agree to 1e-12, PETSc's MFFD
 to 1e-5, and the tangent is the derivative of the residual (central differences)."""
+import itertools
 import re
 
 import numpy as np
@@ -404,3 +405,83 @@ def test_constant_loads_summed_once_per_step(petsc):
         assert np.abs(R.getArray() - ref.getArray()).max() <= 1e-12 * np.abs(ref.getArray()).max()
         out.append(R.getArray().copy())
     assert np.abs(out[1] - out[0]).max() > 1e-6 * np.abs(out[0]).max()     # the traction grew
+
+
+def test_set_up_pattern_and_maps_in_c_match_a_brute_force():
+    """The set-up's C pieces (issue 74) against numpy written from their definitions, on random cells of 10 nodes
+    over 60 vertices numbered globally by a random permutation: each row's neighbours (all, and the upper ones), the
+    union of two patterns, the scalar pattern of 3 dofs a vertex, and where each owned cell's blocks sit in it (a
+    cell with a node not owned gets -1; a pattern with an entry removed is reported)."""
+    from hyperelastic.discretization import kernels as K
+    rng = np.random.default_rng(7)
+    nlv, nc, nn = 60, 80, 10
+    cells = np.array([rng.choice(nlv, nn, replace=False) for _ in range(nc)], np.int32)
+    g = rng.permutation(nlv).astype(np.int64) + 1000
+    rows = rng.permutation(nlv)[:45]
+    for upper in (False, True):
+        ptr, cols = K.adjacency(cells, g, rows, upper)
+        for k, r in enumerate(rows):
+            want = np.unique(g[cells[(cells == r).any(axis=1)]])
+            want = want[want >= g[r]] if upper else want
+            assert np.array_equal(cols[ptr[k]:ptr[k + 1]], want)
+    a = (np.array([0, 2, 2, 5]), np.array([1, 4, 0, 3, 9]))
+    b = (np.array([0, 1, 3, 4]), np.array([4, 2, 7, 3]))
+    ic, jc = K.csr_union(a, b)
+    assert np.array_equal(ic, [0, 2, 4, 7]) and np.array_equal(jc, [1, 4, 2, 7, 0, 3, 9])
+    own = np.full(nlv, -1, np.int64)                        # owned: 50 of the vertices, numbered 0..49
+    owned = rng.permutation(nlv)[:50]
+    own[owned] = np.arange(50)
+    vptr, vcols = K.adjacency(cells, own, owned)            # (the owned neighbours, by owned index: a diagonal block)
+    keep = vcols >= 0
+    vptr = np.concatenate([[0], np.cumsum([keep[vptr[v]:vptr[v + 1]].sum() for v in range(50)])])
+    ia, ja = K.expand_pattern(vptr, vcols[keep], np.int32)
+    for v in range(50):
+        for a_ in range(3):
+            assert np.array_equal(ja[ia[3 * v + a_]:ia[3 * v + a_ + 1]],
+                                  (3 * vcols[keep][vptr[v]:vptr[v + 1]][:, None] + np.arange(3)).ravel())
+    base, rowlen, missing = K.cell_map(cells, own, ia, ja)
+    assert missing == 0
+    for e in range(nc):
+        o = own[cells[e]]
+        if (o < 0).any():
+            assert (base[e] == -1).all()
+            continue
+        for a_, b_ in itertools.product(range(nn), repeat=2):
+            for i, j in itertools.product(range(3), repeat=2):
+                p = base[e, nn * a_ + b_] + i * rowlen[e, a_] + j
+                assert ia[3 * o[a_] + i] <= p < ia[3 * o[a_] + i + 1] and ja[p] == 3 * o[b_] + j
+    interior = np.flatnonzero((own[cells] >= 0).all(axis=1))
+    assert len(interior)
+    holed = ja.copy()
+    e = interior[0]
+    holed[base[e, 1]] = -5                                   # an entry of the first owned cell's block (0, 1)
+    assert K.cell_map(cells, own, ia, holed)[2] == 1
+    uptr, ucols = K.adjacency(cells, own, owned, upper=True)
+    ucols = ucols.copy()
+    pos, missing = K.upper_map(cells, own, uptr.astype(np.int32), ucols.astype(np.int32))
+    assert missing == 0
+    for e in interior:
+        o = own[cells[e]]
+        for a_, b_ in itertools.product(range(nn), repeat=2):
+            p = pos[e, nn * a_ + b_]
+            if o[a_] <= o[b_]:
+                assert uptr[o[a_]] <= p < uptr[o[a_] + 1] and ucols[p] == o[b_]
+            else:
+                assert p == -1
+
+
+def test_element_geometry_in_c_matches_numpy(petsc):
+    """The P2 cells' geometry in C (kernels.element_geometry: J^-1 by cofactors, |det J| w) against
+    element.reference.geometry (numpy's LU inverse and determinant) on a curved bar's cells."""
+    from hyperelastic.discretization.kernels import element_geometry
+    from hyperelastic.element.reference import TET_RULES, geometry, tet_shapes
+    sp = make_model(petsc, options=[("level", "2"), ("order", "2")]).space
+    X = sp.X + 0.05 * np.sin(sp.X[:, [1, 2, 0]])                # curved cells
+    for deg in (2, 5):
+        pts, w = TET_RULES[deg]
+        dN = np.ascontiguousarray(tet_shapes(2, pts)[1])
+        Jinv, wq, _ = geometry(X, sp.cells, dN, w)
+        geo = element_geometry(X, sp.cells, dN, w)
+        assert np.allclose(geo[..., :9], Jinv.reshape(len(sp.cells), -1, 9), rtol=0, atol=1e-13 * np.abs(Jinv).max())
+        assert np.allclose(geo[..., 9], wq, rtol=1e-13, atol=0)
+        assert np.array_equal(element_geometry(X, sp.cells, dN, w, full=False), geo[..., 9])

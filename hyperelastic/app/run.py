@@ -264,9 +264,24 @@ def _check_restart(state, model, scene, path):
                         f"(-final_time {scene.final_time:g}); give a later -final_time to continue")
 
 
+def peak_rss_kib():
+    """This process's peak resident memory [KiB]: Linux's VmHWM (/proc/self/status), the high-water mark of this
+    process image's own memory. Not getrusage's ru_maxrss there: Linux keeps that across fork and exec, so a run
+    started by a large process (a benchmark script, a test runner) reported its parent's size as its own (a run of
+    100 MB started from a 1 GiB Python process read 1,062 MB). getrusage elsewhere."""
+    try:
+        with open("/proc/self/status") as fh:
+            for line in fh:
+                if line.startswith("VmHWM:"):
+                    return float(line.split()[1])
+    except OSError:
+        pass
+    return float(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss)
+
+
 def peak_rss_mb(comm, every=False):
-    """Peak resident memory [MB] of the most loaded rank so far (getrusage: KiB on Linux); every: each rank's."""
-    kib = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    """Peak resident memory [MB] of the most loaded rank so far (peak_rss_kib); every: each rank's."""
+    kib = peak_rss_kib()
     if every:
         return np.array(comm.tompi4py().allgather(kib)) / 1024.0
     return comm.tompi4py().allreduce(kib, op=MPI.MAX) / 1024.0

@@ -407,6 +407,56 @@ void he_p1_galerkin(int64_t nc, const int32_t *edges, const double *vals, double
   }
 }
 
+/* ---- the cells' reference geometry, once per run ---- */
+
+/* Ai = A^-1 (3x3, row-major) by the cofactors, cof(A)^T / det A; returns det A. */
+HE_INLINE double inv3(const double *A, double *Ai) {
+  double C[9];
+  cof_mixed(A, A, C);
+  const double d = A[0] * C[0] + A[1] * C[1] + A[2] * C[2];
+  for (int i = 0; i < 3; i++)
+    for (int j = 0; j < 3; j++) Ai[3 * i + j] = C[3 * j + i] / d;
+  return d;
+}
+
+/* Linear tetrahedra: Dminv (nc x 9) = Dm^-1 with Dm = [X1-X0 | X2-X0 | X3-X0] (thesis eq. 4.29), vol = |det Dm| / 6. */
+void he_p1_geometry(int64_t nc, const idx_t *cells, const double *X, double *Dminv, double *vol) {
+  for (int64_t e = 0; e < nc; e++) {
+    const idx_t *c = cells + 4 * e;
+    const double *x0 = X + 3 * (int64_t)c[0];
+    double Dm[9];
+    for (int i = 0; i < 3; i++)
+      for (int k = 0; k < 3; k++) Dm[3 * i + k] = X[3 * (int64_t)c[k + 1] + i] - x0[i];
+    vol[e] = fabs(inv3(Dm, Dminv + 9 * e)) / 6.0;
+  }
+}
+
+/* Elements with quadrature: per (cell, point) of a rule with reference gradients dN (nq x nn x 3) and weights w (nq),
+ * J = dX/dxi = sum_a X_a dN_a^T; where not NULL, geo (nc x nq x 10) = J^-1 (9, row-major) and |det J| w_q, and
+ * wq (nc x nq) = |det J| w_q. */
+void he_egeometry(int64_t nc, int nn, int nq, const idx_t *cells, const double *X, const double *dN, const double *w,
+                  double *geo, double *wq) {
+  for (int64_t e = 0; e < nc; e++) {
+    const idx_t *c = cells + (int64_t)nn * e;
+    for (int q = 0; q < nq; q++) {
+      double J[9] = {0}, Ji[9];
+      const double *dq = dN + 3 * nn * q;
+      for (int a = 0; a < nn; a++) {
+        const double *xa = X + 3 * (int64_t)c[a];
+        for (int i = 0; i < 3; i++)
+          for (int j = 0; j < 3; j++) J[3 * i + j] += xa[i] * dq[3 * a + j];
+      }
+      const double d = fabs(inv3(J, Ji)) * w[q];
+      if (geo) {
+        double *g = geo + 10 * ((int64_t)nq * e + q);
+        for (int k = 0; k < 9; k++) g[k] = Ji[k];
+        g[9] = d;
+      }
+      if (wq) wq[(int64_t)nq * e + q] = d;
+    }
+  }
+}
+
 /* ---- the set-up's integer work: the tangent's exact pattern and where each cell's blocks go in it ----
  * (aij.vertex_pairs, aij.exact_pattern, aij.CellMap, sbaij.UpperFill: one pass over the cells in place of numpy sorts
  * of mesh-sized key arrays). PETSc's index arrays are read and written through PI/PW below: 32- or 64-bit (idx64). */

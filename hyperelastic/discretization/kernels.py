@@ -63,6 +63,10 @@ _lib.he_scatter_upper.restype = None
 _lib.he_scatter_upper.argtypes = [_I, ctypes.c_int, _P, _P, _P]
 _lib.he_p1_galerkin.restype = None
 _lib.he_p1_galerkin.argtypes = [_I, _P, _P, _P]
+_lib.he_p1_geometry.restype = None
+_lib.he_p1_geometry.argtypes = [_I, _P, _P, _P, _P]
+_lib.he_egeometry.restype = None
+_lib.he_egeometry.argtypes = [_I, ctypes.c_int, ctypes.c_int, _P, _P, _P, _P, _P, _P]
 _lib.he_adjacency.restype = ctypes.c_int
 _lib.he_adjacency.argtypes = [_I, ctypes.c_int, _P, _I, _P, _I, _P, ctypes.c_int, _P, _P]
 _lib.he_csr_union.restype = None
@@ -154,6 +158,31 @@ def p1_galerkin(edges, vals, out):
     assert e.shape == (6, 2) and vals.shape == (nc, 30, 30) and out.shape == (nc, 12, 12)
     assert vals.dtype == out.dtype == np.float64 and vals.flags.c_contiguous and out.flags.c_contiguous
     _lib.he_p1_galerkin(nc, e.ctypes.data, vals.ctypes.data, out.ctypes.data)
+
+
+def p1_geometry(X, cells):
+    """(Dminv (nc, 3, 3), vol (nc,)) of linear tetrahedra: Dm^-1 (thesis eq. 4.29 in matrix form, Dm = [X1-X0 | X2-X0 |
+    X3-X0]) by its cofactors and the volume |det Dm| / 6, in C."""
+    X, cells = np.ascontiguousarray(X, np.float64), np.ascontiguousarray(cells, dtype=IDX)
+    nc = len(cells)
+    Dminv, vol = np.empty((nc, 3, 3)), np.empty(nc)
+    _lib.he_p1_geometry(nc, cells.ctypes.data, X.ctypes.data, Dminv.ctypes.data, vol.ctypes.data)
+    return Dminv, vol
+
+
+def element_geometry(X, cells, dN, w, full=True):
+    """Per (cell, point) of a rule (reference gradients dN (nq, nn, 3), weights w (nq,)) of cells (nc, nn) with node
+    coordinates X: geo (nc, nq, 10) = J^-1 (row-major) and |det J| w_q when full, else the weights (nc, nq) alone, in
+    C (element.reference.geometry is the same in numpy)."""
+    X, cells = np.ascontiguousarray(X, np.float64), np.ascontiguousarray(cells, dtype=IDX)
+    dN, w = np.ascontiguousarray(dN, np.float64), np.ascontiguousarray(w, np.float64)
+    nc, nn = cells.shape
+    nq = len(w)
+    assert dN.shape == (nq, nn, 3)
+    out = np.empty((nc, nq, 10) if full else (nc, nq))
+    _lib.he_egeometry(nc, nn, nq, cells.ctypes.data, X.ctypes.data, dN.ctypes.data, w.ctypes.data,
+                      out.ctypes.data if full else None, None if full else out.ctypes.data)
+    return out
 
 
 def _index_args(*arrays):
@@ -524,7 +553,6 @@ class ElementCells:
     integrals of a body load, the inversion guard's step bound, stored blocks."""
 
     def __init__(self, nodes, X, element, geo=None, mass_w=None):
-        from ..element.reference import geometry
         self.element = element
         self.cells = np.ascontiguousarray(nodes, dtype=IDX)
         self.nc, self.nn = self.cells.shape
@@ -533,14 +561,13 @@ class ElementCells:
         self.dN = np.ascontiguousarray(dN, dtype=np.float64)
         self.nq = len(w)
         if geo is None:
-            Jinv, wq, _ = geometry(X, self.cells, self.dN, w)
-            geo = np.concatenate([Jinv.reshape(self.nc, self.nq, 9), wq[:, :, None]], axis=2)
+            geo = element_geometry(X, self.cells, self.dN, w)
         self.geo = np.ascontiguousarray(geo, dtype=np.float64)
         mp, mw = element.mass_rule()
         from ..element.reference import tet_shapes
         self.Nm = np.ascontiguousarray(tet_shapes(element.order, mp)[0])
         if mass_w is None:
-            _, mass_w, _ = geometry(X, self.cells, np.ascontiguousarray(tet_shapes(element.order, mp)[1]), mw)
+            mass_w = element_geometry(X, self.cells, tet_shapes(element.order, mp)[1], mw, full=False)
         self.mass_w = np.ascontiguousarray(mass_w, dtype=np.float64)
         self.nqm = len(mw)
         self.vol = self.mass_w.sum(axis=1)

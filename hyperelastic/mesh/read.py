@@ -306,9 +306,7 @@ def interpolate(tets, cells, weights, values):
 def flat_or_inverted(points, tets):
     """(signed volumes, the first cell of zero volume (|V| <= 1e-12 of its longest edge cubed) or None, the first
     inverted cell or None) of cells `tets`: check()'s test, and each rank's of its own cells (discretization.slices)."""
-    V = signed_volumes(points, tets)
-    e = np.stack([points[tets[:, b]] - points[tets[:, a]] for a, b in ((0, 1), (0, 2), (0, 3), (1, 2))])
-    lmax = np.linalg.norm(e, axis=-1).max(axis=0)
+    V, lmax = signed_volumes(points, tets, longest=True)
     tiny, negative = np.flatnonzero(np.abs(V) <= 1e-12 * lmax ** 3), np.flatnonzero(V < 0)
     return V, int(tiny[0]) if len(tiny) else None, int(negative[0]) if len(negative) else None
 

@@ -36,11 +36,18 @@ MATERIAL_LABEL = "material"   # value i+1 on the cells of the i-th region of -re
 REGION_LABEL = "Cell Sets"     # the DMPlex label of the regions (value: physical tag), as PETSc's gmsh reader
 
 
-def signed_volumes(points, tets):
-    """Volume of each tetrahedron, positive when (X1-X0, X2-X0, X3-X0) is right-handed."""
+def signed_volumes(points, tets, longest=False):
+    """Volume of each tetrahedron (the first four columns of tets), positive when (X1-X0, X2-X0, X3-X0) is
+    right-handed: the triple product (X1-X0) . ((X2-X0) x (X3-X0)) / 6 (a closed form, not LAPACK's LU of each
+    3x3). longest: also each one's longest edge of (0,1), (0,2), (0,3), (1,2) (the mesh check's scale)."""
     X0 = points[tets[:, 0]]
-    D = np.stack([points[tets[:, 1]] - X0, points[tets[:, 2]] - X0, points[tets[:, 3]] - X0], axis=-1)
-    return np.linalg.det(D) / 6.0
+    a, b, c = (points[tets[:, k]] - X0 for k in (1, 2, 3))
+    bc = np.cross(b, c)
+    V = np.einsum("ij,ij->i", a, bc) / 6.0
+    if not longest:
+        return V
+    sq = [np.einsum("ij,ij->i", e, e) for e in (a, b, c, b - a)]            # (edge (1, 2): X2 - X1 = b - a)
+    return V, np.sqrt(np.maximum.reduce(sq))
 
 
 def facet_label(name):
