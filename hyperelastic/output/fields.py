@@ -188,22 +188,24 @@ def _per_cell(fn, F, *args):
         return np.array(out)
 
 
-CHUNK = 32768     # cells per vectorized evaluation: the (n,3,3) temporaries stay ~10 MB, not ~500 B/tet
+CHUNK = 32768     # points per vectorized evaluation: the (n,3,3) temporaries stay ~10 MB, not ~500 B/tet (P2: the
+#                   cells' quadrature points, 8,192 cells of 4: a frame of 28k P2 cells in one piece peaked 52 MB higher)
 
 
 def cell_fields(kernels, x, names=CELL_FIELDS):
     """{name: (nc,) or (nc, 6) array} of `names` (CELL_FIELDS, TENSOR_FIELDS) on the local cells of `kernels`
-    at positions x (with a material per region: each region's cells by its material), CHUNK cells at a time."""
+    at positions x (with a material per region: each region's cells by its material), CHUNK points at a time."""
     nn = kernels.parts[0][1].nn if kernels.parts else 4
     shape = {**{k: (kernels.nc, 6) for k in TENSOR_FIELDS}, AT_NODES: (kernels.nc, 6 * nn)}
     out = {k: np.full(shape.get(k, kernels.nc), np.nan) for k in names}
     for idx, k in kernels.parts:             # one material (CellKernels), or one per region
         cells = np.arange(kernels.nc)[idx]   # the local cells of this material
-        for lo in range(0, k.nc, CHUNK):
-            part = (_compiled_fields(k, x, lo, min(lo + CHUNK, k.nc), names) if k.nn == 4 else
-                    _element_fields(k, x, lo, min(lo + CHUNK, k.nc), names))
+        n = CHUNK if k.nn == 4 else max(1, CHUNK // k.geometry.nq)
+        for lo in range(0, k.nc, n):
+            part = (_compiled_fields(k, x, lo, min(lo + n, k.nc), names) if k.nn == 4 else
+                    _element_fields(k, x, lo, min(lo + n, k.nc), names))
             for name in names:
-                out[name][cells[lo:lo + CHUNK]] = part[name]
+                out[name][cells[lo:lo + n]] = part[name]
     return out
 
 

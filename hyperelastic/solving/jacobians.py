@@ -114,12 +114,15 @@ class _CellFill:
     """What the direct fills share: the cell effects' blocks a chunk of cells at a time with the constrained rows and
     columns zeroed (`_cell_blocks`), the effects' own entries (`other`: effect, count, kept, local rows, columns)
     and the constrained dofs' diagonal (`c_local`)."""
-    CHUNK = 8192
+    CHUNK = 8192                 # cells a chunk at most (linear tetrahedra: 9.4 MB of 12x12 blocks)
+    CHUNK_BYTES = 16 * 2 ** 20   # and its blocks at most this (P2's 30x30: 2,330 cells, not 8,192 in 59 MB)
     fills_coarse = False
 
     def __init__(self, system):
         self.system = system
         sp = system.space
+        n3 = 3 * sp.cells.shape[1]
+        self.chunk = max(256, min(self.CHUNK, self.CHUNK_BYTES // (8 * n3 * n3)))
         self._buf = None                                       # the chunk's cell blocks (_fill)
         self.cell_effects = [e for e in system.effects if e.cell_blocks]
         cm = system.cmask
@@ -155,7 +158,7 @@ class _CellFill:
         """Each of `fills` (begin, add(vals, lo, hi), finish: aij.CellFill, sbaij.UpperFill, pmg.GalerkinCells) given
         the cell blocks a chunk of cells at a time (_cell_blocks)."""
         nc, n3 = len(self.blocks), 3 * self.blocks.shape[1]
-        shape = (min(self.CHUNK, nc), n3, n3)
+        shape = (min(self.chunk, nc), n3, n3)
         if self._buf is None or self._buf.shape != shape:
             # kept from one Jacobian to the next: a P2 chunk is 59 MB, above glibc's largest mmap threshold (32 MB),
             # so a new one each time was a fresh mapping, faulted in again (0.5 s of system time in a 10 s P2 run)
@@ -163,8 +166,8 @@ class _CellFill:
         buf = self._buf
         for f in fills:
             f.begin()
-        for lo in range(0, nc, self.CHUNK):
-            hi = min(lo + self.CHUNK, nc)
+        for lo in range(0, nc, self.chunk):
+            hi = min(lo + self.chunk, nc)
             vals = self._cell_blocks(buf[:hi - lo], lo, hi)
             for f in fills:
                 f.add(vals, lo, hi)
@@ -187,7 +190,7 @@ class _CellFill:
 
 class AssembledChunked(_CellFill):
     """The exact tangent as an AIJ matrix (block size 3) with its exact pattern preallocated
-    (aij.exact_pattern, on any number of ranks), filled per Newton step CHUNK cells at a time: the 12x12
+    (aij.exact_pattern, on any number of ranks), filled per Newton step a chunk of cells at a time: the 12x12
     blocks of cells whose vertices this rank owns are added straight into the diagonal block's CSR values
     (aij.CellMap), the others (at a partition boundary) at positions found once, through one Alltoallv for
     the rows another rank owns (aij.BoundaryExchange). No per-entry index arrays and no whole-mesh
@@ -209,7 +212,7 @@ class AssembledChunked(_CellFill):
         if self.exchange is not None and not sp.mpi.allreduce(len(self.other)):
             A.setOption(PETSc.Mat.Option.NO_OFF_PROC_ENTRIES, True)
         self.nullspace = rigid_body_modes(sp, A)
-        self.copy = aij.SBAIJCopy(sp, A, self.Ad, self.fill.row0, self.CHUNK) if storage == "sbaij" else None
+        self.copy = aij.SBAIJCopy(sp, A, self.Ad, self.fill.row0, self.chunk) if storage == "sbaij" else None
         # the Mat the Krylov method multiplies by: the AIJ, its SBAIJ copy, or (shell) the cells' action
         self.operator = (ExactShell(system).mat if storage == "shell" else A if self.copy is None else self.copy.S)
 

@@ -225,7 +225,7 @@ class Levels:
         numbers = coarse_numbers(space)
         self.galerkin = None
         if op is not None and op.fills_coarse:
-            self.galerkin = op.coarse = GalerkinCells(space, op.CHUNK, numbers)
+            self.galerkin = op.coarse = GalerkinCells(space, op.chunk, numbers)
         self.P, coords = prolongation(space, numbers)
         pc.setMGInterpolation(1, self.P)
         self.coarse = pc.getMGCoarseSolve()

@@ -222,7 +222,7 @@ class Augmented:
             Pc = np.kron(p1_at_nodes(), np.eye(3))        # (30, 12): a cell's rows of P, per component
             vs = pmg.VertexSpace(sp, pmg.coarse_numbers(sp))
             idx = np.concatenate([c.idx for c in s.couplings])
-            chunk = self.nest.uu.CHUNK
+            chunk = self.nest.uu.chunk
             fill = aij.CellFill(vs, np.ascontiguousarray(vs.cells[idx]))
             cd = (3 * sp.cells[:, :, None].astype(np.int64) + np.arange(3)).reshape(-1, 30)
             self.p0 = (fill, Pc, [s.cmask[cd[c.idx]] for c in s.couplings], chunk)
