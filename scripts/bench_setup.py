@@ -18,6 +18,7 @@ import logging
 import os
 import subprocess
 import sys
+import tempfile
 
 import h5py
 import numpy as np
@@ -31,7 +32,9 @@ import launch  # noqa: E402
 
 
 def _run(cmd, env):
-    p = subprocess.run(cmd, capture_output=True, text=True, env=env)
+    # (run from $TMPDIR: `python -m` puts the working directory first on sys.path, so a run started in a checkout
+    # would import that checkout's package whatever --code's PYTHONPATH says)
+    p = subprocess.run(cmd, capture_output=True, text=True, env=env, cwd=tempfile.gettempdir())
     if p.returncode:
         sys.exit(f"failed: {' '.join(map(str, cmd))}\n{p.stderr[-2000:]}")
 
