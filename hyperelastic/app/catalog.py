@@ -109,8 +109,8 @@ TAIL = (
     Row(("jacobian",), "-jacobian MODE", "`assembled` (AIJ, block size 3), `shell` (exact, matrix-free), "
         "`seed_fd`, `seed_fd2` (the thesis' formulas); not with `-snes_mf`, which uses none", _S.jacobian),
     Row(("assembly",), "-assembly setvalues|coo", "how the assembled tangent is filled: `setvalues` preallocates the "
-        "AIJ with its exact pattern (from the cell adjacency, on any number of ranks) and adds the 12×12 cell blocks, 8192 cells "
-        "at a time, straight into its values through a per-cell map of positions (~1.0 KB/tet in all at 660k tets; "
+        "AIJ with its exact pattern (from the cell adjacency, on any number of ranks) and adds the cell blocks a chunk at a "
+        "time (8,192 linear cells, 16 MB of blocks at most), straight into its values through a per-cell map of positions (~1.0 KB/tet in all at 660k tets; "
         "cells at a partition boundary at positions found once, the rows another rank owns sent to it in one "
         "Alltoallv); `coo` uses PETSc's COO path (as fast, ~5.7 KB/tet)", _S.assembly),
     Row(("operator_storage",), "-operator_storage auto|aij|sbaij|shell", "`sbaij`: the Krylov method and the multigrid "
