@@ -2,7 +2,7 @@
 against mesh size and rank count.
 
     python scripts/bench_output_ranks.py OUT [--boxes 25x10x10,50x20x20] [--ranks 1,2,4] [--layouts gather,ranks]
-        [--steps 2] [--mpiexec mpiexec]
+        [--steps 2] [--mpiexec mpiexec] [--code CHECKOUT]
 
 Each run: `bend` on a Kuhn-split box [-5,5]x[-2,2]x[-2,2] of NXxNYxNZ hexes (6 tets each), -dt 0.01, a frame per
 step, CG + GAMG, -log_view. Printed per run: tets, ranks, layout, frames, the Output stage's seconds per frame (the
@@ -71,6 +71,7 @@ def main():
     ap.add_argument("--layouts", default="gather,ranks")
     ap.add_argument("--steps", type=int, default=2)
     ap.add_argument("--mpiexec", default=os.path.join(os.path.dirname(sys.executable), "mpiexec"))
+    ap.add_argument("--code", default=None, help="a checkout whose package runs instead of this one (before/after)")
     a = ap.parse_args()
     a.out = os.path.abspath(a.out)
     os.makedirs(a.out, exist_ok=True)
@@ -87,7 +88,8 @@ def main():
                 cmd = ["run", "bend", "-mesh", mesh, "-dt", "0.01", "-final_time", 0.01 * a.steps,
                        "-frames_per_second", "100", "-output", path, "-output_layout", layout, "-quiet", "-ksp_type",
                        "cg", "-pc_type", "gamg", "-log_view", f":{log}"]
-                p, wall = launch.run(cmd, n, cwd=a.out, launcher=a.mpiexec)   # (cwd: not the checkout's package)
+                p, wall = launch.run(cmd, n, cwd=a.out, launcher=a.mpiexec,    # (cwd: not the checkout's package)
+                                     code=os.path.abspath(a.code) if a.code else None)
                 if p.returncode:
                     print(f"{ntet:>9} {n:>5} {layout:>7} failed: {p.stderr.strip().splitlines()[-1:]}", flush=True)
                     continue

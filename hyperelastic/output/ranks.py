@@ -6,15 +6,20 @@ file, and FILE.h5 presents the parts as one output through HDF5 virtual datasets
                            mesh/points, mesh/tetra, mesh/region, x, frames/<i>/<field>, checkpoint/<slot>/<array>,
                            plus mesh/input_index (nv,) and mesh/cell_input_index (nc,)
     FILE.h5.d/TAG_rNNNNN.h5 rank N's part of a run (TAG: the run's or the restart's own): its rows of mesh/* (the first
-                           part only), x (its frames, from the part's first), frames/<i>/*, checkpoint/<slot>/*
+                           part only), x and series/<field> (its frames, from the part's first), checkpoint/<slot>/*
 
 The virtual datasets' node and cell order is the partition's (the ranks' owned nodes one rank after another, the
 PETSc global vectors' order), not the input mesh's: mesh/input_index gives the input index of each row, and
 mesh/tetra refers to the rows. A run restarted on another rank count keeps the file's order: each rank then writes a
 contiguous block of it, its rows sent there by an exchange (discretization/exchange.py).
 
-Rank 0's part of a frame is metadata only (a virtual dataset per field with one mapping per rank, and the time):
-its cost does not grow with the mesh. Crash safety as the gathered layout's: every file has its end-of-file reserve
+Rank 0's part of a frame is metadata only, and it does not grow with the rank count either: each field is a series
+in every rank file (series/<field>: frames x rows, grown a frame at a time as x is), which FILE.h5 presents as one
+virtual dataset series/<field> made once per part (one mapping per rank and part, unlimited in frames, as x); a
+frame's frames/<i>/<field> is a virtual dataset of one mapping, row i of FILE.h5's own series/<field> (a virtual
+dataset whose source is a virtual dataset of the same file: HDF5 resolves both). Outputs written before the series
+(parts without "series") keep their frames' per-rank mappings, copied as they are into a restart's FILE.h5.
+Its cost does not grow with the mesh. Crash safety as the gathered layout's: every file has its end-of-file reserve
 (writer.Guard) and compact groups; a frame's virtual datasets are made after every rank has flushed its part, and
 its time after them, so a frame is counted (files.completed_frames) only when it is whole in every file."""
 import json
@@ -35,6 +40,7 @@ from .writer import (EVENTS, FIELD_LINKS, FRAME_LINKS, ROOM_ATTR, ROOM_ATTR_BYTE
 MESH = (("points", 3, "node", np.float64), ("input_index", 1, "node", np.int64), ("tetra", None, "cell", np.int64),
         ("region", 1, "cell", np.int64), ("cell_input_index", 1, "cell", np.int64))
 FILL = {np.dtype(np.float64): np.nan, np.dtype(np.int64): -1}
+SERIES_FRAMES = 2 ** 31 - 1   # the stored extent of FILE.h5's series/<field> in frames (virtual_series)
 
 
 def _tail(width):
@@ -93,6 +99,64 @@ def virtual_x(f, parts, nv):
     h5d.create(f.id, b"x", h5t.NATIVE_DOUBLE, h5s.create_simple((fixed, nv, 3), (U, nv, 3)), dcpl=dcpl)
 
 
+def virtual_series(f, parts, name, n, tail, dtype, center):
+    """FILE.h5's series/<name> (frames, n) + tail: the parts' rank files' series/<name> rows at frames first_p ... (up
+    to the next part's first; the last part's unlimited), made once per part and field (a frame names it through
+    frame_view). Only the parts that write series (part["series"]); an earlier part's frames have their own datasets."""
+    U = h5s.UNLIMITED
+    dtype = np.dtype(dtype)
+    dcpl = h5p.create(h5p.DATASET_CREATE)
+    dcpl.set_fill_value(np.array(FILL[dtype], dtype))
+    zeros = (0,) * len(tail)
+    fixed = 0
+    for p, part in enumerate(parts):
+        if not part.get("series"):
+            continue
+        last = p == len(parts) - 1
+        frames = None if last else min(q["first"] for q in parts[p + 1:]) - part["first"]
+        if frames is not None and frames <= 0:
+            continue
+        fixed = max(fixed, part["first"] + (frames or 0))
+        at = 0
+        for path, rows in zip(part["files"], part["nodes" if center == "node" else "cells"]):
+            if rows:
+                vs = h5s.create_simple((0, n) + tail, (U, n) + tail)
+                src = h5s.create_simple((0, rows) + tail, (U, rows) + tail)
+                count = U if last else frames
+                vs.select_hyperslab((part["first"], at) + zeros, (count, 1) + (1,) * len(tail),
+                                    (1, 1) + (1,) * len(tail), (1, rows) + tail)
+                src.select_hyperslab((0, 0) + zeros, (count, 1) + (1,) * len(tail), (1, 1) + (1,) * len(tail),
+                                     (1, rows) + tail)
+                dcpl.set_virtual(vs, path.encode(), f"series/{name}".encode(), src)
+            at += rows
+    g = f.require_group("series")
+    if name in g:
+        del g[name]
+    # its stored extent: SERIES_FRAMES, not the frames written. A reader that opens series/<name> itself gets the
+    # extent its sources have (HDF5's last-available view), but a frame's one-mapping view reads it as a source at
+    # its stored extent, which rank 0 cannot bring up to date (the extent would open the rank files, which their
+    # ranks hold open for writing): stored as 0, every frame read as fill values
+    h5d.create(g.id, name.encode(), h5t.py_create(dtype),
+               h5s.create_simple((max(fixed, SERIES_FRAMES), n) + tail, (U, n) + tail), dcpl=dcpl)
+    g[name].attrs["center"] = center
+
+
+def frame_view(group, name, n, tail, i):
+    """group/<name>: frame i of FILE.h5's series/<name> ((frames, n) + tail), a virtual dataset of one mapping to
+    row i of it. (Nothing of the series is read here: its extent would open the rank files, which their ranks hold
+    open for writing.)"""
+    dcpl = h5p.create(h5p.DATASET_CREATE)
+    dcpl.set_fill_value(np.array(np.nan))
+    U = h5s.UNLIMITED
+    src = h5s.create_simple((i + 1, n) + tail, (U, n) + tail)
+    src.select_hyperslab((i, 0) + (0,) * len(tail), (1, n) + tail)
+    vs = h5s.create_simple((n,) + tail)
+    dcpl.set_virtual(vs, b".", f"series/{name}".encode(), src)
+    if name in group:
+        del group[name]
+    h5d.create(group.id, name.encode(), h5t.NATIVE_DOUBLE, vs, dcpl=dcpl)
+
+
 def copy_virtual(src, dst_group, name):
     """A virtual dataset of another file made again in dst_group with the same mappings (the files it maps to are
     named relative to the file that holds it: both files lie in one directory)."""
@@ -130,7 +194,10 @@ class RankWriter(Writer):
             self._slot = old["slot"]
             counts = self._blocks(old, node_keys, cell_keys)
         nodes, cells = (np.array(mpi.allgather(c)) for c in counts)
-        self.part = {"tag": self.tag, "files": names, "nodes": nodes.tolist(), "cells": cells.tolist(), "first": first}
+        self.part = {"tag": self.tag, "files": names, "nodes": nodes.tolist(), "cells": cells.tolist(), "first": first,
+                     "series": True}
+        self._series = set()              # (rank 0) the fields whose series/<field> FILE.h5 maps for this part
+        self._series_ds = {}              # this rank file's series/<field> datasets
         self.parts = (old["parts"] if old else []) + [self.part]
         self._make_dir(here, path)
         mesh = None if resume is not None else self._mesh_rows(region)
@@ -243,6 +310,10 @@ class RankWriter(Writer):
                 copy_virtual(src[f"mesh/{name}"], mesh, name)
             n = self.nframes
             self._master_common(f, keep)
+            for name, d in src.get("series", {}).items():     # (the earlier parts' series, which their frames name)
+                center = d.attrs["center"]
+                virtual_series(f, self.parts, name, {"node": self.nv, "cell": self.nc}[center], d.shape[2:], d.dtype,
+                               center)
             f["time"].resize((n,))
             f["time"][:] = src["time"][:n]
             for i in range(n):
@@ -313,7 +384,8 @@ class RankWriter(Writer):
         self.mpi.Barrier()            # (every rank's part is flushed before the frame's virtual datasets name it)
         if self.root:
             EVENTS.Rank0.begin()
-            self._reserve(4096 * (1 + len(shapes)) + 64 * self.mpi.size * len(shapes))
+            new = sum(1 for name, _, _ in shapes if name not in self._series)
+            self._reserve(4096 * (1 + len(shapes)) + 64 * self.mpi.size * len(self.parts) * new)
             self._write_frame(t, shapes)
             EVENTS.Rank0.end()
         else:
@@ -338,21 +410,44 @@ class RankWriter(Writer):
                 self._written += 1
                 continue
             group, name = k.rsplit("/", 1)
+            if group.startswith("frames/"):        # a frame's field: row (frame - the part's first) of its series
+                self._append_series(rf, name, int(group.split("/")[1]) - self.part["first"], a)
+                continue
             g = _compact_group(rf[group.rsplit("/", 1)[0]], group.rsplit("/", 1)[1], FIELD_LINKS)
             if name in g:
                 del g[name]
             g.create_dataset(name, data=a)
         rf.flush()
 
+    def _append_series(self, rf, name, row, a):
+        """Row `row` of this rank file's series/<name> = a (made at its first row; rows before it read as fill)."""
+        d = self._series_ds.get(name)
+        if d is None:
+            g = rf.require_group("series")
+            d = self._series_ds[name] = g.create_dataset(
+                name, shape=(0,) + a.shape, maxshape=(None,) + a.shape, dtype=a.dtype,
+                chunks=(1, max(a.shape[0], 1)) + a.shape[1:], fillvalue=FILL.get(np.dtype(a.dtype), 0))
+        if d.shape[1:] != a.shape:
+            raise RuntimeError(f"output field {name}: its rows changed shape from {d.shape[1:]} to {a.shape}")
+        if d.shape[0] <= row:
+            d.resize(row + 1, axis=0)
+        if a.size:
+            d.write_direct(np.ascontiguousarray(a), dest_sel=np.s_[row])
+
     def _write_frame(self, t, shapes):
-        """(rank 0) Frame i's virtual datasets (one mapping per rank each), a flush, then its time and a flush."""
+        """(rank 0) Frame i's virtual datasets (one mapping each, to FILE.h5's series), a flush, then its time and a
+        flush."""
         f = self.f
         i = self.nframes
         g = _compact_group(f["frames"], str(i), FIELD_LINKS)
         for k in list(g):
             del g[k]
+        n = {"node": self.nv, "cell": self.nc}
         for name, tail, center in shapes:
-            virtual(g, name, self._pieces(f"frames/{i}/{name}", center), tail)
+            if name not in self._series:              # (once per part and field: one mapping per rank)
+                virtual_series(f, self.parts, name, n[center], tuple(tail), np.float64, center)
+                self._series.add(name)
+            frame_view(g, name, n[center], tuple(tail), i)
         self.nframes += 1
         if time.monotonic() - self._stats_flushed >= STATS_EVERY_S:
             self._flush_stats()
