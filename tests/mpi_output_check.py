@@ -1,6 +1,8 @@
 """Run under `mpiexec -n 2` by test_output_readers.py: writing a frame or a checkpoint is collective to its
 end, so rank 0's HDF5 writes (made slow here) are waited for inside the write on every rank and not in the
-next step's first collective call, where -log_view would charge them to the residual. Prints 'ok' on rank 0."""
+next step's first collective call, where -log_view would charge them to the residual. Prints 'ok' on rank 0.
+`PATH fail`: rank 0's write of frame 1 raises (as an HDF5 error there would): the job ends with an error status and
+the error's line (before, the other rank waited in the frame's end for ever)."""
 import sys
 import time
 
@@ -55,5 +57,16 @@ def main(path):
         print("ok")
 
 
+def fail(path):
+    write = RankWriter._write_frame
+
+    def failing(self, t, shapes):
+        if self.nframes == 1:
+            raise OSError("Unable to synchronously create dataset (a write of rank 0 failed, as the test makes it)")
+        return write(self, t, shapes)
+    RankWriter._write_frame = failing
+    sys.exit(cli.main(["run", "bend", *ARGS, "-output", path]))
+
+
 if __name__ == "__main__":
-    main(sys.argv[1])
+    fail(sys.argv[1]) if sys.argv[2:] == ["fail"] else main(sys.argv[1])

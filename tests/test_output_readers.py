@@ -145,3 +145,12 @@ def test_writes_end_together_on_two_ranks(tmp_path):
     from conftest import run_mpi_script
     p = run_mpi_script("mpi_output_check.py", [tmp_path / "o.h5"])
     assert p.returncode == 0 and p.stdout.split() == ["ok"], p.stdout + p.stderr
+
+
+def test_a_write_that_fails_on_rank_0_ends_every_rank(tmp_path):
+    """An error in rank 0's HDF5 writes of a frame (the per-rank layout's metadata) is raised on every rank: the job
+    ends with an error status and the error's line, where the other rank waited for ever in the frame's end
+    (tests/mpi_output_check.py fail; the run before the fix hung to this test's timeout)."""
+    from conftest import run_mpi_script
+    p = run_mpi_script("mpi_output_check.py", [tmp_path / "o.h5", "fail"], timeout=120)
+    assert p.returncode != 0 and "a write of rank 0 failed" in p.stderr, p.stdout + p.stderr

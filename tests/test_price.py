@@ -196,7 +196,10 @@ def test_the_defaults_comparison_run_is_stopped_at_its_limit(tmp_path, monkeypat
     last = s.rows[-1]
     assert last["why"] == "the defaults, for comparison" and last["outcome"] == "failed", last
     assert last["stopped_at"] == 0.05 and "stopped at 0.05 s, the limit of this run" in last["message"]
-    assert "budget" not in (s.stopped or "") and all(r["outcome"] == "finished" for r in s.rows[:-1])
+    # (a linear solver trial may be stopped too, by design, where the first run's solve took over PC_TRIAL: under the
+    # suite's load it did once)
+    assert "budget" not in (s.stopped or "") and all(r["outcome"] == "finished" for r in s.rows[:-1]
+                                                      if r["why"] != "linear solver trial"), s.rows
     price_report(s, str(tmp_path), "test")
     first = open(tmp_path / "price.md").read().split("\n\n")[1]
     assert f"({last['setting'].label()}) cost more than 0.05 s: their run, predicted under 30 s, was stopped" in first

@@ -382,15 +382,14 @@ class RankWriter(Writer):
         shapes = [(k, a.shape[1:], "node" if k in nodes else "cell") for k, a in
                   [(k.rsplit("/", 1)[1], a) for k, a in rows.items() if k != "x"]]
         self.mpi.Barrier()            # (every rank's part is flushed before the frame's virtual datasets name it)
-        if self.root:
-            EVENTS.Rank0.begin()
+
+        def write():
             new = sum(1 for name, _, _ in shapes if name not in self._series)
             self._reserve(4096 * (1 + len(shapes)) + 64 * self.mpi.size * len(self.parts) * new)
             self._write_frame(t, shapes)
-            EVENTS.Rank0.end()
-        else:
+        if not self.root:
             self.nframes += 1
-        self._leave_together()
+        self._root_part(write)
 
     def _write_rows(self, rows):
         EVENTS.RankPart.begin()
@@ -470,14 +469,13 @@ class RankWriter(Writer):
         self._ensure_room(lambda: nbytes, "a checkpoint")
         self._write_rows({f"checkpoint/{slot}/{k}": a for k, a in arrays.items()})
         self.mpi.Barrier()
-        if self.root:
-            EVENTS.Rank0.begin()
+
+        def write():
             self._reserve(8192 + 64 * self.mpi.size * len(arrays))
             self._write_checkpoint(slot, state, [(k, a.shape[1:], "cell" if k in (cells or {}) else "node")
                                                  for k, a in arrays.items()])
-            EVENTS.Rank0.end()
+        self._root_part(write)
         self._slot = slot
-        self._leave_together()
 
     def _write_checkpoint(self, slot, state, arrays):
         """(rank 0) The slot's virtual datasets (made once per part and slot), its attributes, checkpoint_slot."""

@@ -347,18 +347,37 @@ class Writer:
         if self.root:
             nbytes = 8 * (6 * len(x) + sum(a.size for a in extra.values())) + 16384
         self._ensure_room(lambda: nbytes, "a checkpoint")
-        if self.root:
-            EVENTS.Rank0.begin()
+
+        def write():
             self._reserve(nbytes)
             self._write_checkpoint(x, v, state, extra)
-            EVENTS.Rank0.end()
-        self._leave_together()
+        self._root_part(write)
 
-    def _leave_together(self):
+    def _root_part(self, write):
+        """write() on rank 0 (its HDF5 writes of a frame or a checkpoint, timed as HE_OutRank0), then the ranks leave
+        together: an exception rank 0 raises there is raised on every rank (the others used to wait in the next
+        collective call forever while rank 0 went on to its error's own collective calls: a 2-rank run hung)."""
+        err = None
+        if self.root:
+            EVENTS.Rank0.begin()
+            try:
+                write()
+            except Exception as e:       # noqa: BLE001 (raised again below, on every rank)
+                err = e
+            finally:
+                EVENTS.Rank0.end()
+        self._leave_together(err)
+
+    def _leave_together(self, err=None):
         """The end of a collective write: the other ranks wait here for rank 0's HDF5 writes, so that the
         wait is the output's and not charged to their next collective call (the next step's first
-        residual in -log_view and the step timers)."""
-        self.space.mpi.Barrier()
+        residual in -log_view and the step timers); rank 0's error `err` raised on every rank."""
+        why = self.space.mpi.bcast(None if err is None else (isinstance(err, UserError), str(err)), root=0)
+        if err is not None:
+            raise err
+        if why is not None:
+            user, text = why
+            raise UserError(text) if user else RuntimeError(f"rank 0's output write failed: {text}")
 
     def _write_checkpoint(self, x, v, state, extra):
         f = self.f
@@ -409,12 +428,11 @@ class Writer:
             cells.update(nodal)
             nbytes = 8 * (3 * self.nv * (3 if vel is not None else 2) + sum(a.size for a in cells.values())) + 16384
         self._ensure_room(lambda: nbytes, f"frame {self.nframes}")
-        if self.root:
-            EVENTS.Rank0.begin()
+
+        def write():
             self._reserve(nbytes)
             self._write_frame(t, full, vel, cells)
-            EVENTS.Rank0.end()
-        self._leave_together()
+        self._root_part(write)
 
     def _write_frame(self, t, full, vel, cells):
         """The positions and the fields, a flush, then the time and a flush of its own: a frame counts once
