@@ -70,49 +70,17 @@ def virtual(group, name, pieces, tail, dtype=np.float64, **attrs):
         group[name].attrs[k] = v
 
 
-def virtual_x(f, parts, nv):
-    """mesh x (frames, nv, 3): part p's rank files' rows at frames first_p ... (up to the next part's first; the
-    last part's unlimited, so that the dataset grows as its ranks extend their files)."""
+def _frame_mappings(dcpl, parts, dset, n, tail, center):
+    """Map into dcpl, for a dataset (frames, n) + tail, part p's rank files' rows of `dset` (frames from the part's
+    first, rows `center`'s: nodes or cells) at frames first_p ... (up to the next part's first; the last part's
+    unlimited, so that the dataset grows as its ranks extend their files); returns the frames the earlier parts'
+    mappings reach (the dataset's least extent)."""
     U = h5s.UNLIMITED
-    dcpl = h5p.create(h5p.DATASET_CREATE)
-    dcpl.set_fill_value(np.array(np.nan))
-    fixed = 0                     # the frames the earlier parts' mappings reach (the dataset's least extent)
+    zeros, ones = (0,) * len(tail), (1,) * len(tail)
+    fixed = 0
     for p, part in enumerate(parts):
         last = p == len(parts) - 1
         # (an earlier part's frames end where any later part's begin: a restart from an older checkpoint)
-        frames = None if last else min(q["first"] for q in parts[p + 1:]) - part["first"]
-        if frames is not None and frames <= 0:
-            continue
-        fixed = max(fixed, part["first"] + (frames or 0))
-        at = 0
-        for path, rows in zip(part["files"], part["nodes"]):
-            if rows:
-                vs = h5s.create_simple((0, nv, 3), (U, nv, 3))
-                src = h5s.create_simple((0, rows, 3), (U, rows, 3))
-                count = U if last else frames
-                vs.select_hyperslab((part["first"], at, 0), (count, 1, 1), (1, 1, 1), (1, rows, 3))
-                src.select_hyperslab((0, 0, 0), (count, 1, 1), (1, 1, 1), (1, rows, 3))
-                dcpl.set_virtual(vs, path.encode(), b"x", src)
-            at += rows
-    if "x" in f:
-        del f["x"]
-    h5d.create(f.id, b"x", h5t.NATIVE_DOUBLE, h5s.create_simple((fixed, nv, 3), (U, nv, 3)), dcpl=dcpl)
-
-
-def virtual_series(f, parts, name, n, tail, dtype, center):
-    """FILE.h5's series/<name> (frames, n) + tail: the parts' rank files' series/<name> rows at frames first_p ... (up
-    to the next part's first; the last part's unlimited), made once per part and field (a frame names it through
-    frame_view). Only the parts that write series (part["series"]); an earlier part's frames have their own datasets."""
-    U = h5s.UNLIMITED
-    dtype = np.dtype(dtype)
-    dcpl = h5p.create(h5p.DATASET_CREATE)
-    dcpl.set_fill_value(np.array(FILL[dtype], dtype))
-    zeros = (0,) * len(tail)
-    fixed = 0
-    for p, part in enumerate(parts):
-        if not part.get("series"):
-            continue
-        last = p == len(parts) - 1
         frames = None if last else min(q["first"] for q in parts[p + 1:]) - part["first"]
         if frames is not None and frames <= 0:
             continue
@@ -123,12 +91,32 @@ def virtual_series(f, parts, name, n, tail, dtype, center):
                 vs = h5s.create_simple((0, n) + tail, (U, n) + tail)
                 src = h5s.create_simple((0, rows) + tail, (U, rows) + tail)
                 count = U if last else frames
-                vs.select_hyperslab((part["first"], at) + zeros, (count, 1) + (1,) * len(tail),
-                                    (1, 1) + (1,) * len(tail), (1, rows) + tail)
-                src.select_hyperslab((0, 0) + zeros, (count, 1) + (1,) * len(tail), (1, 1) + (1,) * len(tail),
-                                     (1, rows) + tail)
-                dcpl.set_virtual(vs, path.encode(), f"series/{name}".encode(), src)
+                vs.select_hyperslab((part["first"], at) + zeros, (count, 1) + ones, (1, 1) + ones, (1, rows) + tail)
+                src.select_hyperslab((0, 0) + zeros, (count, 1) + ones, (1, 1) + ones, (1, rows) + tail)
+                dcpl.set_virtual(vs, path.encode(), dset.encode(), src)
             at += rows
+    return fixed
+
+
+def virtual_x(f, parts, nv):
+    """mesh x (frames, nv, 3): the parts' rank files' x (_frame_mappings)."""
+    dcpl = h5p.create(h5p.DATASET_CREATE)
+    dcpl.set_fill_value(np.array(np.nan))
+    fixed = _frame_mappings(dcpl, parts, "x", nv, (3,), "node")
+    if "x" in f:
+        del f["x"]
+    U = h5s.UNLIMITED
+    h5d.create(f.id, b"x", h5t.NATIVE_DOUBLE, h5s.create_simple((fixed, nv, 3), (U, nv, 3)), dcpl=dcpl)
+
+
+def virtual_series(f, parts, name, n, tail, dtype, center):
+    """FILE.h5's series/<name> (frames, n) + tail: the parts' rank files' series/<name> (_frame_mappings), made once
+    per part and field (a frame names it through frame_view). Only the parts that write series (part["series"]); an
+    earlier part's frames have their own datasets."""
+    dtype = np.dtype(dtype)
+    dcpl = h5p.create(h5p.DATASET_CREATE)
+    dcpl.set_fill_value(np.array(FILL[dtype], dtype))
+    fixed = _frame_mappings(dcpl, [q for q in parts if q.get("series")], f"series/{name}", n, tuple(tail), center)
     g = f.require_group("series")
     if name in g:
         del g[name]
@@ -136,8 +124,9 @@ def virtual_series(f, parts, name, n, tail, dtype, center):
     # extent its sources have (HDF5's last-available view), but a frame's one-mapping view reads it as a source at
     # its stored extent, which rank 0 cannot bring up to date (the extent would open the rank files, which their
     # ranks hold open for writing): stored as 0, every frame read as fill values
+    U = h5s.UNLIMITED
     h5d.create(g.id, name.encode(), h5t.py_create(dtype),
-               h5s.create_simple((max(fixed, SERIES_FRAMES), n) + tail, (U, n) + tail), dcpl=dcpl)
+               h5s.create_simple((max(fixed, SERIES_FRAMES), n) + tuple(tail), (U, n) + tuple(tail)), dcpl=dcpl)
     g[name].attrs["center"] = center
 
 
