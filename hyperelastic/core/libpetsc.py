@@ -34,6 +34,7 @@ def lib():
         _lib.DMPlexGetCones.argtypes = [ctypes.c_void_p, ctypes.POINTER(ctypes.c_void_p)]
         _lib.MatMPIAIJGetSeqAIJ.argtypes = [ctypes.c_void_p] + [ctypes.POINTER(ctypes.c_void_p)] * 3
         _lib.MatGetSize.argtypes = [ctypes.c_void_p, ctypes.POINTER(_INT), ctypes.POINTER(_INT)]
+        _lib.MatSeqAIJSetColumnIndices.argtypes = [ctypes.c_void_p, ctypes.c_void_p]
         for fn in ("MatGetRowIJ", "MatRestoreRowIJ"):
             getattr(_lib, fn).argtypes = [ctypes.c_void_p, ctypes.c_int64, ctypes.c_int, ctypes.c_int,
                                           ctypes.POINTER(_INT), ctypes.POINTER(ctypes.c_void_p),
@@ -90,6 +91,19 @@ class SeqAIJValues:
 def _handle(mat):
     """A petsc4py Mat's C handle, or a raw one (an int) as mpiaij_off_diagonal gives."""
     return ctypes.c_void_p(mat if isinstance(mat, int) else mat.handle)
+
+
+def seqaij_from_pattern(mat, ia, ja):
+    """A SeqAIJ `mat` (type set, sizes given) preallocated with the exact pattern ia/ja (PETSc's index type, each row's
+    columns sorted), assembled, zero: the row lengths to MatSeqAIJSetPreallocation, the columns copied in at once by
+    MatSeqAIJSetColumnIndices — not entered row by row through MatSetValues, as MatSeqAIJSetPreallocationCSR does (1.4 s
+    of a 207k-tet P2 set-up). The matrix owns its arrays (its MatGetInfo and memory figures are the usual)."""
+    ia, ja = np.ascontiguousarray(ia, PETSc.IntType), np.ascontiguousarray(ja, PETSc.IntType)
+    mat.setPreallocationNNZ(np.diff(ia).astype(PETSc.IntType))
+    if lib().MatSeqAIJSetColumnIndices(_handle(mat), ja.ctypes.data):
+        raise RuntimeError("MatSeqAIJSetColumnIndices failed")
+    mat.assemble()
+    mat.zeroEntries()
 
 
 def mpiaij_off_diagonal(mat, columns=True):

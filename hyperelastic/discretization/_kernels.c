@@ -574,6 +574,51 @@ static int64_t csr_find(const void *ia, const void *ja, int idx64, int64_t r, in
   return -1;
 }
 
+/* aij.CellMap's loop for one index type T (int32_t, int64_t): see he_cell_map. A vertex's three rows are checked
+ * once per cell and vertex (the same length, consecutive), its column's position found by bisection in its first row,
+ * and the block's 9 columns read back. */
+#define HE_CELL_MAP(NAME, T)                                                                                          \
+  static int64_t NAME(int64_t nc, int nn, const idx_t *cells, const int64_t *own, const T *ia, const T *ja,          \
+                      int32_t *base, int32_t *rowlen) {                                                               \
+    int64_t missing = 0;                                                                                              \
+    for (int64_t e = 0; e < nc; e++) {                                                                                \
+      const idx_t *c = cells + (int64_t)nn * e;                                                                       \
+      int32_t *B = base + (int64_t)nn * nn * e, *L = rowlen + (int64_t)nn * e;                                        \
+      int64_t o[HE_MAXN];                                                                                             \
+      int interior = 1, bad = 0;                                                                                      \
+      for (int a = 0; a < nn; a++) { o[a] = own[c[a]]; interior &= o[a] >= 0; }                                      \
+      if (!interior) {                                                                                                \
+        for (int k = 0; k < nn * nn; k++) B[k] = -1;                                                                  \
+        for (int a = 0; a < nn; a++) L[a] = 0;                                                                        \
+        continue;                                                                                                     \
+      }                                                                                                               \
+      for (int a = 0; a < nn && !bad; a++) {                                                                          \
+        const int64_t r = 3 * o[a], r0 = ia[r], len = (int64_t)ia[r + 1] - r0;                                       \
+        if ((int64_t)ia[r + 2] - r0 != 2 * len || (int64_t)ia[r + 3] - r0 != 3 * len) { bad = 1; break; }             \
+        L[a] = (int32_t)len;                                                                                          \
+        for (int b = 0; b < nn; b++) {                                                                                \
+          const int64_t col = 3 * o[b];                                                                               \
+          int64_t lo = r0, hi = r0 + len;                                                                             \
+          while (lo < hi) {                                                                                           \
+            const int64_t mid = lo + (hi - lo) / 2;                                                                   \
+            if ((int64_t)ja[mid] < col) lo = mid + 1; else hi = mid;                                                  \
+          }                                                                                                           \
+          if (lo + 2 >= r0 + len) { bad = 1; break; }                                                                 \
+          for (int i = 0; i < 3; i++)                                                                                 \
+            for (int jj = 0; jj < 3; jj++)                                                                            \
+              bad |= (int64_t)ja[lo + i * len + jj] != col + jj;                                                      \
+          if (bad) break;                                                                                             \
+          B[nn * a + b] = (int32_t)lo;                                                                                \
+        }                                                                                                             \
+      }                                                                                                               \
+      missing += bad;                                                                                                 \
+    }                                                                                                                 \
+    return missing;                                                                                                   \
+  }
+HE_CELL_MAP(cell_map_i32, int32_t)
+HE_CELL_MAP(cell_map_i64, int64_t)
+#undef HE_CELL_MAP
+
 /* aij.CellMap: for each cell whose nodes this rank all owns (own[w] >= 0: the node's index among the owned ones;
  * cells nc x nn, local), where its node pair (a, b)'s 3x3 block starts in the values of the scalar CSR ia/ja (owned
  * rows and columns 3 own + i) — base[nn^2 e + nn a + b] — and the length of node a's rows, rowlen[nn e + a]; the
@@ -581,34 +626,8 @@ static int64_t csr_find(const void *ia, const void *ja, int idx64, int64_t r, in
  * entry missing from the pattern (0: the map is complete). */
 int64_t he_cell_map(int64_t nc, int nn, const idx_t *cells, const int64_t *own, const void *ia, const void *ja,
                     int idx64, int32_t *base, int32_t *rowlen) {
-  int64_t missing = 0;
-  for (int64_t e = 0; e < nc; e++) {
-    const idx_t *c = cells + (int64_t)nn * e;
-    int32_t *B = base + (int64_t)nn * nn * e, *L = rowlen + (int64_t)nn * e;
-    int interior = 1, bad = 0;
-    for (int a = 0; a < nn; a++) interior &= own[c[a]] >= 0;
-    if (!interior) {
-      for (int k = 0; k < nn * nn; k++) B[k] = -1;
-      for (int a = 0; a < nn; a++) L[a] = 0;
-      continue;
-    }
-    for (int a = 0; a < nn && !bad; a++) {
-      const int64_t r = 3 * own[c[a]], len = PI(ia, r + 1) - PI(ia, r);
-      L[a] = (int32_t)len;
-      for (int b = 0; b < nn && !bad; b++) {
-        const int64_t col = 3 * own[c[b]], p = csr_find(ia, ja, idx64, r, col);
-        if (p < 0) { bad = 1; break; }
-        for (int i = 0; i < 3 && !bad; i++) {
-          if (PI(ia, r + i + 1) - PI(ia, r + i) != len || PI(ia, r + i) != PI(ia, r) + i * len) bad = 1;
-          for (int j = 0; j < 3 && !bad; j++)
-            if (PI(ja, p + i * len + j) != col + j) bad = 1;
-        }
-        B[nn * a + b] = (int32_t)p;
-      }
-    }
-    missing += bad;
-  }
-  return missing;
+  return idx64 ? cell_map_i64(nc, nn, cells, own, ia, ja, base, rowlen)
+               : cell_map_i32(nc, nn, cells, own, ia, ja, base, rowlen);
 }
 
 /* sbaij.UpperFill: for each cell whose nodes this rank all owns, the block index in the block CSR si/sj (upper block

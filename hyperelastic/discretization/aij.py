@@ -8,7 +8,7 @@ from petsc4py import PETSc
 
 from .kernels import add_blocks, adjacency, cell_map, csr_union, expand_pattern, gather_blocks, scatter_blocks
 from ..core.arrays import unique
-from ..core.libpetsc import SeqAIJRowIJ, SeqAIJValues, mpiaij_off_diagonal
+from ..core.libpetsc import SeqAIJRowIJ, SeqAIJValues, mpiaij_off_diagonal, seqaij_from_pattern
 
 
 def _row_search(ia, ja, rows, cols):
@@ -131,7 +131,10 @@ class CellFill:
         A.setSizes(((n, PETSc.DETERMINE), (n, PETSc.DETERMINE)), bsize=3)
         A.setType(PETSc.Mat.Type.AIJ)
         A.setLGMap(sp.lgmap, sp.lgmap)
-        A.setPreallocationCSR(exact_pattern(sp))           # the exact pattern, assembled: the map can be made now
+        if sp.mpi.size == 1:                                # the exact pattern, assembled: the map can be made now
+            seqaij_from_pattern(A, *exact_pattern(sp))
+        else:
+            A.setPreallocationCSR(exact_pattern(sp))
         A.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, True)   # the pattern must be complete
         self.row0 = A.getOwnershipRange()[0] // 3         # this rank's first vertex (block row), global
         self.Ad = A.getDiagonalBlock() if sp.mpi.size > 1 else A
