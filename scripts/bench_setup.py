@@ -2,14 +2,14 @@
 P1 and P2, in µs a tet at each size and as slopes between sizes (fixed costs not counted per tet), with peak memory.
 
     python scripts/bench_setup.py OUT [--p1 25x10x10,50x20x20,100x40x40] [--p2 20x8x8,40x16x16,60x24x24]
-        [--ranks 1] [--profile 25] [--code CHECKOUT]
+        [--ranks 1] [--profile 25] [--repeat 5] [--code CHECKOUT]
 
 Each box: a Kuhn-split box of NXxNYxNZ hexes (6 tets each; scripts/bench_output_ranks.py), prepared once
 (`hyperelastic mesh BOX.msh --prepare`: the serial step a user pays once per mesh, not counted). Each run: `bend
 -mesh BOX.h5 -order K -final_time 0 -ksp_type cg -pc_type gamg -log_view` — the Setup stage is everything before the
 first frame: the slices read, the space (for P2 the edge nodes), the labels, the kernels' geometry, the operator's
 exact pattern and the map of the cells' blocks into it (no step: no Jacobian, no preconditioner set-up). Printed per
-run: tets, ranks, Setup seconds (PETSc's max over ranks), µs a tet (Setup over the global tets, times the ranks: a
+run: tets, ranks, Setup seconds (PETSc's max over ranks; the median of --repeat runs), µs a tet (Setup over the global tets, times the ranks: a
 rank's cost per own tet), the slope from the previous size, peak RSS of rank 0 (MB). --profile N: cProfile of the
 largest one-rank run of each order, its N largest cumulative entries inside hyperelastic. --code: run that checkout's
 package (PYTHONPATH; its kernels built) instead of this one, for before/after."""
@@ -58,6 +58,7 @@ def main():
     ap.add_argument("--p2", default="20x8x8,40x16x16,60x24x24")
     ap.add_argument("--ranks", default="1")
     ap.add_argument("--profile", type=int, default=0)
+    ap.add_argument("--repeat", type=int, default=1, help="runs per size: their median Setup (this VM varies ±15%%)")
     ap.add_argument("--code", default=None, help="a checkout whose package runs instead of this one")
     a = ap.parse_args()
     logging.getLogger().setLevel(logging.ERROR)       # (meshio's note that the box has no physical tags)
@@ -79,10 +80,13 @@ def main():
                 res, log = os.path.join(out, f"run_{order}_{box}_{n}.h5"), os.path.join(out, "log.txt")
                 cmd = launch.command(["run", "bend", "-mesh", prep, "-order", order, "-final_time", 0, "-ksp_type",
                                       "cg", "-pc_type", "gamg", "-output", res, "-log_view", f":{log}"], n)
-                _run(cmd, env)
+                setups = []
+                for _ in range(a.repeat):
+                    _run(cmd, env)
+                    setups.append(stages(log)["Setup"])
                 with h5py.File(res) as f:
                     tets, mem = f["mesh/tetra"].shape[0], np.asarray(f.attrs["peak_rss_mb_per_rank"], float)
-                s = stages(log)["Setup"]
+                s = float(np.median(setups))
                 slope = (f"{1e6 * n * (s - prev[1]) / (tets - prev[0]):>7.1f}" if prev else f"{'':>7}")
                 print(f"{order:>5} {tets:>9} {n:>5} {s:>8.2f} {1e6 * n * s / tets:>7.1f} {slope} {mem[0]:>9.0f}",
                       flush=True)
