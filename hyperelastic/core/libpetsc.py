@@ -35,6 +35,7 @@ def lib():
         _lib.MatMPIAIJGetSeqAIJ.argtypes = [ctypes.c_void_p] + [ctypes.POINTER(ctypes.c_void_p)] * 3
         _lib.MatGetSize.argtypes = [ctypes.c_void_p, ctypes.POINTER(_INT), ctypes.POINTER(_INT)]
         _lib.MatSeqAIJSetColumnIndices.argtypes = [ctypes.c_void_p, ctypes.c_void_p]
+        _lib.MatSeqAIJSetPreallocation.argtypes = [ctypes.c_void_p, _INT, ctypes.c_void_p]
         for fn in ("MatGetRowIJ", "MatRestoreRowIJ"):
             getattr(_lib, fn).argtypes = [ctypes.c_void_p, ctypes.c_int64, ctypes.c_int, ctypes.c_int,
                                           ctypes.POINTER(_INT), ctypes.POINTER(ctypes.c_void_p),
@@ -97,9 +98,12 @@ def seqaij_from_pattern(mat, ia, ja):
     """A SeqAIJ `mat` (type set, sizes given) preallocated with the exact pattern ia/ja (PETSc's index type, each row's
     columns sorted), assembled, zero: the row lengths to MatSeqAIJSetPreallocation, the columns copied in at once by
     MatSeqAIJSetColumnIndices — not entered row by row through MatSetValues, as MatSeqAIJSetPreallocationCSR does (1.4 s
-    of a 207k-tet P2 set-up). The matrix owns its arrays (its MatGetInfo and memory figures are the usual)."""
+    of a 207k-tet P2 set-up). The matrix owns its arrays (its MatGetInfo and memory figures are the usual). (The same
+    for SBAIJ, MatSeqSBAIJSetColumnIndices after MatSeqSBAIJSetPreallocation, corrupted the heap here: not used.)"""
     ia, ja = np.ascontiguousarray(ia, PETSc.IntType), np.ascontiguousarray(ja, PETSc.IntType)
-    mat.setPreallocationNNZ(np.diff(ia).astype(PETSc.IntType))
+    nnz = np.ascontiguousarray(np.diff(ia), PETSc.IntType)
+    if lib().MatSeqAIJSetPreallocation(_handle(mat), 0, nnz.ctypes.data):
+        raise RuntimeError("MatSeqAIJSetPreallocation failed")
     if lib().MatSeqAIJSetColumnIndices(_handle(mat), ja.ctypes.data):
         raise RuntimeError("MatSeqAIJSetColumnIndices failed")
     mat.assemble()
