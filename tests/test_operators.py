@@ -410,8 +410,9 @@ def test_constant_loads_summed_once_per_step(petsc):
 def test_set_up_pattern_and_maps_in_c_match_a_brute_force():
     """The set-up's C pieces (issue 74) against numpy written from their definitions, on random cells of 10 nodes
     over 60 vertices numbered globally by a random permutation: each row's neighbours (all, and the upper ones), the
-    union of two patterns, the scalar pattern of 3 dofs a vertex, and where each owned cell's blocks sit in it (a
-    cell with a node not owned gets -1; a pattern with an entry removed is reported)."""
+    union of two patterns, the scalar pattern of 3 dofs a vertex, its upper blocks (the one-rank SBAIJ copy), and where
+    each owned cell's blocks sit in it (a cell with a node not owned gets -1; a pattern with an entry removed is
+    reported)."""
     from hyperelastic.discretization import kernels as K
     rng = np.random.default_rng(7)
     nlv, nc, nn = 60, 80, 10
@@ -439,6 +440,14 @@ def test_set_up_pattern_and_maps_in_c_match_a_brute_force():
         for a_ in range(3):
             assert np.array_equal(ja[ia[3 * v + a_]:ia[3 * v + a_ + 1]],
                                   (3 * vcols[keep][vptr[v]:vptr[v + 1]][:, None] + np.arange(3)).ravel())
+    bptr, bcols, p0, L = K.upper_blocks(ia, ja)                # (the one-rank SBAIJ copy's blocks, w >= v)
+    for v in range(50):
+        row = vcols[keep][vptr[v]:vptr[v + 1]]
+        want = [(w, ia[3 * v] + 3 * k) for k, w in enumerate(row) if w >= v]
+        assert [(w, p) for w, p in zip(bcols[bptr[v]:bptr[v + 1]], p0[bptr[v]:bptr[v + 1]])] == want
+        assert (L[bptr[v]:bptr[v + 1]] == ia[3 * v + 1] - ia[3 * v]).all()
+    with pytest.raises(RuntimeError, match="whole 3x3 blocks"):
+        K.upper_blocks(ia, np.where(np.arange(len(ja)) == 0, ja + 1, ja).astype(ja.dtype))
     base, rowlen, missing = K.cell_map(cells, own, ia, ja)
     assert missing == 0
     for e in range(nc):

@@ -630,6 +630,33 @@ int64_t he_cell_map(int64_t nc, int nn, const idx_t *cells, const int64_t *own, 
                : cell_map_i32(nc, nn, cells, own, ia, ja, base, rowlen);
 }
 
+/* aij.SBAIJCopy on one rank: of a scalar CSR ia/ja (3 rows a vertex with the same columns, a vertex's 3 columns
+ * consecutive; n vertices), per block row v its blocks (v, w) with w >= v — their columns w, where the block's first
+ * entry is in the values (p0) and the length of v's rows (L). Called twice: with bcols NULL it writes the block row
+ * pointers bptr (n + 1); then, bcols, p0 and L sized bptr[n], the blocks. Returns the number of block rows whose
+ * entries are not whole 3x3 blocks (0: the copy can be made). */
+int64_t he_upper_blocks(int64_t n, const void *ia, const void *ja, int idx64, int64_t *bptr, int64_t *bcols,
+                        int32_t *p0, int32_t *L) {
+  int64_t bad = 0;
+  if (!bcols) bptr[0] = 0;
+  for (int64_t v = 0; v < n; v++) {
+    const int64_t r0 = PI(ia, 3 * v), len = PI(ia, 3 * v + 1) - r0;
+    int64_t m = 0;
+    const int64_t at = bcols ? bptr[v] : 0;
+    if (len % 3 == 0)
+      for (int64_t k = r0; k < r0 + len; k += 3) {
+        const int64_t c = PI(ja, k);
+        if (c % 3 || PI(ja, k + 2) != c + 2) { bad++; break; }
+        if (c / 3 < v) continue;
+        if (bcols) { bcols[at + m] = c / 3; p0[at + m] = (int32_t)k; L[at + m] = (int32_t)len; }
+        m++;
+      }
+    else bad++;
+    if (!bcols) bptr[v + 1] = bptr[v] + m;
+  }
+  return bad;
+}
+
 /* sbaij.UpperFill: for each cell whose nodes this rank all owns, the block index in the block CSR si/sj (upper block
  * triangle, owned block rows and columns) of its node pair (a, b) where own[a] <= own[b] — pos[nn^2 e + nn a + b] —
  * and -1 elsewhere (the lower pairs, and every pair of the other cells). Returns the number of pairs missing. */

@@ -75,6 +75,8 @@ _lib.he_expand_pattern.restype = None
 _lib.he_expand_pattern.argtypes = [_I, _P, _P, ctypes.c_int, _P, _P]
 _lib.he_cell_map.restype = _I
 _lib.he_cell_map.argtypes = [_I, ctypes.c_int, _P, _P, _P, _P, ctypes.c_int, _P, _P]
+_lib.he_upper_blocks.restype = _I
+_lib.he_upper_blocks.argtypes = [_I, _P, _P, ctypes.c_int, _P, _P, _P, _P]
 _lib.he_upper_map.restype = _I
 _lib.he_upper_map.argtypes = [_I, ctypes.c_int, _P, _P, _P, _P, ctypes.c_int, _P]
 _lib.he_pressure_terms.restype = None
@@ -245,6 +247,21 @@ def cell_map(cells, own, ia, ja):
     missing = _lib.he_cell_map(nc, nn, cells.ctypes.data, own.ctypes.data, pi, pj, idx64, base.ctypes.data,
                                rowlen.ctypes.data)
     return base, rowlen, missing
+
+
+def upper_blocks(ia, ja):
+    """(bptr, bcols, p0, L): of a one-rank scalar CSR ia/ja of 3x3 blocks (3 rows a vertex), per block row v its blocks
+    (v, w), w >= v — columns bcols[bptr[v]:bptr[v + 1]] (int64), where each block's first entry is in the values (p0)
+    and its rows' length (L), int32. RuntimeError where the rows are not whole blocks."""
+    idx64, (pi, pj) = _index_args(ia, ja)
+    n = (len(ia) - 1) // 3
+    bptr = np.empty(n + 1, np.int64)
+    if _lib.he_upper_blocks(n, pi, pj, idx64, bptr.ctypes.data, None, None, None):
+        raise RuntimeError("the tangent's pattern is not made of whole 3x3 blocks")
+    nb = int(bptr[-1])
+    bcols, p0, L = np.empty(nb, np.int64), np.empty(nb, np.int32), np.empty(nb, np.int32)
+    _lib.he_upper_blocks(n, pi, pj, idx64, bptr.ctypes.data, bcols.ctypes.data, p0.ctypes.data, L.ctypes.data)
+    return bptr, bcols, p0, L
 
 
 def upper_map(cells, own, si, sj):
