@@ -31,19 +31,20 @@ from scripts.bench_output_ranks import kuhn_box  # noqa: E402
 import launch  # noqa: E402
 
 
-def _run(cmd, env):
-    # (run from $TMPDIR: `python -m` puts the working directory first on sys.path, so a run started in a checkout
-    # would import that checkout's package whatever --code's PYTHONPATH says)
-    p = subprocess.run(cmd, capture_output=True, text=True, env=env, cwd=tempfile.gettempdir())
-    if p.returncode:
-        sys.exit(f"failed: {' '.join(map(str, cmd))}\n{p.stderr[-2000:]}")
+# (runs start in $TMPDIR: `python -m` puts the working directory first on sys.path, so a run started in a checkout
+# would import that checkout's package whatever --code's PYTHONPATH says)
+CWD = tempfile.gettempdir()
 
 
-def profile(cmd, env, n, prof):
-    """The n largest cumulative cProfile entries of hyperelastic's own functions in one run of cmd (one rank; the
-    profile written to prof)."""
+def profile(args, code, n, prof):
+    """The n largest cumulative cProfile entries of hyperelastic's own functions in one run of `hyperelastic ARGS`
+    (one rank; the profile written to prof)."""
     import pstats
-    _run([sys.executable, "-m", "cProfile", "-o", prof] + cmd[1:], env)
+    env = dict(os.environ, **({"PYTHONPATH": code} if code else {}))
+    p = subprocess.run([sys.executable, "-m", "cProfile", "-o", prof] + launch.command(args)[1:], capture_output=True,
+                       text=True, env=env, cwd=CWD)
+    if p.returncode:
+        sys.exit(f"failed: cProfile of hyperelastic {' '.join(map(str, args))}\n{p.stderr[-2000:]}")
     st = pstats.Stats(prof)
     rows = [(v[3], v[2], k) for k, v in st.stats.items() if "hyperelastic" in k[0] and "/scripts/" not in k[0]]
     for cum, tot, (path, line, name) in sorted(rows, reverse=True)[:n]:
@@ -64,7 +65,7 @@ def main():
     logging.getLogger().setLevel(logging.ERROR)       # (meshio's note that the box has no physical tags)
     out = os.path.abspath(a.out)
     os.makedirs(out, exist_ok=True)
-    env = dict(os.environ, **({"PYTHONPATH": os.path.abspath(a.code)} if a.code else {}))
+    code = os.path.abspath(a.code) if a.code else None
     print(f"{'order':>5} {'tets':>9} {'ranks':>5} {'Setup s':>8} {'us/tet':>7} {'slope':>7} {'rank0 MB':>9}", flush=True)
     for order, boxes in ((1, a.p1), (2, a.p2)):
         if not boxes:
@@ -76,13 +77,13 @@ def main():
                 msh, prep = os.path.join(out, f"box_{box}.msh"), os.path.join(out, f"box_{box}.h5")
                 if not os.path.exists(prep):
                     kuhn_box(nx, ny, nz, msh)
-                    _run(launch.command(["mesh", msh, "--prepare", "-o", prep]), env)
+                    launch.ok(["mesh", msh, "--prepare", "-o", prep], code=code, cwd=CWD)
                 res, log = os.path.join(out, f"run_{order}_{box}_{n}.h5"), os.path.join(out, "log.txt")
-                cmd = launch.command(["run", "bend", "-mesh", prep, "-order", order, "-final_time", 0, "-ksp_type",
-                                      "cg", "-pc_type", "gamg", "-output", res, "-log_view", f":{log}"], n)
+                args = ["run", "bend", "-mesh", prep, "-order", order, "-final_time", 0, "-ksp_type", "cg",
+                        "-pc_type", "gamg", "-output", res, "-log_view", f":{log}"]
                 setups = []
                 for _ in range(a.repeat):
-                    _run(cmd, env)
+                    launch.ok(args, nprocs=n, code=code, cwd=CWD)
                     setups.append(stages(log)["Setup"])
                 with h5py.File(res) as f:
                     tets, mem = f["mesh/tetra"].shape[0], np.asarray(f.attrs["peak_rss_mb_per_rank"], float)
@@ -92,7 +93,7 @@ def main():
                       flush=True)
                 prev = (tets, s)
             if a.profile and n == 1:
-                profile(cmd, env, a.profile, os.path.join(out, "setup.prof"))
+                profile(args, code, a.profile, os.path.join(out, "setup.prof"))
 
 
 if __name__ == "__main__":

@@ -419,18 +419,6 @@ HE_INLINE double inv3(const double *A, double *Ai) {
   return d;
 }
 
-/* Linear tetrahedra: Dminv (nc x 9) = Dm^-1 with Dm = [X1-X0 | X2-X0 | X3-X0] (thesis eq. 4.29), vol = |det Dm| / 6. */
-void he_p1_geometry(int64_t nc, const idx_t *cells, const double *X, double *Dminv, double *vol) {
-  for (int64_t e = 0; e < nc; e++) {
-    const idx_t *c = cells + 4 * e;
-    const double *x0 = X + 3 * (int64_t)c[0];
-    double Dm[9];
-    for (int i = 0; i < 3; i++)
-      for (int k = 0; k < 3; k++) Dm[3 * i + k] = X[3 * (int64_t)c[k + 1] + i] - x0[i];
-    vol[e] = fabs(inv3(Dm, Dminv + 9 * e)) / 6.0;
-  }
-}
-
 /* Elements with quadrature: per (cell, point) of a rule with reference gradients dN (nq x nn x 3) and weights w (nq),
  * J = dX/dxi = sum_a X_a dN_a^T; where not NULL, geo (nc x nq x 10) = J^-1 (9, row-major) and |det J| w_q, and
  * wq (nc x nq) = |det J| w_q. */

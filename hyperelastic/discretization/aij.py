@@ -44,10 +44,9 @@ def vertex_pattern(sp, upper=False):
     owner adds them to its rows (kernels.csr_union), so every rank's rows are complete."""
     mpi = sp.mpi
     g = sp.lgmap.getBlockIndices().astype(np.int64)       # global vertex of each local vertex
-    own = owned_index(sp)
     if mpi.size == 1:
         return adjacency(sp.cells, g, sp.lvid_of_owned, upper)
-    others = np.flatnonzero(own < 0)
+    others = np.flatnonzero(owned_index(sp) < 0)
     ptr, cols = adjacency(sp.cells, g, np.concatenate([sp.lvid_of_owned, others]), upper)
     n = sp.n_owned
     mine = (ptr[:n + 1], cols[:ptr[n]])

@@ -63,8 +63,6 @@ _lib.he_scatter_upper.restype = None
 _lib.he_scatter_upper.argtypes = [_I, ctypes.c_int, _P, _P, _P]
 _lib.he_p1_galerkin.restype = None
 _lib.he_p1_galerkin.argtypes = [_I, _P, _P, _P]
-_lib.he_p1_geometry.restype = None
-_lib.he_p1_geometry.argtypes = [_I, _P, _P, _P, _P]
 _lib.he_egeometry.restype = None
 _lib.he_egeometry.argtypes = [_I, ctypes.c_int, ctypes.c_int, _P, _P, _P, _P, _P, _P]
 _lib.he_adjacency.restype = ctypes.c_int
@@ -162,16 +160,6 @@ def p1_galerkin(edges, vals, out):
     _lib.he_p1_galerkin(nc, e.ctypes.data, vals.ctypes.data, out.ctypes.data)
 
 
-def p1_geometry(X, cells):
-    """(Dminv (nc, 3, 3), vol (nc,)) of linear tetrahedra: Dm^-1 (thesis eq. 4.29 in matrix form, Dm = [X1-X0 | X2-X0 |
-    X3-X0]) by its cofactors and the volume |det Dm| / 6, in C."""
-    X, cells = np.ascontiguousarray(X, np.float64), np.ascontiguousarray(cells, dtype=IDX)
-    nc = len(cells)
-    Dminv, vol = np.empty((nc, 3, 3)), np.empty(nc)
-    _lib.he_p1_geometry(nc, cells.ctypes.data, X.ctypes.data, Dminv.ctypes.data, vol.ctypes.data)
-    return Dminv, vol
-
-
 def element_geometry(X, cells, dN, w, full=True):
     """Per (cell, point) of a rule (reference gradients dN (nq, nn, 3), weights w (nq,)) of cells (nc, nn) with node
     coordinates X: geo (nc, nq, 10) = J^-1 (row-major) and |det J| w_q when full, else the weights (nc, nq) alone, in
@@ -200,7 +188,7 @@ def adjacency(cells, g, rows, upper=False):
     its columns are cols[ptr[k]:ptr[k + 1]]. One pass over each vertex's cells (no key arrays of all the pairs)."""
     cells = np.ascontiguousarray(cells, dtype=IDX)
     g, rows = (np.ascontiguousarray(a, dtype=np.int64) for a in (g, rows))
-    nc, nn = cells.shape if cells.ndim == 2 else (0, 4)
+    nc, nn = cells.shape
     ptr = np.empty(len(rows) + 1, np.int64)
     args = (nc, nn, cells.ctypes.data, len(g), g.ctypes.data, len(rows), rows.ctypes.data, int(upper), ptr.ctypes.data)
     if _lib.he_adjacency(*args, None):

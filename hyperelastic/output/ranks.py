@@ -168,6 +168,7 @@ class RankWriter(Writer):
         names = [os.path.join(os.path.basename(path) + RANKS, rank_file(self.tag, r)) for r in range(mpi.size)]
         self.rank_path = os.path.join(here, names[mpi.rank])
         self.nv, self.nc = space.nv_total, space.nc_total
+        self._rows = {"node": self.nv, "cell": self.nc}      # the file's rows by a field's center
         self._volume = None
         self._slot = -1
         node_keys, cell_keys = space.orig[space.owned], space.cell_orig
@@ -301,8 +302,7 @@ class RankWriter(Writer):
             self._master_common(f, keep)
             for name, d in src.get("series", {}).items():     # (the earlier parts' series, which their frames name)
                 center = d.attrs["center"]
-                virtual_series(f, self.parts, name, {"node": self.nv, "cell": self.nc}[center], d.shape[2:], d.dtype,
-                               center)
+                virtual_series(f, self.parts, name, self._rows[center], d.shape[2:], d.dtype, center)
             f["time"].resize((n,))
             f["time"][:] = src["time"][:n]
             for i in range(n):
@@ -430,12 +430,11 @@ class RankWriter(Writer):
         g = _compact_group(f["frames"], str(i), FIELD_LINKS)
         for k in list(g):
             del g[k]
-        n = {"node": self.nv, "cell": self.nc}
         for name, tail, center in shapes:
             if name not in self._series:              # (once per part and field: one mapping per rank)
-                virtual_series(f, self.parts, name, n[center], tuple(tail), np.float64, center)
+                virtual_series(f, self.parts, name, self._rows[center], tuple(tail), np.float64, center)
                 self._series.add(name)
-            frame_view(g, name, n[center], tuple(tail), i)
+            frame_view(g, name, self._rows[center], tuple(tail), i)
         self.nframes += 1
         if time.monotonic() - self._stats_flushed >= STATS_EVERY_S:
             self._flush_stats()
@@ -444,8 +443,7 @@ class RankWriter(Writer):
         f["time"][i] = t
         f.flush()
         if self.committed:
-            n = {"node": self.nv, "cell": self.nc}
-            self._append_xdmf(i, t, sorted((k, (n[c],) + tuple(tail)) for k, tail, c in shapes))
+            self._append_xdmf(i, t, sorted((k, (self._rows[c],) + tuple(tail)) for k, tail, c in shapes))
 
     def checkpoint(self, x_local, v_local, nodal=None, cells=None, **state):
         """The full state into checkpoint/<slot> of every rank's file, then (rank 0) the slot's virtual datasets
