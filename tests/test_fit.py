@@ -6,7 +6,7 @@ import os
 import numpy as np
 import pytest
 
-from conftest import hyperelastic, read_h5, run_ok
+from conftest import ROOT, hyperelastic, read_h5, run_ok
 from test_rubber import MODELS as RUBBER
 
 LAM = {"uniaxial": np.linspace(0.6, 5.0, 12), "equibiaxial": np.linspace(1.05, 2.5, 8),
@@ -199,3 +199,94 @@ def test_bad_arguments_get_one_line(tmp_path):
         p = hyperelastic(["fit", data, *args])
         assert p.returncode == 2 and want in p.stderr and len(p.stderr.strip().splitlines()) == 1, (args, p.stderr)
     assert not os.path.exists(tmp_path / "d_gent.opts")
+
+
+def _relaxation_csv(path, t, P, stretch=1.5, mode="relaxation", extra=()):
+    path.write_text("mode,stretch,stress,time\n" + "".join(f"{m},{l!r},{p!r},0\n" for m, l, p in extra)
+                    + "".join(f"{mode},{stretch!r},{float(p)!r},{float(x)!r}\n" for x, p in zip(t, P)))
+    return path
+
+
+def test_prony_series_recovered_from_a_relaxation_the_application_computes(tmp_path):
+    """Issue 71 (fit for viscoelastic data): a nearly incompressible unit cube (neohookean_split, mu 1 MPa, kappa 1 GPa)
+    stretched uniaxially to 1.5 in one step of 0.05 s and held to 3 s with two Prony terms (b = 0.5, 0.3; tau = 0.2,
+    1 s): `fit --prony 2 --ramp 0.05` on the reaction it reports recovers b and tau within 1% (measured 0.2%) and the
+    long-term stress mu (l - l^-2) within 0.2% (kappa's share); with the neo-Hookean's uniaxial curve beside it
+    (--model neohookean) the options file holds both, the report compares the model's stress at the held stretch with
+    the long-term one, and a run takes the file."""
+    msh = tmp_path / "cube.msh"
+    run_ok(["mesh", f"{ROOT}/examples/cube.geo", "--size", 0.5, "-o", msh])
+    out = tmp_path / "relax.h5"
+    relax = ["-mesh", msh, "-material", "neohookean_split", "-effects", "elasticity,fixed,prescribed,viscoelastic",
+             "-fix", "xmin:x,ymin:y,zmin:z", "-prescribe_faces", "xmax:x", "-prescribe_x", "X*1.5", "-quasistatic",
+             "-snes_rtol", "1e-13", "-snes_atol", "1e-9", "-ksp_type", "preonly", "-pc_type", "lu", "-dt", 0.05]
+    run_ok(["run", "bend", *relax, "-mu", 1e6, "-kappa", 1e9, "-prony_beta", "0.5,0.3", "-prony_tau", "0.2,1",
+            "-final_time", 3, "-output", out, "-quiet"])
+    st = read_h5(out)["stats"]
+    data = _relaxation_csv(tmp_path / "relax.csv", st["time"], st["reaction_xmax_Fx"])
+    opts = tmp_path / "p.opts"
+    p = run_ok(["fit", data, "--prony", 2, "--ramp", 0.05, "-o", opts])
+    got = dict(ln[1:].split() for ln in opts.read_text().splitlines() if ln.startswith("-"))
+    assert set(got) == {"prony_beta", "prony_tau"}
+    for k, want in (("prony_beta", (0.5, 0.3)), ("prony_tau", (0.2, 1.0))):
+        vals = [float(v) for v in got[k].split(",")]
+        assert np.allclose(vals, want, rtol=0.01, atol=0), (k, vals)
+    P_inf = 1e6 * (1.5 - 1.5 ** -2)
+    line = [ln for ln in p.stdout.splitlines() if "long-term stress" in ln][0]
+    assert abs(float(line.split("long-term stress ")[1].split()[0]) / P_inf - 1) < 2e-3, line
+    lam = np.linspace(0.7, 3.0, 12)
+    curve = [("uniaxial", float(l), float(1e6 * (l - l ** -2))) for l in lam]
+    both = tmp_path / "both.opts"
+    p = run_ok(["fit", _relaxation_csv(tmp_path / "both.csv", st["time"], st["reaction_xmax_Fx"], extra=curve),
+                "--model", "neohookean", "--prony", 2, "--ramp", 0.05, "-o", both, "--plot", tmp_path / "both.png"])
+    got = dict(ln[1:].split() for ln in both.read_text().splitlines() if ln.startswith("-"))
+    assert got["material"] == "neohookean_split" and abs(float(got["mu"]) / 1e6 - 1) < 1e-9
+    assert "prony_beta" in got and "prony_tau" in got
+    line = [ln for ln in p.stdout.splitlines() if "from the long-term stress" in ln][0]
+    assert abs(float(line.split("Pa, ")[1].split("%")[0])) < 0.2, line
+    run_ok(["run", "bend", *relax, "-options_file", both, "-kappa", 1e9, "-final_time", 0.1,
+            "-output", tmp_path / "again.h5", "-quiet"])
+    again = read_h5(tmp_path / "again.h5")["stats"]["reaction_xmax_Fx"]
+    assert np.allclose(again, st["reaction_xmax_Fx"][:2], rtol=5e-3), (again, st["reaction_xmax_Fx"][:2])
+
+
+T = np.linspace(0.1, 3.0, 12)
+RELAX_BAD = {
+    "no_time": ("mode,stretch,stress\nrelaxation,1.5,2\nrelaxation,1.5,1.5\nrelaxation,1.5,1.2\n", ["--prony", "1"],
+                "needs a column 'time'"),
+    "time_back": ("mode,stretch,stress,time\n" + "".join(f"relaxation,1.5,{2 - x / 4},{x}\n" for x in (0.1, 0.3, 0.2, 0.4)),
+                  ["--prony", "1"], "times are not increasing"),
+    "stretch_moves": ("mode,stretch,stress,time\n" + "".join(f"relaxation,{1.5 + x},{2 - x / 4},{x}\n" for x in T),
+                      ["--prony", "1"], "stretches differ"),
+    "wrong_sign": ("mode,stretch,stress,time\n" + "".join(f"relaxation,0.8,{2 - x / 4},{x}\n" for x in T),
+                   ["--prony", "1"], "the sign of the held strain"),
+    "no_prony": ("mode,stretch,stress,time\n" + "".join(f"relaxation,1.5,{2 - x / 4},{x}\n" for x in T), [],
+                 "give --prony N"),
+    "prony_without_curve": ("mode,stretch,stress\nuniaxial,1.1,1\nuniaxial,1.3,2\nuniaxial,1.5,3\n",
+                            ["--model", "neohookean", "--prony", "2"], "no relaxation curve"),
+    "model_without_curve": ("mode,stretch,stress,time\n" + "".join(f"relaxation,1.5,{2 - x / 4},{x}\n" for x in T),
+                            ["--model", "yeoh", "--prony", "1"], "no uniaxial, equibiaxial or planar curve"),
+    "curve_without_model": ("mode,stretch,stress\nuniaxial,1.1,1\nuniaxial,1.3,2\nuniaxial,1.5,3\n", [],
+                            "give --model"),
+    "five_terms": ("mode,stretch,stress,time\n" + "".join(f"relaxation,1.5,{2 - x / 4},{x}\n" for x in T),
+                   ["--prony", "5"], "1 to 4 terms"),
+    "few_points": ("mode,stretch,stress,time\n" + "".join(f"relaxation,1.5,{2 - x / 4},{x}\n" for x in T[:4]),
+                   ["--prony", "2"], "4 relaxation points for 2 Prony terms' 5 constants"),
+    "inside_ramp": ("mode,stretch,stress,time\n" + "".join(f"relaxation,1.5,{2 - x / 4},{x}\n" for x in T),
+                    ["--prony", "1", "--ramp", "0.5"], "inside the loading ramp"),
+    "two_tests": ("mode,stretch,stress,time\n" + "".join(f"relaxation,1.5,{2 - x / 4},{x}\n" for x in T)
+                  + "".join(f"planar_relaxation,1.5,{2 - x / 4},{x}\n" for x in T), ["--prony", "1"],
+                  "relaxation curves of two modes"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(RELAX_BAD))
+def test_bad_relaxation_data_get_one_line(case, tmp_path):
+    text, args, want = RELAX_BAD[case]
+    data = tmp_path / "d.csv"
+    data.write_text(text)
+    opts = tmp_path / "d.opts"
+    opts.write_text("-material yeoh\n")
+    p = hyperelastic(["fit", data, *args, "-o", opts])
+    assert p.returncode == 2 and want in p.stderr and len(p.stderr.strip().splitlines()) == 1, (case, p.stderr)
+    assert opts.read_text() == "-material yeoh\n"

@@ -33,9 +33,13 @@ import numpy as np
 from ..core.errors import ArgParser, UserError
 from ..core.files import writable_dir
 from ..physics import materials
+from .prony import PronyFit
 
 MODES = {"uniaxial": "uniaxial", "equibiaxial": "equibiaxial", "biaxial": "equibiaxial", "planar": "planar",
          "pure_shear": "planar", "planar_shear": "planar"}
+RELAXATION = "_relaxation"     # a relaxation test: the stretch held from time 0 (or after --ramp), stress against time
+MODES.update({"relaxation": "uniaxial" + RELAXATION,
+              **{k + RELAXATION: v + RELAXATION for k, v in MODES.items()}})
 ORDER = ("uniaxial", "equibiaxial", "planar")
 UNITS = {"Pa": 1.0, "kPa": 1e3, "MPa": 1e6}
 # the names `fit --model` takes beyond the fitted materials': (material, the parameters fitted; None: all it declares)
@@ -88,7 +92,8 @@ def nominal(material, values, mode, lam):
 
 
 def read_data(path, unit="Pa"):
-    """{mode: (stretch, stress [Pa], weight)} of a CSV file; one UserError line for anything wrong in it."""
+    """{mode: (stretch, stress [Pa], weight)} of a CSV file, and under "relaxation" (time, stress [Pa], weight, the
+    held stretch, the test's mode) where it holds a relaxation curve; one UserError line for anything wrong in it."""
     where = f"fit: data '{path}'"
     try:
         with open(path, newline="", encoding="utf-8") as fh:
@@ -101,33 +106,42 @@ def read_data(path, unit="Pa"):
         raise UserError(f"{where}: cannot be read as CSV text ({getattr(e, 'strerror', None) or e})") from None
     rows = [r for r in rows if any(c.strip() for c in r) and not r[0].lstrip().startswith("#")]
     if not rows:
-        raise UserError(f"{where}: is empty (a header 'mode,stretch,stress[,weight]' and a row per point)")
+        raise UserError(f"{where}: is empty (a header 'mode,stretch,stress[,weight][,time]' and a row per point)")
     head = [c.strip().lower() for c in rows[0]]
     for need in ("mode", "stretch", "stress"):
         if need not in head:
             raise UserError(f"{where}: its header has no column '{need}' (it needs mode, stretch, stress and may have "
-                            f"weight; got {','.join(head)[:80]})")
-    col = {c: head.index(c) for c in ("mode", "stretch", "stress", "weight") if c in head}
+                            f"weight and time; got {','.join(head)[:80]})")
+    col = {c: head.index(c) for c in ("mode", "stretch", "stress", "weight", "time") if c in head}
     data = {}
     for line, r in enumerate(rows[1:], start=2):
         if len(r) < len(head):
             raise UserError(f"{where}, row {line}: {len(r)} columns where the header has {len(head)}")
-        mode, lam, stress, weight = _row(r, col, f"{where}, row {line}")
-        data.setdefault(mode, []).append((lam, stress * UNITS[unit], weight))
+        mode, lam, stress, weight, time = _row(r, col, f"{where}, row {line}")
+        data.setdefault(mode, []).append((lam, stress * UNITS[unit], weight, time))
     if not data:
         raise UserError(f"{where}: holds a header and no points")
-    return {mode: _curve(np.array(data[mode]), mode, where) for mode in ORDER if mode in data}
+    out = {mode: _curve(np.array(data[mode])[:, :3], mode, where) for mode in ORDER if mode in data}
+    relax = [m for m in data if m.endswith(RELAXATION)]
+    if len(relax) > 1:
+        raise UserError(f"{where}: relaxation curves of two modes ({relax[0]}, {relax[1]}): fit one relaxation test")
+    if relax:
+        out["relaxation"] = (*_relaxation_curve(np.array(data[relax[0]]), where), relax[0][:-len(RELAXATION)])
+    return out
 
 
 def _row(r, col, where):
-    """(mode, stretch, stress, weight) of a data row."""
+    """(mode, stretch, stress, weight, time) of a data row (time NaN where the row is not a relaxation test's)."""
     word = r[col["mode"]].strip().lower()
     if word not in MODES:
-        raise UserError(f"{where}: unknown mode '{word[:40]}' (choose from uniaxial, equibiaxial, planar)")
+        raise UserError(f"{where}: unknown mode '{word[:40]}' (choose from uniaxial, equibiaxial, planar, relaxation)")
+    mode = MODES[word]
     vals = []
-    for c in ("stretch", "stress", "weight"):
-        if c not in col:
-            vals.append(1.0)
+    for c in ("stretch", "stress", "weight", "time"):
+        if c not in col or (c == "time" and not mode.endswith(RELAXATION)):
+            if c == "time" and mode.endswith(RELAXATION):
+                raise UserError(f"{where}: a {word} row needs a column 'time' (the seconds since loading began)")
+            vals.append(1.0 if c == "weight" else math.nan)
             continue
         try:
             v = float(r[col[c]])
@@ -140,7 +154,9 @@ def _row(r, col, where):
         raise UserError(f"{where}: stretch {vals[0]:g} must be > 0")
     if vals[2] < 0:
         raise UserError(f"{where}: weight {vals[2]:g} must be >= 0")
-    return (MODES[word], *vals)
+    if vals[3] < 0:
+        raise UserError(f"{where}: time {vals[3]:g} must be >= 0 (seconds since loading began)")
+    return (mode, *vals)
 
 
 def _curve(a, mode, where):
@@ -153,6 +169,24 @@ def _curve(a, mode, where):
         raise UserError(f"{where}: the {mode} stretches are not monotone (stretch {a[k + 1, 0]:g} after "
                         f"{a[k, 0]:g}): one loading curve per mode, in order")
     return a[:, 0], a[:, 1], a[:, 2]
+
+
+def _relaxation_curve(a, where):
+    """(time, stress, weight, the held stretch) of a relaxation test's rows a (n, 4: stretch, stress, weight, time):
+    the times increasing, one stretch held, the stresses of one sign."""
+    lam, P, w, t = a.T
+    if len(a) < 3:
+        raise UserError(f"{where}: {len(a)} relaxation point(s) (a relaxation curve needs three or more)")
+    if not (np.diff(t) > 0).all():
+        k = int(np.flatnonzero(np.diff(t) <= 0)[0])
+        raise UserError(f"{where}: the relaxation times are not increasing (time {t[k + 1]:g} after {t[k]:g})")
+    if np.ptp(lam) > 1e-9 * lam[0]:
+        raise UserError(f"{where}: the relaxation rows' stretches differ ({lam.min():g} to {lam.max():g}): a "
+                        "relaxation test holds one stretch")
+    if lam[0] == 1.0 or not ((P > 0).all() or (P < 0).all()) or (P > 0).all() != (lam[0] > 1):
+        raise UserError(f"{where}: the relaxation stresses must all have the sign of the held strain (stretch "
+                        f"{lam[0]:g}; stresses {P.min():g} to {P.max():g})")
+    return t, P, w, float(lam[0])
 
 
 def _scale_of(data):
@@ -364,11 +398,27 @@ def _check_out(path, data_path, suffix, option):
     writable_dir(os.path.dirname(os.path.abspath(path)) or ".", f"fit: {option} '{path}'")
 
 
-def plot(fit, path):
-    """A PNG of the fitted curves against the data, the unstable stretches of each curve crossed."""
+def plot(fit, prony, path):
+    """A PNG of the fitted curves against the data (the unstable stretches of each curve crossed), the relaxation
+    curve's fit beside them."""
     from ..output.figures import legend, pyplot
     plt = pyplot()
-    fig, ax = plt.subplots(figsize=(6.4, 4.6))
+    panels = [p for p in (fit, prony) if p is not None]
+    fig, axes = plt.subplots(1, len(panels), figsize=(6.4 * len(panels), 4.6), squeeze=False)
+    if fit is not None:
+        _draw(fit, axes[0, 0])
+    if prony is not None:
+        prony.draw(axes[0, -1])
+    for ax in axes[0]:
+        legend(ax, fontsize=8)
+    fig.tight_layout()
+    tmp = path + ".partial.png"
+    fig.savefig(tmp, dpi=120)
+    plt.close(fig)
+    os.replace(tmp, path)
+
+
+def _draw(fit, ax):
     for i, (mode, (lam, P, _)) in enumerate(fit.data.items()):
         c = f"C{i}"
         ax.plot(lam, P / 1e6, "o", color=c, ms=4, label=f"{mode} (data)")
@@ -381,20 +431,20 @@ def plot(fit, path):
     ax.set_ylabel("nominal stress [MPa]")
     ax.set_title(f"{fit.name}: " + ", ".join(f"{p.name} {fit.values[p.name]:.4g}" for p in fit.params), fontsize=9)
     ax.grid(alpha=0.3)
-    legend(ax, fontsize=8)
-    fig.tight_layout()
-    tmp = path + ".partial.png"
-    fig.savefig(tmp, dpi=120)
-    plt.close(fig)
-    os.replace(tmp, path)
 
 
 def _parser():
     ap = ArgParser(prog="hyperelastic fit", description="A rubber model's constants fitted to homogeneous tests "
                    "(uniaxial, equibiaxial, planar: nominal stress against stretch), with Drucker's stability.")
-    ap.add_argument("data", help="CSV with a header: mode,stretch,stress[,weight]")
-    ap.add_argument("--model", required=True, help="one of: " + ", ".join(fitted_models()) + " (neohookean: "
-                    "neohookean_split; ogdenN: ogden's first N terms, the others off)")
+    ap.add_argument("data", help="CSV with a header: mode,stretch,stress[,weight][,time]")
+    ap.add_argument("--model", default=None, help="one of: " + ", ".join(fitted_models()) + " (neohookean: "
+                    "neohookean_split; ogdenN: ogden's first N terms, the others off); needed where the data hold "
+                    "uniaxial, equibiaxial or planar curves")
+    ap.add_argument("--prony", type=int, default=None, metavar="N", help="a Prony series of N terms (1 to 4) fitted "
+                    "to the data's relaxation curve (rows of mode 'relaxation' with a 'time' column): the "
+                    "viscoelastic effect's -prony_beta and -prony_tau")
+    ap.add_argument("--ramp", type=float, default=0.0, help="the relaxation test's loading time in seconds (its "
+                    "stretch reached at a constant rate; default 0: a step)")
     ap.add_argument("-o", "--output", default=None, help="the options file to write (default: DATA_MODEL.opts)")
     ap.add_argument("--plot", default=None, help="a PNG of the fit against the data")
     ap.add_argument("--unit", choices=tuple(UNITS), default="Pa", help="the data's stress unit (default Pa)")
@@ -416,26 +466,51 @@ def _range(text):
     return lo, hi
 
 
+def _check_parts(a, data, relax):
+    """One line where the data and the models asked for do not go together."""
+    if data and not a.model:
+        raise UserError(f"fit: the data hold {', '.join(data)} curves: give --model (one of "
+                        f"{', '.join(fitted_models())})")
+    if a.model and not data:
+        raise UserError(f"fit: --model {a.model}, but the data hold no uniaxial, equibiaxial or planar curve to fit it "
+                        "to")
+    if relax is not None and a.prony is None:
+        raise UserError("fit: the data hold a relaxation curve: give --prony N (1 to 4 terms) to fit a Prony series "
+                        "to it")
+    if a.prony is not None and relax is None:
+        raise UserError(f"fit: --prony {a.prony}, but the data hold no relaxation curve (rows of mode 'relaxation' "
+                        "with a 'time' column)")
+
+
 def main(argv):
     a = _parser().parse_args(argv)
     lo, hi = _range(a.stability)
     if not (math.isfinite(a.bulk_ratio) and a.bulk_ratio > 0):
         raise UserError(f"fit: --bulk-ratio {a.bulk_ratio:g} must be a positive number")
-    model = resolve(a.model)[0]
+    model = resolve(a.model)[0] if a.model else "prony"
     out = a.output or os.path.splitext(a.data)[0] + f"_{model}.opts"
     _check_out(out, a.data, ".opts", "--output")
     if a.plot:
         _check_out(a.plot, a.data, ".png", "--plot")
-    fit = Fit(a.model, read_data(a.data, a.unit), a.error, a.bulk_ratio)
-    stab = fit.stability(lo, hi)
-    lines = _describe(fit, stab, lo, hi)
+    data = read_data(a.data, a.unit)
+    relax = data.pop("relaxation", None)
+    _check_parts(a, data, relax)
+    fit = Fit(a.model, data, a.error, a.bulk_ratio) if a.model else None
+    prony = PronyFit(relax, a.prony, a.ramp) if a.prony is not None else None
+    lines, options = [], []
+    if fit is not None:
+        lines += _describe(fit, fit.stability(lo, hi), lo, hi)
+        options += fit.option_lines()
+    if prony is not None:
+        lines += prony.describe(fit)
+        options += prony.option_lines()
     print("\n".join(lines))
-    head = ["# " + "hyperelastic fit " + " ".join(argv), *("# " + ln for ln in lines[1:]),
+    head = ["# " + "hyperelastic fit " + " ".join(argv), *("# " + ln for ln in lines),
             "# (kappa: --bulk-ratio times the small-strain shear modulus; E and nu: the ones mu and kappa give)"]
-    _write_text(out, "\n".join(head + fit.option_lines()) + "\n")
+    _write_text(out, "\n".join(head[:len(head) - (fit is None)] + options) + "\n")
     print(f"wrote {out} (hyperelastic run SCENE -options_file {out})")
     if a.plot:
-        plot(fit, a.plot)
+        plot(fit, prony, a.plot)
         print(f"wrote {a.plot}")
     sys.stdout.flush()
     return 0
