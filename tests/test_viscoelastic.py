@@ -54,48 +54,154 @@ def test_a_held_stretch_relaxes_as_the_prony_series(order, cube, tmp_path):
     assert abs(got[-1] / P_inf - 1) < 0.002 and got[0] - P_inf > 0.05 * P_inf
 
 
-def _tangent_checks(e, x0, rng, a, b):
+class _Fused:
+    """The elastic force (its kernels, whose isochoric moduli the effect scales by 1 + g) and the effect's F H term
+    together: what a viscoelastic run's residual and tangent hold."""
+
+    def __init__(self, k, e):
+        self.k, self.e, self.cells = k, e, e.cells
+
+    def linearize(self, x):
+        self.x = x.copy()
+        self.e.linearize(x)
+
+    def residual(self, x, r):
+        self.k.forces(x, r)
+        self.e.residual(x, r)
+
+    def apply(self, v, y):
+        self.k.kv(self.x, v, y)
+        self.e.apply(v, y)
+
+    def diag(self, d):
+        self.k.tangent_diag(self.x, d)
+        self.e.diag(d)
+
+    def add_cell_blocks(self, K):
+        self.k.tangent(self.x, K, accumulate=True)
+        self.e.add_cell_blocks(K)
+
+
+def _tangent_checks(f, x0, rng, a, b, reference):
     """Mid-way through a relaxation (a step from x0 accepted at x0 + a r1: Q != 0; linearized at x1 + b r2): the
-    effect's K v against central differences of its residual, its cell blocks (scattered) against K v, and its
-    diagonal against the blocks'."""
+    fused residual against the numpy reference (P(F) + g P_iso(F) + F H), its K v against central differences of it,
+    its cell blocks (scattered) against K v, and its diagonal against the blocks'."""
+    e = f.e
     x1 = x0 + a * rng.standard_normal(x0.shape)
     e.begin_step(0.05, 0.05, x0, None)
     e.accept_step(x1, 0.05)                             # (the step accepted at x1: Q != 0)
     e.begin_step(0.1, 0.05, x1, None)
     x = x1 + b * rng.standard_normal(x0.shape)
+    r = np.zeros_like(x)
+    f.residual(x, r)
+    want = reference(x, e)
+    assert np.abs(e.H).max() > 0 and np.abs(r - want).max() <= 1e-10 * np.abs(want).max()
     v = rng.standard_normal(x.shape)
-    y, fd = tangent_and_fd(e, x, v, 1e-6)
+    y, fd = tangent_and_fd(f, x, v, 1e-6)
     assert np.abs(y - fd).max() <= 1e-6 * np.abs(y).max()
     nc, nn = e.cells.shape
     K = np.zeros((nc, 3 * nn, 3 * nn))
-    e.add_cell_blocks(K)
+    f.add_cell_blocks(K)
     dofs = (3 * e.cells[:, :, None] + np.arange(3)).reshape(nc, -1)
     yk, dk, d = np.zeros_like(x), np.zeros_like(x), np.zeros_like(x)
     np.add.at(yk, dofs, np.einsum("crs,cs->cr", K, v[dofs]))
     assert np.abs(yk - y).max() <= 1e-12 * np.abs(y).max()
-    e.diag(d)
+    f.diag(d)
     np.add.at(dk, dofs, np.einsum("cii->ci", K))
     assert np.allclose(d, dk, rtol=1e-12, atol=1e-12 * np.abs(dk).max())
 
 
-def test_the_tangent_is_the_residuals_derivative():
-    """The effect's K v, its diagonal and its 12x12 blocks against central differences of its residual, mid-way
-    through a relaxation (Q != 0), on random cells of the split Neo-Hookean and of Ogden's rubber."""
-    from hyperelastic.discretization.kernels import Cells
-    from hyperelastic.physics.effects.viscoelastic import Viscoelastic
-    from hyperelastic.physics.materials import default_solid
-    rng = np.random.default_rng(5)
-    X = rng.standard_normal((30, 4, 3))
+def _random_cells(rng, n=30):
+    X = rng.standard_normal((n, 4, 3))
     D = np.stack([X[:, 1] - X[:, 0], X[:, 2] - X[:, 0], X[:, 3] - X[:, 0]], axis=-1)
     keep = np.linalg.det(D) > 0.1
-    X, D = X[keep], D[keep]
+    return X[keep], D[keep]
+
+
+def test_the_tangent_is_the_residuals_derivative():
+    """The elastic force with its isochoric moduli scaled by 1 + g and the effect's F H term, together: the residual
+    against a numpy reference written from the effect's formula (P(F) + g P_iso(F) + F H, per cell), its K v, its
+    diagonal and its 12x12 blocks against central differences of it, mid-way through a relaxation (Q != 0), on random
+    cells of the split Neo-Hookean and of Ogden's rubber."""
+    from hyperelastic.discretization.kernels import Cells
+    from hyperelastic.physics.effects.viscoelastic import Viscoelastic, _gammas
+    from hyperelastic.physics.materials import default_solid
+    rng = np.random.default_rng(5)
+    X, D = _random_cells(rng)
     n = len(X)
     cells = Cells(np.arange(4 * n, dtype=np.int32).reshape(-1, 4), np.linalg.inv(D), np.linalg.det(D) / 6)
+    Dm = cells.Dminv.reshape(-1, 3, 3)
+    G = np.concatenate([-Dm.sum(axis=1)[:, None], Dm], axis=1)                     # (nc, 4, 3): grad N_a
     for name in ("neohookean_split", "ogden"):
         s = default_solid(name)
         k = cells.kernels(s.material, s.constants)
-        e = Viscoelastic(k, [(None, s.material, s.material.split(s.values)[0])], (0.4, 0.2), (0.1, 0.5))
-        _tangent_checks(e, X.reshape(-1).copy(), rng, 0.03, 0.02)
+        iso = s.material.split(s.values)[0]
+        e = Viscoelastic(k, [(None, s.material, iso)], (0.4, 0.2), (0.1, 0.5))
+
+        def reference(x, e):
+            F = e._F(x)[:, 0]
+            g = _gammas(e.beta, e.tau, 0.05)[1].sum()
+            P = s.material.P(F, s.constants) + g * s.material.P(F, iso) + F @ e.H[:, 0]
+            out = np.zeros_like(x)
+            np.add.at(out.reshape(-1, 3), cells.cells, np.einsum("cij,caj,c->cai", P, G, cells.vol))
+            return out
+        _tangent_checks(_Fused(k, e), X.reshape(-1).copy(), rng, 0.03, 0.02, reference)
+
+
+@pytest.mark.parametrize("order", [1, 2])
+def test_scaled_moduli_scale_the_isochoric_part_alone(order):
+    """Issue 71 (the effect in the elastic pass): for every material with a split, the compiled force, K v, tangent
+    blocks and diagonal with the isochoric moduli times s (kernels.scale_moduli) equal the material's own plus (s - 1)
+    times its isochoric part's (the split's constants), on linear tetrahedra and quadratic ones; the energy keeps the
+    material's own, `unscaled()` (Rayleigh damping's kernels) ignores the scale, and s = 1 is bitwise the
+    material's."""
+    from hyperelastic.discretization.kernels import Cells, ElementCells
+    from hyperelastic.element.reference import Element
+    from hyperelastic.physics.materials import MATERIALS, default_solid
+    rng = np.random.default_rng(8)
+    X, D = _random_cells(rng, 60)
+    x = X + 0.05 * rng.standard_normal(X.shape)
+    keep = np.linalg.det(np.stack([x[:, a] - x[:, 0] for a in (1, 2, 3)], axis=-1)) > 0.5 * np.linalg.det(D)
+    X, D, x = X[keep], D[keep], x[keep].reshape(-1)            # (every cell defined: J > 1/2)
+    cells = np.arange(4 * len(X), dtype=np.int32).reshape(-1, 4)
+    geo = (Cells(cells, np.linalg.inv(D), np.linalg.det(D) / 6) if order == 1 else
+           ElementCells(cells, X.reshape(-1, 3), Element(1, 2)))
+    v = rng.standard_normal(x.shape)
+    names = [n for n, m in MATERIALS.items() if m.volumetric]
+    assert {"neohookean_split", "yeoh", "ogden", "hgo", "linear"} <= set(names)
+    for name in names:
+        sol = default_solid(name, nu=0.45)
+        if name == "hgo":
+            sol.values.update({"k1": 2e5, "k2": 0.8, "fibre1": (1.0, 0.0, 0.0), "fibre2": (0.0, 0.6, 0.8)})
+        c = sol.material.constants(sol.values)
+        iso = sol.material.split(sol.values)[0]
+        k, ki = geo.kernels(sol.material, c), geo.kernels(sol.material, iso)
+        before = _evaluations(k, x, v)
+        damp = k.unscaled()
+        k.scale_moduli(1.7)
+        got, own, part = _evaluations(k, x, v), _evaluations(damp, x, v), _evaluations(ki, x, v)
+        for what in ("f", "y", "K", "d"):
+            want = before[what] + 0.7 * part[what]
+            assert np.isfinite(want).all() and np.abs(got[what] - want).max() <= 1e-11 * np.abs(want).max(), \
+                (name, what)
+            assert np.array_equal(own[what], before[what]), (name, what)
+        assert got["W"] == before["W"]
+        k.scale_moduli(1.0)
+        again = _evaluations(k, x, v)
+        assert all(np.array_equal(again[w], before[w]) for w in before), name
+        F = geo.deformations(x)                    # the effect's S_iso: the compiled F^-1 P(F) against numpy's
+        want = np.linalg.solve(F, sol.material.P(F, iso))
+        assert np.abs(ki.pk2(x) - want).max() <= 1e-10 * np.abs(want).max(), name
+    Dx = np.stack([x.reshape(-1, 4, 3)[:, a] - x.reshape(-1, 4, 3)[:, 0] for a in (1, 2, 3)], axis=-1)
+    assert np.allclose(geo.deformations(x)[:, 0], Dx @ np.linalg.inv(D), rtol=0, atol=1e-12)
+
+
+def _evaluations(k, x, v):
+    f, y, d = np.zeros_like(x), np.zeros_like(x), np.zeros_like(x)
+    k.forces(x, f)
+    k.kv(x, v, y)
+    k.tangent_diag(x, d)
+    return {"f": f, "y": y, "d": d, "K": k.tangent(x)[0], "W": k.energy(x)[0]}
 
 
 @pytest.mark.parametrize("args,want", [
@@ -203,13 +309,30 @@ def test_a_region_of_another_material_takes_no_part(tmp_path):
 
 def test_the_quadratic_tangent_is_the_residuals_derivative(petsc):
     """On quadratic tetrahedra (the bend scene at level 1, -order 2, Yeoh rubber with two Prony terms) mid-way through a
-    relaxation: the effect's K v against central differences of its residual, and its 30x30 blocks and diagonal
+    relaxation: the elastic force (its moduli scaled) with the effect's F H term, against the numpy reference at each
+    point of the stiffness rule; K v against central differences of the residual, its 30x30 blocks and diagonal
     against K v."""
-    from hyperelastic.physics.effects.viscoelastic import Viscoelastic
+    from hyperelastic.physics.effects.elasticity import Elasticity
+    from hyperelastic.physics.effects.viscoelastic import Viscoelastic, _gammas
     m = make_model(petsc, "bend", [("level", "1"), ("order", "2"), ("material", "yeoh"), ("prony_beta", "0.4,0.2"),
                                    ("prony_tau", "0.1,0.5")])
     e = next(x for x in m.system.effects if isinstance(x, Viscoelastic))
-    _tangent_checks(e, m.x0.copy(), np.random.default_rng(11), 0.01, 0.005)
+    k = next(x for x in m.system.effects if isinstance(x, Elasticity)).k
+    assert k is e.stiffness
+    g = k.geometry
+    _, mat, iso = e.parts[0]
+    c = k.constants
+
+    def reference(x, e):
+        F = e._F(x)
+        gsum = _gammas(e.beta, e.tau, 0.05)[1].sum()
+        P = mat.P(F, c) + gsum * mat.P(F, iso) + F @ e.H
+        G = np.matmul(g.dN[None], g.geo[:, :, :9].reshape(g.nc, g.nq, 3, 3))          # (nc, nq, nn, 3)
+        f = np.einsum("cqij,cqaj,cq->cai", P, G, g.geo[:, :, 9])
+        out = np.zeros_like(x)
+        np.add.at(out.reshape(-1, 3), g.cells, f)
+        return out
+    _tangent_checks(_Fused(k, e), m.x0.copy(), np.random.default_rng(11), 0.01, 0.005, reference)
 
 
 def test_nearly_incompressible_rubber_relaxes_in_the_mixed_formulation(cube, tmp_path):

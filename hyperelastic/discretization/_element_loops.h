@@ -201,4 +201,25 @@ int64_t HE_EFN(forces_dg)(int64_t nc, int nn, int nq, const idx_t *cells, const 
   return bad;
 }
 
+/* S = F^-1 P(F) at each point of the stiffness rule (nc x nq x 9; NaN where the material is undefined).
+ * Returns the number of points where it is. */
+int64_t HE_EFN(pk2)(int64_t nc, int nn, int nq, const idx_t *cells, const double *dN, const double *geo,
+                    const double *x, const double *restrict prm, double *S) {
+  HE_PARAMS(p);
+  int64_t bad = 0;
+  for (int64_t e = 0; e < nc; e++) {
+    double xe[HE_MAXN][3];
+    e_gather(cells + (int64_t)nn * e, nn, x, xe);
+    for (int q = 0; q < nq; q++) {
+      double G[HE_MAXN][3], F[9], P[9];
+      int undefined;
+      e_point(geo, dN, e, q, nn, nq, xe, G, F);
+      undefined = HE_MAT(stress)(p, F, P, NULL);
+      bad += undefined != 0;
+      pk2_of(F, P, undefined, S + 9 * ((int64_t)nq * e + q));
+    }
+  }
+  return bad;
+}
+
 #undef HE_EFN

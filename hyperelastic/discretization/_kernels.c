@@ -356,6 +356,98 @@ void he_pressure_terms(int64_t nc, int nn, int nq, const idx_t *cells, const dou
   }
 }
 
+/* ---- a second Piola-Kirchhoff stress given per cell and point (the viscoelastic effect's F H term) ----
+ * H (nc x nq x 9, symmetric, row-major) held fixed over a step: the force f_a = sum_q w_q (F_q H_q) G_a(q) is
+ * linear in the positions, so the same loop gives the force (at x) and K v (at v); its tangent is the
+ * geometric one, K_(a,i),(b,k) = delta_ik sum_q w_q G_a.H_q G_b. Linear tetrahedra (one point: Dminv, vol)
+ * and elements with quadrature (dN, geo). F (nc x nq x 9) of positions x: he_deformations / he_edeformations. */
+void he_deformations(int64_t nc, const idx_t *cells, const double *Dminv, const double *x, double *F) {
+  for (int64_t e = 0; e < nc; e++) gather_F(cells + 4 * e, Dminv + 9 * e, x, F + 9 * e);
+}
+
+void he_fh_forces(int64_t nc, const idx_t *cells, const double *Dminv, const double *vol, const double *H,
+                  const double *x, double *f) {
+  for (int64_t e = 0; e < nc; e++) {
+    double F[9], P[9];
+    gather_F(cells + 4 * e, Dminv + 9 * e, x, F);
+    mm(F, H + 9 * e, P);
+    scatter_force(cells + 4 * e, Dminv + 9 * e, vol[e], P, f);
+  }
+}
+
+/* s[a][b] = w G_a.H G_b of one point's gradients G (nn of them) */
+HE_INLINE void fh_products(const double *H, double G[HE_MAXN][3], int nn, double w, double s[HE_MAXN][HE_MAXN]) {
+  for (int a = 0; a < nn; a++) {
+    double hg[3];
+    for (int i = 0; i < 3; i++) hg[i] = w * (H[3 * i] * G[a][0] + H[3 * i + 1] * G[a][1] + H[3 * i + 2] * G[a][2]);
+    for (int b = 0; b < nn; b++) s[b][a] += G[b][0] * hg[0] + G[b][1] * hg[1] + G[b][2] * hg[2];
+  }
+}
+
+/* d += the diagonal of the F H term's tangent; vals (nc, 3nn, 3nn) += its blocks (diag NULL or vals NULL: not
+ * that one). */
+void he_fh_tangent(int64_t nc, const idx_t *cells, const double *Dminv, const double *vol, const double *H,
+                   double *d, double *vals) {
+  for (int64_t e = 0; e < nc; e++) {
+    double G[HE_MAXN][3], s[HE_MAXN][HE_MAXN] = {{0}};
+    gradN(Dminv + 9 * e, (double(*)[3])G);
+    fh_products(H + 9 * e, G, 4, vol[e], s);
+    for (int a = 0; a < 4; a++) {
+      if (d)
+        for (int i = 0; i < 3; i++) d[3 * (int64_t)cells[4 * e + a] + i] += s[a][a];
+      if (vals)
+        for (int b = 0; b < 4; b++)
+          for (int i = 0; i < 3; i++) vals[144 * e + 12 * (3 * a + i) + 3 * b + i] += s[a][b];
+    }
+  }
+}
+
+void he_edeformations(int64_t nc, int nn, int nq, const idx_t *cells, const double *dN, const double *geo,
+                      const double *x, double *F) {
+  for (int64_t e = 0; e < nc; e++) {
+    double xe[HE_MAXN][3], G[HE_MAXN][3];
+    e_gather(cells + (int64_t)nn * e, nn, x, xe);
+    for (int q = 0; q < nq; q++) e_point(geo, dN, e, q, nn, nq, xe, G, F + 9 * ((int64_t)nq * e + q));
+  }
+}
+
+void he_efh_forces(int64_t nc, int nn, int nq, const idx_t *cells, const double *dN, const double *geo,
+                   const double *H, const double *x, double *f) {
+  for (int64_t e = 0; e < nc; e++) {
+    const idx_t *c = cells + (int64_t)nn * e;
+    double xe[HE_MAXN][3], fe[HE_MAXN][3] = {{0}};
+    e_gather(c, nn, x, xe);
+    for (int q = 0; q < nq; q++) {
+      double G[HE_MAXN][3], F[9], P[9];
+      const double *g = e_point(geo, dN, e, q, nn, nq, xe, G, F);
+      mm(F, H + 9 * ((int64_t)nq * e + q), P);
+      e_add_force(P, G, nn, g[9], fe);
+    }
+    e_scatter(c, nn, fe, f);
+  }
+}
+
+void he_efh_tangent(int64_t nc, int nn, int nq, const idx_t *cells, const double *dN, const double *geo,
+                    const double *H, double *d, double *vals) {
+  const int n3 = 3 * nn;
+  for (int64_t e = 0; e < nc; e++) {
+    double s[HE_MAXN][HE_MAXN] = {{0}};
+    for (int q = 0; q < nq; q++) {
+      double G[HE_MAXN][3];
+      const double *g = geo + 10 * ((int64_t)nq * e + q);
+      e_grads(g, dN + 3 * nn * q, nn, G);
+      fh_products(H + 9 * ((int64_t)nq * e + q), G, nn, g[9], s);
+    }
+    for (int a = 0; a < nn; a++) {
+      if (d)
+        for (int i = 0; i < 3; i++) d[3 * (int64_t)cells[(int64_t)nn * e + a] + i] += s[a][a];
+      if (vals)
+        for (int b = 0; b < nn; b++)
+          for (int i = 0; i < 3; i++) vals[(int64_t)n3 * n3 * e + n3 * (3 * a + i) + 3 * b + i] += s[a][b];
+    }
+  }
+}
+
 /* ---- the symmetric tangent straight into SBAIJ, and p-multigrid's P1 operator from the P2 cells ---- */
 
 /* dst += the upper block triangle of the cells' blocks vals (nc x 3nn x 3nn, dof order 3a+i) into SBAIJ values

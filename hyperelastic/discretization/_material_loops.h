@@ -285,6 +285,25 @@ int64_t HE_FN(forces_dg)(int64_t nc, const idx_t *cells, const double *Dminv, co
 }
 
 
+/* The second Piola-Kirchhoff stress S = F^-1 P(F) of each cell (nc x 9; NaN where the material is undefined): the
+ * viscoelastic effect's S_iso with the isochoric constants. Returns the number of undefined cells. */
+int64_t HE_FN(pk2)(int64_t nc, const idx_t *cells, const double *Dminv, const double *vol, const double *x,
+                   const double *restrict prm, double *S) {
+  HE_PARAMS(p);
+  int64_t bad = 0;
+  (void)vol;
+  for (int64_t e = 0; e < nc; e++) {
+    double F[9], P[9];
+    int undefined;
+    gather_F(cells + 4 * e, Dminv + 9 * e, x, F);
+    undefined = HE_MAT(stress)(p, F, P, NULL);
+    bad += undefined != 0;
+    pk2_of(F, P, undefined, S + 9 * e);
+  }
+  return bad;
+}
+
+
 /* The output's cell fields (output/fields.py), 15 numbers a cell: J = det F, Psi, the von Mises stress
  * sqrt(3/2 s:s) of the Cauchy stress sigma = P F^T / J (s its deviator), sigma and the Green-Lagrange strain
  * E = (F^T F - I)/2 as Tensor6 (xx, xy, xz, yy, yz, zz). Psi, von Mises and sigma are NaN where the material is

@@ -41,7 +41,7 @@ _D = ctypes.c_double
 # per material NAME (materials/NAME.h): he_KIND_NAME(nc, cells, Dminv, vol, x, prm, ...), prm the material's
 # parameter block (NPARAM doubles: its constants, zero-padded; see _kernels.c, HE_NPARAM)
 _MATERIAL_KERNELS = {"forces": [_P], "energy": [_P], "kv": [_P, _P], "tangent": [_P, ctypes.c_int],
-                     "tangent_diag": [_P], "forces_dg": [_P, _P], "fields": [_P]}
+                     "tangent_diag": [_P], "forces_dg": [_P, _P], "fields": [_P], "pk2": [_P]}
 NPARAM = 12
 _lib.he_mass_apply.restype = None
 _lib.he_mass_apply.argtypes = [_I, _P, _P, _D, _P, _P]
@@ -49,6 +49,12 @@ _lib.he_max_step.restype = _D
 _lib.he_max_step.argtypes = [_I, _P, _P, _P, _P, _D]
 _lib.he_apply_blocks.restype = None
 _lib.he_apply_blocks.argtypes = [_I, _P, _P, _P, _P]
+_lib.he_deformations.restype = None
+_lib.he_deformations.argtypes = [_I, _P, _P, _P, _P]
+_lib.he_fh_forces.restype = None
+_lib.he_fh_forces.argtypes = [_I, _P, _P, _P, _P, _P, _P]
+_lib.he_fh_tangent.restype = None
+_lib.he_fh_tangent.argtypes = [_I, _P, _P, _P, _P, _P, _P]
 _lib.he_add_mass_blocks.restype = None
 _lib.he_add_mass_blocks.argtypes = [_I, _P, _D, _P]
 _lib.he_scatter_blocks.restype = None
@@ -347,6 +353,25 @@ class Cells:
         np.add.at(vertex_share, self.cells.ravel(), np.repeat(self.vol, 4))
         return vertex_share * (0.25 if lumped else 0.1)
 
+    def deformations(self, x):
+        """F (nc, 1, 3, 3) of each cell at positions x (one point per cell)."""
+        F = np.empty((self.nc, 1, 3, 3))
+        _lib.he_deformations(*self._args[:3], _ptr(x, np.float64), _ptr(F, np.float64))
+        return F
+
+    def fh_forces(self, H, x, f):
+        """f += the force of the second Piola-Kirchhoff stresses H (nc, 1, 3, 3; symmetric) at positions x:
+        sum_e V (F_e H_e) grad N_a. Linear in x: at a direction v it is the term's K v."""
+        assert H.shape == (self.nc, 1, 3, 3) and H.flags.c_contiguous
+        _lib.he_fh_forces(*self._args, _ptr(H, np.float64), _ptr(x, np.float64), _ptr(f, np.float64))
+
+    def fh_tangent(self, H, diag=None, vals=None):
+        """diag += the diagonal and vals (nc, 12, 12) += the blocks of fh_forces' tangent, delta_ik V G_a.H G_b."""
+        assert H.shape == (self.nc, 1, 3, 3) and H.flags.c_contiguous
+        assert vals is None or (vals.shape == (self.nc, 12, 12) and vals.flags.c_contiguous)
+        _lib.he_fh_tangent(*self._args, _ptr(H, np.float64), None if diag is None else _ptr(diag, np.float64),
+                           None if vals is None else _ptr(vals, np.float64))
+
     def max_step(self, x, d, frac=0.9):
         """Largest t <= 1 keeping every (not already inverted) cell's det F > 0 on x + [0, t] d, times
         frac when a cell would invert within the unit step."""
@@ -367,6 +392,31 @@ class Cells:
         """y += coef * (consistent P1 mass pattern) v."""
         _lib.he_mass_apply(self.nc, _ptr(self.cells, IDX), _ptr(self.vol, np.float64), float(coef),
                            _ptr(v, np.float64), _ptr(y, np.float64))
+
+
+def _scale_moduli(k, s):
+    """CellKernels/ElementKernels.scale_moduli: the force, K v, tangent and its diagonal take the material's
+    isochoric moduli (Material.moduli) times s from now on (the viscoelastic effect's 1 + g over a step); the energy
+    and the output's fields keep the material's own. s = 1: the material's."""
+    k.scale = float(s)
+    if k.scale == 1.0:
+        k._prm_k = k._prm
+    else:
+        k.prm_k = parameter_block(k.material.scaled(k.constants, k.scale))
+        k._prm_k = _ptr(k.prm_k, np.float64)
+    for p in k._parts.values():
+        p.scale_moduli(s)
+
+
+def _unscaled(k):
+    """The same material on the same cells (arrays shared) whose moduli scale_moduli on `k` leaves alone: for what
+    needs the material's own stiffness (Rayleigh damping's beta K)."""
+    out = type(k).__new__(type(k))
+    out.__dict__.update(k.__dict__)
+    out._parts = {}
+    out.parts = [(slice(None), out)]
+    out.scale_moduli(1.0)
+    return out
 
 
 class CellKernels:
@@ -391,7 +441,8 @@ class CellKernels:
         self.fn = material_kernels(material.name)
         self.constants = tuple(float(c) for c in constants)
         self.prm = parameter_block(self.constants)
-        self._prm = _ptr(self.prm, np.float64)
+        self._prm = self._prm_k = _ptr(self.prm, np.float64)
+        self.scale = 1.0
         self.parts = [(slice(None), self)]
 
     def part(self, lo, hi):
@@ -399,14 +450,18 @@ class CellKernels:
         if (lo, hi) not in self._parts:
             self._parts[(lo, hi)] = CellKernels(self.geometry.part(lo, hi), material=self.material,
                                                 constants=self.constants)
+            self._parts[(lo, hi)].scale_moduli(self.scale)
         return self._parts[(lo, hi)]
+
+    scale_moduli = _scale_moduli
+    unscaled = _unscaled
 
     def _x(self, x):
         return _ptr(x, np.float64)
 
     def forces(self, x, f):
         """f += k(x); returns the number of cells where the material is undefined."""
-        return self.fn["forces"](*self._args, self._x(x), self._prm, _ptr(f, np.float64))
+        return self.fn["forces"](*self._args, self._x(x), self._prm_k, _ptr(f, np.float64))
 
     def forces_discrete_gradient(self, x, xn, f):
         """f += the energy-momentum force of the midpoint step from xn to x1 = 2 x - xn (x the midpoint):
@@ -423,7 +478,7 @@ class CellKernels:
         skipped)."""
         if self.material.quadratic:
             return self.forces(x, f)
-        return self.fn["forces_dg"](*self._args, self._x(x), self._prm, _ptr(xn, np.float64), _ptr(f, np.float64))
+        return self.fn["forces_dg"](*self._args, self._x(x), self._prm_k, _ptr(xn, np.float64), _ptr(f, np.float64))
 
     def energy(self, x):
         out = np.zeros(3)
@@ -437,20 +492,27 @@ class CellKernels:
         self.fn["fields"](*self._args, self._x(x), self._prm, _ptr(out, np.float64))
         return out
 
+    def pk2(self, x):
+        """(nc, 1, 3, 3): each cell's second Piola-Kirchhoff stress F^-1 P(F) with the material's own constants (NaN
+        where it is undefined)."""
+        S = np.empty((self.nc, 1, 3, 3))
+        self.fn["pk2"](*self._args, self._x(x), self._prm, _ptr(S, np.float64))
+        return S
+
     def kv(self, x, v, y):
         """y += K(x) v."""
-        return self.fn["kv"](*self._args, self._x(x), self._prm, _ptr(v, np.float64), _ptr(y, np.float64))
+        return self.fn["kv"](*self._args, self._x(x), self._prm_k, _ptr(v, np.float64), _ptr(y, np.float64))
 
     def tangent(self, x, vals=None, accumulate=False):
         """12x12 cell tangents, shape (nc, 12, 12), dof order 3a+i; added to vals if accumulate."""
         if vals is None:
             vals = np.zeros((self.nc, 12, 12))
         assert vals.shape == (self.nc, 12, 12)
-        bad = self.fn["tangent"](*self._args, self._x(x), self._prm, _ptr(vals, np.float64), int(accumulate))
+        bad = self.fn["tangent"](*self._args, self._x(x), self._prm_k, _ptr(vals, np.float64), int(accumulate))
         return vals, bad
 
     def tangent_diag(self, x, diag):
-        return self.fn["tangent_diag"](*self._args, self._x(x), self._prm, _ptr(diag, np.float64))
+        return self.fn["tangent_diag"](*self._args, self._x(x), self._prm_k, _ptr(diag, np.float64))
 
     def max_step(self, x, d, frac=0.9):
         return self.geometry.max_step(x, d, frac)
@@ -473,13 +535,31 @@ class RegionKernels:
         self.materials = tuple(m for _, m, _ in self.spec)
         self.parts = [(idx, cells.subset(idx).kernels(m, c)) for idx, m, c in self.spec if len(idx)]
         self._parts = {}
+        self.scale = 1.0
 
     def part(self, lo, hi):
         """The same kernels on cells lo..hi-1 (cached)."""
         if (lo, hi) not in self._parts:
             sub = [(idx[(idx >= lo) & (idx < hi)] - lo, m, c) for idx, m, c in self.spec]
             self._parts[(lo, hi)] = RegionKernels(self.geometry.part(lo, hi), sub)
+            self._parts[(lo, hi)].scale_moduli(self.scale)
         return self._parts[(lo, hi)]
+
+    def scale_moduli(self, s):
+        """Each part's (CellKernels.scale_moduli)."""
+        self.scale = float(s)
+        for _, k in self.parts:
+            k.scale_moduli(s)
+        for r in self._parts.values():
+            r.scale_moduli(s)
+
+    def unscaled(self):
+        out = type(self).__new__(type(self))
+        out.__dict__.update(self.__dict__)
+        out.parts = [(idx, k.unscaled()) for idx, k in self.parts]
+        out._parts = {}
+        out.scale = 1.0
+        return out
 
     def forces(self, x, f):
         return sum(k.forces(x, f) for _, k in self.parts)
@@ -525,7 +605,7 @@ class RegionKernels:
 # ---- elements with quadrature (P2 tetrahedra) ----------------------------------------------------------
 # per material NAME: he_eKIND_NAME(nc, nn, nq, cells, dN, geo, x, prm, ...) (_element_loops.h)
 _ELEMENT_KERNELS = {"forces": [_P], "energy": [_P], "kv": [_P, _P], "tangent": [_P, ctypes.c_int],
-                    "tangent_diag": [_P], "forces_dg": [_P, _P]}
+                    "tangent_diag": [_P], "forces_dg": [_P, _P], "pk2": [_P]}
 _C = ctypes.c_int
 _lib.he_emass_apply.restype = None
 _lib.he_emass_apply.argtypes = [_I, _C, _C, _P, _P, _P, _D, _P, _P]
@@ -535,6 +615,12 @@ _lib.he_eapply_blocks.restype = None
 _lib.he_eapply_blocks.argtypes = [_I, _C, _P, _P, _P, _P]
 _lib.he_emax_step.restype = _D
 _lib.he_emax_step.argtypes = [_I, _C, _C, _P, _P, _P, _P, _P, _D]
+_lib.he_edeformations.restype = None
+_lib.he_edeformations.argtypes = [_I, _C, _C, _P, _P, _P, _P, _P]
+_lib.he_efh_forces.restype = None
+_lib.he_efh_forces.argtypes = [_I, _C, _C, _P, _P, _P, _P, _P, _P]
+_lib.he_efh_tangent.restype = None
+_lib.he_efh_tangent.argtypes = [_I, _C, _C, _P, _P, _P, _P, _P, _P]
 _ebound = {}
 
 
@@ -625,6 +711,25 @@ class ElementCells:
     def max_step(self, x, d, frac=0.9):
         return _lib.he_emax_step(*self._args, _ptr(x, np.float64), _ptr(d, np.float64), float(frac))
 
+    def deformations(self, x):
+        """F (nc, nq, 3, 3) at each point of the stiffness rule, at positions x."""
+        F = np.empty((self.nc, self.nq, 3, 3))
+        _lib.he_edeformations(*self._args, _ptr(x, np.float64), _ptr(F, np.float64))
+        return F
+
+    def fh_forces(self, H, x, f):
+        """Cells.fh_forces at each point of the stiffness rule (H: nc, nq, 3, 3)."""
+        assert H.shape == (self.nc, self.nq, 3, 3) and H.flags.c_contiguous
+        _lib.he_efh_forces(*self._args, _ptr(H, np.float64), _ptr(x, np.float64), _ptr(f, np.float64))
+
+    def fh_tangent(self, H, diag=None, vals=None):
+        """Cells.fh_tangent at each point of the stiffness rule."""
+        n3 = 3 * self.nn
+        assert H.shape == (self.nc, self.nq, 3, 3) and H.flags.c_contiguous
+        assert vals is None or (vals.shape == (self.nc, n3, n3) and vals.flags.c_contiguous)
+        _lib.he_efh_tangent(*self._args, _ptr(H, np.float64), None if diag is None else _ptr(diag, np.float64),
+                            None if vals is None else _ptr(vals, np.float64))
+
     def apply_blocks(self, blocks, v, y):
         n3 = 3 * self.nn
         assert blocks.shape == (self.nc, n3, n3) and blocks.flags.c_contiguous
@@ -654,7 +759,8 @@ class ElementKernels:
         self.fn = element_kernels(material.name)
         self.constants = tuple(float(c) for c in constants)
         self.prm = parameter_block(self.constants)
-        self._prm = _ptr(self.prm, np.float64)
+        self._prm = self._prm_k = _ptr(self.prm, np.float64)
+        self.scale = 1.0
         self._args = cells._args
         self.parts = [(slice(None), self)]
         self._parts = {}
@@ -662,16 +768,20 @@ class ElementKernels:
     def part(self, lo, hi):
         if (lo, hi) not in self._parts:
             self._parts[(lo, hi)] = ElementKernels(self.geometry.part(lo, hi), self.material, self.constants)
+            self._parts[(lo, hi)].scale_moduli(self.scale)
         return self._parts[(lo, hi)]
 
+    scale_moduli = _scale_moduli
+    unscaled = _unscaled
+
     def forces(self, x, f):
-        return self.fn["forces"](*self._args, _ptr(x, np.float64), self._prm, _ptr(f, np.float64))
+        return self.fn["forces"](*self._args, _ptr(x, np.float64), self._prm_k, _ptr(f, np.float64))
 
     def forces_discrete_gradient(self, x, xn, f):
         """The energy-momentum force, point by point (CellKernels.forces_discrete_gradient has the formulas)."""
         if self.material.quadratic:
             return self.forces(x, f)
-        return self.fn["forces_dg"](*self._args, _ptr(x, np.float64), self._prm, _ptr(xn, np.float64),
+        return self.fn["forces_dg"](*self._args, _ptr(x, np.float64), self._prm_k, _ptr(xn, np.float64),
                                     _ptr(f, np.float64))
 
     def energy(self, x):
@@ -680,19 +790,25 @@ class ElementKernels:
         return out[0], out[1], out[2], bad
 
     def kv(self, x, v, y):
-        return self.fn["kv"](*self._args, _ptr(x, np.float64), self._prm, _ptr(v, np.float64), _ptr(y, np.float64))
+        return self.fn["kv"](*self._args, _ptr(x, np.float64), self._prm_k, _ptr(v, np.float64), _ptr(y, np.float64))
+
+    def pk2(self, x):
+        """(nc, nq, 3, 3): F^-1 P(F) at each point of the stiffness rule (CellKernels.pk2)."""
+        S = np.empty((self.nc, self.geometry.nq, 3, 3))
+        self.fn["pk2"](*self._args, _ptr(x, np.float64), self._prm, _ptr(S, np.float64))
+        return S
 
     def tangent(self, x, vals=None, accumulate=False):
         n3 = 3 * self.nn
         if vals is None:
             vals = np.zeros((self.nc, n3, n3))
         assert vals.shape == (self.nc, n3, n3)
-        bad = self.fn["tangent"](*self._args, _ptr(x, np.float64), self._prm, _ptr(vals, np.float64),
+        bad = self.fn["tangent"](*self._args, _ptr(x, np.float64), self._prm_k, _ptr(vals, np.float64),
                                  int(accumulate))
         return vals, bad
 
     def tangent_diag(self, x, diag):
-        return self.fn["tangent_diag"](*self._args, _ptr(x, np.float64), self._prm, _ptr(diag, np.float64))
+        return self.fn["tangent_diag"](*self._args, _ptr(x, np.float64), self._prm_k, _ptr(diag, np.float64))
 
     def max_step(self, x, d, frac=0.9):
         return self.geometry.max_step(x, d, frac)

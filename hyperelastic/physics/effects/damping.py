@@ -110,7 +110,7 @@ def _read_rayleigh(opts, where):
 RAYLEIGH = Spec(
     "rayleigh", "Rayleigh damping (alpha M + beta K(x^n))", implied_by=("rayleigh_alpha", "rayleigh_beta"),
     read=_read_rayleigh, active=lambda p: p.alpha != 0 or p.beta != 0, dynamic=True,
-    build=lambda p, ctx: [RayleighDamping(ctx.kernels, ctx.cells, ctx.density, p.alpha, p.beta, ctx.lumped,
+    build=lambda p, ctx: [RayleighDamping(ctx.kernels.unscaled(), ctx.cells, ctx.density, p.alpha, p.beta, ctx.lumped,
                                           ctx.space.nlv)],
     rows=(Row(("rayleigh_alpha", "rayleigh_beta"), "-rayleigh_alpha a -rayleigh_beta b",
               "Rayleigh damping (αM + βK(xⁿ))"),))

@@ -6,8 +6,12 @@ Q_i' + Q_i / tau_i = b_i d/dt S_iso, S_iso the material's isochoric stress (its 
 relaxation modulus of the isochoric part is mu (1 + sum_i b_i exp(-t/tau_i)). Over a step of h from t_n with S_iso
 linear in time the update is exact: Q_i^(n+1) = exp(-h/tau_i) Q_i^n + g_i (S_iso^(n+1) - S_iso^n), g_i = b_i (1 -
 exp(-h/tau_i)) tau_i/h (the exponential integrator). The effect adds P = F sum_i Q_i^(n+1) = F H + g P_iso(F), H =
-sum_i (exp(-h/tau_i) Q_i^n - g_i S_iso^n), g = sum g_i, to the residual; its tangent is g K_iso + (dF H). The Q_i and
-S_iso^n are taken forward once per accepted step, by its size and its end state (accept_step). Checkpoints carry them per cell (core.files.CHECKPOINT_CELLS), in the input cells' order:
+sum_i (exp(-h/tau_i) Q_i^n - g_i S_iso^n), g = sum g_i, to the residual; its tangent is g K_iso + (dF H). The g P_iso
+term is the elastic force's own pass with the isochoric moduli times 1 + g (every split material's isochoric energy is
+linear in them: Material.moduli, kernels.scale_moduli): one pass over the cells, not two; the F H term is a C loop of
+its own (kernels' fh_forces, fh_tangent). The Q_i and S_iso^n are taken forward once per accepted step, by its size
+and its end state (accept_step). Checkpoints carry them per cell (core.files.CHECKPOINT_CELLS), in the input cells'
+order:
 a restart continues on any rank count. On quadratic tetrahedra the Q_i live at each quadrature point of the stiffness
 rule. With -regions, the regions of a material with a split (a region of another material, a steel insert, takes no
 part)."""
@@ -38,52 +42,40 @@ class Viscoelastic(Effect):
     internal = True
 
     def __init__(self, kernels, parts, beta, tau):
-        """parts: [(the local cells (indices, ascending; None: all), Material, its isochoric constants)] of the
-        materials with a split (the cells of any other material take no part)."""
+        """kernels: the elastic force's (the effect scales their isochoric moduli by 1 + g over each step: the g
+        P_iso term computed in the elastic pass itself); parts: [(the local cells (indices, ascending; None: all),
+        Material, its isochoric constants)] of the materials with a split (the cells of any other material take no
+        part)."""
         super().__init__()
-        g = kernels.geometry
+        self.stiffness = kernels
+        g = self.geometry = kernels.geometry
         every = np.arange(g.nc)
         self.parts = [(every if idx is None else np.asarray(idx, np.int64), m, c) for idx, m, c in parts]
-        # each part's isochoric kernels on its cells
+        # each part's isochoric kernels on its cells (S_iso, once per accepted step)
         self.iso = [(idx, (g if len(idx) == g.nc else g.subset(idx)).kernels(m, c)) for idx, m, c in self.parts]
         self.beta, self.tau = np.array(beta), np.array(tau)
         self.cells = g.cells
-        if hasattr(g, "geo"):           # quadrature cells (P2: ElementCells): G_cqa = dN_qa J_cq^-1, weights |det J| w_q
-            nq = g.geo.shape[1]
-            self.G = np.matmul(g.dN[None], g.geo[:, :, :9].reshape(-1, nq, 3, 3))      # (nc, nq, nn, 3)
-            self.w = g.geo[:, :, 9].copy()                                             # (nc, nq)
-        else:                           # linear cells (Cells): one point, grad N_0 = -sum of Dm^-1's rows, then its rows
-            Dminv = g.Dminv.reshape(-1, 3, 3)
-            self.G = np.concatenate([-Dminv.sum(axis=1, keepdims=True), Dminv], axis=1)[:, None]
-            self.w = g.vol[:, None].copy()
+        # each point's weight: |det J| w_q of the stiffness rule (P2: ElementCells), the volume (P1: one point)
+        self.w = g.geo[:, :, 9].copy() if hasattr(g, "geo") else g.vol[:, None].copy()
         nc, nq = self.w.shape
         self.Q = np.zeros((len(beta), nc, nq, 3, 3))
         self.S = None          # S_iso at the last accepted state, per cell and point
         self.h = None          # the size of the step being solved
-        self.scatter = None    # cell forces -> the local vector (a sparse matrix, built at the first use)
+        self.H = None          # sum_i (exp(-h/tau_i) Q_i^n - g_i S_iso^n): the step's F H term (nc, nq, 3, 3)
         self.C = None          # C = F^T F at the last accepted state
         self.work = np.zeros(nc)   # each cell's non-equilibrium stresses' work up to the last accepted state
         self.memo = None       # the last _advanced (dt, x, its result): energy's, then accept_step's
 
     def _F(self, x):
-        xs = x.reshape(-1, 3)[self.cells]                                   # (nc, nn, 3)
-        return np.matmul(np.swapaxes(xs, 1, 2)[:, None], self.G)            # (nc, nq, 3, 3)
+        return self.geometry.deformations(x)                                 # (nc, nq, 3, 3)
 
-    def _S_iso(self, F):
-        """S_iso per cell and point of the deformation gradients F (0 in the cells of a material without a split)."""
-        S = np.zeros_like(F)
-        with np.errstate(all="ignore"):
-            for idx, m, c in self.parts:
-                f = F[idx].reshape(-1, 3, 3)
-                S[idx] = np.linalg.solve(f, m.P(f, c)).reshape(F[idx].shape)
+    def _S_iso(self, x):
+        """S_iso per cell and point at positions x (0 in the cells of a material without a split; NaN where the
+        material is undefined), by the isochoric kernels."""
+        S = np.zeros((len(self.w), self.w.shape[1], 3, 3))
+        for idx, k in self.iso:
+            S[idx] = k.pk2(x)
         return S
-
-    def _iso_sum(self, fn, out):
-        """out += g x the isochoric kernels' fn(k, tmp) (forces, K v, diagonal) over the parts."""
-        tmp = np.zeros_like(out)
-        for _, k in self.iso:
-            fn(k, tmp)
-        out += self.g * tmp
 
     def _advanced(self, x, dt):
         """(Q, S_iso, C, the viscous work) at the end of a step of dt from the committed state to positions x. The
@@ -93,7 +85,7 @@ class Viscoelastic(Effect):
             return self.memo[2]
         F = self._F(x)
         C = np.matmul(np.swapaxes(F, -1, -2), F)
-        S = self._S_iso(F)
+        S = self._S_iso(x)
         e, g = _gammas(self.beta, self.tau, dt)
         Q = e[:, None, None, None, None] * self.Q + g[:, None, None, None, None] * (S - self.S)
         # the work of the non-equilibrium stresses over the step, sum_c int sum_i Q_i : dC/2 (trapezoid in time)
@@ -102,62 +94,38 @@ class Viscoelastic(Effect):
         return self.memo[2]
 
     def begin_step(self, t, h, xn, vn):
+        """The step's g = sum g_i and H: the elastic force's isochoric moduli times 1 + g (its pass computes the
+        g P_iso term), this effect the F H term."""
         if self.S is None:
             F = self._F(xn)
-            self.S, self.C = self._S_iso(F), np.matmul(np.swapaxes(F, -1, -2), F)
+            self.S, self.C = self._S_iso(xn), np.matmul(np.swapaxes(F, -1, -2), F)
         self.h = h
         e, g = _gammas(self.beta, self.tau, h)
         self.g = float(g.sum())
-        self.H = np.einsum("i,icqjk->cqjk", e, self.Q) - self.g * self.S
-
-    def _forces(self, P, r):
-        """r += sum_q w_q P_q grad N_a(q) for each cell's nodes (P (nc, nq, 3, 3)), scattered by a sparse matrix."""
-        f = np.matmul(self.G, np.swapaxes(P, -1, -2)) * self.w[:, :, None, None]         # (nc, nq, nn, 3)
-        self._forces_raw(f.sum(axis=1), r)
-
-    def _forces_raw(self, f, r):
-        """r += the cells' nodal values f (nc, nn, 3), summed at the nodes."""
-        if self.scatter is None or self.scatter.shape[0] != r.size:
-            from scipy.sparse import csr_matrix      # deferred: only this effect (and self-contact) needs scipy
-            rows = (3 * self.cells[:, :, None] + np.arange(3)).ravel()
-            self.scatter = csr_matrix((np.ones(rows.size), (rows, np.arange(rows.size))), shape=(r.size, rows.size))
-        r += self.scatter @ f.ravel()
+        self.H = np.ascontiguousarray(np.einsum("i,icqjk->cqjk", e, self.Q) - self.g * self.S)
+        self.stiffness.scale_moduli(1.0 + self.g)
 
     @timed("evals")
     def residual(self, x, r):
-        self._iso_sum(lambda k, t: k.forces(x, t), r)
-        self._forces(self._F(x) @ self.H, r)
+        self.geometry.fh_forces(self.H, x, r)
 
     def linearize(self, x):
         self.x = x.copy()
 
     @timed("applies")
     def apply(self, v, y):
-        self._iso_sum(lambda k, t: k.kv(self.x, v, t), y)
-        self._forces(self._F(v) @ self.H, y)
+        self.geometry.fh_forces(self.H, v, y)          # (linear in the positions: at v, its K v)
 
     @timed("applies")
     def diag(self, d):
-        self._iso_sum(lambda k, t: k.tangent_diag(self.x, t), d)
-        gg = np.einsum("cqai,cqai,cq->ca", np.matmul(self.G, self.H), self.G, self.w)           # (nc, nn)
-        self._forces_raw(np.repeat(gg[:, :, None], 3, axis=2), d)
+        self.geometry.fh_tangent(self.H, diag=d)
 
     @timed("applies")
     def add_cell_blocks(self, vals, lo=0, hi=None):
         hi = len(self.w) if hi is None else hi
-        for idx, k in self.iso:                     # (each part's cells lo..hi-1: a contiguous run of its own)
-            a, b = np.searchsorted(idx, lo), np.searchsorted(idx, hi)
-            if a == b:
-                continue
-            K, _ = (k if (a, b) == (0, k.nc) else k.part(int(a), int(b))).tangent(self.x)
-            K *= self.g
-            vals[idx[a:b] - lo] += K
-        G, H, w = self.G[lo:hi], self.H[lo:hi], self.w[lo:hi]
-        gg = np.einsum("cqab,cq->cab", np.matmul(np.matmul(G, H), np.swapaxes(G, -1, -2)), w)  # (n, nn, nn)
-        nn = G.shape[2]
-        v5 = vals.reshape(len(w), nn, 3, nn, 3)
-        for i in range(3):
-            v5[:, :, i, :, i] += gg
+        whole = lo == 0 and hi == len(self.w)
+        (self.geometry if whole else self.geometry.part(lo, hi)).fh_tangent(self.H if whole else self.H[lo:hi],
+                                                                            vals=vals)
 
     def accept_step(self, x, h):
         """The step of h that ends at positions x was accepted: its stresses and work are committed."""
@@ -241,7 +209,7 @@ def _build(p, ctx):
         raise UserError(f"the viscoelastic effect (-prony_beta): no material of the run ({names}) has an "
                         "isochoric/volumetric split (take neohookean_split, mooney_rivlin, yeoh, gent, arruda_boyce, "
                         "ogden or hgo)")
-    return [Viscoelastic(ctx.kernels, parts, p.beta, p.tau)]
+    return [Viscoelastic(ctx.kernels, parts, p.beta, p.tau)]     # (the elastic force's kernels: Elasticity's)
 
 
 SPEC = Spec(

@@ -60,6 +60,18 @@ HE_INLINE void cof_mixed(const double *A, const double *B, double *C) {
   C[7] = A[2] * B[3] - A[0] * B[5];
   C[8] = A[0] * B[4] - A[1] * B[3];
 }
+/* S = F^-1 P (the second Piola-Kirchhoff stress of a first one P at F, by F's cofactors); NaN where det F = 0 or
+ * `undefined` (the material's stress returned nonzero). */
+HE_INLINE void pk2_of(const double *F, const double *P, int undefined, double *S) {
+  double Q[9], J = det3(F);
+  if (undefined || J == 0) {
+    for (int k = 0; k < 9; k++) S[k] = NAN;
+    return;
+  }
+  cof_mixed(F, F, Q);               /* J F^-T */
+  mtm(Q, P, S);
+  for (int k = 0; k < 9; k++) S[k] /= J;
+}
 /* The volumetric split's common scalars of F: J = det F, Q = F^-T and J^(-2/3); returns 1 (nothing else
  * computed) where J <= 0, for the materials undefined there (neohookean_split.h, mooney_rivlin.h). */
 HE_INLINE int split_scalars(const double *F, double *J, double *Q, double *jm23) {

@@ -63,6 +63,7 @@ class ArrudaBoyce(IsochoricI1):
     not the network's mu_n that Abaqus and FEBio take (their initial modulus mu_0 is this mu). Undefined for J <= 0 and
     at the locking stretch lambda_c >= lambda_m (I1_bar >= 3 lambda_m^2)."""
     name = "arruda_boyce"
+    moduli = (0,)
     summary = "μ, λm, κ: eight-chain rubber network"
     references = "Arruda & Boyce, J. Mech. Phys. Solids 41, 1993"
     fitted = ("mu", "lambda_m")

@@ -50,6 +50,15 @@ class Material:
     # the energy as an independent pressure: "J" (the constraint G = J - 1, U(J) = kappa/4 (J^2 - 1 - 2 ln J)),
     # "trace" (G = tr eps, U = kappa/2 (tr eps)^2: the linear material); None: no split, no mixed formulation
     volumetric = None
+    # the positions in the parameter block (`constants`, and the isochoric one of `split`) of the moduli the
+    # isochoric energy is linear in (mu, C10, C01, Ogden's mu_p, HGO's k1): scaled all by s, the isochoric energy is
+    # s times its own and the volumetric one unchanged (the viscoelastic effect's 1 + g over a step)
+    moduli = ()
+
+    @classmethod
+    def scaled(cls, c, s):
+        """The parameter block c with its isochoric moduli (`moduli`) times s."""
+        return tuple(v * s if i in cls.moduli else v for i, v in enumerate(c))
 
     @staticmethod
     def constants(v):

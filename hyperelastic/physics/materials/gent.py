@@ -17,6 +17,7 @@ class Gent(IsochoricI1):
     mu), the energy infinite as I1_bar - 3 -> Jm (the chains' full extension), undefined beyond (as for J <= 0: the
     state is refused and the step retried smaller). Jm -> infinity is neohookean_split."""
     name = "gent"
+    moduli = (0,)
     summary = "μ, Jm, κ: rubber that stiffens up to a locking stretch"
     references = "Gent, Rubber Chem. Technol. 69, 1996"
     fitted = ("mu", "Jm")

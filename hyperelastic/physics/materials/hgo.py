@@ -35,6 +35,7 @@ class HGO(Material):
     + sum f''_i (H_i:dF) H_i + the volumetric part's, H_i = d G1 + (1 - 3d) G4i. The energy is C1, not C2, where a
     family starts to stretch (E = 0). Undefined for J <= 0 and where k2 E^2 > 700 (exp overflows)."""
     name = "hgo"
+    moduli = (0, 1)
     summary = "μ, k1, k2, dispersion, fibre1, fibre2, κ: fibre-reinforced soft tissue"
     defined_when_inverted = False
     references = "Gasser, Ogden & Holzapfel, J. R. Soc. Interface 3, 2006"

@@ -19,6 +19,12 @@ class Linear(Material):
         lam, mu = lame(v["E"], v["nu"])
         return (mu, -2.0 * mu / 3.0), mu, lam + 2.0 * mu / 3.0
 
+    @classmethod
+    def scaled(cls, c, s):
+        """The deviatoric part times s (its bulk modulus lam + 2 mu/3 kept): mu -> s mu, lam -> lam - (s - 1) 2 mu/3."""
+        mu, lam = c
+        return (s * mu, lam - (s - 1) * 2.0 * mu / 3.0)
+
     @staticmethod
     def psi(F, c):
         mu, lam = c

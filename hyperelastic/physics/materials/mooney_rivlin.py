@@ -18,6 +18,7 @@ class MooneyRivlin(Material):
     defined_when_inverted = False
     references = "Holzapfel 2000, sec. 6.5"
     volumetric = "J"
+    moduli = (0, 1)
     parameters = (
         Parameter("C10", "Pa", "the first invariant's modulus", lambda v: shear_modulus(v) / 2 - v.get("C01", 0.0),
                   "μ/2 − C01 (μ = E/(2(1+ν)))", exclusive=False),

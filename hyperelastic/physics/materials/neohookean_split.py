@@ -21,6 +21,7 @@ class NeoHookeanSplit(Material):
     defined_when_inverted = False
     references = "Simo & Taylor, CMAME 85, 1991"
     volumetric = "J"
+    moduli = (0,)
     parameters = (
         SHEAR,
         BULK,

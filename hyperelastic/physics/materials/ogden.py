@@ -49,6 +49,7 @@ class Ogden(Material):
     differences of f' at the eigenvalues, f'' on the diagonal and where two are equal: exact and finite at equal
     stretches, where the principal directions are not defined. Undefined for J <= 0."""
     name = "ogden"
+    moduli = (0, 2, 4)
     summary = "μ1..3, α1..3, κ: rubber in principal stretches"
     defined_when_inverted = False
     references = "Ogden, Proc. R. Soc. A 326, 1972"

@@ -13,6 +13,7 @@ class Yeoh(IsochoricI1):
     2 C10; C20 may be negative (typical of filled rubber: C10 > 0, C20 < 0, C30 > 0), and such constants are Drucker
     stable only over some range of strain. Undefined for J <= 0."""
     name = "yeoh"
+    moduli = (0, 1, 2)
     summary = "C10, C20, C30, κ: filled rubber to large strains"
     references = "Yeoh, Rubber Chem. Technol. 66, 1993"
     fitted = ("C10", "C20", "C30")
