@@ -107,9 +107,8 @@ class System(Elimination, Objective):
         from (xn, vn) to t1: the loads at t_stage, and the constrained dofs' targets at the stage,
         x_a = xn + alpha_f (g(t1) - xn) (what TSALPHA2 computes from X1 when X1_c = g(t1))."""
         self.begin_step(t1, h, xn, vn)       # (drops r_const; the next residual sums it at t_stage)
-        for e in self.effects:
-            if e.order == 0 and not e.end_state:     # (contact stays at the step's end: _end_state)
-                e.begin_step(t_stage, h, xn, vn)
+        for e in self.effects:                   # (contact stays at the step's end: _end_state)
+            e.begin_stage(t_stage, h, xn, vn, alpha_f)
         self.stage = (xn.copy(), alpha_f)
         c = self.cdofs
         self.g[c] = alpha_f * (self.g[c] - xn[c]) + xn[c]

@@ -142,6 +142,13 @@ class Effect:
     def begin_step(self, t, h, xn, vn):
         pass
 
+    def begin_stage(self, t_stage, h, xn, vn, alpha_f):
+        """A generalized-alpha stage at t_stage = t_n + alpha_f h of a step of h from (xn, vn) (System.begin_stage,
+        after begin_step at the step's end): an effect on positions acts at the stage's time (its loads there),
+        unless it acts at the step's end (end_state)."""
+        if self.order == 0 and not self.end_state:
+            self.begin_step(t_stage, h, xn, vn)
+
     def residual(self, x, r):
         """r += this effect's residual at local positions x."""
 

@@ -100,7 +100,17 @@ class Viscoelastic(Effect):
             F = self._F(xn)
             self.S, self.C = self._S_iso(xn), np.matmul(np.swapaxes(F, -1, -2), F)
         self.h = h
-        e, g = _gammas(self.beta, self.tau, h)
+        self._carry(h)
+
+    def begin_stage(self, t_stage, h, xn, vn, alpha_f):
+        """A generalized-alpha stage (-integrator ts): the residual is taken at x_(n+alpha_f) and t_n + alpha_f h, so
+        the stresses there are the committed ones carried alpha_f h forward (the step's end still commits over h:
+        accept_step)."""
+        self._carry(alpha_f * h)
+
+    def _carry(self, dt):
+        """g and H of the committed stresses carried dt forward; the elastic force's isochoric moduli times 1 + g."""
+        e, g = _gammas(self.beta, self.tau, dt)
         self.g = float(g.sum())
         self.H = np.ascontiguousarray(np.einsum("i,icqjk->cqjk", e, self.Q) - self.g * self.S)
         self.stiffness.scale_moduli(1.0 + self.g)
