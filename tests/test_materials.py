@@ -267,7 +267,7 @@ def test_registry_one_home_per_material():
     for name in materials.REGISTRY:
         assert MATERIALS[name].name == name
         assert set(material_kernels(name)) == {"forces", "energy", "kv", "tangent", "tangent_diag", "forces_dg",
-                                               "fields"}
+                                               "fields", "pk2"}
     with pytest.raises(ImportError, match="no compiled kernels for material 'nosuch'"):
         material_kernels("nosuch")
 

@@ -4,8 +4,8 @@
  * with b = 4 W'' J^(-4/3). HE_I1_MATERIAL(NAME, KAPPA) defines NAME_cache, NAME_stress, NAME_prepare and
  * NAME_dstress (and the closed-form cell tangent, NAME_cell_tangent: _tensor.h's split_cell_tangent) from the model's
  *   int NAME_w(const double *prm, double s, double *w, double *w1, double *w2)
- * (W, W', W'' at s = I1_bar - 3, W only where w is not NULL; returns 1 where W is undefined: a locking model beyond
- * its limit), the bulk modulus being prm[KAPPA]. Stress and prepare return 1 where J <= 0 or W is undefined. */
+ * (W, W', W'' at s = I1_bar - 3, W only where w is not NULL, W'' only where w2 is not NULL (the stress needs
+ * neither); returns 1 where W is undefined: a locking model beyond its limit), the bulk modulus being prm[KAPPA]. Stress and prepare return 1 where J <= 0 or W is undefined. */
 #ifndef HE_I1_H
 #define HE_I1_H
 #include "_tensor.h"
@@ -38,9 +38,10 @@ HE_INLINE int i1_stress(int undefined, const i1_cache *d, double kappa, double J
 
 #define HE_I1_MATERIAL(NAME, KAPPA)                                                                                 \
   typedef i1_cache NAME##_cache;                                                                                    \
-  HE_INLINE int NAME##_scalars(const double *prm, const double *F, i1_cache *d, double *J, double *w) {             \
-    double jm23, w1, w2;                                                                                            \
-    if (i1_scalars(F, prm[KAPPA], d, J, &jm23) || NAME##_w(prm, jm23 * d->I1 - 3, w, &w1, &w2)) return 1;           \
+  HE_INLINE int NAME##_scalars(const double *prm, const double *F, i1_cache *d, double *J, double *w, int tangent) { \
+    double jm23, w1, w2 = 0;                                                                                        \
+    if (i1_scalars(F, prm[KAPPA], d, J, &jm23) ||                                                                   \
+        NAME##_w(prm, jm23 * d->I1 - 3, w, &w1, tangent ? &w2 : NULL)) return 1;                                   \
     d->a = 2 * w1 * jm23;                                                                                           \
     d->b = 4 * w2 * jm23 * jm23;                                                                                    \
     return 0;                                                                                                       \
@@ -48,12 +49,12 @@ HE_INLINE int i1_stress(int undefined, const i1_cache *d, double kappa, double J
   HE_INLINE int NAME##_stress(const double *prm, const double *F, double *P, double *psi) {                         \
     i1_cache d;                                                                                                     \
     double J, w = 0;                                                                                                \
-    const int undefined = NAME##_scalars(prm, F, &d, &J, psi ? &w : NULL);                                          \
+    const int undefined = NAME##_scalars(prm, F, &d, &J, psi ? &w : NULL, 0);                                       \
     return i1_stress(undefined, &d, prm[KAPPA], J, w, F, P, psi);                                                   \
   }                                                                                                                 \
   HE_INLINE int NAME##_prepare(const double *prm, const double *F, i1_cache *d) {                                   \
     double J;                                                                                                       \
-    if (NAME##_scalars(prm, F, d, &J, NULL)) return 1;                                                              \
+    if (NAME##_scalars(prm, F, d, &J, NULL, 1)) return 1;                                                           \
     memcpy(d->F, F, sizeof d->F);                                                                                   \
     return 0;                                                                                                       \
   }                                                                                                                 \

@@ -9,7 +9,7 @@ HE_INLINE int gent_w(const double *prm, double s, double *w, double *w1, double 
   const double x = 1 - s / Jm;
   if (w) *w = -0.5 * mu * Jm * log1p(-s / Jm);
   *w1 = 0.5 * mu / x;
-  *w2 = 0.5 * mu / (Jm * x * x);
+  if (w2) *w2 = 0.5 * mu / (Jm * x * x);
   return 0;
 }
 

@@ -7,7 +7,7 @@ HE_INLINE int yeoh_w(const double *prm, double s, double *w, double *w1, double 
   const double C10 = prm[0], C20 = prm[1], C30 = prm[2];
   if (w) *w = s * (C10 + s * (C20 + s * C30));
   *w1 = C10 + s * (2 * C20 + 3 * C30 * s);
-  *w2 = 2 * C20 + 6 * C30 * s;
+  if (w2) *w2 = 2 * C20 + 6 * C30 * s;
   return 0;
 }
 
