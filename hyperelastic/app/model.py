@@ -401,13 +401,33 @@ def cell_kernels(scene, space, constants):
     sc = scene
     cells = space.cell_geometry()
     if not sc.regions:
-        return cells.kernels(sc.solid.material, constants(sc.solid)), sc.solid.rho, ((None, sc.solid),)
+        solid = _at_cells(sc.solid, space, slice(None))
+        return cells.kernels(solid.material, constants(solid)), solid.rho, ((None, solid),)
     which = space.cell_values(MATERIAL_LABEL)
     solids = [sc.solid] + [r.solid for r in sc.regions]
     unused = space.mpi.allreduce(int((which == 0).sum())) == 0     # every cell is in a listed region
     used = [(np.flatnonzero(which == i), m) for i, m in enumerate(solids) if i or not unused]
+    used = [(idx, _at_cells(m, space, idx)) for idx, m in used]
     density = np.array([m.rho for m in solids])[which]
     return RegionKernels(cells, [(idx, m.material, constants(m)) for idx, m in used]), density, tuple(used)
+
+
+def _at_cells(solid, space, idx):
+    """The solid on the local cells idx: its fields (a fibre direction per cell: CellField) at their reference
+    centroids (the mean of their corners), the same on any rank count and partition."""
+    if not solid.fields:
+        return solid
+    centroids = space.X[space.cells[idx, :4]].mean(axis=1)
+    try:
+        out = solid.localized(centroids)
+        failed = None
+    except UserError as e:
+        failed = str(e)
+    why = space.mpi.allgather(failed)                 # (a cell without a direction on one rank: one line on all)
+    first = next((w for w in why if w), None)
+    if first:
+        raise UserError(first)
+    return out
 
 
 def build_model(scene, comm):

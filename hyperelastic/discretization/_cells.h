@@ -113,11 +113,19 @@ HE_INLINE void he_jrange(double J, double *jmin, double *jmax) {
  * in registers (without restrict, linear's K v ran ~3% slower; a local copy of the block, 2%). */
 #define HE_NPARAM 12
 #define HE_PARAMS(p) const double *p = prm
+/* Loops instantiated with HE_PER_CELL 1 (a material whose constants vary from cell to cell: NAME_PER_CELL) take a
+ * block per cell, prm + HE_NPARAM e at cell e, and carry the suffix _cells; with HE_PER_CELL 0 both are nothing. */
+#define HE_CELL_PARAMS(e) HE_CAT(HE_CELL_PARAMS_, HE_PER_CELL)(e)
+#define HE_CELL_PARAMS_0(e)
+#define HE_CELL_PARAMS_1(e) (p = prm + (int64_t)HE_NPARAM * (e))
+#define HE_SUFFIX HE_CAT(HE_SUFFIX_, HE_PER_CELL)
+#define HE_SUFFIX_0
+#define HE_SUFFIX_1 _cells
 
 /* A material's loops are named he_KIND_NAME (MATERIAL is defined per instantiation by he_materials.h). */
 #define HE_CAT_(a, b) a##b
 #define HE_CAT(a, b) HE_CAT_(a, b)
-#define HE_FN(kind) HE_CAT(HE_CAT(he_, kind), HE_CAT(_, MATERIAL))
+#define HE_FN(kind) HE_CAT(HE_CAT(he_, kind), HE_CAT(_, HE_CAT(MATERIAL, HE_SUFFIX)))
 #define HE_MAT(fn) HE_CAT(MATERIAL, HE_CAT(_, fn))
 
 /* Elements with quadrature: at most HE_MAXN nodes per cell. */

@@ -10,7 +10,7 @@
  * derivative of the force: the material's moduli dP/dF at each point (9 dstress calls, the same header as
  * the P1 loops) contracted with the gradients on both sides. A cell where the material is undefined at any
  * point is skipped and counted. */
-#define HE_EFN(kind) HE_CAT(HE_CAT(he_e, kind), HE_CAT(_, MATERIAL))
+#define HE_EFN(kind) HE_CAT(HE_CAT(he_e, kind), HE_CAT(_, HE_CAT(MATERIAL, HE_SUFFIX)))
 
 #include "_cells.h"
 
@@ -31,6 +31,7 @@ int64_t HE_EFN(forces)(int64_t nc, int nn, int nq, const idx_t *cells, const dou
   HE_PARAMS(p);
   int64_t bad = 0;
   for (int64_t e = 0; e < nc; e++) {
+    HE_CELL_PARAMS(e);
     const idx_t *c = cells + (int64_t)nn * e;
     double xe[HE_MAXN][3], fe[HE_MAXN][3] = {{0}};
     int undefined = 0;
@@ -55,6 +56,7 @@ int64_t HE_EFN(energy)(int64_t nc, int nn, int nq, const idx_t *cells, const dou
   int64_t bad = 0;
   double W = 0, comp = 0, jmin = INFINITY, jmax = -INFINITY;
   for (int64_t e = 0; e < nc; e++) {
+    HE_CELL_PARAMS(e);
     double xe[HE_MAXN][3], cell = 0;
     int undefined = 0;
     e_gather(cells + (int64_t)nn * e, nn, x, xe);
@@ -78,6 +80,7 @@ int64_t HE_EFN(kv)(int64_t nc, int nn, int nq, const idx_t *cells, const double 
   HE_PARAMS(p);
   int64_t bad = 0;
   for (int64_t e = 0; e < nc; e++) {
+    HE_CELL_PARAMS(e);
     const idx_t *c = cells + (int64_t)nn * e;
     double xe[HE_MAXN][3], ve[HE_MAXN][3], ye[HE_MAXN][3] = {{0}};
     int undefined = 0;
@@ -109,6 +112,7 @@ int64_t HE_EFN(tangent)(int64_t nc, int nn, int nq, const idx_t *cells, const do
   const int n3 = 3 * nn;
   int64_t bad = 0;
   for (int64_t e = 0; e < nc; e++) {
+    HE_CELL_PARAMS(e);
     double xe[HE_MAXN][3], Ke[3 * HE_MAXN * 3 * HE_MAXN];
     double *K = vals + (int64_t)n3 * n3 * e;
     int undefined = 0;
@@ -150,6 +154,7 @@ int64_t HE_EFN(tangent_diag)(int64_t nc, int nn, int nq, const idx_t *cells, con
   HE_PARAMS(p);
   int64_t bad = 0;
   for (int64_t e = 0; e < nc; e++) {
+    HE_CELL_PARAMS(e);
     const idx_t *c = cells + (int64_t)nn * e;
     double xe[HE_MAXN][3], de[HE_MAXN][3] = {{0}};
     int undefined = 0;
@@ -183,6 +188,7 @@ int64_t HE_EFN(forces_dg)(int64_t nc, int nn, int nq, const idx_t *cells, const 
   HE_PARAMS(p);
   int64_t bad = 0;
   for (int64_t e = 0; e < nc; e++) {
+    HE_CELL_PARAMS(e);
     const idx_t *c = cells + (int64_t)nn * e;
     double xe[HE_MAXN][3], xne[HE_MAXN][3], fe[HE_MAXN][3] = {{0}};
     int undefined = 0;
@@ -208,6 +214,7 @@ int64_t HE_EFN(pk2)(int64_t nc, int nn, int nq, const idx_t *cells, const double
   HE_PARAMS(p);
   int64_t bad = 0;
   for (int64_t e = 0; e < nc; e++) {
+    HE_CELL_PARAMS(e);
     double xe[HE_MAXN][3];
     e_gather(cells + (int64_t)nn * e, nn, x, xe);
     for (int q = 0; q < nq; q++) {

@@ -8,7 +8,10 @@
  * (from F, 1/J, ln J); where it defines NAME_CELL_TANGENT 1, the tangent loops take the cell's 12x12
  * block and its diagonal from NAME_cell_tangent and NAME_cell_tangent_diag instead of twelve NAME_dstress.
  * Every loop takes the material's parameter block `prm` (HE_NPARAM doubles: the constants in the order
- * the header reads them, materials/NAME.py's `constants`, zero-padded), restrict-qualified (_kernels.c).
+ * the header reads them, materials/NAME.py's `constants`, zero-padded), restrict-qualified (_kernels.c). Where the
+ * header defines NAME_PER_CELL 1, the loops are instantiated a second time with HE_PER_CELL 1 and named
+ * he_KIND_NAME_cells: their prm holds a block per cell (nc x HE_NPARAM), which HE_CELL_PARAMS(e) selects at each
+ * cell (in the others it is nothing: the same code as before).
  * No include guard: it is meant to be included once per material (the helpers it shares with the other loops
  * are _cells.h's). */
 #include "_cells.h"
@@ -38,6 +41,7 @@ int64_t HE_FN(forces)(int64_t nc, const idx_t *cells, const double *Dminv, const
   for (int64_t e0 = 0; e0 < nc; e0 += HE_BLOCK) {
     int n = HE_FN(gather_block)(e0, nc, cells, Dminv, x, &jb);
     for (int q = 0; q < n; q++) {
+      HE_CELL_PARAMS(e0 + q);
       double P[9];
       int64_t e = e0 + q;
       if (!(jb.J[q] > 0)) { bad++; continue; }
@@ -59,6 +63,7 @@ int64_t HE_FN(energy)(int64_t nc, const idx_t *cells, const double *Dminv, const
   for (int64_t e0 = 0; e0 < nc; e0 += HE_BLOCK) {
     int n = HE_FN(gather_block)(e0, nc, cells, Dminv, x, &jb);
     for (int q = 0; q < n; q++) {
+      HE_CELL_PARAMS(e0 + q);
       double P[9], psi, J = jb.J[q];
       he_jrange(J, &jmin, &jmax);
       if (!(J > 0)) { bad++; continue; }
@@ -77,6 +82,7 @@ int64_t HE_FN(forces)(int64_t nc, const idx_t *cells, const double *Dminv, const
   HE_PARAMS(p);
   int64_t bad = 0;
   for (int64_t e = 0; e < nc; e++) {
+    HE_CELL_PARAMS(e);
     const idx_t *c = cells + 4 * e;
     double F[9], P[9];
     gather_F(c, Dminv + 9 * e, x, F);
@@ -94,6 +100,7 @@ int64_t HE_FN(energy)(int64_t nc, const idx_t *cells, const double *Dminv, const
   int64_t bad = 0;
   double W = 0, comp = 0, jmin = INFINITY, jmax = -INFINITY;
   for (int64_t e = 0; e < nc; e++) {
+    HE_CELL_PARAMS(e);
     double F[9], P[9], psi;
     gather_F(cells + 4 * e, Dminv + 9 * e, x, F);
     he_jrange(det3(F), &jmin, &jmax);
@@ -115,6 +122,7 @@ int64_t HE_FN(kv)(int64_t nc, const idx_t *cells, const double *Dminv, const dou
   for (int64_t e0 = 0; e0 < nc; e0 += HE_BLOCK) {
     int n = HE_FN(gather_block)(e0, nc, cells, Dminv, x, &jb);
     for (int q = 0; q < n; q++) {
+      HE_CELL_PARAMS(e0 + q);
       int64_t e = e0 + q;
       const idx_t *c = cells + 4 * e;
       double dF[9], dP[9];
@@ -135,6 +143,7 @@ int64_t HE_FN(kv)(int64_t nc, const idx_t *cells, const double *Dminv, const dou
   HE_PARAMS(p);
   int64_t bad = 0;
   for (int64_t e = 0; e < nc; e++) {
+    HE_CELL_PARAMS(e);
     const idx_t *c = cells + 4 * e;
     double F[9], dF[9], dP[9];
     HE_MAT(cache) d;
@@ -168,6 +177,7 @@ int64_t HE_FN(tangent)(int64_t nc, const idx_t *cells, const double *Dminv, cons
   HE_PARAMS(p);
   int64_t bad = 0;
   for (int64_t e = 0; e < nc; e++) {
+    HE_CELL_PARAMS(e);
     double F[9], G[4][3], col[12];
     HE_MAT(cache) d;
     double *K = vals + 144 * e;
@@ -201,6 +211,7 @@ int64_t HE_FN(tangent_diag)(int64_t nc, const idx_t *cells, const double *Dminv,
   HE_PARAMS(p);
   int64_t bad = 0;
   for (int64_t e = 0; e < nc; e++) {
+    HE_CELL_PARAMS(e);
     const idx_t *c = cells + 4 * e;
     double F[9], G[4][3], col[12];
     HE_MAT(cache) d;
@@ -274,6 +285,7 @@ int64_t HE_FN(forces_dg)(int64_t nc, const idx_t *cells, const double *Dminv, co
   HE_PARAMS(p);
   int64_t bad = 0;
   for (int64_t e = 0; e < nc; e++) {
+    HE_CELL_PARAMS(e);
     const idx_t *c = cells + 4 * e;
     double F[9], Fn[9], P[9];
     gather_F(c, Dminv + 9 * e, x, F);
@@ -293,6 +305,7 @@ int64_t HE_FN(pk2)(int64_t nc, const idx_t *cells, const double *Dminv, const do
   int64_t bad = 0;
   (void)vol;
   for (int64_t e = 0; e < nc; e++) {
+    HE_CELL_PARAMS(e);
     double F[9], P[9];
     int undefined;
     gather_F(cells + 4 * e, Dminv + 9 * e, x, F);
@@ -315,6 +328,7 @@ int64_t HE_FN(fields)(int64_t nc, const idx_t *cells, const double *Dminv, const
   int64_t bad = 0;
   (void)vol;
   for (int64_t e = 0; e < nc; e++) {
+    HE_CELL_PARAMS(e);
     double F[9], P[9], sig[9], psi = 0, *o = out + 15 * e;
     gather_F(cells + 4 * e, Dminv + 9 * e, x, F);
     double J = det3(F);

@@ -274,21 +274,32 @@ def upper_map(cells, own, si, sj):
 _bound = {}
 
 
-def material_kernels(name):
-    """{kind: C function} of material `name`, from its header materials/NAME.h."""
-    if name not in _bound:
+def material_kernels(name, per_cell=False):
+    """{kind: C function} of material `name`, from its header materials/NAME.h; per_cell: the loops taking a block of
+    constants per cell (he_KIND_NAME_cells: a header defining NAME_PER_CELL 1)."""
+    if (name, per_cell) not in _bound:
         fns = {}
         for kind, extra in _MATERIAL_KERNELS.items():
             try:
-                fn = getattr(_lib, f"he_{kind}_{name}")
+                fn = getattr(_lib, f"he_{kind}_{name}" + ("_cells" if per_cell else ""))
             except AttributeError:
-                raise ImportError(f"hyperelastic: no compiled kernels for material '{name}' (is there a "
-                                  f"materials/{name}.h? run `make` to rebuild)") from None
+                what = "constants per cell" if per_cell else "compiled kernels"
+                raise ImportError(f"hyperelastic: no {what} for material '{name}' (is there a materials/{name}.h"
+                                  f"{' defining ' + name + '_PER_CELL' if per_cell else ''}? run `make` to "
+                                  "rebuild)") from None
             fn.restype = _I
             fn.argtypes = [_I, _P, _P, _P, _P, _P] + extra
             fns[kind] = fn
-        _bound[name] = fns
-    return _bound[name]
+        _bound[(name, per_cell)] = fns
+    return _bound[(name, per_cell)]
+
+
+def cell_constants(constants):
+    """A material's constants as the kernels keep them: a tuple of floats, or (nc, k) floats where they vary from
+    cell to cell (a field: hgo's fibre directions)."""
+    if np.ndim(constants) == 2:
+        return np.ascontiguousarray(constants, np.float64)
+    return tuple(float(c) for c in constants)
 
 
 def _ptr(a, dtype):
@@ -297,13 +308,20 @@ def _ptr(a, dtype):
 
 
 def parameter_block(constants):
-    """The C kernels' parameter block of a material's constants (NPARAM doubles, zero-padded)."""
-    c = np.asarray(constants, np.float64).ravel()
-    if len(c) > NPARAM:
-        raise ValueError(f"a material has at most {NPARAM} constants (HE_NPARAM in _kernels.c), not {len(c)}")
-    out = np.zeros(NPARAM)
-    out[:len(c)] = c
+    """The C kernels' parameter block of a material's constants (NPARAM doubles, zero-padded), or (nc, NPARAM) of
+    constants per cell (nc, k)."""
+    c = np.asarray(constants, np.float64)
+    c = c.reshape(len(c), -1) if c.ndim == 2 else c.ravel()
+    if c.shape[-1] > NPARAM:
+        raise ValueError(f"a material has at most {NPARAM} constants (HE_NPARAM in _kernels.c), not {c.shape[-1]}")
+    out = np.zeros(c.shape[:-1] + (NPARAM,))
+    out[..., :c.shape[-1]] = c
     return out
+
+
+def _rows(constants, lo, hi):
+    """The constants of cells lo..hi-1 (the same tuple where they do not vary per cell)."""
+    return constants[lo:hi] if isinstance(constants, np.ndarray) else constants
 
 
 class Cells:
@@ -438,8 +456,8 @@ class CellKernels:
         the discrete gradient) with its constants."""
         self.material = material
         self.materials = (material,)
-        self.fn = material_kernels(material.name)
-        self.constants = tuple(float(c) for c in constants)
+        self.constants = cell_constants(constants)
+        self.fn = material_kernels(material.name, isinstance(self.constants, np.ndarray))
         self.prm = parameter_block(self.constants)
         self._prm = self._prm_k = _ptr(self.prm, np.float64)
         self.scale = 1.0
@@ -449,7 +467,7 @@ class CellKernels:
         """The same kernels on cells lo..hi-1 (views, no copies; cached)."""
         if (lo, hi) not in self._parts:
             self._parts[(lo, hi)] = CellKernels(self.geometry.part(lo, hi), material=self.material,
-                                                constants=self.constants)
+                                                constants=_rows(self.constants, lo, hi))
             self._parts[(lo, hi)].scale_moduli(self.scale)
         return self._parts[(lo, hi)]
 
@@ -528,10 +546,11 @@ class RegionKernels:
     depends on them must be the same on every rank)."""
 
     def __init__(self, cells, parts):
-        """cells: a Cells; parts: [(local cell indices, Material, constants)]; each cell in exactly one."""
+        """cells: a Cells; parts: [(local cell indices, Material, constants: a tuple, or a row per cell of the part)];
+        each cell in exactly one."""
         self.geometry = cells
         self.cells, self.nc, self.nn = cells.cells, cells.nc, cells.nn
-        self.spec = [(np.asarray(idx, np.int64), m, tuple(c)) for idx, m, c in parts]
+        self.spec = [(np.asarray(idx, np.int64), m, cell_constants(c)) for idx, m, c in parts]
         self.materials = tuple(m for _, m, _ in self.spec)
         self.parts = [(idx, cells.subset(idx).kernels(m, c)) for idx, m, c in self.spec if len(idx)]
         self._parts = {}
@@ -540,7 +559,8 @@ class RegionKernels:
     def part(self, lo, hi):
         """The same kernels on cells lo..hi-1 (cached)."""
         if (lo, hi) not in self._parts:
-            sub = [(idx[(idx >= lo) & (idx < hi)] - lo, m, c) for idx, m, c in self.spec]
+            sub = [(idx[(idx >= lo) & (idx < hi)] - lo, m,
+                    c[(idx >= lo) & (idx < hi)] if isinstance(c, np.ndarray) else c) for idx, m, c in self.spec]
             self._parts[(lo, hi)] = RegionKernels(self.geometry.part(lo, hi), sub)
             self._parts[(lo, hi)].scale_moduli(self.scale)
         return self._parts[(lo, hi)]
@@ -624,17 +644,17 @@ _lib.he_efh_tangent.argtypes = [_I, _C, _C, _P, _P, _P, _P, _P, _P]
 _ebound = {}
 
 
-def element_kernels(name):
-    """{kind: C function} of material `name`'s element loops."""
-    if name not in _ebound:
+def element_kernels(name, per_cell=False):
+    """{kind: C function} of material `name`'s element loops (per_cell: material_kernels')."""
+    if (name, per_cell) not in _ebound:
         fns = {}
         for kind, extra in _ELEMENT_KERNELS.items():
-            fn = getattr(_lib, f"he_e{kind}_{name}")
+            fn = getattr(_lib, f"he_e{kind}_{name}" + ("_cells" if per_cell else ""))
             fn.restype = _I
             fn.argtypes = [_I, _C, _C, _P, _P, _P, _P, _P] + extra
             fns[kind] = fn
-        _ebound[name] = fns
-    return _ebound[name]
+        _ebound[(name, per_cell)] = fns
+    return _ebound[(name, per_cell)]
 
 
 class ElementCells:
@@ -756,8 +776,8 @@ class ElementKernels:
         self.cells, self.nc, self.nn = cells.cells, cells.nc, cells.nn
         self.material = material
         self.materials = (material,)
-        self.fn = element_kernels(material.name)
-        self.constants = tuple(float(c) for c in constants)
+        self.constants = cell_constants(constants)
+        self.fn = element_kernels(material.name, isinstance(self.constants, np.ndarray))
         self.prm = parameter_block(self.constants)
         self._prm = self._prm_k = _ptr(self.prm, np.float64)
         self.scale = 1.0
@@ -767,7 +787,8 @@ class ElementKernels:
 
     def part(self, lo, hi):
         if (lo, hi) not in self._parts:
-            self._parts[(lo, hi)] = ElementKernels(self.geometry.part(lo, hi), self.material, self.constants)
+            self._parts[(lo, hi)] = ElementKernels(self.geometry.part(lo, hi), self.material,
+                                                   _rows(self.constants, lo, hi))
             self._parts[(lo, hi)].scale_moduli(self.scale)
         return self._parts[(lo, hi)]
 

@@ -180,11 +180,12 @@ def _per_cell(fn, F, *args):
         return fn(F, *args)
     except np.linalg.LinAlgError:
         out = []
-        for f in F:
+        for i, f in enumerate(F):
+            row = [a[i:i + 1] if isinstance(a, np.ndarray) and len(a) == len(F) else a for a in args]  # (per F)
             try:
-                out.append(fn(f[None], *args)[0])
+                out.append(fn(f[None], *row)[0])
             except np.linalg.LinAlgError:
-                out.append(np.full(np.shape(fn(np.eye(3)[None], *args))[1:], np.nan))
+                out.append(np.full(np.shape(fn(np.eye(3)[None], *row))[1:], np.nan))
         return np.array(out)
 
 
@@ -218,7 +219,8 @@ def _element_fields(k, x, lo, hi, names):
     G = np.matmul(k.geometry.dN[None], geo[:, :, :9].reshape(-1, nq, 3, 3))
     F = np.matmul(np.swapaxes(x.reshape(-1, 3)[k.cells[lo:hi]], 1, 2)[:, None], G).reshape(-1, 3, 3)
     w = geo[:, :, 9]
-    point = _point_fields(F, k, tuple(n for n in names if n != AT_NODES) + (("stress",) if AT_NODES in names else ()))
+    point = _point_fields(F, k, tuple(n for n in names if n != AT_NODES) + (("stress",) if AT_NODES in names else ()),
+                          _constants(k, lo, hi, nq))
     out = {}
     if AT_NODES in names:                # each cell's stress at its nodes: the quadrature points' linear fit
         at_q = point["stress"].reshape(-1, nq, 6)
@@ -244,18 +246,30 @@ def _compiled_fields(k, x, lo, hi, names=CELL_FIELDS):
     if AT_NODES in names:
         res[AT_NODES] = np.tile(out[:, COMPILED["stress"]], (1, 4))
     if set(names) & set(FIBRE_FIELDS):
-        res.update(_fibre_stretches(deformation_gradients(k.cells[lo:hi], k.Dminv[lo:hi], x), k, names))
+        res.update(_fibre_stretches(deformation_gradients(k.cells[lo:hi], k.Dminv[lo:hi], x), k.material,
+                                    _constants(k, lo, hi), names))
     return res
 
 
-def _fibre_stretches(F, k, names):
-    """{fibreI_stretch: |F a_I|} of `names` for deformation gradients F (n, 3, 3) of kernels k's material (NaN where
-    it has no family I: Material.fibres)."""
-    dirs = k.material.fibres(k.constants)
+def _constants(k, lo, hi, nq=1):
+    """The constants of kernels k's cells lo..hi-1, as a tuple or (where they vary per cell: a fibre field) a row per
+    cell, each repeated for its nq points."""
+    c = k.constants
+    return np.repeat(c[lo:hi], nq, axis=0) if isinstance(c, np.ndarray) else c
+
+
+def _fibre_stretches(F, material, c, names):
+    """{fibreI_stretch: |F a_I|} of `names` for deformation gradients F (n, 3, 3) of a material with constants c (a
+    tuple, or a row per F) (NaN where it has no family I: Material.fibres)."""
+    dirs = material.fibres(c)
     out = {}
     for i, name in enumerate(FIBRE_FIELDS):
         if name in names:
-            out[name] = np.linalg.norm(F @ dirs[i], axis=-1) if i < len(dirs) else np.full(len(F), np.nan)
+            if i >= len(dirs):
+                out[name] = np.full(len(F), np.nan)
+            else:                               # (a direction per row where it is a field)
+                a = dirs[i]
+                out[name] = np.linalg.norm(F @ a if a.ndim == 1 else np.einsum("nij,nj->ni", F, a), axis=-1)
     return out
 
 
@@ -270,13 +284,13 @@ def extrapolation(element):
 
 def _cell_fields(cells, Dminv, kernels, x, names=CELL_FIELDS):
     """The fields of P1 cells by the materials' numpy reference (what _compiled_fields is checked against)."""
-    return _point_fields(deformation_gradients(cells, Dminv, x), kernels, names)
+    return _point_fields(deformation_gradients(cells, Dminv, x), kernels, names, kernels.constants)
 
 
-def _point_fields(F, kernels, names=CELL_FIELDS):
+def _point_fields(F, kernels, names, c):
     """{name: value} of `names` (CELL_FIELDS, TENSOR_FIELDS) of deformation gradients F (n, 3, 3) of a
-    material's kernels."""
-    mat, c = kernels.material, kernels.constants
+    material's kernels, with its constants c (a tuple, or a row per F)."""
+    mat = kernels.material
     with np.errstate(all="ignore"):
         J = np.linalg.det(F)
         psi = _per_cell(mat.psi, F, c)
@@ -286,7 +300,7 @@ def _point_fields(F, kernels, names=CELL_FIELDS):
         vm = np.sqrt(1.5 * np.einsum("cij,cij->c", s, s))
     psi = np.where(np.isfinite(psi), psi, np.nan)
     vm = np.where(np.isfinite(vm), vm, np.nan)
-    out = {"J": J, "energy_density": psi, "von_mises": vm, **_fibre_stretches(F, kernels, names)}
+    out = {"J": J, "energy_density": psi, "von_mises": vm, **_fibre_stretches(F, mat, c, names)}
     if "stress" in names:
         out["stress"] = _tensor6(np.where(np.isfinite(sigma), sigma, np.nan))
     if "strain" in names:

@@ -15,6 +15,8 @@ import importlib
 import math
 from dataclasses import dataclass, field
 
+import numpy as np
+
 from ...core.errors import UserError
 from .base import lame
 
@@ -61,8 +63,50 @@ def check_parameters(E, nu, rho, where="material"):
 
 
 def shown(v):
-    """A parameter's value as the set report and -help show it: a number, or a vector's x,y,z."""
+    """A parameter's value as the set report and -help show it: a number, a vector's x,y,z, or a field's text."""
+    if isinstance(v, CellField):
+        return f"'{v.text}'"
     return ",".join(f"{x:g}" for x in v) if isinstance(v, (tuple, list)) else f"{v:g}"
+
+
+class CellField:
+    """A vector parameter given as three expressions of the reference coordinates X, Y, Z (`-fibre1 'EX,EY,EZ'`,
+    commas inside parentheses belong to the expression): a value per cell, at its reference centroid
+    (Solid.localized); a direction field is made unit per cell."""
+
+    def __init__(self, text, option):
+        from ...core.expressions import Expression
+        self.text, self.option = text, option
+        parts = split_top(text)
+        if len(parts) != 3:
+            raise UserError(f"option -{option}: '{text[:80]}' is not three numbers nor three expressions of X, Y, Z "
+                            f"(got {len(parts)} parts; e.g. '-sin(atan2(Y,X)),cos(atan2(Y,X)),0')")
+        self.exprs = [Expression(t, ("X", "Y", "Z"), where=f"option -{option}") for t in parts]
+
+    def at(self, P):
+        """(n, 3) of the field at points P (n, 3); UserError naming the first point where it is not finite."""
+        with np.errstate(all="ignore"):
+            env = {"X": P[:, 0], "Y": P[:, 1], "Z": P[:, 2]}
+            v = np.stack([np.broadcast_to(np.asarray(e._eval(e.tree, env), np.float64), len(P)) for e in self.exprs],
+                         axis=1)
+        bad = np.flatnonzero(~np.isfinite(v).all(axis=1))
+        if len(bad):
+            raise UserError(f"option -{self.option}: '{self.text[:80]}' is not finite at the cell centred at "
+                            f"{','.join(f'{c:.6g}' for c in P[bad[0]])}")
+        return v
+
+
+def split_top(text):
+    """text split at its commas outside parentheses."""
+    parts, depth, cur = [], 0, ""
+    for ch in text:
+        depth += (ch == "(") - (ch == ")")
+        if ch == "," and depth == 0:
+            parts.append(cur)
+            cur = ""
+        else:
+            cur += ch
+    return parts + [cur]
 
 
 def get(name):
@@ -94,7 +138,31 @@ class Solid:
 
     @property
     def constants(self):
-        return tuple(float(c) for c in self.material.constants(self.values))
+        """The kernels' parameter block: a tuple, or a row per cell where a parameter is a field (`localized`)."""
+        c = self.material.constants(self.values)
+        return c if np.ndim(c) == 2 else tuple(float(x) for x in c)
+
+    @property
+    def fields(self):
+        """The names of its parameters given as fields (CellField)."""
+        return [k for k, v in self.values.items() if isinstance(v, CellField)]
+
+    def localized(self, P):
+        """The solid on cells with reference centroids P (n, 3): each field parameter a direction per cell (an (n, 3)
+        array, which the material makes unit; UserError at the first cell where it has no length); itself where it
+        has no field."""
+        if not self.fields:
+            return self
+        values = dict(self.values)
+        for k in self.fields:
+            v = values[k].at(P)
+            n = np.linalg.norm(v, axis=1)
+            if len(n) and not (n > 0).all():
+                i = int(np.flatnonzero(~(n > 0))[0])
+                raise UserError(f"option -{values[k].option}: '{values[k].text[:80]}' is no direction at the cell "
+                                f"centred at {','.join(f'{c:.6g}' for c in P[i])} (its length is 0)")
+            values[k] = v
+        return Solid(self.material, values, self.rho)
 
     def describe(self):
         """One line of the material and its parameters, as the set report prints it."""
@@ -104,7 +172,8 @@ class Solid:
     def record(self):
         """The parameters as the output records them (JSON-able)."""
         return {"material": self.material.name, "rho": self.rho,
-                **{k: [float(x) for x in v] if isinstance(v, (tuple, list)) else float(v) for k, v in self.values.items()}}
+                **{k: v.text if isinstance(v, CellField) else [float(x) for x in v] if isinstance(v, (tuple, list))
+                   else float(v) for k, v in self.values.items()}}
 
 
 def read_solid(opts, prefix, default, where):
@@ -128,9 +197,9 @@ def read_solid(opts, prefix, default, where):
     values, keys = {"E": E, "nu": nu}, {}
     for p in mat.parameters:                           # the given ones first: defaults may follow from them
         keys[p.name] = f"{prefix}{p.name}" if opts.has(f"{prefix}{p.name}") or not opts.has(p.name) else p.name
-        v = opts.vector(keys[p.name], p.size) if p.size > 1 else opts.real(keys[p.name], None)   # (a region's default:
-        if v is not None:                                                                     # the un-prefixed option)
-            values[p.name] = tuple(v) if p.size > 1 else v
+        v = _vector(opts, keys[p.name], p) if p.size > 1 else opts.real(keys[p.name], None)   # (a region's default:
+        if v is not None:                                                                  # the un-prefixed option)
+            values[p.name] = tuple(v) if p.size > 1 and not isinstance(v, CellField) else v
     for p in mat.parameters:
         given = p.name in values
         if not given:
@@ -143,6 +212,28 @@ def read_solid(opts, prefix, default, where):
             raise UserError(f"{where}: {what} must be {'>' if p.exclusive else '>='} {p.minimum:g} ({p.meaning})")
     mat.check(values, where)
     return Solid(mat, values, rho)
+
+
+def _vector(opts, key, p):
+    """A vector parameter's value: its numbers, or (a parameter that may vary per cell: Parameter.field) a CellField
+    where they are expressions of X, Y, Z."""
+    text = opts.string(key, None)
+    if text is None or not p.field:
+        return opts.vector(key, p.size)
+    try:
+        return opts.vector(key, p.size)
+    except UserError:
+        if all(_number(t) for t in text.replace(";", ",").split(",")):
+            raise                               # (numbers, not p.size of them, or too large: the vector's line)
+        return CellField(text, key)
+
+
+def _number(text):
+    try:
+        float(text)
+        return True
+    except ValueError:
+        return False
 
 
 def default_solid(name, E=1e6, nu=0.3, rho=1000.0):

@@ -3,6 +3,8 @@ follow from."""
 from dataclasses import dataclass
 from typing import Callable
 
+import numpy as np
+
 
 def lame(E, nu):
     """Lame constants (lambda, mu) from Young's modulus and Poisson's ratio (thesis eqs. 3.28-3.29)."""
@@ -31,6 +33,7 @@ class Parameter:
     minimum: float = 0.0        # the value must be > minimum (>= when not exclusive)
     exclusive: bool = True
     size: int = 1               # a vector of `size` numbers (-NAME x,y,z): no range; the material's check judges it
+    field: bool = False         # a direction that may vary per cell: three expressions of X, Y, Z (CellField)
 
 
 # the two moduli several materials declare (the same option, -mu and -kappa, with the same meaning and default)
@@ -57,7 +60,11 @@ class Material:
 
     @classmethod
     def scaled(cls, c, s):
-        """The parameter block c with its isochoric moduli (`moduli`) times s."""
+        """The parameter block c with its isochoric moduli (`moduli`) times s (c: a tuple, or a row per cell)."""
+        if np.ndim(c) == 2:
+            out = np.array(c, np.float64)
+            out[:, list(cls.moduli)] *= s
+            return out
         return tuple(v * s if i in cls.moduli else v for i, v in enumerate(c))
 
     @staticmethod

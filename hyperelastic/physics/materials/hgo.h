@@ -5,8 +5,10 @@
  * (2 m (x) a - 2/3 I4 Q), m = F a; dP = split_dstress(2 J^(-2/3) W1) + sum_i ((1 - 3d) f'_i dG4i + f''_i (H_i:dF) H_i),
  * dG4 = J^(-2/3) (-2/3 (Q:dF)(2 m (x) a - 2/3 I4 Q) + 2 (dF a) (x) a - 4/3 (m.dF a) Q + 2/3 I4 Q dF^T Q),
  * H_i = d G1 + (1 - 3d) G4i. f', f'' are 0 where E_i <= 0 (no compression). Undefined for J <= 0 and where
- * k2 E^2 > 700. Numpy reference: hgo.py. */
+ * k2 E^2 > 700. Numpy reference: hgo.py. Its fibre directions may vary from cell to cell (a field: -fibre1 with
+ * expressions of X, Y, Z), so its loops also take a block of constants per cell (he_KIND_hgo_cells). */
 #include "_tensor.h"
+#define hgo_PER_CELL 1
 typedef struct {
   double F[9], Q[9], a, I1, kJ2, g, j23, w;
   int n;

@@ -19,8 +19,26 @@ def _unit(a, name, where):
 
 
 def _families(c):
-    """The unit directions of the families present in the constants c."""
-    return [np.array(c[5 + 3 * i:8 + 3 * i]) for i in range(int(c[11]))]
+    """The unit directions of the families present in the constants c: (3,) each, or (n, 3) where c has a row per
+    cell (a fibre field)."""
+    c = np.asarray(c, np.float64)
+    return [c[..., 5 + 3 * i:8 + 3 * i] for i in range(int(c[..., 11].max(initial=0)))]
+
+
+def _given(a):
+    """Whether a fibre family's value is given: a field (CellField, or its values per cell) or a vector."""
+    return not isinstance(a, tuple) or not any(math.isnan(x) for x in a)
+
+
+def _vector(a):
+    """A fibre value as the constants take it: (3,), or (n, 3) per cell; a field not yet at its cells (CellField)
+    stands for (1, 0, 0) (only its presence counts before Solid.localized)."""
+    return np.asarray(a, np.float64) if isinstance(a, (tuple, list, np.ndarray)) else np.array([1.0, 0.0, 0.0])
+
+
+def _mv(M, a):
+    """M a for matrices (..., 3, 3) and vectors (3,) or one per matrix (..., 3)."""
+    return np.einsum("...ij,...j->...i", M, a)
 
 
 class HGO(Material):
@@ -46,20 +64,28 @@ class HGO(Material):
         Parameter("k2", "-", "the fibres' exponential stiffening", lambda v: 1.0, "1"),
         Parameter("dispersion", "-", "the fibres' dispersion d, 0 (aligned) to 1/3 (isotropic)", lambda v: 0.0, "0",
                   exclusive=False),
-        Parameter("fibre1", "-", "the first family's mean direction x,y,z in the reference", lambda v: NONE,
-                  "none (needed where k1 > 0)", minimum=-math.inf, size=3),
+        Parameter("fibre1", "-", "the first family's mean direction x,y,z in the reference, or a field: three "
+                  "expressions of X, Y, Z (at each cell's centroid)", lambda v: NONE, "none (needed where k1 > 0)",
+                  minimum=-math.inf, size=3, field=True),
         Parameter("fibre2", "-", "the second family's (none: one family)", lambda v: NONE, "none",
-                  minimum=-math.inf, size=3),
+                  minimum=-math.inf, size=3, field=True),
         BULK,
     )
 
     @staticmethod
     def constants(v):
-        """(mu, k1, k2, d, kappa, a1 (3), a2 (3), the number of families): the directions made unit."""
-        fams = [v[n] for n in ("fibre1", "fibre2") if not any(math.isnan(x) for x in v[n])]
-        dirs = [tuple(x / math.sqrt(sum(y * y for y in a)) for x in a) for a in fams]
-        dirs += [(0.0, 0.0, 0.0)] * (2 - len(dirs))
-        return (v["mu"], v["k1"], v["k2"], v["dispersion"], v["kappa"], *dirs[0], *dirs[1], float(len(fams)))
+        """(mu, k1, k2, d, kappa, a1 (3), a2 (3), the number of families): the directions made unit; a row per cell
+        (n, 12) where a family is a field at its cells (Solid.localized)."""
+        fams = [_vector(v[n]) for n in ("fibre1", "fibre2") if _given(v[n])]
+        fams = [a / np.sqrt(a[..., 0] * a[..., 0] + a[..., 1] * a[..., 1] + a[..., 2] * a[..., 2])[..., None]
+                for a in fams]                 # (x / sqrt(x^2 + y^2 + z^2) in that order: as before fields)
+        n = max((len(a) for a in fams if a.ndim == 2), default=None)
+        out = np.zeros(12 if n is None else (n, 12))
+        out[..., :5] = v["mu"], v["k1"], v["k2"], v["dispersion"], v["kappa"]
+        for i, a in enumerate(fams):
+            out[..., 5 + 3 * i:8 + 3 * i] = a
+        out[..., 11] = len(fams)
+        return out if n is not None else tuple(float(x) for x in out)
 
     @staticmethod
     def fibres(c):
@@ -68,6 +94,10 @@ class HGO(Material):
     @classmethod
     def split(cls, v):
         c = cls.constants(v)
+        if isinstance(c, np.ndarray):
+            iso = c.copy()
+            iso[:, 4] = 0.0
+            return iso, v["mu"], v["kappa"]
         return c[:4] + (0.0,) + c[5:], v["mu"], v["kappa"]
 
     @classmethod
@@ -75,9 +105,10 @@ class HGO(Material):
         if not v["dispersion"] <= 1 / 3:
             raise UserError(f"{where}: hgo's -dispersion {v['dispersion']:g} must be <= 1/3 (1/3: fibres in every "
                             "direction)")
-        given = [n for n in ("fibre1", "fibre2") if not any(math.isnan(x) for x in v[n])]
+        given = [n for n in ("fibre1", "fibre2") if _given(v[n])]
         for n in given:
-            _unit(v[n], n, where)
+            if isinstance(v[n], tuple):          # (a field: checked at each cell, Solid.localized)
+                _unit(v[n], n, where)
         if v["k1"] > 0 and "fibre1" not in given:
             raise UserError(f"{where}: hgo with k1 {v['k1']:g} > 0 needs -fibre1 x,y,z (the first fibre family's mean "
                             "direction)")
@@ -93,10 +124,10 @@ class HGO(Material):
     @staticmethod
     def _fibres(F, c, I1, j23):
         """Per family: (a, m = F a, I4, E, f', f'')."""
-        mu, k1, k2, d = c[:4]
+        mu, k1, k2, d = _scalars(c, 4)
         out = []
         for a in _families(c):
-            m = F @ a
+            m = _mv(F, a)
             I4 = np.einsum("...i,...i", m, m)
             E = d * (j23 * I1 - 3) + (1 - 3 * d) * (j23 * I4 - 1)
             Ep = np.maximum(E, 0.0)
@@ -107,7 +138,7 @@ class HGO(Material):
 
     @staticmethod
     def psi(F, c):
-        mu, k1, k2, d, kappa = c[:5]
+        mu, k1, k2, d, kappa = _scalars(c, 5)
         J, I1, j23, _ = HGO._state(F, c)
         W = 0.5 * mu * (j23 * I1 - 3)
         for a, m, I4, Ep, f1, f2, ex in HGO._fibres(F, c, I1, j23):
@@ -116,19 +147,19 @@ class HGO(Material):
 
     @staticmethod
     def P(F, c):
-        mu, k1, k2, d, kappa = c[:5]
+        mu, k1, k2, d, kappa = _scalars(c, 5)
         J, I1, j23, Q = HGO._state(F, c)
         s = lambda x: np.asarray(x)[..., None, None]      # noqa: E731
         G1 = s(2 * j23) * (F - s(I1 / 3) * Q)
         out = s(0.5 * mu) * G1 + s(volumetric(J, kappa)[1]) * Q
         for a, m, I4, Ep, f1, f2, ex in HGO._fibres(F, c, I1, j23):
-            G4 = s(j23) * (2 * m[..., :, None] * a - s(2.0 / 3.0 * I4) * Q)
-            out = out + s(f1) * (d * G1 + (1 - 3 * d) * G4)
+            G4 = s(j23) * (2 * m[..., :, None] * a[..., None, :] - s(2.0 / 3.0 * I4) * Q)
+            out = out + s(f1) * (s(d) * G1 + s(1 - 3 * d) * G4)
         return out
 
     @staticmethod
     def dP(F, dF, c):
-        mu, k1, k2, d, kappa = c[:5]
+        mu, k1, k2, d, kappa = _scalars(c, 5)
         J, I1, j23, Q = HGO._state(F, c)
         s = lambda x: np.asarray(x)[..., None, None]      # noqa: E731
         qd = np.einsum("...ij,...ij", Q, dF)
@@ -141,14 +172,21 @@ class HGO(Material):
         out = s(kappa * J * J * qd) * Q - s(0.5 * kappa * (J * J - 1)) * U
         for a, m, I4, Ep, f1, f2, ex in HGO._fibres(F, c, I1, j23):
             W1 = W1 + d * f1
-            dm = dF @ a
+            dm = _mv(dF, a)
             md = np.einsum("...i,...i", m, dm)
-            G4 = s(j23) * (2 * m[..., :, None] * a - s(2.0 / 3.0 * I4) * Q)
-            dG4 = s(j23) * (-s(2.0 / 3.0 * qd) * (2 * m[..., :, None] * a - s(2.0 / 3.0 * I4) * Q)
-                            + 2 * dm[..., :, None] * a - s(4.0 / 3.0 * md) * Q + s(2.0 / 3.0 * I4) * U)
-            H = d * G1 + (1 - 3 * d) * G4
+            ma = m[..., :, None] * a[..., None, :]
+            G4 = s(j23) * (2 * ma - s(2.0 / 3.0 * I4) * Q)
+            dG4 = s(j23) * (-s(2.0 / 3.0 * qd) * (2 * ma - s(2.0 / 3.0 * I4) * Q)
+                            + 2 * dm[..., :, None] * a[..., None, :] - s(4.0 / 3.0 * md) * Q + s(2.0 / 3.0 * I4) * U)
+            H = s(d) * G1 + s(1 - 3 * d) * G4
             out = out + s(f1 * (1 - 3 * d)) * dG4 + s(f2 * np.einsum("...ij,...ij", H, dF)) * H
         return out + s(W1) * dG1
+
+
+def _scalars(c, k):
+    """The first k constants: numbers, or an array per cell (constants with a row per cell)."""
+    c = np.asarray(c, np.float64)
+    return tuple(c[..., i] for i in range(k))
 
 
 MATERIAL = HGO
