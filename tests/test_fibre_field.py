@@ -139,3 +139,48 @@ def test_a_bad_field_is_one_line(value, want, bar, tmp_path):
     p = hyperelastic(["run", "bend", "-mesh", bar, "-effects", "elasticity,fixed,traction", *PULL, "-material", "hgo",
                       *HGO, "-fibre1", value, "-output", tmp_path / "o.h5"])
     assert p.returncode == 2 and want in p.stderr and len(p.stderr.strip().splitlines()) == 1, p.stderr
+
+
+@pytest.fixture(scope="module")
+def bar_with_data(bar, tmp_path_factory):
+    """The bimaterial bar as a .vtu whose tetrahedra carry cell data 'fibres' ((1, 1, 0) where x < 1, (1, -1, 0.5)
+    beyond) and 'flat' (two numbers a cell)."""
+    import meshio
+    m = meshio.read(bar)
+    t = np.concatenate([c.data for c in m.cells if c.type == "tetra"])
+    centre = m.points[t].mean(axis=1)
+    fibres = np.where(centre[:, :1] < 1, [[1.0, 1.0, 0.0]], [[1.0, -1.0, 0.5]])
+    path = tmp_path_factory.mktemp("fibre_data") / "bar.vtu"
+    meshio.write(path, meshio.Mesh(m.points, [("tetra", t)], cell_data={"fibres": [fibres], "flat": [fibres[:, :2]]}))
+    return path
+
+
+BOX = ["-effects", "elasticity,fixed,traction", "-quasistatic", "-fix", "left:x,front:y,bottom:z", "-traction_face",
+       "right", "-traction", "4e4,0,0", "-traction_ramp", 1, "-final_time", 1, "-dt", 0.5, "-snes_rtol", 1e-12,
+       "-snes_atol", 1e-10, "-material", "hgo", *HGO, "-quiet"]
+
+
+@pytest.mark.parametrize("refine,ranks", [(0, 1), (1, 1), (0, 2)])
+def test_a_mesh_field_is_its_cells_data(refine, ranks, bar_with_data, tmp_path):
+    """-fibre1 mesh:fibres takes each cell's row of the mesh file's cell data (a -refine'd cell its parent's): the same
+    trajectory as the expression that gives those rows (bitwise on one rank; a 2-rank run = the 1-rank run, 1e-10)."""
+    base = ["run", "bend", "-mesh", bar_with_data, *BOX, "-refine", refine]
+    run_ok(base + ["-fibre1", "mesh:fibres", "-output", tmp_path / "m.h5"], nprocs=ranks)
+    run_ok(base + ["-fibre1", "1,where(X<1,1,-1),where(X<1,0,0.5)", "-output", tmp_path / "e.h5"])
+    m, e = read_h5(tmp_path / "m.h5"), read_h5(tmp_path / "e.h5")
+    assert np.abs(e["x"][-1] - e["points"]).max() > 0.01
+    if ranks == 1:
+        assert np.array_equal(m["x"], e["x"])
+    else:
+        assert np.abs(m["x"] - e["x"]).max() <= 1e-10 * np.abs(e["x"][-1] - e["points"]).max()
+
+
+@pytest.mark.parametrize("value,want", [
+    ("mesh:nothere", "has no cell data 'nothere' (it has: fibres, flat)"),
+    ("mesh:flat", "is not three numbers a tetrahedron"),
+])
+def test_a_bad_mesh_field_is_one_line(value, want, bar_with_data, tmp_path):
+    p = hyperelastic(["run", "bend", "-mesh", bar_with_data, *BOX, "-fibre1", value, "-output", tmp_path / "o.h5"])
+    assert p.returncode == 2 and want in p.stderr and len(p.stderr.strip().splitlines()) == 1, p.stderr
+    p = hyperelastic(["run", "bend", *BOX, "-fibre1", "mesh:fibres", "-output", tmp_path / "o.h5"])
+    assert p.returncode == 2 and "not the built-in bar" in p.stderr and len(p.stderr.strip().splitlines()) == 1

@@ -2,6 +2,7 @@
 formulation -> effects -> the formulation's System, with the initial state the System is calibrated at. Shared by
 the command line, the tests and the scripts (PETSc must already be initialized). The solver, the integrator and the
 output build on it (app/run.py)."""
+import os
 import time
 from dataclasses import dataclass
 
@@ -23,6 +24,7 @@ from ..mesh.prepared import prepared_arrays
 from ..mesh.read import CURVED_ANGLES, bent_edges, corners, elevate, read_mesh
 from ..mesh.sets import MATERIAL_LABEL, REGION_LABEL, VERTEX_VALUE, Mesh, cell_label, facet_label
 from ..physics import effects as effects_pkg
+from ..physics.materials import MeshField
 from ..solving.system import System
 
 
@@ -401,26 +403,32 @@ def cell_kernels(scene, space, constants):
     sc = scene
     cells = space.cell_geometry()
     if not sc.regions:
-        solid = _at_cells(sc.solid, space, slice(None))
+        solid = _at_cells(sc, sc.solid, space, slice(None), {})
         return cells.kernels(solid.material, constants(solid)), solid.rho, ((None, solid),)
     which = space.cell_values(MATERIAL_LABEL)
     solids = [sc.solid] + [r.solid for r in sc.regions]
     unused = space.mpi.allreduce(int((which == 0).sum())) == 0     # every cell is in a listed region
     used = [(np.flatnonzero(which == i), m) for i, m in enumerate(solids) if i or not unused]
-    used = [(idx, _at_cells(m, space, idx)) for idx, m in used]
+    cache = {}
+    used = [(idx, _at_cells(sc, m, space, idx, cache)) for idx, m in used]
     density = np.array([m.rho for m in solids])[which]
     return RegionKernels(cells, [(idx, m.material, constants(m)) for idx, m in used]), density, tuple(used)
 
 
-def _at_cells(solid, space, idx):
+def _at_cells(scene, solid, space, idx, cache):
     """The solid on the local cells idx: its fields (a fibre direction per cell: CellField) at their reference
     centroids (the mean of their corners), the same on any rank count and partition."""
     if not solid.fields:
         return solid
     centroids = space.X[space.cells[idx, :4]].mean(axis=1)
+    out, failed = None, None
     try:
-        out = solid.localized(centroids)
-        failed = None
+        rows = {k: mesh_cell_data(scene, space, solid.values[k], cache)[idx] for k in solid.fields
+                if isinstance(solid.values[k], MeshField)}
+    except UserError as e:                       # (collective: every rank has the same line)
+        rows, failed = None, str(e)
+    try:
+        out = solid.localized(centroids, rows) if failed is None else None
     except UserError as e:
         failed = str(e)
     why = space.mpi.allgather(failed)                 # (a cell without a direction on one rank: one line on all)
@@ -428,6 +436,54 @@ def _at_cells(solid, space, idx):
     if first:
         raise UserError(first)
     return out
+
+
+def mesh_cell_data(scene, space, field, cache):
+    """(local cells, 3) of a mesh field (`-fibre1 mesh:NAME`): rank 0 reads the mesh file's cell data NAME with meshio
+    (the tetrahedra's rows, in the input cells' order), every rank receives it and takes each local cell's input
+    cell's row (a -refine'd cell its coarse parent's: input index // 8^levels). One UserError line on every rank
+    where the file has no such data or not three numbers a tetrahedron. Collective; read once per name (cache)."""
+    key = field.name
+    if key not in cache:
+        mpi = space.mpi
+        data, why = None, None
+        if mpi.rank == 0:
+            try:
+                data = _read_cell_data(scene, field)
+            except UserError as e:
+                why = str(e)
+        why = mpi.bcast(why, root=0)
+        if why:
+            raise UserError(why)
+        n = mpi.bcast(None if data is None else len(data), root=0)
+        data = np.ascontiguousarray(data if data is not None else np.empty((n, 3)), np.float64)
+        mpi.Bcast(data, root=0)
+        cache[key] = data
+    data = cache[key]
+    parent = space.cell_orig.astype(np.int64) // 8 ** scene.refine
+    if len(parent) and parent.max() >= len(data):
+        raise UserError(f"option -{field.option}: the mesh's cell data '{field.name}' has {len(data)} rows, fewer than "
+                        "its tetrahedra")
+    return data[parent]
+
+
+def _read_cell_data(scene, field):
+    """The mesh file's cell data field.name over its tetrahedra (n, 3), in their input order."""
+    from ..mesh.read import read_meshio
+    where = f"option -{field.option}: mesh:{field.name}"
+    if not scene.mesh or not os.path.isfile(scene.mesh) or scene.mesh.lower().endswith((".h5", ".hdf5")):
+        raise UserError(f"{where}: cell data are read from a mesh file meshio reads (-mesh FILE.msh, .vtu, ...), not "
+                        f"{'the built-in bar' if not scene.mesh else repr(scene.mesh)}")
+    m = read_meshio(scene.mesh, f"{where}: mesh '{scene.mesh}'")
+    kinds = {c.type for c in m.cells} & {"tetra", "tetra10"}
+    if field.name not in m.cell_data:
+        raise UserError(f"{where}: the mesh '{scene.mesh}' has no cell data '{field.name}' (it has: "
+                        f"{', '.join(sorted(m.cell_data)) or 'none'})")
+    rows = [np.asarray(d, np.float64) for c, d in zip(m.cells, m.cell_data[field.name]) if c.type in kinds]
+    rows = [r.reshape(len(r), -1) for r in rows]
+    if not rows or any(r.shape[1] != 3 for r in rows):
+        raise UserError(f"{where}: the mesh's cell data '{field.name}' is not three numbers a tetrahedron")
+    return np.concatenate(rows)
 
 
 def build_model(scene, comm):

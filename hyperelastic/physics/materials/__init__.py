@@ -70,9 +70,9 @@ def shown(v):
 
 
 class CellField:
-    """A vector parameter given as three expressions of the reference coordinates X, Y, Z (`-fibre1 'EX,EY,EZ'`,
-    commas inside parentheses belong to the expression): a value per cell, at its reference centroid
-    (Solid.localized); a direction field is made unit per cell."""
+    """A vector parameter given per cell: three expressions of the reference coordinates X, Y, Z (`-fibre1 'EX,EY,EZ'`,
+    commas inside parentheses belong to the expression) at each cell's reference centroid, or (MeshField) a cell data
+    array of the mesh file (`-fibre1 mesh:NAME`); a direction field is made unit per cell (Solid.localized)."""
 
     def __init__(self, text, option):
         from ...core.expressions import Expression
@@ -94,6 +94,17 @@ class CellField:
             raise UserError(f"option -{self.option}: '{self.text[:80]}' is not finite at the cell centred at "
                             f"{','.join(f'{c:.6g}' for c in P[bad[0]])}")
         return v
+
+
+class MeshField(CellField):
+    """`-PARAM mesh:NAME`: the mesh file's cell data NAME, a row of `size` numbers per tetrahedron (gmsh's
+    $ElementData, a .vtu's CellData: anything meshio reads), taken by each cell from its input cell (a cell made by
+    -refine from its parent's)."""
+
+    def __init__(self, text, option):
+        self.text, self.option, self.name = text, option, text.split(":", 1)[1].strip()
+        if not self.name:
+            raise UserError(f"option -{option}: '{text}' names no cell data (mesh:NAME)")
 
 
 def split_top(text):
@@ -147,20 +158,20 @@ class Solid:
         """The names of its parameters given as fields (CellField)."""
         return [k for k, v in self.values.items() if isinstance(v, CellField)]
 
-    def localized(self, P):
+    def localized(self, P, rows=None):
         """The solid on cells with reference centroids P (n, 3): each field parameter a direction per cell (an (n, 3)
-        array, which the material makes unit; UserError at the first cell where it has no length); itself where it
-        has no field."""
+        array, which the material makes unit; UserError at the first cell where it has no length); rows: {parameter:
+        (n, 3)} of the mesh fields (MeshField) on these cells. Itself where it has no field."""
         if not self.fields:
             return self
         values = dict(self.values)
         for k in self.fields:
-            v = values[k].at(P)
+            v = rows[k] if isinstance(values[k], MeshField) else values[k].at(P)
             n = np.linalg.norm(v, axis=1)
-            if len(n) and not (n > 0).all():
-                i = int(np.flatnonzero(~(n > 0))[0])
+            if len(n) and not (np.isfinite(n) & (n > 0)).all():
+                i = int(np.flatnonzero(~(np.isfinite(n) & (n > 0)))[0])
                 raise UserError(f"option -{values[k].option}: '{values[k].text[:80]}' is no direction at the cell "
-                                f"centred at {','.join(f'{c:.6g}' for c in P[i])} (its length is 0)")
+                                f"centred at {','.join(f'{c:.6g}' for c in P[i])} (its length is 0 or not finite)")
             values[k] = v
         return Solid(self.material, values, self.rho)
 
@@ -225,7 +236,7 @@ def _vector(opts, key, p):
     except UserError:
         if all(_number(t) for t in text.replace(";", ",").split(",")):
             raise                               # (numbers, not p.size of them, or too large: the vector's line)
-        return CellField(text, key)
+        return MeshField(text, key) if text.strip().startswith("mesh:") else CellField(text, key)
 
 
 def _number(text):
