@@ -51,12 +51,13 @@ ALIASES = {"neohookean": ("neohookean_split", None),    # (the fit is of incompr
 # -0.01 MPa over its mu = 0.4225 MPa, alpha_p = 1.3, 5, -2), one term from the neo-Hookean (alpha 2). A parameter not
 # here starts at 0, a locking one at three times its limit.
 START = {"mu": 1.0, "C10": 0.5, "mu1": 1.49, "alpha1": 1.3, "mu2": 0.0028, "alpha2": 5.0, "mu3": -0.0237,
-         "alpha3": -2.0}
+         "alpha3": -2.0, "k1": 1.0, "k2": 1.0}
 START_ONE_TERM = {"mu1": 1.0, "alpha1": 2.0}
 BULK_RATIO = 1000.0      # kappa / mu of a rubber (~2 GPa against ~1 MPa: Treloar 1975, ch. 1; the rubber preset's)
 STABILITY = (0.1, 10.0)  # the stretches the stability check covers by default (Abaqus': nominal strain -0.9 to 9)
 DE = 1e-6                # the logarithmic-strain step of the stability check's Hessian
 STABLE, UNSTABLE, LOCKED = 1, 0, -1
+LATERAL_ITERATIONS, LATERAL_STEP = 60, 1e-6   # an anisotropic uniaxial test's lateral stretch: Newton, its FD step
 
 
 def fitted_models():
@@ -87,8 +88,31 @@ def nominal(material, values, mode, lam):
     """The nominal stress (force per reference area) of the test `mode` at stretch lam: (tau_1 - tau_3) / lam, the
     pressure being the free direction's tau_3."""
     with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
-        tau = material.principal_tau(stretches(mode, lam), values)
+        tau = material.principal_tau(test_stretches(material, values, mode, lam), values)
     return (tau[..., 0] - tau[..., 2]) / np.asarray(lam, dtype=float)
+
+
+def test_stretches(material, values, mode, lam):
+    """The principal stretches of the test `mode` at stretch lam (stretches()), where an anisotropic material's
+    uniaxial test has its lateral stretches solved for: lambda_2 with tau_2 = tau_3 (both faces free), lambda_3 =
+    1/(lambda lambda_2), by Newton's iteration in ln lambda_2 (central differences) from the isotropic lambda^-1/2."""
+    base = stretches(mode, lam)
+    if not material.anisotropic or mode != "uniaxial":
+        return base
+    lam = np.asarray(lam, dtype=float)
+    ln1, s = np.log(lam), -0.5 * np.log(lam)
+
+    def g(s):
+        tau = material.principal_tau(np.stack([lam, np.exp(s), np.exp(-ln1 - s)], axis=-1), values)
+        return tau[..., 1] - tau[..., 2]
+    for _ in range(LATERAL_ITERATIONS):
+        r = g(s)
+        d = (g(s + LATERAL_STEP) - g(s - LATERAL_STEP)) / (2 * LATERAL_STEP)
+        step = np.where(np.abs(d) > 0, r / np.where(d != 0, d, 1.0), 0.0)
+        s = s - np.clip(step, -0.5, 0.5)
+        if np.all(np.abs(step) <= 1e-14):
+            break
+    return np.stack([lam, np.exp(s), np.exp(-ln1 - s)], axis=-1)
 
 
 def read_data(path, unit="Pa"):
@@ -207,7 +231,8 @@ def _scale_of(data):
 class Fit:
     """A model fitted to data: its values (all parameters, kappa included), the errors per mode, stability."""
 
-    def __init__(self, name, data, error="relative", bulk_ratio=BULK_RATIO):
+    def __init__(self, name, data, error="relative", bulk_ratio=BULK_RATIO, given=None):
+        """given: {parameter: value} held at that value, not fitted (an anisotropic model's fibres, its dispersion)."""
         name, fitted = resolve(name)
         self.name, self.material, self.data, self.error = name, materials.MATERIALS[name], data, error
         self.npoints = sum(len(v[0]) for v in data.values())
@@ -219,11 +244,24 @@ class Fit:
         self.params = params
         self.start = START_ONE_TERM if len(params) == 2 and name == "ogden" else START
         # the parameters not fitted (but kappa): their defaults (Ogden's terms beyond those fitted: off)
-        self.fixed = {}
+        self.fixed = dict(given or {})
         for p in self.material.parameters:
-            if p not in params and p.name != "kappa":
+            if p not in params and p.name != "kappa" and p.name not in self.fixed:
                 self.fixed[p.name] = p.default({"E": 3 * self.mu_data, "nu": 0.5 - 1e-9, **self.fixed})
+        if self.material.anisotropic:
+            self._check_axes()
         self.values = self._solve(bulk_ratio)
+
+    def _check_axes(self):
+        """An anisotropic model's fibres must leave the tests without shear: along the axes, or mirrored pairs."""
+        probe = {**self.fixed, **{p.name: self._start(p, {}, self._scale(p)) * self._scale(p) for p in self.params}}
+        lam = np.array([[1.3, 1 / 1.3 ** 0.5, 1 / 1.3 ** 0.5], [1.2, 1.1, 1 / 1.32]])
+        shear = self.material.principal_shear(lam, probe)
+        scale = np.abs(self.material.principal_tau(lam, probe)).max()
+        if not (shear <= 1e-9 * scale).all():
+            raise UserError(f"fit: {self.name}'s fibres as given shear the tests' homogeneous states: give them along "
+                            "the axes (x the loaded one), or as a pair mirrored about them (e.g. --fibre1 c,s,0 "
+                            "--fibre2 c,-s,0)")
 
     def _bounds(self):
         I1max = max(float(np.square(stretches(m, lam)).sum(axis=-1).max()) for m, (lam, _, _) in self.data.items())
@@ -299,15 +337,16 @@ class Fit:
     def hessian(self, mode, lam):
         """The Hessian (..., 2, 2) of w(e_1, e_2) at the mode's state of stretch lam (central differences of
         tau_i - tau_3 in the logarithmic strains)."""
-        ls = np.log(stretches(mode, lam))
-        H = np.zeros(np.shape(lam) + (2, 2))
-        for j in range(2):
-            d = np.zeros(3)
-            d[j], d[2] = DE, -DE
-            gp = self._tau_diff(np.exp(ls + d))
-            gm = self._tau_diff(np.exp(ls - d))
-            H[..., :, j] = (gp - gm) / (2 * DE)
-        return 0.5 * (H + np.swapaxes(H, -1, -2))
+        with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+            ls = np.log(test_stretches(self.material, self.values, mode, lam))
+            H = np.zeros(np.shape(lam) + (2, 2))
+            for j in range(2):
+                d = np.zeros(3)
+                d[j], d[2] = DE, -DE
+                gp = self._tau_diff(np.exp(ls + d))
+                gm = self._tau_diff(np.exp(ls - d))
+                H[..., :, j] = (gp - gm) / (2 * DE)
+            return 0.5 * (H + np.swapaxes(H, -1, -2))
 
     def _tau_diff(self, ls):
         with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
@@ -351,10 +390,20 @@ class Fit:
         mu, kappa = self.mu0, self.values["kappa"]
         E, nu = 9 * kappa * mu / (3 * kappa + mu), (3 * kappa - 2 * mu) / (2 * (3 * kappa + mu))
         lines = [f"-material {self.name}"]
-        lines += [f"-{p.name} {float(self.values[p.name])!r}" for p in self.material.parameters   # (every digit:
-                  if p.name != "kappa"]                                                          # the run's
+        lines += [f"-{p.name} {_option_value(self.values[p.name])}" for p in self.material.parameters  # (every digit:
+                  if p.name != "kappa" and not _absent(self.values[p.name])]                      # the run's
         lines += [f"-kappa {float(kappa)!r}", f"-E {float(E)!r}", f"-nu {float(nu)!r}"]  # constants, the fit's)
         return lines
+
+
+def _option_value(v):
+    """A parameter's value as an option takes it: every digit; a vector x,y,z."""
+    return ",".join(repr(float(x)) for x in v) if isinstance(v, (tuple, list)) else repr(float(v))
+
+
+def _absent(v):
+    """A vector parameter not given (NaN: e.g. hgo's second family)."""
+    return isinstance(v, (tuple, list)) and any(math.isnan(x) for x in v)
 
 
 def _describe(fit, stab, lo, hi):
@@ -367,7 +416,7 @@ def _describe(fit, stab, lo, hi):
     for mode, (rms, mx, at) in fit.mode_errors().items():
         lines.append(f"  {mode:12s} {what}: rms {100 * rms:.3g}%, max {100 * mx:.3g}% (at stretch {at:.4g})")
     lines.append(f"  Drucker stability, stretch {lo:g} to {hi:g}:")
-    why = {UNSTABLE: "unstable", LOCKED: "locked (the chains' limit)"}
+    why = {UNSTABLE: "unstable", LOCKED: fit.material.undefined_text}
     for mode, ((a, wa), (b, wb)) in stab.items():
         if wa is None and wb is None:
             lines.append(f"    {mode:12s} stable throughout")
@@ -443,6 +492,11 @@ def _parser():
     ap.add_argument("--prony", type=int, default=None, metavar="N", help="a Prony series of N terms (1 to 4) fitted "
                     "to the data's relaxation curve (rows of mode 'relaxation' with a 'time' column): the "
                     "viscoelastic effect's -prony_beta and -prony_tau")
+    ap.add_argument("--fibre1", default=None, help="an anisotropic model's (hgo) first fibre family's direction x,y,z "
+                    "in the tests' axes (x the loaded one), held, not fitted")
+    ap.add_argument("--fibre2", default=None, help="its second family's (a mirror of the first about an axis)")
+    ap.add_argument("--dispersion", type=float, default=None, help="hgo's fibre dispersion d, 0 to 1/3 (default 0), "
+                    "held")
     ap.add_argument("--ramp", type=float, default=0.0, help="the relaxation test's loading time in seconds (its "
                     "stretch reached at a constant rate; default 0: a step)")
     ap.add_argument("-o", "--output", default=None, help="the options file to write (default: DATA_MODEL.opts)")
@@ -464,6 +518,34 @@ def _range(text):
     if not (0 < lo < 1 < hi and math.isfinite(hi)):
         raise UserError(f"fit: --stability '{text}': needs 0 < LO < 1 < HI")
     return lo, hi
+
+
+def _given(a):
+    """The held values --fibre1, --fibre2, --dispersion give (an anisotropic model needs --fibre1; the others take
+    none)."""
+    material = materials.MATERIALS[resolve(a.model)[0]]
+    given = {}
+    for name in ("fibre1", "fibre2"):
+        text = getattr(a, name)
+        if text is None:
+            continue
+        try:
+            v = tuple(float(x) for x in text.split(","))
+        except ValueError:
+            v = ()
+        if len(v) != 3 or not all(math.isfinite(x) for x in v) or not any(v):
+            raise UserError(f"fit: --{name} '{text}': three numbers x,y,z of a direction")
+        given[name] = v
+    if a.dispersion is not None:
+        if not 0 <= a.dispersion <= 1 / 3:
+            raise UserError(f"fit: --dispersion {a.dispersion:g} must be within 0 to 1/3")
+        given["dispersion"] = a.dispersion
+    if given and not material.anisotropic:
+        raise UserError(f"fit: --{next(iter(given))} is for an anisotropic model (hgo), not {material.name}")
+    if material.anisotropic and "fibre1" not in given:
+        raise UserError(f"fit: --model {a.model} needs --fibre1 x,y,z (the fibres' direction in the tests' axes: x "
+                        "the loaded one)")
+    return given
 
 
 def _check_parts(a, data, relax):
@@ -495,7 +577,7 @@ def main(argv):
     data = read_data(a.data, a.unit)
     relax = data.pop("relaxation", None)
     _check_parts(a, data, relax)
-    fit = Fit(a.model, data, a.error, a.bulk_ratio) if a.model else None
+    fit = Fit(a.model, data, a.error, a.bulk_ratio, _given(a)) if a.model else None
     prony = PronyFit(relax, a.prony, a.ramp) if a.prony is not None else None
     lines, options = [], []
     if fit is not None:

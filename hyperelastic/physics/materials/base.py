@@ -86,6 +86,11 @@ class Material:
     # the parameters `hyperelastic fit` fits (the material's own, but for the bulk modulus), and the incompressible
     # principal Kirchhoff stresses they give; none: the material is not fitted
     fitted = ()
+    # anisotropic (fibres): a homogeneous test's free lateral stretches are solved for, not taken equal, and its fibre
+    # directions (in the tests' axes, x the loaded one) are given to `fit`
+    anisotropic = False
+    # what `fit`'s stability report calls the states where the energy is undefined (a locking model's limit)
+    undefined_text = "locked (the chains' limit)"
 
     @classmethod
     def principal_tau(cls, stretches, v):

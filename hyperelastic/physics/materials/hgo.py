@@ -91,6 +91,29 @@ class HGO(Material):
     def fibres(c):
         return _families(c)
 
+    fitted = ("mu", "k1", "k2")
+    anisotropic = True
+    undefined_text = "undefined (the fibres' exp(k2 E^2) beyond exp(700))"
+
+    @classmethod
+    def principal_tau(cls, stretches, v):
+        """The diagonal of the Kirchhoff stress P F^T of the isochoric energy at F = diag(stretches) (J = 1), the fibres
+        along v's directions in those axes (`hyperelastic fit`; its off-diagonal part: principal_shear)."""
+        return np.diagonal(cls._kirchhoff(stretches, v), axis1=-2, axis2=-1)
+
+    @classmethod
+    def principal_shear(cls, stretches, v):
+        """The largest off-diagonal Kirchhoff stress at F = diag(stretches): zero where the fibres lie along the axes or
+        in pairs mirrored about them (a homogeneous test then has no shear)."""
+        tau = cls._kirchhoff(stretches, v)
+        return np.abs(tau - np.diagonal(tau, axis1=-2, axis2=-1)[..., None] * np.eye(3)).max(axis=(-1, -2))
+
+    @classmethod
+    def _kirchhoff(cls, stretches, v):
+        lam = np.asarray(stretches, np.float64)
+        F = lam[..., :, None] * np.eye(3)
+        return cls.P(F, cls.constants({**v, "kappa": 0.0})) @ np.swapaxes(F, -1, -2)
+
     @classmethod
     def split(cls, v):
         c = cls.constants(v)
