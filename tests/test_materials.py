@@ -27,9 +27,11 @@ C["yeoh"] = (MU / 2, -MU / 20, MU / 100, C["yeoh"][3])
 C["gent"] = default_solid("gent").material.constants({"mu": MU, "Jm": 10.0, "kappa": C["gent"][2]})
 C["arruda_boyce"] = default_solid("arruda_boyce").material.constants({"mu": MU, "lambda_m": 2.5,
                                                                      "kappa": C["arruda_boyce"][3]})
-# Ogden with the proportions of Ogden's 1972 fit of Treloar's rubber (three terms, a negative exponent), mu = MU
+# Ogden with the proportions of Ogden's 1972 fit of Treloar's rubber (three terms, a negative exponent) and two small
+# terms more (five: its most), mu ~ MU
 _r = MU / 0.4225e6
-C["ogden"] = (0.63e6 * _r, 1.3, 0.0012e6 * _r, 5.0, -0.01e6 * _r, -2.0, C["ogden"][6])
+C["ogden"] = (0.63e6 * _r, 1.3, 0.0012e6 * _r, 5.0, -0.01e6 * _r, -2.0, 0.005e6 * _r, 3.0, -0.002e6 * _r, -1.0,
+              C["ogden"][10])      # (all five terms)
 
 
 # the compiled kernels against the numpy reference, relative to the largest value: round-off; Ogden's goes through the

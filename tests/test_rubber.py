@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from scipy.optimize import brentq
 
-from conftest import ROOT, read_h5, run_ok
+from conftest import ROOT, hyperelastic, read_h5, run_ok
 from hyperelastic.physics.materials import default_solid
 from hyperelastic.physics.materials.arruda_boyce import inverse_langevin, langevin
 
@@ -246,3 +246,19 @@ def test_ogden_tangent_exact_where_stretches_are_equal():
         assert np.abs(y - (fp - fm) / (2 * eps)).max() <= 1e-7 * np.abs(y).max()
         K, bad = k.tangent(x)
         assert bad == 0 and np.abs(K - K.transpose(0, 2, 1)).max() <= 1e-12 * np.abs(K).max()
+
+
+def test_ogden_terms_as_lists(tmp_path):
+    """-ogden_mu/-ogden_alpha give the terms as two lists (five at most): the run is the one with -mu1 .. -alpha3,
+    bitwise; five terms run; a list too long, or a term given both ways, is one line."""
+    base = ["run", "bend", "-material", "ogden", "-final_time", 0.02, "-quiet"]
+    run_ok(base + ["-ogden_mu", "0.63e6,0.0012e6,-0.01e6", "-ogden_alpha", "1.3,5,-2", "-output", tmp_path / "l.h5"])
+    run_ok(base + ["-mu1", 0.63e6, "-alpha1", 1.3, "-mu2", 0.0012e6, "-alpha2", 5, "-mu3", -0.01e6, "-alpha3", -2,
+                   "-output", tmp_path / "s.h5"])
+    assert np.array_equal(read_h5(tmp_path / "l.h5")["x"], read_h5(tmp_path / "s.h5")["x"])
+    run_ok(base + ["-ogden_mu", "0.63e6,0.0012e6,-0.01e6,5e3,-2e3", "-ogden_alpha", "1.3,5,-2,3,-1", "-output",
+                   tmp_path / "five.h5"])
+    for args, want in ((["-ogden_mu", "1,2,3,4,5,6"], "must be 1 to 5 finite numbers"),
+                       (["-ogden_mu", "0.63e6", "-mu1", "1e5"], "gives mu1, and so does -mu1")):
+        p = hyperelastic(base + args + ["-output", tmp_path / "bad.h5"])
+        assert p.returncode == 2 and want in p.stderr and len(p.stderr.strip().splitlines()) == 1, p.stderr

@@ -44,14 +44,14 @@ ORDER = ("uniaxial", "equibiaxial", "planar")
 UNITS = {"Pa": 1.0, "kPa": 1e3, "MPa": 1e6}
 # the names `fit --model` takes beyond the fitted materials': (material, the parameters fitted; None: all it declares)
 ALIASES = {"neohookean": ("neohookean_split", None),    # (the fit is of incompressible tests: the split model)
-           "ogden1": ("ogden", ("mu1", "alpha1")), "ogden2": ("ogden", ("mu1", "alpha1", "mu2", "alpha2")),
-           "ogden3": ("ogden", None)}
+           **{f"ogden{n}": ("ogden", tuple(f"{k}{p}" for p in range(1, n + 1) for k in ("mu", "alpha")))
+              for n in range(1, 6)}}
 # the fit's start: a modulus over the data's small-strain one (its 'mu' and an invariant's 'C10', W' = mu/2), an
 # exponent itself; Ogden's terms start from the shape of his fit of Treloar's rubber (Ogden 1972: mu_p = 0.63, 0.0012,
 # -0.01 MPa over its mu = 0.4225 MPa, alpha_p = 1.3, 5, -2), one term from the neo-Hookean (alpha 2). A parameter not
 # here starts at 0, a locking one at three times its limit.
 START = {"mu": 1.0, "C10": 0.5, "mu1": 1.49, "alpha1": 1.3, "mu2": 0.0028, "alpha2": 5.0, "mu3": -0.0237,
-         "alpha3": -2.0, "k1": 1.0, "k2": 1.0}
+         "alpha3": -2.0, "mu4": 0.01, "alpha4": 8.0, "mu5": -0.01, "alpha5": -4.0, "k1": 1.0, "k2": 1.0}
 START_ONE_TERM = {"mu1": 1.0, "alpha1": 2.0}
 BULK_RATIO = 1000.0      # kappa / mu of a rubber (~2 GPa against ~1 MPa: Treloar 1975, ch. 1; the rubber preset's)
 STABILITY = (0.1, 10.0)  # the stretches the stability check covers by default (Abaqus': nominal strain -0.9 to 9)

@@ -206,7 +206,10 @@ def read_solid(opts, prefix, default, where):
     E, nu, rho = opts.real(f"{prefix}E", E), opts.real(f"{prefix}nu", nu), opts.real(f"{prefix}rho", rho)
     check_parameters(E, nu, rho, where=where)
     values, keys = {"E": E, "nu": nu}, {}
+    values.update(_lists(opts, prefix, mat))
     for p in mat.parameters:                           # the given ones first: defaults may follow from them
+        if p.name in values:
+            continue
         keys[p.name] = f"{prefix}{p.name}" if opts.has(f"{prefix}{p.name}") or not opts.has(p.name) else p.name
         v = _vector(opts, keys[p.name], p) if p.size > 1 else opts.real(keys[p.name], None)   # (a region's default:
         if v is not None:                                                                  # the un-prefixed option)
@@ -223,6 +226,28 @@ def read_solid(opts, prefix, default, where):
             raise UserError(f"{where}: {what} must be {'>' if p.exclusive else '>='} {p.minimum:g} ({p.meaning})")
     mat.check(values, where)
     return Solid(mat, values, rho)
+
+
+def _lists(opts, prefix, mat):
+    """{parameter: value} of the material's list options (Material.list_options: -ogden_mu a,b,c gives mu1..mu3),
+    one line where a list is too long or a parameter it gives is also given alone."""
+    out = {}
+    for name, params in mat.list_options.items():
+        key = f"{prefix}{name}" if opts.has(f"{prefix}{name}") or not opts.has(name) else name
+        text = opts.string(key, None)
+        if text is None:
+            continue
+        try:
+            vals = [float(t) for t in text.replace(";", ",").split(",")]
+        except ValueError:
+            raise UserError(f"option -{key}: '{text[:60]}' is not a list of numbers") from None
+        if not 1 <= len(vals) <= len(params) or not all(math.isfinite(v) for v in vals):
+            raise UserError(f"option -{key}: '{text[:60]}' must be 1 to {len(params)} finite numbers")
+        both = [p for p in params[:len(vals)] if opts.has(f"{prefix}{p}")]
+        if both:
+            raise UserError(f"option -{key} gives {both[0]}, and so does -{prefix}{both[0]}: give the terms one way")
+        out.update(zip(params, vals))
+    return out
 
 
 def _vector(opts, key, p):
@@ -263,8 +288,10 @@ def rows():
     for m in MATERIALS.values():
         if not m.parameters:
             continue
-        names = tuple(p.name for p in m.parameters)
+        names = tuple(p.name for p in m.parameters) + tuple(m.list_options)
         help_ = f"`{m.name}`'s constants: " + "; ".join(f"{p.name} [{p.unit}] {p.meaning}" for p in m.parameters)
+        for name, params in m.list_options.items():
+            help_ += f"; {name}: {params[0]}..{params[-1]} as a list"
         if m.references:
             help_ += f" ({m.references})"
         help_ += "; per region `-R1_" + "`, `-R1_".join(names) + "`"

@@ -86,6 +86,8 @@ class Material:
     # the parameters `hyperelastic fit` fits (the material's own, but for the bulk modulus), and the incompressible
     # principal Kirchhoff stresses they give; none: the material is not fitted
     fitted = ()
+    # options that give several parameters as one list: {option: the parameters' names, in order} (ogden's terms)
+    list_options = {}
     # anisotropic (fibres): a homogeneous test's free lateral stretches are solved for, not taken equal, and its fibre
     # directions (in the tests' axes, x the loaded one) are given to `fit`
     anisotropic = False

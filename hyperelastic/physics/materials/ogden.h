@@ -1,5 +1,5 @@
-/* Ogden's rubber (Ogden, Proc. R. Soc. A 326, 1972), up to three terms, with the isochoric/volumetric split:
- * constants (mu1, alpha1, mu2, alpha2, mu3, alpha3, kappa), W = tr f(C_bar), f(c) = sum_p mu_p/alpha_p c^(alpha_p/2),
+/* Ogden's rubber (Ogden, Proc. R. Soc. A 326, 1972), up to OGDEN_TERMS (five) terms, with the isochoric/volumetric
+ * split: constants (mu1, alpha1, ..., mu5, alpha5, kappa), W = tr f(C_bar), f(c) = sum_p mu_p/alpha_p c^(alpha_p/2),
  * C_bar = J^(-2/3) C with eigenvalues cb_a and eigenvectors N (the columns), a term with mu_p = 0 off.
  * P = 2 J^(-2/3) F T - 2/3 tau Q + g Q, T = N diag f'(cb) N^T, tau = sum_a f'(cb_a) cb_a, Q = F^-T,
  * g = kappa/2 (J^2 - 1). Its derivative along dF (Daleckii-Krein for the matrix function's: ogden.py):
@@ -8,8 +8,10 @@
  * dtau = sum_a (c f')'(cb_a) D_aa, f'[1] the divided differences of f' (f'' on the diagonal and at equal eigenvalues,
  * without cancellation: ogden_divided). Undefined for J <= 0. Numpy reference: ogden.py. */
 #include "_tensor.h"
+#define OGDEN_TERMS 5                    /* (2 x 5 + 1 = 11 constants: within HE_NPARAM) */
+#define OGDEN_KAPPA (2 * OGDEN_TERMS)
 typedef struct {
-  double F[9], Q[9], FN[9], N[9], c[3], lc[3], ck[9], fp[3], h[3], dd[9], FT[9], j23, tau, kJ2, g;
+  double F[9], Q[9], FN[9], N[9], c[3], lc[3], ck[3 * OGDEN_TERMS], fp[3], h[3], dd[9], FT[9], j23, tau, kJ2, g;
 } ogden_cache;
 
 /* The unit eigenvector v of symmetric A for its eigenvalue l: the longest of the cross products of the rows of A - lI
@@ -93,7 +95,7 @@ HE_INLINE int ogden_scalars(const double *prm, const double *F, ogden_cache *d, 
   for (int a = 0; a < 3; a++) {
     const double cb = jm23 * cv[a], lc = log(cb);
     double fp = 0, h = 0;
-    for (int p = 0; p < 3; p++) {
+    for (int p = 0; p < OGDEN_TERMS; p++) {
       const double mu = prm[2 * p], al = prm[2 * p + 1];
       if (mu == 0) continue;
       const double ck = exp(0.5 * al * lc);
@@ -110,9 +112,9 @@ HE_INLINE int ogden_scalars(const double *prm, const double *F, ogden_cache *d, 
       for (int a = 0; a < 3; a++) T[3 * i + j] += d->N[3 * i + a] * d->fp[a] * d->N[3 * j + a];
   mm(F, T, d->FT);
   d->j23 = jm23;
-  d->kJ2 = prm[6] * *J * *J;
-  d->g = 0.5 * prm[6] * (*J * *J - 1);
-  if (psi) *psi = w + 0.25 * prm[6] * (*J * *J - 1 - 2 * log(*J));
+  d->kJ2 = prm[OGDEN_KAPPA] * *J * *J;
+  d->g = 0.5 * prm[OGDEN_KAPPA] * (*J * *J - 1);
+  if (psi) *psi = w + 0.25 * prm[OGDEN_KAPPA] * (*J * *J - 1 - 2 * log(*J));
   return 0;
 }
 
@@ -122,7 +124,7 @@ HE_INLINE int ogden_scalars(const double *prm, const double *F, ogden_cache *d, 
 HE_INLINE double ogden_divided(const double *prm, const ogden_cache *d, int i, int j) {
   const double u = d->lc[i] - d->lc[j], e = expm1(u), b2 = d->c[j] * d->c[j];
   double s = 0;
-  for (int p = 0; p < 3; p++) {
+  for (int p = 0; p < OGDEN_TERMS; p++) {
     const double mu = prm[2 * p], k = 0.5 * prm[2 * p + 1] - 1;
     if (mu == 0) continue;
     s += 0.5 * mu * d->ck[3 * p + j] / b2 * (u == 0 ? k : expm1(k * u) / e);

@@ -5,7 +5,7 @@ from ._tensor import T
 from .base import BULK, Material, Parameter, shear_modulus
 from .neohookean_split import volumetric
 
-TERMS = 3
+TERMS = 5              # terms at most (ogden.h: OGDEN_TERMS; 2 x 5 + 1 constants within the kernels' block)
 MAX_ALPHA = 100.0      # an exponent's size (Ogden's fits: |alpha| <= ~10; 2^100 = 1e30, 10^100 still a double)
 
 
@@ -39,7 +39,7 @@ def divided(c, a, b):
 
 
 class Ogden(Material):
-    """Ogden's rubber (Ogden, Proc. R. Soc. A 326, 1972), up to three terms, with the isochoric/volumetric split:
+    """Ogden's rubber (Ogden, Proc. R. Soc. A 326, 1972), up to five terms, with the isochoric/volumetric split:
     Psi = sum_p mu_p/alpha_p (l1_bar^alpha_p + l2_bar^alpha_p + l3_bar^alpha_p - 3) + U(J), l_bar = J^(-1/3) l the
     isochoric principal stretches, U(J) = kappa/4 (J^2 - 1 - 2 ln J) (neohookean_split.volumetric); small-strain shear
     modulus mu = 1/2 sum_p mu_p alpha_p. As a function of C_bar = J^(-2/3) C (eigenvalues cb_a = l_bar_a^2):
@@ -49,12 +49,15 @@ class Ogden(Material):
     differences of f' at the eigenvalues, f'' on the diagonal and where two are equal: exact and finite at equal
     stretches, where the principal directions are not defined. Undefined for J <= 0."""
     name = "ogden"
-    moduli = (0, 2, 4)
-    summary = "μ1..3, α1..3, κ: rubber in principal stretches"
+    moduli = (0, 2, 4, 6, 8)
+    summary = "μ1..5, α1..5 (or -ogden_mu, -ogden_alpha lists), κ: rubber in principal stretches"
     defined_when_inverted = False
     references = "Ogden, Proc. R. Soc. A 326, 1972"
     volumetric = "J"
-    fitted = ("mu1", "alpha1", "mu2", "alpha2", "mu3", "alpha3")
+    fitted = ("mu1", "alpha1", "mu2", "alpha2", "mu3", "alpha3", "mu4", "alpha4", "mu5", "alpha5")
+    # the terms as two lists (Abaqus' and FEBio's way): -ogden_mu 0.63e6,0.0012e6,-0.01e6 -ogden_alpha 1.3,5,-2
+    list_options = {"ogden_mu": tuple(f"mu{p}" for p in range(1, TERMS + 1)),
+                    "ogden_alpha": tuple(f"alpha{p}" for p in range(1, TERMS + 1))}
     parameters = (
         Parameter("mu1", "Pa", "the first term's modulus", shear_modulus, "μ = E/(2(1+ν)) (with α1 = 2: neo-Hookean)",
                   minimum=-np.inf),
@@ -63,12 +66,16 @@ class Ogden(Material):
         Parameter("alpha2", "-", "its exponent", lambda v: 4.0, "4", minimum=-np.inf),
         Parameter("mu3", "Pa", "the third term's (0: off)", lambda v: 0.0, "0", minimum=-np.inf),
         Parameter("alpha3", "-", "its exponent", lambda v: -2.0, "−2", minimum=-np.inf),
+        Parameter("mu4", "Pa", "the fourth term's (0: off)", lambda v: 0.0, "0", minimum=-np.inf),
+        Parameter("alpha4", "-", "its exponent", lambda v: 6.0, "6", minimum=-np.inf),
+        Parameter("mu5", "Pa", "the fifth term's (0: off)", lambda v: 0.0, "0", minimum=-np.inf),
+        Parameter("alpha5", "-", "its exponent", lambda v: -4.0, "−4", minimum=-np.inf),
         BULK,
     )
 
     @staticmethod
     def constants(v):
-        return tuple(v[n] for n in ("mu1", "alpha1", "mu2", "alpha2", "mu3", "alpha3", "kappa"))
+        return tuple(v[n] for p in range(1, TERMS + 1) for n in (f"mu{p}", f"alpha{p}")) + (v["kappa"],)
 
     @classmethod
     def split(cls, v):
@@ -78,7 +85,7 @@ class Ogden(Material):
     @classmethod
     def check(cls, v, where):
         c = cls.constants(v)
-        for p, (mu, al) in enumerate(zip(c[0:6:2], c[1:6:2]), start=1):
+        for p, (mu, al) in enumerate(zip(c[0:2 * TERMS:2], c[1:2 * TERMS:2]), start=1):
             if mu != 0 and al == 0:
                 raise UserError(f"{where}: ogden's term {p} has mu{p} {mu:g} and alpha{p} 0 (an exponent of 0 is no "
                                 "term: give it mu 0)")
