@@ -485,8 +485,9 @@ class BackwardEuler(Integrator):
             if moving or sysm.moves_prescribed(self.x):
                 if self.sp.mpi.allreduce(bool(self.rate.any()), op=MPI.LOR):
                     guesses = [self.x + h * self.rate]
-                if moving:
-                    guesses += [g for g in [sysm.starts.pushed(self.x)] if g is not None]
+                if moving:         # (the rate's start with the nodes it leaves in reach pushed, then x^n's pushed)
+                    guesses += [g for g in [sysm.starts.pushed(s, self.x) for s in guesses[:1] + [self.x]]
+                                if g is not None]
                 elif not guesses and not all(e.linear for e in sysm.effects) and self._linearized_guess():
                     guesses = [None]           # (in self.X already; a linear problem's first iterate is the same solve)
                 elif guesses and sysm.starts.checks:

@@ -139,12 +139,15 @@ class Contact(NodeBlocks, StepLimiter, DomainCheck, StepStart, AdaptiveStiffness
     def _friction_potential(self, x):
         return sum(float(self.mu * (lam * mollifier(y, self.slip_eps)[0]).sum()) for lam, _, _, y in self._slips(x))
 
-    def pushed(self, x):
-        """(x with every contact node that the obstacles' move since the step's start brought closer moved out along
-        the distance's gradient to its distance before the move, whether every push stays within PUSH_LIMIT of the
-        node's shortest surface edge): the integrator's start where the last step's rate does not carry the body
-        along (a plate moved into the gap pushes the nodes it would reach; the cells beside them take the strain
-        until Newton relaxes it, which a push of a cell's size would invert)."""
+    def pushed(self, x, base=None):
+        """(x with every contact node that the obstacles' move since the step's start brought within dhat moved out
+        along the distance's gradient, to its distance at the step's start (base, default x) where that was within
+        dhat (a node in contact moves with the obstacle), else to dhat (a node the obstacle reaches: just out of the
+        barrier's range); whether
+        every push stays within PUSH_LIMIT of the node's shortest surface edge): the integrator's start where the last
+        step's rate does not carry the body along (a plate moved into the gap pushes the nodes it would reach, and
+        only those; the cells beside them take the strain until Newton relaxes it: Starts.pushed refuses a start
+        that would invert one)."""
         out = x.copy()
         on = out.reshape(-1, 3)
         ok = True
@@ -152,7 +155,8 @@ class Contact(NodeBlocks, StepLimiter, DomainCheck, StepStart, AdaptiveStiffness
             if o.motion is None:
                 continue
             xc = on[self.nodes]
-            d_old = o.form.distances(old, xc)[0]
+            d_old = np.minimum(o.form.distances(old, xc if base is None else base.reshape(-1, 3)[self.nodes])[0],
+                               self.dhat)
             d_new, g = o.form.distances(new, xc)
             closer = d_new < d_old
             push = (d_old - d_new)[closer]

@@ -56,8 +56,10 @@ class DomainCheck:
 
 
 # a step's start pushes contact nodes ahead of a moving obstacle by at most this fraction of their shortest surface edge
-# (else the step is retried shorter): StepStart.pushed of contact.py and self_contact.py
-PUSH_LIMIT = 0.3
+# (else the step is retried shorter): StepStart.pushed of contact.py and self_contact.py; and Starts.pushed refuses a
+# start that would invert a cell under twice its pushes (0.3 before the eighteenth session, without that check: the
+# quadratic O-ring's first touch was refused at its nodes' half-edge spacing)
+PUSH_LIMIT = 1.0
 
 
 class StepStart:
@@ -76,9 +78,11 @@ class StepStart:
         where nothing does (this rank's nodes, or the same on every rank)."""
         return None
 
-    def pushed(self, x):
-        """(x', fits): x with the nodes the surroundings' move since the step's start reached pushed ahead of them,
-        and whether every push stays small enough for the cells beside them (this rank's nodes)."""
+    def pushed(self, x, base=None):
+        """(x', fits): x (a start of the step) with the nodes the surroundings' move since the step's start reached
+        pushed ahead of them, and whether every push stays small enough for the cells beside them (this rank's nodes);
+        base: the step's start state x^n the pushes keep the distances of (default x itself; a start carried along by
+        the last step's rate keeps those of x^n, not its own)."""
         return x, True
 
     def moves_linearly(self, t0, t1):

@@ -455,7 +455,7 @@ class SelfContact(NodeBlocks, StepLimiter, DomainCheck, StepStart, AdaptiveStiff
         """Whether the step has friction pairs (built at its start)."""
         return self.tangential is not None and len(self.tangential) > 0
 
-    def pushed(self, x):
+    def pushed(self, x, base=None):
         """(x with this rank's surface nodes that a moving triangulated obstacle reaches within the step carried along
         by its translation, whether every such push stays within PUSH_LIMIT of the node's shortest surface edge): the
         integrator's start where the last step's rate does not carry the body along (the first step of a plate
