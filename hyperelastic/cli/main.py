@@ -519,7 +519,14 @@ def _abort_if_parallel(code):
         mpi = MPI.COMM_WORLD
     if mpi.size > 1:
         sys.stderr.flush()
+        time.sleep(ABORT_DRAIN_S)
         mpi.Abort(code)
+
+
+# Before MPI_Abort, the time this rank gives mpiexec to forward the error line it has just written: Hydra's abort ends
+# the proxies, and a line still in the pipe between a rank and its proxy was lost ~1 run in 40
+# (tests/test_install.py's two-rank internal error). Less than ANY_RANK_GRACE_S, after which the other ranks print.
+ABORT_DRAIN_S = 0.25
 
 
 # An error that only some ranks may have (an internal one) is printed by rank 0 at once and by any other rank after
