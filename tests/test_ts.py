@@ -68,6 +68,9 @@ def test_energy_momentum_conserves_energy(tmp_path):
     one = ts_run(tmp_path, "em1", ["spin", "-level", 1, "-final_time", 0.2, "-energy_momentum"])
     assert np.abs(two["x"] - one["x"]).max() <= 1e-8 * np.abs(one["x"]).max()
     one_line_error(hyperelastic(["run", "spin", "-level", 1, "-energy_momentum"]), "-integrator ts")
+    # -step_forces under TS was ignored without a word (the statistics' forces are backward Euler's): now one line
+    one_line_error(hyperelastic(["run", "spin", "-level", 1, "-integrator", "ts", "-step_forces", "1"]),
+                   "-integrator ts records none")
     one_line_error(hyperelastic(["run", "spin", "-level", 1, "-energy_momentum", "-integrator", "ts",
                                  "-ts_alpha_radius", "0.5"]), "-ts_alpha_radius 1")
 

@@ -222,6 +222,9 @@ def _read_time(s, opts):
         raise UserError("options -quasistatic and -initial_spin: a quasi-static run has no velocity to start with")
     if s.integrator == "ts" and s.quasistatic:
         raise UserError("option -integrator ts: integrates dynamics; -quasistatic steps use -integrator beuler")
+    if s.integrator == "ts" and s.step_forces:
+        raise UserError("option -step_forces: each step's reactions and loads are backward Euler's (its residual at "
+                        "the step's end); -integrator ts records none (-integrator beuler)")
 
 
 def _read_solver(s, opts):
