@@ -333,9 +333,14 @@ def test_hgo_recovered_from_the_curves_it_gives():
     st = test_stretches(m, v, "uniaxial", lam)
     tau = m.principal_tau(st, v)
     assert np.abs(tau[:, 1] - tau[:, 2]).max() <= 1e-9 * np.abs(tau).max() and np.abs(st[:, 1] - st[:, 2]).min() > 1e-3
-    data = {mode: (lam, nominal(m, v, mode, lam), np.ones_like(lam)) for mode in ("uniaxial", "equibiaxial")}
+    data = {mode: (lam, nominal(m, v, mode, lam), np.ones_like(lam))
+            for mode in ("uniaxial", "equibiaxial", "equibiaxial_y")}
+    assert np.abs(data["equibiaxial"][1] / data["equibiaxial_y"][1] - 1).min() > 0.1    # (the fibres lie nearer x)
     f = Fit("hgo", data, given={k: v[k] for k in ("fibre1", "fibre2", "dispersion")})
     assert all(abs(f.values[k] / v[k] - 1) < 1e-8 for k in ("mu", "k1", "k2")), f.values
+    iso = materials.MATERIALS["yeoh"]                      # (an isotropic model's two axes are one)
+    w = {"C10": 0.3e6, "C20": -0.01e6, "C30": 0.001e6}
+    assert np.array_equal(nominal(iso, w, "equibiaxial", lam), nominal(iso, w, "equibiaxial_y", lam))
 
 
 def test_bad_anisotropic_arguments_get_one_line(tmp_path):

@@ -36,11 +36,14 @@ from ..physics import materials
 from .prony import PronyFit
 
 MODES = {"uniaxial": "uniaxial", "equibiaxial": "equibiaxial", "biaxial": "equibiaxial", "planar": "planar",
-         "pure_shear": "planar", "planar_shear": "planar"}
+         "pure_shear": "planar", "planar_shear": "planar",
+         # an equibiaxial test's stress along y (an anisotropic material's two axes differ: tissue's biaxial tests)
+         "equibiaxial_y": "equibiaxial_y", "biaxial_y": "equibiaxial_y"}
 RELAXATION = "_relaxation"     # a relaxation test: the stretch held from time 0 (or after --ramp), stress against time
 MODES.update({"relaxation": "uniaxial" + RELAXATION,
               **{k + RELAXATION: v + RELAXATION for k, v in MODES.items()}})
-ORDER = ("uniaxial", "equibiaxial", "planar")
+ORDER = ("uniaxial", "equibiaxial", "planar", "equibiaxial_y")
+STATES = ("uniaxial", "equibiaxial", "planar")         # the distinct states Drucker's check follows
 UNITS = {"Pa": 1.0, "kPa": 1e3, "MPa": 1e6}
 # the names `fit --model` takes beyond the fitted materials': (material, the parameters fitted; None: all it declares)
 ALIASES = {"neohookean": ("neohookean_split", None),    # (the fit is of incompressible tests: the split model)
@@ -79,17 +82,18 @@ def stretches(mode, lam):
     lam = np.asarray(lam, dtype=float)
     if mode == "uniaxial":
         return np.stack([lam, lam ** -0.5, lam ** -0.5], axis=-1)
-    if mode == "equibiaxial":
+    if mode in ("equibiaxial", "equibiaxial_y"):
         return np.stack([lam, lam, lam ** -2.0], axis=-1)
     return np.stack([lam, np.ones_like(lam), 1 / lam], axis=-1)
 
 
 def nominal(material, values, mode, lam):
-    """The nominal stress (force per reference area) of the test `mode` at stretch lam: (tau_1 - tau_3) / lam, the
-    pressure being the free direction's tau_3."""
+    """The nominal stress (force per reference area) of the test `mode` at stretch lam: (tau_i - tau_3) / lam along
+    its loaded axis i (x; y for equibiaxial_y), the pressure being the free direction's tau_3."""
     with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
         tau = material.principal_tau(test_stretches(material, values, mode, lam), values)
-    return (tau[..., 0] - tau[..., 2]) / np.asarray(lam, dtype=float)
+    i = 1 if mode == "equibiaxial_y" else 0
+    return (tau[..., i] - tau[..., 2]) / np.asarray(lam, dtype=float)
 
 
 def test_stretches(material, values, mode, lam):
@@ -158,7 +162,8 @@ def _row(r, col, where):
     """(mode, stretch, stress, weight, time) of a data row (time NaN where the row is not a relaxation test's)."""
     word = r[col["mode"]].strip().lower()
     if word not in MODES:
-        raise UserError(f"{where}: unknown mode '{word[:40]}' (choose from uniaxial, equibiaxial, planar, relaxation)")
+        raise UserError(f"{where}: unknown mode '{word[:40]}' (choose from uniaxial, equibiaxial, equibiaxial_y, planar, "
+                        "relaxation)")
     mode = MODES[word]
     vals = []
     for c in ("stretch", "stress", "weight", "time"):
@@ -368,7 +373,7 @@ class Fit:
         states are stable, each end to 1e-4 relative; why: None where stable up to lo or hi, else UNSTABLE or
         LOCKED (what the next stretch is)."""
         out = {}
-        for mode in ORDER:
+        for mode in STATES:
             ends = []
             for edge in (lo, hi):
                 grid = np.geomspace(1.0, edge, n)[1:]
