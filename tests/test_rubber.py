@@ -259,6 +259,22 @@ def test_ogden_terms_as_lists(tmp_path):
     run_ok(base + ["-ogden_mu", "0.63e6,0.0012e6,-0.01e6,5e3,-2e3", "-ogden_alpha", "1.3,5,-2,3,-1", "-output",
                    tmp_path / "five.h5"])
     for args, want in ((["-ogden_mu", "1,2,3,4,5,6"], "must be 1 to 5 finite numbers"),
-                       (["-ogden_mu", "0.63e6", "-mu1", "1e5"], "gives mu1, and so does -mu1")):
+                       (["-ogden_mu", "0.63e6", "-mu1", "1e5"], "gives mu1, and so does -mu1"),
+                       (["-material", "yeoh", "-ogden_mu", "1e5"], "a list of ogden's constants, not of this scene's")):
         p = hyperelastic(base + args + ["-output", tmp_path / "bad.h5"])
         assert p.returncode == 2 and want in p.stderr and len(p.stderr.strip().splitlines()) == 1, p.stderr
+
+
+def test_ogden_lists_per_region(tmp_path):
+    """-R_ogden_mu/-R_ogden_alpha per region (examples/bimaterial.opts' halves both Ogden rubber, two terms and three):
+    the run with the terms given one by one, bitwise."""
+    bar = tmp_path / "bar.msh"
+    run_ok(["mesh", f"{ROOT}/examples/bimaterial.geo", "--size", 0.25, "-o", bar])
+    base = ["run", f"{ROOT}/examples/bimaterial.opts", "-mesh", bar, "-soft_material", "ogden", "-stiff_material",
+            "ogden", "-final_time", 0.5, "-quiet"]
+    run_ok(base + ["-soft_ogden_mu", "3e5,1e3", "-soft_ogden_alpha", "1.5,5", "-stiff_ogden_mu", "1e6,2e3,-1e4",
+                   "-stiff_ogden_alpha", "2,4,-2", "-output", tmp_path / "l.h5"])
+    run_ok(base + ["-soft_mu1", 3e5, "-soft_alpha1", 1.5, "-soft_mu2", 1e3, "-soft_alpha2", 5, "-stiff_mu1", 1e6,
+                   "-stiff_alpha1", 2, "-stiff_mu2", 2e3, "-stiff_alpha2", 4, "-stiff_mu3", -1e4, "-stiff_alpha3", -2,
+                   "-output", tmp_path / "s.h5"])
+    assert np.array_equal(read_h5(tmp_path / "l.h5")["x"], read_h5(tmp_path / "s.h5")["x"])

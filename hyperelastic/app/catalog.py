@@ -28,7 +28,8 @@ from .scene import (ASSEMBLIES, DEFAULT_EFFECTS, DEFAULT_MATERIAL, EFFECTS, EFFE
                     STORAGES, Scene, read_scene)
 
 _S = Scene(name="SCENE")
-_OWN = tuple(materials.own_parameters())       # the materials' own constants (-C10, -kappa, ...)
+_OWN = tuple(materials.own_parameters()) + tuple(dict.fromkeys(      # the materials' own constants (-C10, -kappa,
+    n for m in materials.MATERIALS.values() for n in m.list_options))   # ...) and lists of them (-ogden_mu)
 
 
 def _material_list():

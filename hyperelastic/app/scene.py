@@ -178,6 +178,15 @@ def _check_material_options(s, opts):
     """A material constant given for a material that does not have it is a mistake, not a default."""
     solids = [("", s.solid)] + [(f"{r.name}_", r.solid) for r in s.regions]
     used = {p.name for _, sol in solids for p in sol.material.parameters}
+    owners = {n: m for m in materials.MATERIALS.values() for n in m.list_options}     # (-ogden_mu: ogden's)
+    for name, owner in owners.items():
+        if opts.has(name) and all(sol.material is not owner for _, sol in solids):
+            mats = ", ".join(dict.fromkeys(m.name for m in s.materials()))
+            raise UserError(f"option -{name}: a list of {owner.name}'s constants, not of this scene's {mats}")
+        for prefix, sol in solids[1:]:
+            if opts.has(prefix + name) and sol.material is not owner:
+                raise UserError(f"option -{prefix}{name}: a list of {owner.name}'s constants, not of region "
+                                f"'{prefix[:-1]}''s {sol.material.name}")
     for name, param in materials.own_parameters().items():
         if opts.has(name) and name not in used:
             mats = ", ".join(dict.fromkeys(m.name for m in s.materials()))
