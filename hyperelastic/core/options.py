@@ -156,6 +156,20 @@ class Options:
             raise UserError(f"option -{name}: '{s}' has a value beyond {MAX_MAGNITUDE:g} in magnitude")
         return vals
 
+    def numbers(self, name, most, example):
+        """A list of 1 to `most` finite numbers, comma-separated (-prony_tau 0.2,1, -ogden_mu 0.63e6,1.2e3), as a
+        tuple; None where the option is not given."""
+        text = self.string(name, None)
+        if text is None:
+            return None
+        try:
+            vals = [float(w) for w in text.split(",")]
+        except ValueError:
+            raise UserError(f"option -{name}: '{text[:60]}' is not a list of numbers (e.g. {example})") from None
+        if not vals or len(vals) > most or not all(math.isfinite(v) for v in vals):
+            raise UserError(f"option -{name}: '{text[:60]}' must be 1 to {most} finite numbers")
+        return tuple(vals)
+
     def names(self, name, default=""):
         s = self.string(name, default)
         if not s:

@@ -384,6 +384,19 @@ HE_INLINE void fh_products(const double *H, double G[HE_MAXN][3], int nn, double
   }
 }
 
+/* A cell's products s (fh_products over its points) into the diagonal d at its nodes c and into its block K
+ * (3nn x 3nn): delta_ik s[a][b] at (3a+i, 3b+k) (d NULL or K NULL: not that one). */
+HE_INLINE void fh_add(double s[HE_MAXN][HE_MAXN], const idx_t *c, int nn, double *d, double *K) {
+  const int n3 = 3 * nn;
+  for (int a = 0; a < nn; a++) {
+    if (d)
+      for (int i = 0; i < 3; i++) d[3 * (int64_t)c[a] + i] += s[a][a];
+    if (K)
+      for (int b = 0; b < nn; b++)
+        for (int i = 0; i < 3; i++) K[n3 * (3 * a + i) + 3 * b + i] += s[a][b];
+  }
+}
+
 /* d += the diagonal of the F H term's tangent; vals (nc, 3nn, 3nn) += its blocks (diag NULL or vals NULL: not
  * that one). */
 void he_fh_tangent(int64_t nc, const idx_t *cells, const double *Dminv, const double *vol, const double *H,
@@ -392,13 +405,7 @@ void he_fh_tangent(int64_t nc, const idx_t *cells, const double *Dminv, const do
     double G[HE_MAXN][3], s[HE_MAXN][HE_MAXN] = {{0}};
     gradN(Dminv + 9 * e, (double(*)[3])G);
     fh_products(H + 9 * e, G, 4, vol[e], s);
-    for (int a = 0; a < 4; a++) {
-      if (d)
-        for (int i = 0; i < 3; i++) d[3 * (int64_t)cells[4 * e + a] + i] += s[a][a];
-      if (vals)
-        for (int b = 0; b < 4; b++)
-          for (int i = 0; i < 3; i++) vals[144 * e + 12 * (3 * a + i) + 3 * b + i] += s[a][b];
-    }
+    fh_add(s, cells + 4 * e, 4, d, vals ? vals + 144 * e : NULL);
   }
 }
 
@@ -438,13 +445,7 @@ void he_efh_tangent(int64_t nc, int nn, int nq, const idx_t *cells, const double
       e_grads(g, dN + 3 * nn * q, nn, G);
       fh_products(H + 9 * ((int64_t)nq * e + q), G, nn, g[9], s);
     }
-    for (int a = 0; a < nn; a++) {
-      if (d)
-        for (int i = 0; i < 3; i++) d[3 * (int64_t)cells[(int64_t)nn * e + a] + i] += s[a][a];
-      if (vals)
-        for (int b = 0; b < nn; b++)
-          for (int i = 0; i < 3; i++) vals[(int64_t)n3 * n3 * e + n3 * (3 * a + i) + 3 * b + i] += s[a][b];
-    }
+    fh_add(s, cells + (int64_t)nn * e, nn, d, vals ? vals + (int64_t)n3 * n3 * e : NULL);
   }
 }
 

@@ -559,8 +559,10 @@ class RegionKernels:
     def part(self, lo, hi):
         """The same kernels on cells lo..hi-1 (cached)."""
         if (lo, hi) not in self._parts:
-            sub = [(idx[(idx >= lo) & (idx < hi)] - lo, m,
-                    c[(idx >= lo) & (idx < hi)] if isinstance(c, np.ndarray) else c) for idx, m, c in self.spec]
+            sub = []
+            for idx, m, c in self.spec:
+                inside = (idx >= lo) & (idx < hi)
+                sub.append((idx[inside] - lo, m, c[inside] if isinstance(c, np.ndarray) else c))
             self._parts[(lo, hi)] = RegionKernels(self.geometry.part(lo, hi), sub)
             self._parts[(lo, hi)].scale_moduli(self.scale)
         return self._parts[(lo, hi)]

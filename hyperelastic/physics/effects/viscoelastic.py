@@ -15,7 +15,6 @@ order:
 a restart continues on any rank count. On quadratic tetrahedra the Q_i live at each quadrature point of the stiffness
 rule. With -regions, the regions of a material with a split (a region of another material, a steel insert, takes no
 part)."""
-import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -79,8 +78,8 @@ class Viscoelastic(Effect):
 
     def _advanced(self, x, dt):
         """(Q, S_iso, C, the viscous work) at the end of a step of dt from the committed state to positions x. The
-        statistics ask for it after a step, then accept_step at the same state: the last one is kept (memo: its
-        material stresses are a numpy evaluation of every cell's)."""
+        statistics ask for it after a step, then accept_step at the same state: the last one is kept (memo: a pass of
+        the isochoric kernels over every cell and numpy products of mesh-sized arrays)."""
         if self.memo is not None and self.memo[0] == dt and np.array_equal(self.memo[1], x):
             return self.memo[2]
         F = self._F(x)
@@ -118,9 +117,6 @@ class Viscoelastic(Effect):
     @timed("evals")
     def residual(self, x, r):
         self.geometry.fh_forces(self.H, x, r)
-
-    def linearize(self, x):
-        self.x = x.copy()
 
     @timed("applies")
     def apply(self, v, y):
@@ -191,17 +187,11 @@ class Prony:
 
 def _read(opts, where):
     def reals(name):
-        text = opts.string(name, None)
-        if text is None:
+        vals = opts.numbers(name, MAX_TERMS, "0.3,0.1")
+        if vals is None:
             raise UserError(f"{where}: the viscoelastic effect needs -prony_beta and -prony_tau (lists of the same "
                             "length: each term's relative modulus and relaxation time)")
-        try:
-            vals = [float(w) for w in text.split(",")]
-        except ValueError:
-            raise UserError(f"option -{name}: '{text[:60]}' is not a list of numbers (e.g. 0.3,0.1)") from None
-        if not vals or len(vals) > MAX_TERMS or not all(math.isfinite(v) for v in vals):
-            raise UserError(f"option -{name}: '{text[:60]}' must be 1 to {MAX_TERMS} finite numbers")
-        return tuple(vals)
+        return vals
     beta, tau = reals("prony_beta"), reals("prony_tau")
     if len(beta) != len(tau):
         raise UserError(f"options -prony_beta and -prony_tau: {len(beta)} and {len(tau)} terms (give each term both)")

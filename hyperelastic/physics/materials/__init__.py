@@ -234,15 +234,9 @@ def _lists(opts, prefix, mat):
     out = {}
     for name, params in mat.list_options.items():
         key = f"{prefix}{name}" if opts.has(f"{prefix}{name}") or not opts.has(name) else name
-        text = opts.string(key, None)
-        if text is None:
+        vals = opts.numbers(key, len(params), "0.63e6,0.0012e6,-0.01e6")
+        if vals is None:
             continue
-        try:
-            vals = [float(t) for t in text.replace(";", ",").split(",")]
-        except ValueError:
-            raise UserError(f"option -{key}: '{text[:60]}' is not a list of numbers") from None
-        if not 1 <= len(vals) <= len(params) or not all(math.isfinite(v) for v in vals):
-            raise UserError(f"option -{key}: '{text[:60]}' must be 1 to {len(params)} finite numbers")
         both = [p for p in params[:len(vals)] if opts.has(f"{prefix}{p}")]
         if both:
             raise UserError(f"option -{key} gives {both[0]}, and so does -{prefix}{both[0]}: give the terms one way")
