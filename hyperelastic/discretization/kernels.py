@@ -415,7 +415,10 @@ class Cells:
 def _scale_moduli(k, s):
     """CellKernels/ElementKernels.scale_moduli: the force, K v, tangent and its diagonal take the material's
     isochoric moduli (Material.moduli) times s from now on (the viscoelastic effect's 1 + g over a step); the energy
-    and the output's fields keep the material's own. s = 1: the material's."""
+    and the output's fields keep the material's own. s = 1: the material's. (The same s as now: nothing to redo; a
+    run of equal steps sets it once.)"""
+    if float(s) == k.scale:
+        return
     k.scale = float(s)
     if k.scale == 1.0:
         k._prm_k = k._prm
@@ -569,6 +572,8 @@ class RegionKernels:
 
     def scale_moduli(self, s):
         """Each part's (CellKernels.scale_moduli)."""
+        if float(s) == self.scale:
+            return
         self.scale = float(s)
         for _, k in self.parts:
             k.scale_moduli(s)
